@@ -1,0 +1,1 @@
+"""Astrodynamics core: constants, time, frames, elements, atmosphere, propagation."""

@@ -1,0 +1,53 @@
+"""The Earth model (gravitational parameter, radius, J2, rotation rate, g0).
+
+The figures live in ``configs/earth.yaml``; this module only gives them a type.
+Core functions take the numbers they need as plain floats (``mu``, ``radius``...)
+so that a problem stated with another Earth (seed 001 uses its own constants)
+only has to pass a different :class:`EarthModel`.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field
+
+from ovtraj.paths import config_path
+
+
+class EarthModel(BaseModel):
+    """Earth constants in SI units."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    mu_m3_s2: float = Field(gt=0, description="gravitational parameter [m^3/s^2]")
+    equatorial_radius_m: float = Field(gt=0, description="equatorial (spherical) radius [m]")
+    j2: float = Field(ge=0, lt=0.01, description="second zonal harmonic [-]")
+    rotation_rate_rad_s: float = Field(ge=0, description="sidereal rotation rate [rad/s]")
+    g0_m_s2: float = Field(gt=0, description="standard gravity [m/s^2]")
+
+    @property
+    def mu(self) -> float:
+        return self.mu_m3_s2
+
+    @property
+    def radius(self) -> float:
+        return self.equatorial_radius_m
+
+    @property
+    def omega(self) -> float:
+        return self.rotation_rate_rad_s
+
+
+def load_earth(path: str | Path) -> EarthModel:
+    """Read an Earth model from a YAML file."""
+    with open(path, encoding="utf-8") as fh:
+        return EarthModel.model_validate(yaml.safe_load(fh))
+
+
+@lru_cache(maxsize=1)
+def default_earth() -> EarthModel:
+    """The project's Earth model, ``configs/earth.yaml``."""
+    return load_earth(config_path("earth.yaml"))

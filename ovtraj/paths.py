@@ -1,0 +1,25 @@
+"""Where the project's configuration files live.
+
+The library reads its figures (Earth model, atmosphere tables, vehicle data) from
+``configs/`` at the repository root. ``OVTRAJ_CONFIG_DIR`` overrides the location.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def config_dir() -> Path:
+    """Directory holding the YAML configuration files."""
+    return Path(os.environ.get("OVTRAJ_CONFIG_DIR", REPO_ROOT / "configs"))
+
+
+def config_path(name: str) -> Path:
+    """Path of a file inside the configuration directory; raises if it is missing."""
+    path = config_dir() / name
+    if not path.is_file():
+        raise FileNotFoundError(f"configuration file not found: {path}")
+    return path
