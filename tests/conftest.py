@@ -1,0 +1,41 @@
+"""Shared fixtures: the project's Earth model and the default scenario."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.config import Scenario, load_scenario, scenario_from_dict
+
+# Prefect must never try to reach the network from the test suite.
+os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
+
+
+@pytest.fixture(scope="session")
+def earth() -> EarthModel:
+    return default_earth()
+
+
+@pytest.fixture(scope="session")
+def scenario() -> Scenario:
+    return load_scenario(DEFAULT_SCENARIO)
+
+
+@pytest.fixture
+def scenario_data() -> dict[str, Any]:
+    """The default scenario as a fresh mutable mapping."""
+    with open(DEFAULT_SCENARIO, encoding="utf-8") as fh:
+        return copy.deepcopy(yaml.safe_load(fh))
+
+
+def build_scenario(data: dict[str, Any]) -> Scenario:
+    return scenario_from_dict(data, "test")
