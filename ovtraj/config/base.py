@@ -1,0 +1,122 @@
+"""Strict pydantic base model and readable configuration errors.
+
+Every bounded field declares its allowed range once (``bounded``); a rejected
+value is reported as ``target.orbit.eccentricity = 1.2: out of range, allowed
+[0, 1)`` rather than as pydantic's generic text.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic.fields import FieldInfo
+
+
+class StrictModel(BaseModel):
+    """Unknown keys are errors; values are checked on assignment too."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=True)
+
+
+def _interval(ge: float | None, gt: float | None, le: float | None, lt: float | None) -> str:
+    left = f"[{_fmt(ge)}" if ge is not None else (f"({_fmt(gt)}" if gt is not None else "(-inf")
+    right = f"{_fmt(le)}]" if le is not None else (f"{_fmt(lt)})" if lt is not None else "inf)")
+    return f"{left}, {right}"
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def bounded(
+    *,
+    unit: str = "",
+    ge: float | None = None,
+    gt: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    description: str = "",
+    **kwargs: Any,
+) -> Any:
+    """A pydantic ``Field`` with numeric bounds and a human-readable allowed range."""
+    allowed = _interval(ge, gt, le, lt) + (f" {unit}" if unit else "")
+    return Field(
+        ge=ge,
+        gt=gt,
+        le=le,
+        lt=lt,
+        allow_inf_nan=False,
+        description=description,
+        json_schema_extra={"allowed": allowed},
+        **kwargs,
+    )
+
+
+class ConfigError(ValueError):
+    """A configuration that cannot be used, with one line per offending field."""
+
+    def __init__(self, problems: list[str], source: str = "") -> None:
+        self.problems = problems
+        self.source = source
+        head = f"invalid configuration{f' in {source}' if source else ''}:"
+        super().__init__("\n".join([head, *(f"  - {p}" for p in problems)]))
+
+
+def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[FieldInfo | None, list]:
+    """Follow an error location through nested models to the field it names."""
+    info: FieldInfo | None = None
+    current: Any = model
+    for part in loc:
+        if not (isinstance(current, type) and issubclass(current, BaseModel)):
+            return None, []
+        info = current.model_fields.get(str(part))
+        if info is None:
+            return None, sorted(current.model_fields)
+        current = info.annotation
+    return info, []
+
+
+def _allowed(info: FieldInfo | None) -> str | None:
+    extra = info.json_schema_extra if info is not None else None
+    return extra.get("allowed") if isinstance(extra, dict) else None
+
+
+def format_validation_error(err: ValidationError, model: type[BaseModel]) -> list[str]:
+    """Turn pydantic's errors into one readable line each."""
+    lines = []
+    for item in err.errors():
+        loc = tuple(item["loc"])
+        path = ".".join(str(p) for p in loc) or "<root>"
+        kind = item["type"]
+        value = item.get("input")
+        if kind == "extra_forbidden":
+            parent_info, siblings = _field_info(model, loc[:-1]) if len(loc) > 1 else (None, [])
+            parent = parent_info.annotation if parent_info is not None else model
+            if isinstance(parent, type) and issubclass(parent, BaseModel):
+                siblings = sorted(parent.model_fields)
+            lines.append(f"{path}: unknown key (allowed keys: {', '.join(siblings)})")
+            continue
+        if kind == "missing":
+            lines.append(f"{path}: required key is missing")
+            continue
+        info, _ = _field_info(model, loc)
+        allowed = _allowed(info)
+        if allowed and kind in {
+            "greater_than",
+            "greater_than_equal",
+            "less_than",
+            "less_than_equal",
+            "finite_number",
+        }:
+            lines.append(f"{path} = {value!r}: out of range, allowed {allowed}")
+            continue
+        msg = item["msg"].removeprefix("Value error, ")
+        suffix = f" (allowed {allowed})" if allowed else ""
+        if not loc:
+            lines.append(msg)
+        elif value is None or isinstance(value, dict):
+            lines.append(f"{path}: {msg}")
+        else:
+            lines.append(f"{path} = {value!r}: {msg}{suffix}")
+    return lines

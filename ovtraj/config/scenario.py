@@ -1,0 +1,193 @@
+"""The scenario: epoch, target orbit, vehicle, limits, tolerances and stage settings.
+
+Units are part of every key name (``_km``, ``_deg``, ``_s``, ``_mps``...);
+conversion to SI happens once, in the properties and helpers of these models.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import Field, ValidationError, field_validator, model_validator
+
+from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.astro.epoch import Epoch
+from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+
+ElementSet = Literal["osculating", "mean"]
+
+
+class OrbitElementsConfig(StrictModel):
+    """Classical elements at the scenario epoch; ``mean`` means first-order J2 (Brouwer) mean."""
+
+    element_set: ElementSet = "osculating"
+    semi_major_axis_km: float = bounded(unit="km", gt=0)
+    eccentricity: float = bounded(ge=0, lt=1)
+    inclination_deg: float = bounded(unit="deg", ge=0, le=180)
+    raan_deg: float = bounded(unit="deg", ge=-360, le=360)
+    arg_perigee_deg: float = bounded(unit="deg", ge=-360, le=360)
+    true_anomaly_deg: float = bounded(unit="deg", ge=-360, le=360)
+
+    def perigee_altitude_km(self, radius_m: float) -> float:
+        return self.semi_major_axis_km * (1.0 - self.eccentricity) - radius_m / 1e3
+
+
+class TargetConfig(StrictModel):
+    name: str
+    orbit: OrbitElementsConfig
+
+
+class ParkingOrbitConfig(StrictModel):
+    """The OV's near-circular parking orbit at the epoch, placed relative to the target's plane.
+
+    Mean elements (first-order J2) with zero mean eccentricity are the natural
+    definition of a circular orbit under J2; the offsets let a scenario start the
+    OV out of the target's plane.
+    """
+
+    element_set: ElementSet = "mean"
+    altitude_km: float = bounded(unit="km", gt=0)
+    arg_latitude_deg: float = bounded(unit="deg", ge=-360, le=360)
+    inclination_offset_deg: float = bounded(unit="deg", ge=-180, le=180, default=0.0)
+    raan_offset_deg: float = bounded(unit="deg", ge=-360, le=360, default=0.0)
+
+
+class VehicleConfig(StrictModel):
+    """The orbital vehicle (OV) as the orbital stages see it."""
+
+    name: str
+    mass_kg: float = bounded(unit="kg", gt=0, description="wet mass at the start of the scenario")
+    dry_mass_kg: float = bounded(unit="kg", gt=0)
+    thrust_n: float = bounded(unit="N", gt=0)
+    isp_s: float = bounded(unit="s", gt=0)
+    max_impulse_mps: float = bounded(unit="m/s", gt=0, description="largest single impulse")
+
+    @model_validator(mode="after")
+    def _dry_not_above_wet(self) -> VehicleConfig:
+        if self.dry_mass_kg > self.mass_kg:
+            raise ValueError(
+                f"dry_mass_kg ({self.dry_mass_kg:g}) must not exceed mass_kg ({self.mass_kg:g})"
+            )
+        return self
+
+
+class LimitsConfig(StrictModel):
+    min_perigee_altitude_km: float = bounded(unit="km", ge=0)
+
+
+class TolerancesConfig(StrictModel):
+    integrator: float = bounded(gt=0, lt=1e-3, description="Taylor integrator tolerance")
+    miss_distance_m: float = bounded(unit="m", gt=0, description="epsilon_dis of patent step 102")
+
+
+class RendezvousSettings(StrictModel):
+    """Settings of the modified-Hohmann rendezvous stage (patent step 102)."""
+
+    max_wait_time_s: float = bounded(unit="s", ge=0)
+    max_plane_difference_deg: float = bounded(unit="deg", ge=0, le=90)
+    max_eccentricity: float = bounded(ge=0, lt=1)
+    transfer_time_bounds: tuple[float, float] = Field(
+        description="bounds of the corrected transfer time as fractions of the Hohmann time"
+    )
+    burn_epoch_window_s: float = bounded(unit="s", ge=0)
+    start_transfer_fractions: tuple[float, ...] = Field(
+        min_length=1, description="transfer times (fractions of Hohmann) tried for the start"
+    )
+    max_iterations: int = bounded(ge=1, le=100000)
+    optimality_tol: float = bounded(gt=0, lt=1, description="trust-constr gtol, scaled problem")
+    initial_barrier_parameter: float = bounded(gt=0, lt=1)
+    initial_trust_radius: float = bounded(gt=0, description="trust-constr, scaled variables")
+    trajectory_step_s: float = bounded(unit="s", gt=0)
+
+    @field_validator("transfer_time_bounds")
+    @classmethod
+    def _ordered_fractions(cls, value: tuple[float, float]) -> tuple[float, float]:
+        lo, hi = value
+        if not 0.0 < lo < 1.0 < hi:
+            raise ValueError(f"needs 0 < lower < 1 < upper, got [{lo:g}, {hi:g}]")
+        return value
+
+    @model_validator(mode="after")
+    def _starts_inside_bounds(self) -> RendezvousSettings:
+        lo, hi = self.transfer_time_bounds
+        outside = [f for f in self.start_transfer_fractions if not lo <= f <= hi]
+        if outside:
+            raise ValueError(
+                f"start_transfer_fractions {outside} lie outside transfer_time_bounds "
+                f"[{lo:g}, {hi:g}]"
+            )
+        return self
+
+
+class Scenario(StrictModel):
+    """A complete scenario; the file is the whole truth (no hidden defaults)."""
+
+    name: str
+    epoch_utc: str
+    earth: EarthModel = Field(default_factory=default_earth)
+    target: TargetConfig
+    vehicle: VehicleConfig
+    parking_orbit: ParkingOrbitConfig
+    limits: LimitsConfig
+    tolerances: TolerancesConfig
+    rendezvous: RendezvousSettings
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _parses_as_utc(cls, value: str) -> str:
+        Epoch.from_iso(value)  # raises ValueError naming the text
+        return value
+
+    @model_validator(mode="after")
+    def _perigees_above_minimum(self) -> Scenario:
+        floor = self.limits.min_perigee_altitude_km
+        radius = self.earth.equatorial_radius_m
+        problems = []
+        perigee = self.target.orbit.perigee_altitude_km(radius)
+        if perigee < floor:
+            problems.append(f"target.orbit: perigee altitude {perigee:.1f} km")
+        if self.parking_orbit.altitude_km < floor:
+            problems.append(f"parking_orbit.altitude_km: {self.parking_orbit.altitude_km:g} km")
+        if problems:
+            raise ValueError(
+                "; ".join(problems)
+                + f" below the minimum perigee altitude (allowed >= {floor:g} km,"
+                " limits.min_perigee_altitude_km)"
+            )
+        return self
+
+    @property
+    def epoch(self) -> Epoch:
+        return Epoch.from_iso(self.epoch_utc)
+
+    def resolved(self) -> dict[str, Any]:
+        """The scenario with every default filled in, as plain data (for run stores)."""
+        return self.model_dump(mode="json")
+
+
+def scenario_from_dict(data: Any, source: str = "") -> Scenario:
+    """Validate a mapping into a :class:`Scenario`, raising :class:`ConfigError`."""
+    if not isinstance(data, dict):
+        raise ConfigError(
+            [f"expected a mapping at the top level, got {type(data).__name__}"], source
+        )
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(format_validation_error(err, Scenario), source) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario YAML file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
+    return scenario_from_dict(data, str(path))
