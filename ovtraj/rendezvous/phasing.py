@@ -1,0 +1,67 @@
+"""Phase angle between two near-coplanar orbits and the wait before the first burn."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from ovtraj.astro.constants import EarthModel
+from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.j2_elements import secular_rates
+from ovtraj.rendezvous.hohmann import wrap_angle
+
+
+def phase_angle(chaser_state: np.ndarray, target_position: np.ndarray) -> float:
+    """Angle [rad, (-pi, pi]] from the chaser to the target, positive along the motion.
+
+    Measured about the chaser's angular momentum, so the target's small
+    out-of-plane offset does not enter.
+    """
+    r, v = chaser_state[:3], chaser_state[3:6]
+    h = np.cross(r, v)
+    h_hat = h / np.linalg.norm(h)
+    return math.atan2(float(h_hat @ np.cross(r, target_position)), float(r @ target_position))
+
+
+def plane_difference(state_a: np.ndarray, state_b: np.ndarray) -> float:
+    """Angle [rad] between the orbital planes (angular momentum directions)."""
+    ha = np.cross(state_a[:3], state_a[3:6])
+    hb = np.cross(state_b[:3], state_b[3:6])
+    c = float(ha @ hb / (np.linalg.norm(ha) * np.linalg.norm(hb)))
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def mean_argument_of_latitude_rate(mean: NonsingularElements, earth: EarthModel) -> float:
+    """Secular rate [rad/s] of the mean argument of latitude, d(M + argp)/dt, under J2."""
+    e = math.hypot(float(mean.ex), float(mean.ey))
+    _, argp_dot, m_dot = secular_rates(
+        float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
+    )
+    return float(argp_dot + m_dot)
+
+
+def first_wait(phase0: float, lead: float, relative_rate: float) -> float:
+    """Smallest t >= 0 with phase0 - relative_rate * t = lead (mod 2 pi).
+
+    ``relative_rate`` is the chaser's angular rate minus the target's [rad/s];
+    the target's lead over the chaser decreases at that rate.
+    """
+    gap = (phase0 - lead) if relative_rate > 0 else (lead - phase0)
+    return (gap % (2.0 * math.pi)) / abs(relative_rate)
+
+
+def refine_wait(
+    wait_s: float,
+    lead: float,
+    relative_rate: float,
+    phase_at: Callable[[float], float],
+    *,
+    iterations: int,
+) -> float:
+    """Newton steps on the propagated phase: phase(t) = lead, slope -relative_rate."""
+    for _ in range(iterations):
+        error = wrap_angle(phase_at(wait_s) - lead)
+        wait_s = max(0.0, wait_s + error / relative_rate)
+    return wait_s

@@ -1,0 +1,351 @@
+"""The rendezvous stage: modified Hohmann transfer under J2 (patent step 102).
+
+1. Two-body Hohmann between the mean radii: first impulse, transfer time, lead angle.
+2. Phasing: the chaser waits in its parking orbit until the target leads it by
+   the lead angle (J2 secular rates for the estimate, then Newton steps on the
+   propagated phase).
+3. Interior-point correction of the first impulse, the transfer time and the
+   burn epoch under J2 until the arrival miss is below epsilon_dis
+   (:mod:`ovtraj.rendezvous.correction`).
+4. Second impulse v_target - v_chaser at arrival; the actual lead angle is the
+   phase at the corrected burn epoch.
+
+:func:`circular_transfer` reuses the same machinery for a transfer to a circular
+orbit with no target: a virtual target on the mean-circular destination orbit is
+placed where the Hohmann arc arrives, so the result is a J2-consistent circular
+orbit (used for the transfer to the deorbit preparation orbit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.frames import eci_to_rsw
+from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
+from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
+from ovtraj.rendezvous.correction import CorrectionProblem, CorrectionResult, correct_transfer
+from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle
+from ovtraj.rendezvous.phasing import (
+    first_wait,
+    mean_argument_of_latitude_rate,
+    phase_angle,
+    plane_difference,
+    refine_wait,
+)
+from ovtraj.rendezvous.result import (
+    Impulse,
+    RendezvousInput,
+    RendezvousResult,
+    TransferInput,
+    TransferKind,
+)
+
+# Newton steps on the propagated phase; the J2 secular estimate is within a
+# fraction of a degree, and each step gains several digits.
+_PHASING_NEWTON_STEPS = 3
+
+
+class Infeasible(Exception):
+    """Raised inside the stage to stop early with a reason; never escapes it."""
+
+
+@dataclass(frozen=True)
+class _Plan:
+    hohmann: HohmannTransfer
+    lead_two_body: float
+    burn_time_s: float
+    chaser_coast: PropagationResult
+    target_coast: PropagationResult
+    burn_window_s: float
+    plane_difference: float
+
+
+def _propagator(inp: RendezvousInput | TransferInput) -> OrbitPropagator:
+    return OrbitPropagator(inp.earth, tol=inp.integrator_tol, earth_angle0_rad=inp.epoch.gmst_rad())
+
+
+def _check_state(name: str, state: np.ndarray, radius: float) -> np.ndarray:
+    state = np.asarray(state, dtype=float).reshape(-1)
+    if state.shape != (6,) or not np.all(np.isfinite(state)):
+        raise ValueError(f"{name} must be a finite ECI state of 6 numbers (m, m/s)")
+    if np.linalg.norm(state[:3]) <= radius:
+        raise ValueError(f"{name} lies inside the Earth (|r| <= {radius:.0f} m)")
+    return state
+
+
+def _mean(state: np.ndarray, inp: RendezvousInput | TransferInput) -> NonsingularElements:
+    e = inp.earth
+    return state_to_mean(state[:3], state[3:], mu=e.mu, radius=e.radius, j2=e.j2)
+
+
+def _check_circular(who: str, mean: NonsingularElements, limit: float) -> None:
+    e = math.hypot(float(mean.ex), float(mean.ey))
+    if e > limit:
+        raise Infeasible(
+            f"{who} orbit is not near-circular: mean eccentricity {e:.4g} exceeds "
+            f"{limit:g} (rendezvous.max_eccentricity); a Hohmann transfer assumes circular orbits"
+        )
+
+
+def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
+    s, earth = inp.settings, inp.earth
+    chaser0 = _check_state("chaser_state", inp.chaser_state, earth.radius)
+    target0 = _check_state("target_state", inp.target_state, earth.radius)
+    mean_c, mean_t = _mean(chaser0, inp), _mean(target0, inp)
+    _check_circular("chaser", mean_c, s.max_eccentricity)
+    _check_circular("target", mean_t, s.max_eccentricity)
+    _check_planes(plane_difference(chaser0, target0), s.max_plane_difference_deg, "at the start")
+
+    transfer = hohmann(float(mean_c.a), float(mean_t.a), earth.mu)
+    rate_c = mean_argument_of_latitude_rate(mean_c, earth)
+    rate_t = mean_argument_of_latitude_rate(mean_t, earth)
+    relative_rate = rate_c - rate_t
+    lead_j2 = lead_angle(transfer, rate_t)
+    phase0 = phase_angle(chaser0, target0[:3])
+    if relative_rate == 0.0:
+        raise Infeasible("chaser and target have the same period: the phase never changes")
+    wait = first_wait(phase0, lead_j2, relative_rate)
+    if wait > s.max_wait_time_s + s.burn_epoch_window_s:
+        raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
+
+    lo, hi = s.transfer_time_bounds
+    horizon = inp.t0_s + wait + s.burn_epoch_window_s
+    margin = transfer.transfer_time_s * (1.0 - lo)  # room for Newton steps on the wait
+    chaser_coast = prop.propagate(chaser0, inp.t0_s, horizon + margin, dense=True)
+    target_coast = prop.propagate(
+        target0, inp.t0_s, horizon + margin + hi * transfer.transfer_time_s, dense=True
+    )
+    for name, coast in (("chaser", chaser_coast), ("target", target_coast)):
+        if not coast.ok:
+            raise Infeasible(f"{name} coast propagation failed: {coast.message}")
+
+    def phase_at(wait_s: float) -> float:
+        t = inp.t0_s + min(wait_s, horizon + margin - inp.t0_s)
+        return phase_angle(chaser_coast.dense(t), target_coast.dense(t)[:3])
+
+    wait = refine_wait(wait, lead_j2, relative_rate, phase_at, iterations=_PHASING_NEWTON_STEPS)
+    if wait > s.max_wait_time_s:
+        raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
+    burn_time = inp.t0_s + wait
+    planes = plane_difference(chaser_coast.dense(burn_time), target_coast.dense(burn_time))
+    _check_planes(planes, s.max_plane_difference_deg, "at the first burn")
+    # Keep the corrected burn epoch inside the propagated coast and after t0.
+    window = min(s.burn_epoch_window_s, wait)
+    return _Plan(
+        transfer,
+        lead_angle(transfer, math.sqrt(earth.mu / transfer.r2_m**3)),
+        burn_time,
+        chaser_coast,
+        target_coast,
+        window,
+        planes,
+    )
+
+
+def _plan_transfer(inp: TransferInput, prop: OrbitPropagator) -> _Plan:
+    s, earth = inp.settings, inp.earth
+    chaser0 = _check_state("chaser_state", inp.chaser_state, earth.radius)
+    if not inp.target_altitude_m > 0:
+        raise ValueError(f"target_altitude_m must be > 0, got {inp.target_altitude_m}")
+    burn_time = inp.t0_s if inp.burn_time_s is None else float(inp.burn_time_s)
+    if burn_time < inp.t0_s:
+        raise ValueError(f"burn_time_s ({burn_time}) must not precede t0_s ({inp.t0_s})")
+    chaser_coast = prop.propagate(chaser0, inp.t0_s, burn_time, dense=True)
+    if not chaser_coast.ok:
+        raise Infeasible(f"chaser coast propagation failed: {chaser_coast.message}")
+    chaser_b = chaser_coast.state
+    mean_c = _mean(chaser_b, inp)
+    _check_circular("chaser", mean_c, s.max_eccentricity)
+
+    transfer = hohmann(float(mean_c.a), earth.radius + inp.target_altitude_m, earth.mu)
+    destination = NonsingularElements(
+        a=transfer.r2_m, ex=0.0, ey=0.0, i=float(mean_c.i), raan=float(mean_c.raan), u=0.0
+    )
+    lead_j2 = lead_angle(transfer, mean_argument_of_latitude_rate(destination, earth))
+    r_v, v_v = mean_to_state(
+        NonsingularElements(
+            a=transfer.r2_m,
+            ex=0.0,
+            ey=0.0,
+            i=float(mean_c.i),
+            raan=float(mean_c.raan),
+            u=float(mean_c.u) + lead_j2,
+        ),
+        mu=earth.mu,
+        radius=earth.radius,
+        j2=earth.j2,
+    )
+    hi = s.transfer_time_bounds[1]
+    target_coast = prop.propagate(
+        np.r_[r_v, v_v], burn_time, burn_time + hi * transfer.transfer_time_s, dense=True
+    )
+    if not target_coast.ok:
+        raise Infeasible(f"destination orbit propagation failed: {target_coast.message}")
+    return _Plan(
+        transfer,
+        lead_angle(transfer, math.sqrt(earth.mu / transfer.r2_m**3)),
+        burn_time,
+        chaser_coast,
+        target_coast,
+        0.0,
+        0.0,
+    )
+
+
+def _check_planes(angle: float, limit_deg: float, when: str) -> None:
+    if angle > math.radians(limit_deg):
+        raise Infeasible(
+            f"plane difference {math.degrees(angle):.3f} deg {when} exceeds "
+            f"{limit_deg:g} deg (rendezvous.max_plane_difference_deg): this coplanar stage "
+            "does not perform plane changes"
+        )
+
+
+def _wait_reason(wait: float, limit: float) -> str:
+    return (
+        f"phasing needs a wait of {wait:.0f} s, more than rendezvous.max_wait_time_s "
+        f"({limit:.0f} s)"
+    )
+
+
+def _solve(
+    inp: RendezvousInput | TransferInput, prop: OrbitPropagator
+) -> tuple[_Plan, CorrectionResult]:
+    plan = (
+        _plan_rendezvous(inp, prop)
+        if isinstance(inp, RendezvousInput)
+        else _plan_transfer(inp, prop)
+    )
+    chaser_b = plan.chaser_coast.dense(plan.burn_time_s)
+    direction = chaser_b[3:] / np.linalg.norm(chaser_b[3:])
+    correction = correct_transfer(
+        CorrectionProblem(
+            propagator=prop,
+            chaser_coast=plan.chaser_coast,
+            target_coast=plan.target_coast,
+            burn_time_s=plan.burn_time_s,
+            hohmann_time_s=plan.hohmann.transfer_time_s,
+            dv_guess_eci=plan.hohmann.dv1_mps * direction,
+            miss_tolerance_m=inp.miss_tolerance_m,
+            transfer_time_bounds=inp.settings.transfer_time_bounds,
+            start_fractions=inp.settings.start_transfer_fractions,
+            burn_window_s=plan.burn_window_s,
+            max_iterations=inp.settings.max_iterations,
+            optimality_tol=inp.settings.optimality_tol,
+            initial_barrier_parameter=inp.settings.initial_barrier_parameter,
+            initial_trust_radius=inp.settings.initial_trust_radius,
+        )
+    )
+    return plan, correction
+
+
+def _result(
+    kind: TransferKind,
+    inp: RendezvousInput | TransferInput,
+    prop: OrbitPropagator,
+    plan: _Plan,
+    c: CorrectionResult,
+) -> RendezvousResult:
+    burn1 = Impulse(
+        c.burn_time_s, c.dv1_eci, eci_to_rsw(c.dv1_eci, c.chaser_at_burn[:3], c.chaser_at_burn[3:])
+    )
+    arrival = c.burn_time_s + c.transfer_time_s
+    burn2 = Impulse(
+        arrival,
+        c.dv2_eci,
+        eci_to_rsw(c.dv2_eci, c.chaser_at_arrival[:3], c.chaser_at_arrival[3:]),
+    )
+    reasons = []
+    if not c.converged:
+        reasons.append(
+            f"J2 correction did not converge: miss {c.miss_distance_m:.3g} m > "
+            f"epsilon_dis {inp.miss_tolerance_m:g} m after {c.iterations} iterations "
+            f"({c.message})"
+        )
+    for name, burn in (("first", burn1), ("second", burn2)):
+        if burn.magnitude_mps > inp.max_impulse_mps:
+            reasons.append(
+                f"{name} impulse {burn.magnitude_mps:.1f} m/s exceeds the OV's maximum "
+                f"{inp.max_impulse_mps:g} m/s (vehicle.max_impulse_mps)"
+            )
+    lead = phase_angle(c.chaser_at_burn, plan.target_coast.dense(c.burn_time_s)[:3])
+    final_state = c.chaser_at_arrival + np.r_[0.0, 0.0, 0.0, c.dv2_eci]
+    transfer_arc = prop.propagate(
+        c.chaser_at_burn + np.r_[0.0, 0.0, 0.0, c.dv1_eci], c.burn_time_s, arrival, dense=True
+    )
+    return RendezvousResult(
+        kind=kind,
+        feasible=not reasons,
+        reason="; ".join(reasons),
+        epoch=inp.epoch,
+        t0_s=inp.t0_s,
+        wait_time_s=c.burn_time_s - inp.t0_s,
+        burn1=burn1,
+        burn2=burn2,
+        transfer_time_s=c.transfer_time_s,
+        transfer_time_two_body_s=plan.hohmann.transfer_time_s,
+        dv1_two_body_mps=abs(plan.hohmann.dv1_mps),
+        dv2_two_body_mps=abs(plan.hohmann.dv2_mps),
+        lead_angle_rad=lead,
+        lead_angle_two_body_rad=plan.lead_two_body,
+        plane_difference_rad=plan.plane_difference,
+        miss_distance_m=c.miss_distance_m,
+        initial_miss_distance_m=c.initial_miss_distance_m,
+        iterations=c.iterations,
+        evaluations=c.evaluations,
+        solver_message=c.message,
+        final_state=final_state,
+        trajectory=_trajectory(inp, plan, c, transfer_arc),
+    )
+
+
+def _trajectory(
+    inp: RendezvousInput | TransferInput,
+    plan: _Plan,
+    c: CorrectionResult,
+    transfer_arc: PropagationResult,
+) -> pd.DataFrame:
+    step = inp.settings.trajectory_step_s
+    arrival = c.burn_time_s + c.transfer_time_s
+    t_wait = np.unique(np.r_[np.arange(inp.t0_s, c.burn_time_s, step), c.burn_time_s])
+    t_transfer = np.unique(np.r_[np.arange(c.burn_time_s, arrival, step), arrival])
+    chaser = np.vstack([plan.chaser_coast.dense(t_wait), transfer_arc.dense(t_transfer)])
+    times = np.r_[t_wait, t_transfer]
+    target_lo = plan.target_coast.t0
+    target = np.full_like(chaser, np.nan)
+    has_target = times >= target_lo - 1e-9
+    target[has_target] = plan.target_coast.dense(np.maximum(times[has_target], target_lo))
+    table = {"t_s": times, "phase": ["wait"] * len(t_wait) + ["transfer"] * len(t_transfer)}
+    for k, axis in enumerate(("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")):
+        table[f"chaser_{axis}"] = chaser[:, k]
+    for k, axis in enumerate(("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")):
+        table[f"target_{axis}"] = target[:, k]
+    table["chaser_altitude_m"] = np.linalg.norm(chaser[:, :3], axis=1) - inp.earth.radius
+    table["range_m"] = np.linalg.norm(chaser[:, :3] - target[:, :3], axis=1)
+    return pd.DataFrame(table)
+
+
+def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> RendezvousResult:
+    prop = _propagator(inp)
+    try:
+        plan, correction = _solve(inp, prop)
+    except Infeasible as why:
+        return RendezvousResult(
+            kind=kind, feasible=False, reason=str(why), epoch=inp.epoch, t0_s=inp.t0_s
+        )
+    return _result(kind, inp, prop, plan, correction)
+
+
+def solve_rendezvous(inp: RendezvousInput) -> RendezvousResult:
+    """Rendezvous of the chaser with the target (patent step 102); see the module doc."""
+    return _run("rendezvous", inp)
+
+
+def circular_transfer(inp: TransferInput) -> RendezvousResult:
+    """Transfer of the chaser to a circular orbit at ``inp.target_altitude_m``, no target."""
+    return _run("transfer", inp)
