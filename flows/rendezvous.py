@@ -1,0 +1,31 @@
+"""Flow: the rendezvous stage on a scenario file (``flows/rendezvous.py:rendezvous_flow``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from prefect import flow, get_run_logger
+
+from ovtraj.config import load_scenario
+from tasks.rendezvous import rendezvous_task
+
+
+@flow(name="rendezvous", log_prints=False)
+def rendezvous_flow(config: str = "configs/scenario.yaml") -> dict:
+    """Load the scenario, solve the rendezvous, log the key figures."""
+    scenario = load_scenario(Path(config))
+    row = rendezvous_task(scenario.resolved())
+    get_run_logger().info(
+        "rendezvous %s: feasible=%s dv1=%s m/s dv2=%s m/s wait=%s s miss=%s m",
+        scenario.name,
+        row["feasible"],
+        row["dv1_mps"],
+        row["dv2_mps"],
+        row["wait_time_s"],
+        row["miss_distance_m"],
+    )
+    return row
+
+
+if __name__ == "__main__":
+    rendezvous_flow()

@@ -1,0 +1,114 @@
+"""The ``ovtraj`` command line."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from ovtraj import __version__
+from ovtraj.config import ConfigError, load_scenario
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Whole-mission trajectory planning of a small reusable orbital vehicle.",
+)
+
+ConfigArg = Annotated[Path, typer.Argument(help="scenario YAML file", show_default=False)]
+JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"ovtraj {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="show the version")
+    ] = False,
+) -> None:
+    """ovtraj command line."""
+
+
+def _load(config: Path):
+    try:
+        return load_scenario(config)
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _json_safe(row: dict[str, Any]) -> dict[str, Any]:
+    bad = [k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
+    if bad:  # a stage must never hand out NaN; fail loudly rather than print invalid JSON
+        raise RuntimeError(f"non-finite values in the result: {', '.join(bad)}")
+    return row
+
+
+def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
+    typer.echo(title)
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        shown = f"{value:.6g}" if isinstance(value, float) else ("-" if value is None else value)
+        typer.echo(f"  {key:<{width}}  {shown}")
+
+
+@app.command()
+def rendezvous(config: ConfigArg, as_json: JsonOpt = False) -> None:
+    """Rendezvous of the OV with the space target: modified Hohmann transfer under J2."""
+    from ovtraj.rendezvous import rendezvous_input, solve_rendezvous
+
+    scenario = _load(config)
+    result = solve_rendezvous(rendezvous_input(scenario))
+    row = _json_safe(result.to_row())
+    if as_json:
+        typer.echo(json.dumps(row))
+        return
+    keys = [
+        ("feasible", "feasible"),
+        ("reason", "reason"),
+        ("wait time [s]", "wait_time_s"),
+        ("burn 1 epoch (UTC)", "burn1_epoch_utc"),
+        ("burn 2 epoch (UTC)", "burn2_epoch_utc"),
+        ("dv1 [m/s]", "dv1_mps"),
+        ("dv1 radial/along/cross [m/s]", None),
+        ("dv2 [m/s]", "dv2_mps"),
+        ("dv2 radial/along/cross [m/s]", None),
+        ("dv total [m/s]", "dv_total_mps"),
+        ("two-body dv1 + dv2 [m/s]", None),
+        ("transfer time [s]", "transfer_time_s"),
+        ("two-body transfer time [s]", "transfer_time_two_body_s"),
+        ("lead angle J2 [deg]", "lead_angle_deg"),
+        ("lead angle two-body [deg]", "lead_angle_two_body_deg"),
+        ("plane difference [deg]", "plane_difference_deg"),
+        ("miss distance [m]", "miss_distance_m"),
+        ("two-body guess miss [m]", "initial_miss_distance_m"),
+        ("iterations (trust-constr)", "iterations"),
+    ]
+    shown = []
+    for label, key in keys:
+        if key is not None:
+            if row.get(key) not in (None, ""):
+                shown.append((label, row[key]))
+        elif label.startswith("dv1") and row["dv1_radial_mps"] is not None:
+            shown.append((label, _triple(row, "dv1")))
+        elif label.startswith("dv2") and row["dv2_radial_mps"] is not None:
+            shown.append((label, _triple(row, "dv2")))
+        elif label.startswith("two-body dv") and row["dv1_two_body_mps"] is not None:
+            shown.append((label, f"{row['dv1_two_body_mps']:.3f} + {row['dv2_two_body_mps']:.3f}"))
+    _print_rows(f"rendezvous: {scenario.name} ({scenario.target.name})", shown)
+    if not result.feasible:
+        raise typer.Exit(code=1)
+
+
+def _triple(row: dict[str, Any], name: str) -> str:
+    return " / ".join(
+        f"{row[f'{name}_{a}_mps']:.3f}" for a in ("radial", "along_track", "cross_track")
+    )
