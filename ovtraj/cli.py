@@ -70,7 +70,7 @@ def rendezvous(config: ConfigArg, as_json: JsonOpt = False) -> None:
     row = _json_safe(result.to_row())
     if as_json:
         typer.echo(json.dumps(row))
-        return
+        raise typer.Exit(code=0 if result.feasible else 1)
     keys = [
         ("feasible", "feasible"),
         ("reason", "reason"),

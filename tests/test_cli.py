@@ -1,0 +1,80 @@
+"""The `ovtraj` command line, and the README/CI contract."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import yaml
+from typer.testing import CliRunner
+
+from ovtraj.cli import app
+from tests.conftest import DEFAULT_SCENARIO, REPO
+
+runner = CliRunner()
+REQUIRED_KEYS = {
+    "dv1_mps",
+    "dv2_mps",
+    "transfer_time_s",
+    "wait_time_s",
+    "lead_angle_deg",
+    "lead_angle_two_body_deg",
+    "miss_distance_m",
+    "feasible",
+}
+
+
+def test_rendezvous_json_is_exactly_one_object():
+    result = runner.invoke(app, ["rendezvous", str(DEFAULT_SCENARIO), "--json"])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.stdout.splitlines() if line.strip()]
+    assert len(lines) == 1
+    row = json.loads(lines[0])
+    assert REQUIRED_KEYS <= row.keys()
+    assert row["feasible"] is True and row["miss_distance_m"] <= 10.0
+
+
+def test_rendezvous_summary():
+    result = runner.invoke(app, ["rendezvous", str(DEFAULT_SCENARIO)])
+    assert result.exit_code == 0
+    assert "lead angle J2 [deg]" in result.stdout and "miss distance [m]" in result.stdout
+
+
+def test_bad_config_exits_2_with_the_field(tmp_path):
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["target"]["orbit"]["inclination_deg"] = 190.0
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["rendezvous", str(path), "--json"])
+    assert result.exit_code == 2
+    assert "target.orbit.inclination_deg = 190.0: out of range, allowed [0, 180] deg" in (
+        result.stderr
+    )
+    assert result.stdout == ""
+
+
+def test_infeasible_case_exits_1_with_reason(tmp_path):
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["parking_orbit"]["inclination_offset_deg"] = 3.0
+    path = tmp_path / "tilted.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["rendezvous", str(path), "--json"])
+    row = json.loads(result.stdout)
+    assert result.exit_code == 1
+    assert row["feasible"] is False and "plane difference" in row["reason"]
+    summary = runner.invoke(app, ["rendezvous", str(path)])
+    assert summary.exit_code == 1 and "plane difference" in summary.stdout
+
+
+def test_version():
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.stdout.startswith("ovtraj ")
+
+
+def test_ci_runs_the_readme_test_command():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    ci = (REPO / ".ci" / "run").read_text(encoding="utf-8")
+    commands = re.findall(r"^python3 -m venv .*$", readme, flags=re.M)
+    assert len(commands) == 2  # one runs the main job, one runs the tests
+    test_command = next(c for c in commands if "pytest" in c)
+    assert test_command in ci.splitlines()
