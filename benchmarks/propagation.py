@@ -1,0 +1,148 @@
+"""Propagation and rendezvous speed, side by side in one process.
+
+1. One day of LEO J2 propagation with the project's propagator (heyoka Taylor)
+   and with scipy ``solve_ivp(DOP853)`` at the same tolerance: both wall times,
+   the ratio, each one's final-position error against a tight reference, and the
+   final-position difference between the two. Goal: at least 50x faster at
+   equal accuracy.
+2. One rendezvous solve on the default scenario after warm-up. Goal: under 50 ms.
+
+Run: ``python benchmarks/propagation.py`` (``--repeats N`` to change the sample size).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ovtraj.astro.elements import coe_to_rv
+from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.astro.propagation.reference import propagate_dop853
+from ovtraj.config import load_scenario
+from ovtraj.rendezvous import rendezvous_input, solve_rendezvous
+
+ROOT = Path(__file__).resolve().parents[1]
+DAY_S = 86400.0
+SPEED_GOAL = 50.0  # issue 2: at least 50x faster than DOP853
+RENDEZVOUS_GOAL_S = 0.050  # issue 2: one solve under 50 ms after warm-up
+
+
+def timed(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
+    """Median wall time of ``repeats`` calls and the last result."""
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def leo_state(scenario) -> np.ndarray:
+    """The default scenario's target orbit (ISS-like, ~420 km, 51.64 deg)."""
+    o, mu = scenario.target.orbit, scenario.earth.mu
+    r, v = coe_to_rv(
+        o.semi_major_axis_km * 1e3,
+        o.eccentricity,
+        math.radians(o.inclination_deg),
+        math.radians(o.raan_deg),
+        math.radians(o.arg_perigee_deg),
+        math.radians(o.true_anomaly_deg),
+        mu=mu,
+    )
+    return np.r_[r, v]
+
+
+def propagation(scenario, repeats: int) -> None:
+    earth = scenario.earth
+    s0 = leo_state(scenario)
+    grav = {"mu": earth.mu, "radius": earth.radius, "j2": earth.j2}
+    reference = OrbitPropagator(earth, tol=1e-16).propagate(s0, 0.0, DAY_S).state
+    print("1. One day of LEO J2 propagation (ISS-like orbit), median of", repeats, "runs")
+    header = (
+        f"{'tol':>7} {'heyoka ms':>10} {'DOP853 ms':>10} {'ratio':>7} "
+        f"{'err heyoka m':>13} {'err DOP853 m':>13} {'|diff| m':>10}"
+    )
+    print(header)
+    for tol in (1e-10, 1e-12):
+        prop = OrbitPropagator(earth, tol=tol)
+        t_build = time.perf_counter()
+        prop.propagate(s0, 0.0, 1.0)  # compile (once per process) outside the timing
+        t_build = time.perf_counter() - t_build
+        t_hy, res = timed(lambda p=prop: p.propagate(s0, 0.0, DAY_S), repeats)
+        t_dop, dop = timed(
+            lambda tol=tol: propagate_dop853(s0, 0.0, DAY_S, rtol=tol, atol=tol, **grav),
+            max(3, repeats // 10),
+        )
+        hy_state = res.state
+        err_hy = np.linalg.norm(hy_state[:3] - reference[:3])
+        err_dop = np.linalg.norm(dop[:3] - reference[:3])
+        diff = np.linalg.norm(hy_state[:3] - dop[:3])
+        print(
+            f"{tol:>7.0e} {t_hy * 1e3:>10.3f} {t_dop * 1e3:>10.2f} {t_dop / t_hy:>6.0f}x "
+            f"{err_hy:>13.2e} {err_dop:>13.2e} {diff:>10.2e}   (heyoka build {t_build:.2f} s)"
+        )
+    # Equal accuracy: DOP853 at 1e-10 (the reference figure of DEVELOPERS.md), heyoka at the
+    # loosest tolerance that is at least as accurate.
+    t_dop, dop = timed(
+        lambda: propagate_dop853(s0, 0.0, DAY_S, rtol=1e-10, atol=1e-10, **grav),
+        max(3, repeats // 10),
+    )
+    err_dop = np.linalg.norm(dop[:3] - reference[:3])
+    for tol in (1e-10, 1e-11, 1e-12, 1e-13, 1e-14):
+        prop = OrbitPropagator(earth, tol=tol)
+        if np.linalg.norm(prop.propagate(s0, 0.0, DAY_S).state[:3] - reference[:3]) <= err_dop:
+            break
+    t_hy, res = timed(lambda: prop.propagate(s0, 0.0, DAY_S), repeats)
+    err_hy = np.linalg.norm(res.state[:3] - reference[:3])
+    ratio = t_dop / t_hy
+    print(
+        f"equal accuracy: DOP853 rtol 1e-10 ({err_dop:.2e} m, {t_dop * 1e3:.2f} ms) vs heyoka tol "
+        f"{tol:.0e} ({err_hy:.2e} m, {t_hy * 1e3:.3f} ms): {ratio:.0f}x faster "
+        f"(goal >= {SPEED_GOAL:.0f}x: {'met' if ratio >= SPEED_GOAL else 'NOT met'})"
+    )
+
+
+def rendezvous(scenario, repeats: int) -> None:
+    print()
+    print("2. Rendezvous solve (median after warm-up)")
+    t_first = time.perf_counter()
+    solve_rendezvous(rendezvous_input(scenario))  # builds the integrators (once per process)
+    print(f"first call incl. integrator builds: {time.perf_counter() - t_first:.2f} s")
+    # The default scenario, and the same with the parking RAAN offset so that the planes
+    # coincide at the burn: the degenerate (exactly 180 deg) case of the NLP.
+    coplanar = scenario.model_copy(
+        update={
+            "parking_orbit": scenario.parking_orbit.model_copy(update={"raan_offset_deg": 0.039})
+        }
+    )
+    for label, case in (("default scenario", scenario), ("planes aligned at burn", coplanar)):
+        inp = rendezvous_input(case)
+        t_solve, result = timed(lambda inp=inp: solve_rendezvous(inp), repeats)
+        goal = "met" if t_solve < RENDEZVOUS_GOAL_S else "NOT met"
+        print(
+            f"{label:>24}: {t_solve * 1e3:6.1f} ms (goal < {RENDEZVOUS_GOAL_S * 1e3:.0f} ms: "
+            f"{goal}); {result.iterations} iterations, {result.evaluations} trajectory "
+            f"evaluations, dv {result.dv_total_mps:.2f} m/s (two-body "
+            f"{result.dv1_two_body_mps + result.dv2_two_body_mps:.2f}), "
+            f"miss {result.miss_distance_m:.1e} m"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=50)
+    parser.add_argument("--config", default=str(ROOT / "configs" / "scenario.yaml"))
+    args = parser.parse_args()
+    scenario = load_scenario(args.config)
+    propagation(scenario, args.repeats)
+    rendezvous(scenario, max(5, args.repeats // 2))
+
+
+if __name__ == "__main__":
+    main()
