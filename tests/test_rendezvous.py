@@ -6,6 +6,7 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from ovtraj.astro.elements import coe_to_rv, rv_to_coe, rv_to_nonsingular
@@ -129,6 +130,17 @@ def test_row_and_trajectory_table(default_result):
     assert np.all(np.diff(table["t_s"]) >= 0)
     assert table["range_m"].iloc[-1] < 10.0
     assert table["t_s"].iloc[-1] == pytest.approx(default_result.burn2.t_s)
+
+
+def test_row_and_table_round_trip_through_parquet(default_result, tmp_path):
+    rows = pd.DataFrame([default_result.to_row()])
+    rows.to_parquet(tmp_path / "row.parquet")
+    again = pd.read_parquet(tmp_path / "row.parquet")
+    assert again.iloc[0]["dv1_mps"] == pytest.approx(default_result.burn1.magnitude_mps)
+    default_result.trajectory.to_parquet(tmp_path / "trajectory.parquet")
+    table = pd.read_parquet(tmp_path / "trajectory.parquet")
+    assert len(table) == len(default_result.trajectory)
+    assert not table.isna().any().any()  # a rendezvous has its target all along
 
 
 def test_two_body_limit_recovers_hohmann_exactly(scenario):
@@ -267,6 +279,11 @@ def test_circular_transfer_ends_on_a_circular_orbit(scenario, altitude_km):
     )
     assert r.feasible, r.reason
     assert r.wait_time_s == pytest.approx(1000.0)
+    # Before the burn there is no (virtual) target: missing values, never NaN.
+    table = r.trajectory
+    before = table["t_s"] < r.burn1.t_s
+    assert before.any() and table.loc[before, "range_m"].isna().all()
+    assert not np.isnan(table.loc[~before, "range_m"].to_numpy(dtype=float)).any()
     earth = scenario.earth
     # Orbit-average of the osculating elements over a day, by numerical integration:
     # the mean semi-major axis must be the requested one, the eccentricity ~0.

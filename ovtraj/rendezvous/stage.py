@@ -48,6 +48,9 @@ from ovtraj.rendezvous.result import (
 # Newton steps on the propagated phase; the J2 secular estimate is within a
 # fraction of a degree, and each step gains several digits.
 _PHASING_NEWTON_STEPS = 3
+# Coasts are propagated this fraction of the Hohmann time beyond the latest epoch the
+# correction may use, so finite-difference steps at a bound never leave them.
+_COVERAGE_PAD = 0.01
 
 
 class Infeasible(Exception):
@@ -113,28 +116,33 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
     if wait > s.max_wait_time_s + s.burn_epoch_window_s:
         raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
 
-    lo, hi = s.transfer_time_bounds
-    horizon = inp.t0_s + wait + s.burn_epoch_window_s
-    margin = transfer.transfer_time_s * (1.0 - lo)  # room for Newton steps on the wait
-    chaser_coast = prop.propagate(chaser0, inp.t0_s, horizon + margin, dense=True)
-    target_coast = prop.propagate(
-        target0, inp.t0_s, horizon + margin + hi * transfer.transfer_time_s, dense=True
-    )
-    for name, coast in (("chaser", chaser_coast), ("target", target_coast)):
-        if not coast.ok:
-            raise Infeasible(f"{name} coast propagation failed: {coast.message}")
+    hi = s.transfer_time_bounds[1]
+    pad = _COVERAGE_PAD * transfer.transfer_time_s
+    chaser_coast = target_coast = None
+
+    def cover(burn_time: float) -> None:
+        """Dense coasts spanning every burn epoch and arrival the correction may try."""
+        nonlocal chaser_coast, target_coast
+        latest_burn = burn_time + s.burn_epoch_window_s + pad
+        chaser_coast = _covering(prop, "chaser", chaser0, inp.t0_s, chaser_coast, latest_burn)
+        latest_arrival = latest_burn + hi * transfer.transfer_time_s
+        target_coast = _covering(prop, "target", target0, inp.t0_s, target_coast, latest_arrival)
 
     def phase_at(wait_s: float) -> float:
-        t = inp.t0_s + min(wait_s, horizon + margin - inp.t0_s)
-        return phase_angle(chaser_coast.dense(t), target_coast.dense(t)[:3])
+        cover(inp.t0_s + wait_s)
+        t = inp.t0_s + wait_s
+        return phase_angle(chaser_coast.state_at(t), target_coast.state_at(t)[:3])
 
+    # Room for the Newton steps on the wait, so they rarely need a longer coast.
+    cover(inp.t0_s + wait + 0.5 * transfer.transfer_time_s)
     wait = refine_wait(wait, lead_j2, relative_rate, phase_at, iterations=_PHASING_NEWTON_STEPS)
     if wait > s.max_wait_time_s:
         raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
     burn_time = inp.t0_s + wait
-    planes = plane_difference(chaser_coast.dense(burn_time), target_coast.dense(burn_time))
+    cover(burn_time)
+    planes = plane_difference(chaser_coast.state_at(burn_time), target_coast.state_at(burn_time))
     _check_planes(planes, s.max_plane_difference_deg, "at the first burn")
-    # Keep the corrected burn epoch inside the propagated coast and after t0.
+    # The corrected burn epoch may move by +-window, but not before t0.
     window = min(s.burn_epoch_window_s, wait)
     return _Plan(
         transfer,
@@ -145,6 +153,23 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
         window,
         planes,
     )
+
+
+def _covering(
+    prop: OrbitPropagator,
+    name: str,
+    state0: np.ndarray,
+    t0: float,
+    coast: PropagationResult | None,
+    until: float,
+) -> PropagationResult:
+    """``coast`` if it reaches ``until``, else a new dense propagation that does."""
+    if coast is not None and coast.t >= until:
+        return coast
+    coast = prop.propagate(state0, t0, until, dense=True)
+    if not coast.ok:
+        raise Infeasible(f"{name} coast propagation failed: {coast.message}")
+    return coast
 
 
 def _plan_transfer(inp: TransferInput, prop: OrbitPropagator) -> _Plan:
@@ -180,12 +205,10 @@ def _plan_transfer(inp: TransferInput, prop: OrbitPropagator) -> _Plan:
         radius=earth.radius,
         j2=earth.j2,
     )
-    hi = s.transfer_time_bounds[1]
-    target_coast = prop.propagate(
-        np.r_[r_v, v_v], burn_time, burn_time + hi * transfer.transfer_time_s, dense=True
+    latest_arrival = burn_time + (s.transfer_time_bounds[1] + _COVERAGE_PAD) * (
+        transfer.transfer_time_s
     )
-    if not target_coast.ok:
-        raise Infeasible(f"destination orbit propagation failed: {target_coast.message}")
+    target_coast = _covering(prop, "destination", np.r_[r_v, v_v], burn_time, None, latest_arrival)
     return _Plan(
         transfer,
         lead_angle(transfer, math.sqrt(earth.mu / transfer.r2_m**3)),
@@ -316,18 +339,33 @@ def _trajectory(
     t_transfer = np.unique(np.r_[np.arange(c.burn_time_s, arrival, step), arrival])
     chaser = np.vstack([plan.chaser_coast.dense(t_wait), transfer_arc.dense(t_transfer)])
     times = np.r_[t_wait, t_transfer]
-    target_lo = plan.target_coast.t0
-    target = np.full_like(chaser, np.nan)
-    has_target = times >= target_lo - 1e-9
-    target[has_target] = plan.target_coast.dense(np.maximum(times[has_target], target_lo))
-    table = {"t_s": times, "phase": ["wait"] * len(t_wait) + ["transfer"] * len(t_transfer)}
-    for k, axis in enumerate(("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")):
+    # A target-less transfer's virtual target exists only from the burn on: those rows are
+    # missing values (pandas NA, null in Parquet), not NaN.
+    has_target = times >= plan.target_coast.t0
+    target = np.zeros_like(chaser)
+    target[has_target] = plan.target_coast.dense(times[has_target])
+    table: dict[str, object] = {
+        "t_s": times,
+        "phase": ["wait"] * len(t_wait) + ["transfer"] * len(t_transfer),
+    }
+    axes = ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")
+    for k, axis in enumerate(axes):
         table[f"chaser_{axis}"] = chaser[:, k]
-    for k, axis in enumerate(("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")):
-        table[f"target_{axis}"] = target[:, k]
+    for k, axis in enumerate(axes):
+        table[f"target_{axis}"] = _masked(target[:, k], has_target)
     table["chaser_altitude_m"] = np.linalg.norm(chaser[:, :3], axis=1) - inp.earth.radius
-    table["range_m"] = np.linalg.norm(chaser[:, :3] - target[:, :3], axis=1)
+    table["range_m"] = _masked(np.linalg.norm(chaser[:, :3] - target[:, :3], axis=1), has_target)
     return pd.DataFrame(table)
+
+
+def _masked(values: np.ndarray, valid: np.ndarray) -> pd.api.extensions.ExtensionArray:
+    """Nullable float column: missing (pandas NA) where ``valid`` is False.
+
+    Always the same dtype, so both kinds of result share one Parquet schema.
+    """
+    column = pd.array(values, dtype="Float64")
+    column[~valid] = pd.NA
+    return column
 
 
 def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> RendezvousResult:
