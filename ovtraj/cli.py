@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from ovtraj import __version__
-from ovtraj.config import ConfigError, load_scenario
+from ovtraj.config import ConfigError, Scenario, load_scenario
 
 app = typer.Typer(
     add_completion=False,
@@ -37,7 +37,7 @@ def main(
     """ovtraj command line."""
 
 
-def _load(config: Path):
+def _load(config: Path) -> Scenario:
     try:
         return load_scenario(config)
     except ConfigError as err:

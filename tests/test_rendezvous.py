@@ -250,6 +250,19 @@ def test_same_orbit_never_phases(scenario):
     assert "same period" in r.reason or "phasing needs a wait" in r.reason
 
 
+def test_numerical_failure_is_infeasible_not_raised(scenario, monkeypatch):
+    """A J2 flow that cannot be integrated (e.g. a trajectory through the Earth's centre)."""
+
+    def fail(self, state0, t0, t1):
+        raise FloatingPointError("variational propagation failed: err_nf_state")
+
+    monkeypatch.setattr(OrbitPropagator, "propagate_with_stm", fail)
+    r = solve_rendezvous(rendezvous_input(scenario))
+    assert not r.feasible
+    assert "numerical failure" in r.reason and "err_nf_state" in r.reason
+    assert r.to_row()["dv1_mps"] is None
+
+
 def test_malformed_state_is_a_clear_error(scenario):
     inp = rendezvous_input(scenario)
     bad = RendezvousInput(**{**inp.__dict__, "chaser_state": np.full(6, np.nan)})

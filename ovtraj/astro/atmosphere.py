@@ -416,7 +416,7 @@ class ExponentialAtmosphere:
     Defined for every altitude: no range is imposed.
     """
 
-    def __init__(self, rho0_kg_m3: float, scale_height_m: float, speed_of_sound_m_s: float):
+    def __init__(self, rho0_kg_m3: float, scale_height_m: float, speed_of_sound_m_s: float) -> None:
         for name, value in (
             ("rho0_kg_m3", rho0_kg_m3),
             ("scale_height_m", scale_height_m),

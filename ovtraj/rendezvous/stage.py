@@ -370,11 +370,23 @@ def _masked(values: np.ndarray, valid: np.ndarray) -> pd.api.extensions.Extensio
 
 def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> RendezvousResult:
     prop = _propagator(inp)
+
+    def infeasible(reason: str) -> RendezvousResult:
+        return RendezvousResult(
+            kind=kind, feasible=False, reason=reason, epoch=inp.epoch, t0_s=inp.t0_s
+        )
+
     try:
         plan, correction = _solve(inp, prop)
     except Infeasible as why:
-        return RendezvousResult(
-            kind=kind, feasible=False, reason=str(why), epoch=inp.epoch, t0_s=inp.t0_s
+        return infeasible(str(why))
+    except (FloatingPointError, np.linalg.LinAlgError) as err:
+        return infeasible(f"numerical failure in the J2 correction: {err}")
+    values = np.r_[correction.dv1_eci, correction.dv2_eci, correction.miss_distance_m]
+    if not np.all(np.isfinite(values)):
+        return infeasible(
+            f"J2 correction diverged after {correction.iterations} iterations "
+            f"({correction.message})"
         )
     return _result(kind, inp, prop, plan, correction)
 
