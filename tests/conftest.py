@@ -17,6 +17,17 @@ from ovtraj.config import Scenario, load_scenario, scenario_from_dict
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 
 REPO = Path(__file__).resolve().parents[1]
+# Keys the rendezvous result row (and `ovtraj rendezvous --json`) must carry (issue 2).
+REQUIRED_KEYS = {
+    "dv1_mps",
+    "dv2_mps",
+    "transfer_time_s",
+    "wait_time_s",
+    "lead_angle_deg",
+    "lead_angle_two_body_deg",
+    "miss_distance_m",
+    "feasible",
+}
 DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
 
 

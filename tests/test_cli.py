@@ -9,19 +9,9 @@ import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from tests.conftest import DEFAULT_SCENARIO, REPO
+from tests.conftest import DEFAULT_SCENARIO, REPO, REQUIRED_KEYS
 
 runner = CliRunner()
-REQUIRED_KEYS = {
-    "dv1_mps",
-    "dv2_mps",
-    "transfer_time_s",
-    "wait_time_s",
-    "lead_angle_deg",
-    "lead_angle_two_body_deg",
-    "miss_distance_m",
-    "feasible",
-}
 
 
 def test_rendezvous_json_is_exactly_one_object():

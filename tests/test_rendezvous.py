@@ -21,19 +21,9 @@ from ovtraj.rendezvous import (
     rendezvous_input,
     solve_rendezvous,
 )
-from tests.conftest import build_scenario
+from tests.conftest import REQUIRED_KEYS, build_scenario
 
 KM = 1e3
-REQUIRED_KEYS = {
-    "dv1_mps",
-    "dv2_mps",
-    "transfer_time_s",
-    "wait_time_s",
-    "lead_angle_deg",
-    "lead_angle_two_body_deg",
-    "miss_distance_m",
-    "feasible",
-}
 
 
 # --- two-body Hohmann ------------------------------------------------------

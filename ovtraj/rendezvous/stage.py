@@ -146,13 +146,18 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
     window = min(s.burn_epoch_window_s, wait)
     return _Plan(
         transfer,
-        lead_angle(transfer, math.sqrt(earth.mu / transfer.r2_m**3)),
+        _two_body_lead(transfer, earth.mu),
         burn_time,
         chaser_coast,
         target_coast,
         window,
         planes,
     )
+
+
+def _two_body_lead(transfer: HohmannTransfer, mu: float) -> float:
+    """Lead angle with the target's two-body mean motion (patent step 102, classic formula)."""
+    return lead_angle(transfer, math.sqrt(mu / transfer.r2_m**3))
 
 
 def _covering(
@@ -211,7 +216,7 @@ def _plan_transfer(inp: TransferInput, prop: OrbitPropagator) -> _Plan:
     target_coast = _covering(prop, "destination", np.r_[r_v, v_v], burn_time, None, latest_arrival)
     return _Plan(
         transfer,
-        lead_angle(transfer, math.sqrt(earth.mu / transfer.r2_m**3)),
+        _two_body_lead(transfer, earth.mu),
         burn_time,
         chaser_coast,
         target_coast,
