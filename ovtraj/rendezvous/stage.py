@@ -19,7 +19,7 @@ orbit (used for the transfer to the deorbit preparation orbit).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -197,15 +197,9 @@ def _plan_transfer(inp: TransferInput, prop: OrbitPropagator) -> _Plan:
         a=transfer.r2_m, ex=0.0, ey=0.0, i=float(mean_c.i), raan=float(mean_c.raan), u=0.0
     )
     lead_j2 = lead_angle(transfer, mean_argument_of_latitude_rate(destination, earth))
+    # The virtual target leads the chaser by the lead angle on the destination orbit.
     r_v, v_v = mean_to_state(
-        NonsingularElements(
-            a=transfer.r2_m,
-            ex=0.0,
-            ey=0.0,
-            i=float(mean_c.i),
-            raan=float(mean_c.raan),
-            u=float(mean_c.u) + lead_j2,
-        ),
+        replace(destination, u=float(mean_c.u) + lead_j2),
         mu=earth.mu,
         radius=earth.radius,
         j2=earth.j2,
