@@ -51,6 +51,9 @@ _PHASING_NEWTON_STEPS = 3
 # Coasts are propagated this fraction of the Hohmann time beyond the latest epoch the
 # correction may use, so finite-difference steps at a bound never leave them.
 _COVERAGE_PAD = 0.01
+# The first coasts reach this fraction of the Hohmann time past the estimated burn, so the
+# Newton steps on the wait (which move it by seconds to minutes) rarely need a longer one.
+_PHASING_SLACK = 0.5
 
 
 class Infeasible(Exception):
@@ -133,8 +136,7 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
         t = inp.t0_s + wait_s
         return phase_angle(chaser_coast.state_at(t), target_coast.state_at(t)[:3])
 
-    # Room for the Newton steps on the wait, so they rarely need a longer coast.
-    cover(inp.t0_s + wait + 0.5 * transfer.transfer_time_s)
+    cover(inp.t0_s + wait + _PHASING_SLACK * transfer.transfer_time_s)
     wait = refine_wait(wait, lead_j2, relative_rate, phase_at, iterations=_PHASING_NEWTON_STEPS)
     if wait > s.max_wait_time_s:
         raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
