@@ -58,6 +58,7 @@ from ovtraj.paths import config_path
 __all__ = [
     "Atmosphere",
     "ExponentialAtmosphere",
+    "TabulatedAtmosphere",
     "US76Atmosphere",
     "US76Table",
     "default_atmosphere",
@@ -451,3 +452,49 @@ class ExponentialAtmosphere:
 def default_atmosphere() -> US76Atmosphere:
     """The project's US76 model, built once from ``configs/atmosphere_us76.yaml``."""
     return US76Atmosphere.from_config()
+
+
+class TabulatedAtmosphere:
+    """An atmosphere sampled on a uniform altitude grid, for vectorised integrators.
+
+    ``ln rho`` and ``ln p`` are interpolated linearly (exact for exponential layers)
+    and the speed of sound linearly, between nodes every ``step_m`` from 0 to
+    ``top_m``. Altitudes outside the grid are clamped to it (a trajectory that
+    leaves it is flagged by its caller, not here), so the lookup never raises
+    inside a batch. :meth:`lookup` costs a few array operations whatever the
+    model behind it; ``tests/test_atmosphere.py`` bounds its error against the
+    model it samples.
+
+    Parameters
+    ----------
+    atmosphere
+        A model with ``density``, ``pressure`` and ``speed_of_sound`` [SI] of
+        geometric altitude [m], e.g. :class:`US76Atmosphere`.
+    top_m, step_m
+        Grid top and spacing [m].
+    """
+
+    def __init__(self, atmosphere: US76Atmosphere, *, top_m: float, step_m: float) -> None:
+        if not (step_m > 0 and top_m > step_m):
+            raise ValueError(f"need 0 < step_m < top_m, got step_m={step_m!r}, top_m={top_m!r}")
+        nodes = np.arange(0.0, top_m + 0.5 * step_m, step_m)
+        self.step_m = float(step_m)
+        self.top_m = float(nodes[-1])
+        self._last = len(nodes) - 2
+        self._log_density = np.log(atmosphere.density(nodes))
+        self._log_pressure = np.log(atmosphere.pressure(nodes))
+        self._sound = np.asarray(atmosphere.speed_of_sound(nodes), dtype=float)
+        self._d_log_density = np.diff(self._log_density)
+        self._d_log_pressure = np.diff(self._log_pressure)
+        self._d_sound = np.diff(self._sound)
+
+    def lookup(self, altitude_m: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
+        """Density [kg/m^3], pressure [Pa] and speed of sound [m/s] at ``altitude_m`` [m]."""
+        # fmax/fmin map NaN to the bound: a diverging row never breaks the lookup.
+        x = np.fmin(np.fmax(altitude_m, 0.0), self.top_m) / self.step_m
+        k = np.minimum(x.astype(np.intp), self._last)
+        f = x - k
+        rho = np.exp(self._log_density[k] + f * self._d_log_density[k])
+        p = np.exp(self._log_pressure[k] + f * self._d_log_pressure[k])
+        a = self._sound[k] + f * self._d_sound[k]
+        return rho, p, a

@@ -15,6 +15,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from ovtraj.astro.constants import EarthModel, default_earth
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+from ovtraj.config.launch import LaunchSettings
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -133,6 +134,7 @@ class Scenario(StrictModel):
     limits: LimitsConfig
     tolerances: TolerancesConfig
     rendezvous: RendezvousSettings
+    launch: LaunchSettings | None = None
 
     @field_validator("epoch_utc")
     @classmethod

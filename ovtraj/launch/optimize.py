@@ -1,0 +1,356 @@
+"""Hierarchical optimisation of the ascent (patent step 101).
+
+A genetic algorithm screens the design space (pymoo ``GA``, seeded), an active-set
+SQP (scipy SLSQP) converges from its best design, and an interior-point method
+(scipy ``trust-constr``, which uses its barrier algorithm when inequalities are
+present) polishes the result. Each phase starts from the best design so far and
+its end point replaces it only if it is better: feasible beats infeasible, then
+the larger payload wins, and between infeasible designs the smaller violation.
+What each phase reached is recorded either way.
+
+Gradients are central differences evaluated as one batch of ``2n + 1`` rows, which
+costs about as much as a single trajectory in the vectorised ascent. The objective
+``-x_payload`` is linear in the scaled variables, so its gradient is exact.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from pymoo.algorithms.soo.nonconvex.ga import GA
+from pymoo.core.problem import Problem
+from pymoo.optimize import minimize as pymoo_minimize
+from scipy.optimize import BFGS, Bounds, NonlinearConstraint, minimize
+
+from ovtraj.config.launch import GeneticConfig, LocalConfig
+from ovtraj.launch.problem import Evaluation, LaunchProblem
+
+PAYLOAD_INDEX = 9
+
+
+@dataclass(frozen=True)
+class PhaseRecord:
+    """What one optimisation phase reached (payload and violation at its end point)."""
+
+    name: str
+    payload_kg: float
+    max_violation: float  # scaled: 0 when every constraint is within its tolerance
+    feasible: bool
+    accepted: bool  # replaced the incumbent design
+    iterations: int
+    trajectories: int
+    wall_time_s: float
+    message: str
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+@dataclass
+class OptimisationOutcome:
+    x: NDArray  # best scaled design
+    payload_kg: float
+    max_violation: float
+    phases: list[PhaseRecord]
+    trajectories: int
+    wall_time_s: float
+
+    @property
+    def feasible(self) -> bool:
+        return self.max_violation <= 0.0
+
+
+def is_better(candidate: tuple[float, float], incumbent: tuple[float, float]) -> bool:
+    """Feasibility first, then payload; ``(payload_kg, violation)`` pairs."""
+    (p_new, v_new), (p_old, v_old) = candidate, incumbent
+    if v_new <= 0.0 and v_old <= 0.0:
+        return p_new > p_old
+    if v_new <= 0.0 or v_old <= 0.0:
+        return v_new <= 0.0
+    return v_new < v_old
+
+
+class _Oracle:
+    """Values and central-difference Jacobians of a LaunchProblem, one batch per point."""
+
+    def __init__(self, problem: LaunchProblem, step: float) -> None:
+        self.problem = problem
+        self.step = step
+        self._key: bytes | None = None
+        self._values: tuple[NDArray, NDArray] | None = None
+        self._jac_key: bytes | None = None
+        self._jacobians: tuple[NDArray, NDArray] | None = None
+
+    def _evaluate_point(self, x: NDArray) -> None:
+        key = np.asarray(x, dtype=float).tobytes()
+        if key != self._key:
+            ev = self.problem.evaluate(x)
+            self._key = key
+            self._values = (ev.equality[0], ev.inequality[0])
+
+    def _evaluate_jacobian(self, x: NDArray) -> None:
+        key = np.asarray(x, dtype=float).tobytes()
+        if key == self._jac_key:
+            return
+        n = len(x)
+        h = self.step
+        rows = np.vstack([x, x + h * np.eye(n), x - h * np.eye(n)])
+        ev = self.problem.evaluate(rows)
+        self._key, self._values = key, (ev.equality[0], ev.inequality[0])
+        self._jac_key = key
+        self._jacobians = (
+            ((ev.equality[1 : n + 1] - ev.equality[n + 1 :]) / (2 * h)).T,
+            ((ev.inequality[1 : n + 1] - ev.inequality[n + 1 :]) / (2 * h)).T,
+        )
+
+    @staticmethod
+    def objective(x: NDArray) -> float:
+        return -float(x[PAYLOAD_INDEX])
+
+    @staticmethod
+    def objective_gradient(x: NDArray) -> NDArray:
+        g = np.zeros(len(x))
+        g[PAYLOAD_INDEX] = -1.0
+        return g
+
+    def equality(self, x: NDArray) -> NDArray:
+        self._evaluate_point(x)
+        return self._values[0].copy()
+
+    def inequality(self, x: NDArray) -> NDArray:
+        self._evaluate_point(x)
+        return self._values[1].copy()
+
+    def equality_jacobian(self, x: NDArray) -> NDArray:
+        self._evaluate_jacobian(x)
+        return self._jacobians[0].copy()
+
+    def inequality_jacobian(self, x: NDArray) -> NDArray:
+        self._evaluate_jacobian(x)
+        return self._jacobians[1].copy()
+
+
+class _GeneticProblem(Problem):
+    """pymoo view: minimise ``-x_payload`` with relaxed constraints ``G <= 0``."""
+
+    def __init__(self, problem: LaunchProblem, relaxation: float) -> None:
+        super().__init__(n_var=problem.dimension, n_obj=1, n_ieq_constr=6, xl=0.0, xu=1.0)
+        self.problem = problem
+        self.relaxation = relaxation
+        self.best: tuple[NDArray, float, float] | None = None  # x, payload, true violation
+
+    def _evaluate(self, x: NDArray, out: dict, *args: object, **kwargs: object) -> None:
+        ev = self.problem.evaluate(x)
+        out["F"] = -x[:, PAYLOAD_INDEX : PAYLOAD_INDEX + 1]
+        out["G"] = np.hstack([np.abs(ev.equality) - self.relaxation, -ev.inequality])
+
+
+def _evaluate_one(problem: LaunchProblem, x: NDArray) -> tuple[float, float]:
+    ev: Evaluation = problem.evaluate(x)
+    return float(ev.payload_kg[0]), float(ev.violation[0])
+
+
+def run_genetic(
+    problem: LaunchProblem, settings: GeneticConfig, *, seed_x: NDArray | None = None
+) -> tuple[NDArray, PhaseRecord]:
+    """Global search; returns the best design under the relaxed constraints."""
+    start, before = time.perf_counter(), problem.trajectories
+    algorithm = GA(pop_size=settings.population, eliminate_duplicates=True)
+    if seed_x is not None:
+        from pymoo.core.population import Population
+        from pymoo.operators.sampling.lhs import LHS
+
+        rng = np.random.default_rng(settings.seed)
+        sample = (
+            LHS()
+            .do(_GeneticProblem(problem, 1.0), settings.population - 1, random_state=rng)
+            .get("X")
+        )
+        algorithm = GA(
+            pop_size=settings.population,
+            sampling=Population.new("X", np.vstack([seed_x, sample])),
+            eliminate_duplicates=True,
+        )
+    pymoo_problem = _GeneticProblem(problem, settings.constraint_relaxation)
+    result = pymoo_minimize(
+        pymoo_problem,
+        algorithm,
+        ("n_gen", settings.generations),
+        seed=settings.seed,
+        verbose=False,
+    )
+    population = result.pop
+    cv = population.get("CV")[:, 0]
+    f = population.get("F")[:, 0]
+    best_index = int(np.lexsort((f, cv))[0])
+    x = np.clip(population.get("X")[best_index], 0.0, 1.0)
+    payload, violation = _evaluate_one(problem, x)
+    record = PhaseRecord(
+        name="genetic",
+        payload_kg=payload,
+        max_violation=violation,
+        feasible=violation <= 0.0,
+        accepted=True,
+        iterations=settings.generations,
+        trajectories=problem.trajectories - before,
+        wall_time_s=time.perf_counter() - start,
+        message=f"pymoo GA, population {settings.population}, seed {settings.seed}; "
+        f"relaxed constraint violation {float(cv[best_index]):.3g}",
+    )
+    return x, record
+
+
+class _StallMonitor:
+    """Stops a local method once it is feasible and the payload has stopped moving.
+
+    The optimum is flat along some directions of the programme (e.g. alpha_2 against
+    t_23), where SLSQP's step-length test never fires although the payload has long
+    converged: ``stall_iterations`` iterations gaining less than ``stall_payload_kg``
+    while every constraint holds end the phase.
+    """
+
+    def __init__(self, problem: LaunchProblem, oracle: _Oracle, settings: LocalConfig) -> None:
+        self.problem = problem
+        self.oracle = oracle
+        self.window = settings.stall_iterations
+        self.threshold = settings.stall_payload_kg
+        self.payloads: list[float] = []
+        self.stalled = False
+
+    def __call__(self, intermediate_result: object) -> None:
+        x = np.asarray(getattr(intermediate_result, "x", intermediate_result), dtype=float)
+        eq, ineq = self.oracle.equality(x), self.oracle.inequality(x)
+        feasible = np.all(np.abs(eq) <= 1.0) and np.all(ineq >= 0.0)
+        payload = float(self.problem.to_config_units(x)[PAYLOAD_INDEX])
+        self.payloads.append(payload if feasible else -np.inf)
+        recent = self.payloads[-(self.window + 1) :]
+        if (
+            len(recent) == self.window + 1
+            and np.all(np.isfinite(recent))
+            and max(recent) - recent[0] < self.threshold
+        ):
+            self.stalled = True
+            raise StopIteration
+
+    def message(self, solver_message: str) -> str:
+        if self.stalled:
+            return f"payload gained < {self.threshold:g} kg over {self.window} feasible iterations"
+        return solver_message
+
+
+def run_slsqp(
+    problem: LaunchProblem, x0: NDArray, settings: LocalConfig
+) -> tuple[NDArray, PhaseRecord]:
+    start, before = time.perf_counter(), problem.trajectories
+    oracle = _Oracle(problem, settings.finite_difference_step)
+    monitor = _StallMonitor(problem, oracle, settings)
+    result = minimize(
+        oracle.objective,
+        x0,
+        jac=oracle.objective_gradient,
+        method="SLSQP",
+        bounds=Bounds(0.0, 1.0),
+        constraints=[
+            {"type": "eq", "fun": oracle.equality, "jac": oracle.equality_jacobian},
+            {"type": "ineq", "fun": oracle.inequality, "jac": oracle.inequality_jacobian},
+        ],
+        options={"maxiter": settings.slsqp_max_iterations, "ftol": settings.slsqp_ftol},
+        callback=monitor,
+    )
+    x = np.clip(result.x, 0.0, 1.0)
+    payload, violation = _evaluate_one(problem, x)
+    return x, PhaseRecord(
+        name="slsqp",
+        payload_kg=payload,
+        max_violation=violation,
+        feasible=violation <= 0.0,
+        accepted=False,
+        iterations=int(result.nit),
+        trajectories=problem.trajectories - before,
+        wall_time_s=time.perf_counter() - start,
+        message=monitor.message(str(result.message)),
+    )
+
+
+def run_trust_constr(
+    problem: LaunchProblem, x0: NDArray, settings: LocalConfig
+) -> tuple[NDArray, PhaseRecord]:
+    start, before = time.perf_counter(), problem.trajectories
+    oracle = _Oracle(problem, settings.finite_difference_step)
+    monitor = _StallMonitor(problem, oracle, settings)
+    n = len(x0)
+    result = minimize(
+        oracle.objective,
+        x0,
+        jac=oracle.objective_gradient,
+        hess=lambda x: np.zeros((n, n)),
+        method="trust-constr",
+        bounds=Bounds(0.0, 1.0),
+        constraints=[
+            NonlinearConstraint(
+                oracle.equality, 0.0, 0.0, jac=oracle.equality_jacobian, hess=BFGS()
+            ),
+            NonlinearConstraint(
+                oracle.inequality, 0.0, np.inf, jac=oracle.inequality_jacobian, hess=BFGS()
+            ),
+        ],
+        options={
+            "maxiter": settings.trust_constr_max_iterations,
+            "gtol": settings.trust_constr_gtol,
+            "xtol": settings.trust_constr_xtol,
+        },
+        callback=monitor,
+    )
+    x = np.clip(result.x, 0.0, 1.0)
+    payload, violation = _evaluate_one(problem, x)
+    return x, PhaseRecord(
+        name="trust-constr",
+        payload_kg=payload,
+        max_violation=violation,
+        feasible=violation <= 0.0,
+        accepted=False,
+        iterations=int(result.nit),
+        trajectories=problem.trajectories - before,
+        wall_time_s=time.perf_counter() - start,
+        message=f"{monitor.message(str(result.message))} (method {result.method})",
+    )
+
+
+def optimise_launch(
+    problem: LaunchProblem,
+    genetic: GeneticConfig,
+    local: LocalConfig,
+    *,
+    seed_x: NDArray | None = None,
+    global_search: bool = True,
+) -> OptimisationOutcome:
+    """GA (unless ``global_search`` is off and a seed is given) -> SLSQP -> trust-constr."""
+    start, before = time.perf_counter(), problem.trajectories
+    phases: list[PhaseRecord] = []
+    if global_search or seed_x is None:
+        x, record = run_genetic(problem, genetic, seed_x=seed_x)
+    else:
+        x = np.clip(np.asarray(seed_x, dtype=float), 0.0, 1.0)
+        payload, violation = _evaluate_one(problem, x)
+        record = PhaseRecord(
+            "seed", payload, violation, violation <= 0.0, True, 0, 1, 0.0, "given start"
+        )
+    phases.append(record)
+    best = (record.payload_kg, record.max_violation)
+    for run in (run_slsqp, run_trust_constr):
+        x_new, record = run(problem, x, local)
+        accepted = is_better((record.payload_kg, record.max_violation), best)
+        phases.append(PhaseRecord(**(record.as_dict() | {"accepted": accepted})))
+        if accepted:
+            x, best = x_new, (record.payload_kg, record.max_violation)
+    return OptimisationOutcome(
+        x=x,
+        payload_kg=best[0],
+        max_violation=best[1],
+        phases=phases,
+        trajectories=problem.trajectories - before,
+        wall_time_s=time.perf_counter() - start,
+    )
