@@ -112,3 +112,113 @@ def _triple(row: dict[str, Any], name: str) -> str:
     return " / ".join(
         f"{row[f'{name}_{a}_mps']:.3f}" for a in ("radial", "along_track", "cross_track")
     )
+
+
+LAUNCH_KEYS = [
+    ("feasible", "feasible"),
+    ("reason", "reason"),
+    ("target altitude [km]", "target_altitude_km"),
+    ("opportunity", "opportunity"),
+    ("payload [kg]", "payload_kg"),
+    ("drop epoch (UTC)", "drop_epoch_utc"),
+    ("insertion epoch (UTC)", "insertion_epoch_utc"),
+    ("insertion time from 0 h [s]", "insertion_time_s"),
+    ("flight time [s]", "flight_time_s"),
+    ("launch azimuth [deg]", "azimuth_deg"),
+    ("insertion argument of latitude [deg]", "insertion_u_deg"),
+    ("altitude error [m]", "insertion_altitude_error_m"),
+    ("speed error [m/s]", "insertion_speed_error_mps"),
+    ("flight-path angle error [deg]", "insertion_fpa_error_deg"),
+    ("inclination error (mean) [deg]", "inclination_error_deg"),
+    ("RAAN error (mean) [deg]", "raan_error_deg"),
+    ("max dynamic pressure [Pa]", "max_dynamic_pressure_pa"),
+    ("max axial load [g]", "max_axial_load_g"),
+    ("ideal dv, rocket equation [m/s]", "ideal_dv_rocket_equation_mps"),
+    ("losses: gravity/aero/steering/back-pressure [m/s]", None),
+    ("trajectories integrated", "trajectories"),
+    ("wall time [s]", "wall_time_s"),
+]
+
+
+@app.command()
+def launch(
+    config: ConfigArg,
+    altitude_km: Annotated[
+        float | None,
+        typer.Option("--altitude-km", help="target altitude [km], default the config's"),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Air launch: maximum payload to the target orbit (GA, SLSQP, then trust-constr)."""
+    from ovtraj.launch import launch_input, solve_launch
+
+    scenario = _load(config)
+    try:
+        inp = launch_input(scenario, altitude_km=altitude_km)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    result = solve_launch(inp)
+    row = _json_safe(result.to_row())
+    if as_json:
+        typer.echo(json.dumps(row))
+        raise typer.Exit(code=0 if result.feasible else 1)
+    shown = []
+    for label, key in LAUNCH_KEYS:
+        if key is not None:
+            if row.get(key) not in (None, ""):
+                shown.append((label, row[key]))
+        elif row.get("gravity_loss_mps") is not None:
+            losses = ("gravity", "aero", "steering", "back_pressure")
+            shown.append((label, " / ".join(f"{row[f'{n}_loss_mps']:.1f}" for n in losses)))
+    for phase in result.phases:
+        shown.append(
+            (
+                f"phase {phase.name}",
+                f"payload {phase.payload_kg:.2f} kg, violation {phase.max_violation:.3g}, "
+                f"{phase.iterations} it, {phase.trajectories} traj, {phase.wall_time_s:.1f} s"
+                f"{'' if phase.accepted else ' (not kept)'}",
+            )
+        )
+    _print_rows(f"launch: {scenario.name} ({inp.launcher.name})", shown)
+    if not result.feasible:
+        raise typer.Exit(code=1)
+
+
+@app.command("launch-fit")
+def launch_fit_command(
+    config: ConfigArg,
+    output: Annotated[
+        Path | None,
+        typer.Option("--output", help="directory for coefficients.json and grid.parquet"),
+    ] = None,
+) -> None:
+    """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series."""
+    from ovtraj.launch import launch_input
+    from ovtraj.launch.fit import launch_fit
+
+    scenario = _load(config)
+    try:
+        inp = launch_input(scenario)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    try:
+        fit = launch_fit(inp, scenario.launch.fit)
+    except ValueError as err:
+        typer.echo(f"launch fit failed: {err}", err=True)
+        raise typer.Exit(code=1) from None
+    directory = output or Path("data") / "launch_fit" / scenario.name
+    fit.save(directory)
+    lo, hi = fit.altitude_range_km
+    rows = [("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"), ("saved to", str(directory))]
+    for name, series in fit.series.items():
+        rows.append(
+            (
+                f"{name} fit",
+                f"rms {series.rms_residual:.3g} {series.unit}, leave-one-out max "
+                f"{series.loo_max_error:.3g} {series.unit} "
+                f"({100 * fit.loo_relative_error(name):.2f} % of range)",
+            )
+        )
+    _print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)

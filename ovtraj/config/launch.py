@@ -126,6 +126,15 @@ class LauncherLimitsConfig(StrictModel):
     max_axial_load_g: float = bounded(unit="g0", gt=0)
 
 
+class PublishedPerformance(StrictModel):
+    """A published payload figure, for benchmarks (not used by the solver)."""
+
+    altitude_km: float = bounded(unit="km", gt=0)
+    inclination_deg: float = bounded(unit="deg", ge=0, le=180)
+    payload_kg: float = bounded(unit="kg", gt=0)
+    source: str
+
+
 class LauncherConfig(StrictModel):
     """A multi-stage solid air-launched rocket (Pegasus XL class)."""
 
@@ -141,6 +150,7 @@ class LauncherConfig(StrictModel):
     burn_time_tolerance: float = bounded(
         gt=0, le=0.5, description="allowed mismatch of burn time vs propellant/thrust/Isp"
     )
+    published_performance: tuple[PublishedPerformance, ...] = ()
 
     @model_validator(mode="after")
     def _stage_data_consistent(self) -> LauncherConfig:
@@ -282,7 +292,10 @@ class LocalConfig(StrictModel):
     finite_difference_step: float = bounded(gt=0, lt=0.1, description="scaled variables")
     stall_iterations: int = bounded(ge=1, le=1000)
     stall_payload_kg: float = bounded(
-        unit="kg", ge=0, description="a feasible phase gaining less over stall_iterations stops"
+        unit="kg", ge=0, description="a phase whose payload moves less over stall_iterations stops"
+    )
+    stall_violation: float = bounded(
+        ge=0, description="... if its constraints are within this many tolerances"
     )
 
 

@@ -1,0 +1,81 @@
+"""Flow: the launch fit of a scenario (``flows/launch_fit.py:launch_fit_flow``).
+
+1. solve the launch at the scenario's target altitude (genetic + local search);
+2. solve the grid altitudes above and below it as two chains of tasks running in
+   parallel, each point starting from its neighbour's optimum;
+3. fit the Fourier series (patent 5.1) and save coefficients and grid.
+
+Every point is a task cached on its inputs, so a re-run recomputes nothing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from prefect import flow, get_run_logger
+from prefect.task_runners import ProcessPoolTaskRunner
+
+from ovtraj.config import load_scenario
+from ovtraj.launch.fit import continuation_chains, fit_rows
+from tasks.launch import launch_point_task
+
+
+@flow(name="launch-fit", task_runner=ProcessPoolTaskRunner(max_workers=2))
+def launch_fit_flow(
+    config: str = "configs/scenario.yaml", output_dir: str | None = None
+) -> dict[str, Any]:
+    """Solve the altitude grid, fit payload, insertion time and u; save and summarise."""
+    logger = get_run_logger()
+    scenario = load_scenario(Path(config))
+    if scenario.launch is None:
+        raise ValueError(f"{config}: the scenario has no launch section")
+    settings = scenario.launch
+    resolved = scenario.resolved()
+    reference_km = settings.target_altitude_km
+    grid_km = settings.fit.altitudes_km()
+
+    reference = launch_point_task.submit(resolved, reference_km)
+    futures = {reference_km: reference}
+    up, down = continuation_chains(grid_km, reference_km)
+    for chain in (up, down):
+        previous = reference
+        for altitude_km in chain:
+            previous = futures[altitude_km] = launch_point_task.submit(
+                resolved, altitude_km, previous
+            )
+    rows = {h: future.result() for h, future in futures.items()}
+    on_grid = [rows[h] for h in grid_km if h in rows]
+    for row in on_grid:
+        logger.info(
+            "%.1f km: payload %.2f kg, feasible %s, %.1f s",
+            row["target_altitude_km"],
+            row["payload_kg"] or float("nan"),
+            row["feasible"],
+            row["wall_time_s"],
+        )
+    fit = fit_rows(on_grid, settings.fit, settings.launcher.name)
+    directory = Path(output_dir) if output_dir else Path("data") / "launch_fit" / scenario.name
+    fit.save(directory)
+    summary = {
+        "points": len(on_grid),
+        "altitude_range_km": list(fit.altitude_range_km),
+        "directory": str(directory),
+    }
+    for name, series in fit.series.items():
+        summary[f"{name}_loo_max"] = series.loo_max_error
+        summary[f"{name}_loo_relative"] = fit.loo_relative_error(name)
+        logger.info(
+            "fit %s: rms %.3g %s, leave-one-out max %.3g %s (%.2f %% of range)",
+            name,
+            series.rms_residual,
+            series.unit,
+            series.loo_max_error,
+            series.unit,
+            100 * fit.loo_relative_error(name),
+        )
+    return summary
+
+
+if __name__ == "__main__":
+    launch_fit_flow()

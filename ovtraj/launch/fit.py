@@ -1,0 +1,179 @@
+"""Launch fit (patent 5.1): the launch solved on a grid of target altitudes, then a
+Fourier series per output.
+
+The whole-mission optimisation needs, for a parking altitude ``h``, the payload,
+the time from the launch day's 0 h to insertion and the argument of latitude at
+insertion. Solving the launch there is too slow, so the patent fits
+
+    f(h) = a0 + sum_{k=1..8} (a_k cos(k w h) + b_k sin(k w h))
+
+to each output over a grid of solved launches (:mod:`.fourier`). The grid is solved
+by continuation: the reference altitude (the scenario's target) gets the full
+genetic + local search, and the other altitudes are solved outward from it, each
+from its neighbour's optimum with the local phases only, so that every point lies
+on the same branch of optima (a fresh global search per point could land on a
+different local optimum and put a kink in the curve). The upward and downward
+chains are independent and run in parallel in the Prefect flow.
+
+The argument of latitude is unwrapped along the grid before fitting and wrapped
+into ``[0, 360)`` deg on evaluation.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.config.launch import FitGridConfig
+from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
+from ovtraj.launch.inputs import LaunchInput
+from ovtraj.launch.result import LaunchResult
+from ovtraj.launch.stage import solve_launch
+
+FITTED_OUTPUTS = {
+    "payload_kg": ("kg", "payload_kg"),
+    "insertion_time_s": ("s", "insertion_time_s"),
+    "insertion_u_deg": ("deg", "insertion_u_deg"),
+}
+
+
+def grid_altitudes_m(fit: FitGridConfig) -> list[float]:
+    return [h * 1e3 for h in fit.altitudes_km()]
+
+
+def continuation_chains(altitudes_m: list[float], reference_m: float) -> tuple[list, list]:
+    """Grid altitudes above and below the reference, each ordered outward from it."""
+    up = sorted(h for h in altitudes_m if h > reference_m)
+    down = sorted((h for h in altitudes_m if h < reference_m), reverse=True)
+    return up, down
+
+
+def solve_reference(inp: LaunchInput) -> LaunchResult:
+    """Full genetic + local search at the input's own target altitude."""
+    return solve_launch(inp)
+
+
+def solve_from(inp: LaunchInput, altitude_m: float, seed: LaunchResult) -> LaunchResult:
+    """Local search at ``altitude_m`` from a neighbouring optimum (continuation step)."""
+    target = inp.at_altitude(altitude_m)
+    if not seed.design:
+        return solve_launch(target)  # nothing to continue from: search globally
+    return solve_launch(target, seed_design=seed.design, global_search=False)
+
+
+def solve_grid(inp: LaunchInput, fit: FitGridConfig) -> list[LaunchResult]:
+    """Every grid altitude, serially (the flow runs the two chains in parallel)."""
+    reference = solve_reference(inp)
+    results = {inp.target_altitude_m: reference}
+    up, down = continuation_chains(grid_altitudes_m(fit), inp.target_altitude_m)
+    for chain in (up, down):
+        seed = reference
+        for h in chain:
+            seed = results[h] = solve_from(inp, h, seed)
+    wanted = grid_altitudes_m(fit)
+    return [results[h] for h in sorted(results) if _on_grid(h, wanted)]
+
+
+def _on_grid(h: float, grid: list[float]) -> bool:
+    return any(abs(h - g) < 1e-6 for g in grid)
+
+
+@dataclass(frozen=True)
+class LaunchFit:
+    """Fourier fits of the launch outputs against target altitude, with their data."""
+
+    series: dict[str, FourierSeries]
+    grid: pd.DataFrame  # one row per solved altitude (LaunchResult.to_row())
+    launcher: str
+
+    @property
+    def altitude_range_km(self) -> tuple[float, float]:
+        s = next(iter(self.series.values()))
+        return s.h_min_m / 1e3, s.h_max_m / 1e3
+
+    def evaluate(self, altitude_m: float) -> dict[str, float]:
+        """Fitted outputs at ``altitude_m``; outside the grid raises FourierRangeError."""
+        out = {name: float(series(altitude_m)) for name, series in self.series.items()}
+        out["insertion_u_deg"] %= 360.0
+        return out
+
+    def loo_relative_error(self, name: str) -> float:
+        """Largest leave-one-out error over the output's range on the grid."""
+        values = self.grid[FITTED_OUTPUTS[name][1]].to_numpy(dtype=float)
+        if name == "insertion_u_deg":
+            values = np.degrees(np.unwrap(np.radians(values)))
+        return float(self.series[name].loo_max_error) / float(np.ptp(values))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "launcher": self.launcher,
+            "series": {name: s.to_dict() for name, s in self.series.items()},
+        }
+
+    def save(self, directory: str | Path) -> None:
+        """``coefficients.json`` and ``grid.parquet``, each written then renamed."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        _atomic_write_bytes(
+            directory / "coefficients.json", json.dumps(self.to_dict(), indent=2).encode()
+        )
+        with tempfile.NamedTemporaryFile(dir=directory, suffix=".tmp", delete=False) as tmp:
+            self.grid.to_parquet(tmp.name, index=False)
+        os.replace(tmp.name, directory / "grid.parquet")
+
+    @classmethod
+    def load(cls, directory: str | Path) -> LaunchFit:
+        directory = Path(directory)
+        data = json.loads((directory / "coefficients.json").read_text(encoding="utf-8"))
+        return cls(
+            series={n: FourierSeries.from_dict(d) for n, d in data["series"].items()},
+            grid=pd.read_parquet(directory / "grid.parquet"),
+            launcher=data["launcher"],
+        )
+
+
+def _atomic_write_bytes(path: Path, payload: bytes) -> None:
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
+        tmp.write(payload)
+    os.replace(tmp.name, path)
+
+
+def fit_launch(results: list[LaunchResult], fit: FitGridConfig, launcher: str) -> LaunchFit:
+    """Fit every output over the solved grid; infeasible points are refused."""
+    return fit_rows([r.to_row() for r in results], fit, launcher)
+
+
+def fit_rows(rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str) -> LaunchFit:
+    """Fit every output over solved grid rows (``LaunchResult.to_row()``)."""
+    bad = [r for r in rows if not r["feasible"]]
+    if bad:
+        listing = ", ".join(f"{r['target_altitude_km']:g} km ({r['reason']})" for r in bad)
+        raise ValueError(f"launch fit needs every grid point solved; infeasible: {listing}")
+    grid = pd.DataFrame(sorted(rows, key=lambda row: row["target_altitude_km"]))
+    h = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
+    series = {}
+    for name, (unit, column) in FITTED_OUTPUTS.items():
+        y = grid[column].to_numpy(dtype=float)
+        if name == "insertion_u_deg":
+            y = np.degrees(np.unwrap(np.radians(y)))
+        series[name] = fit_fourier_series(
+            h, y, name=name, unit=unit, order=fit.order, ridge=fit.ridge, compute_loo=True
+        )
+    return LaunchFit(series=series, grid=grid, launcher=launcher)
+
+
+def design_of(row: dict[str, Any]) -> dict[str, float]:
+    """The design variables stored in a result row (configuration units)."""
+    return {k.removeprefix("design_"): v for k, v in row.items() if k.startswith("design_")}
+
+
+def launch_fit(inp: LaunchInput, fit: FitGridConfig) -> LaunchFit:
+    """Solve the grid and fit it (the library path; the flow parallelises the grid)."""
+    return fit_launch(solve_grid(inp, fit), fit, inp.launcher.name)
