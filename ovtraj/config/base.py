@@ -7,7 +7,7 @@ value is reported as ``target.orbit.eccentricity = 1.2: out of range, allowed
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic.fields import FieldInfo
@@ -73,8 +73,16 @@ def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[FieldInfo
         info = current.model_fields.get(str(part))
         if info is None:
             return None, sorted(current.model_fields)
-        current = info.annotation
+        current = _model_in(info.annotation)
     return info, []
+
+
+def _model_in(annotation: Any) -> Any:
+    """The model class inside ``Model | None`` (or the annotation itself)."""
+    for member in get_args(annotation) or (annotation,):
+        if isinstance(member, type) and issubclass(member, BaseModel):
+            return member
+    return annotation
 
 
 def _allowed(info: FieldInfo | None) -> str | None:
