@@ -341,10 +341,12 @@ class FlippedCoriolis:
 # -- 3. coast against the ECI propagator ------------------------------------------------
 
 
-def test_coast_in_launch_frame_matches_eci_propagator(problem):
-    """A 300 km orbit flown 1000 s in the rotating launch frame (with the coast's own air
-    model, negligible up there) equals heyoka's two-body + J2 flight in ECI."""
-    model = problem.model
+@pytest.mark.parametrize(("air", "max_dr", "max_dv"), [(False, 1e-3, 1e-6), (True, 1.0, 1e-3)])
+def test_coast_in_launch_frame_matches_eci_propagator(problem, air, max_dr, max_dv):
+    """Orbits flown 1000 s in the rotating launch frame (RK4, 1 s) equal heyoka's two-body
+    + J2 flight in ECI: to the integration error without air; with the coast's own air
+    model (300 km: ~2e-7 m/s^2 of drag on 500 kg) to the drag's ~0.1 m."""
+    model = problem.model if air else without_aero(problem.model)
     earth = model.earth
     drop = model.drop
     azimuths = np.radians([95.0, 200.0, 10.0])
@@ -373,9 +375,9 @@ def test_coast_in_launch_frame_matches_eci_propagator(problem):
         r_eci, v_eci = ecef_to_eci_state(r1, v1, theta, omega=earth.omega)
         worst_r = max(worst_r, float(np.linalg.norm(r_eci - result.state[:3])))
         worst_v = max(worst_v, float(np.linalg.norm(v_eci - result.state[3:])))
-    print(f"launch frame vs ECI after {duration:g} s: {worst_r:.3e} m, {worst_v:.3e} m/s")
-    assert worst_r < 1.0
-    assert worst_v < 1e-3
+    print(f"launch frame (air {air}) vs ECI, {duration:g} s: {worst_r:.2e} m, {worst_v:.2e} m/s")
+    assert worst_r < max_dr
+    assert worst_v < max_dv
 
 
 # -- 4. fixed-step RK4 against DOP853 on the powered ascent ------------------------------
@@ -406,21 +408,27 @@ def dop853_ascent(model, design: np.ndarray) -> dict[str, object]:
         crossing.direction = 1.0
         watch = phase.stage >= launcher.fairing_earliest_stage
         points = sorted({0.0, duration, *(min(max(float(b), 0.0), duration) for b in breaks)})
+
+        def drop_fairing(y, t):
+            powered = phase.thrust_n > 0.0
+            fairing.update(on=False, stage=phase.stage, burn_time_s=t if powered else 0.0)
+            y = y.copy()
+            y[MASS] -= launcher.fairing_mass_kg
+            return y
+
+        if watch and fairing["on"] and altitude(y) >= threshold:
+            y = drop_fairing(y, 0.0)
         t = 0.0
         for end in points[1:]:
             while t < end:
-                if watch and fairing["on"] and altitude(y) >= threshold:
-                    fairing.update(on=False, stage=phase.stage, burn_time_s=t)
-                    y = y.copy()
-                    y[MASS] -= launcher.fairing_mass_kg
                 events = crossing if watch and fairing["on"] else None
                 sol = solve_ivp(
                     rhs, (t, end), y, method="DOP853", rtol=1e-10, atol=1e-6, events=events
                 )
                 assert sol.success, sol.message
                 y, t = sol.y[:, -1], float(sol.t[-1])
-                if sol.status != 1:
-                    t = end
+                if sol.status == 1:  # the fairing altitude, located to machine precision
+                    y = drop_fairing(y, t)
         return y
 
     def phase(name, k, powered, wing, scale, attitude):
@@ -517,11 +525,11 @@ def test_fixed_step_rk4_matches_dop853_at_insertion(problem, configured, fine, r
         return np.linalg.norm(big_r), np.linalg.norm(y[3:6] + np.cross(omega, big_r))
 
     radius_ref, speed_ref = insertion_figures(ref)
-    rows = (
-        ("configured", configured, 50.0, 0.15, 0.01),
-        ("fine", fine, 1.0, 5e-3, 1e-4),
+    rows = (  # name, outcome, position, velocity, speed budget, fairing time
+        ("configured", configured, 50.0, 0.15, 0.1, 0.01),
+        ("fine", fine, 1.0, 5e-3, 2e-3, 1e-4),
     )
-    for name, outcome, max_dr, max_dv, max_dt in rows:
+    for name, outcome, max_dr, max_dv, max_budget, max_dt in rows:
         y = outcome.state[0]
         dr = float(np.linalg.norm(y[0:3] - ref[0:3]))
         dv = float(np.linalg.norm(y[3:6] - ref[3:6]))
@@ -536,7 +544,7 @@ def test_fixed_step_rk4_matches_dop853_at_insertion(problem, configured, fine, r
         assert dr < max_dr
         assert dv < max_dv
         assert dt < max_dt
-        assert budget.max() < 20 * max_dv
+        assert budget.max() < max_budget
         # Far below what "in the target orbit" means.
         assert abs(radius - radius_ref) < 0.1 * tolerances.altitude_tol_m
         assert abs(speed - speed_ref) < 0.1 * tolerances.speed_tol_mps
@@ -546,6 +554,23 @@ def test_fixed_step_rk4_matches_dop853_at_insertion(problem, configured, fine, r
     print(f"configured vs fine step: {dr:.3e} m, {dv:.3e} m/s")
     assert dr < 50.0
     assert dv < 0.15
+
+
+def test_path_maxima_match_the_fine_step(problem, configured, fine):
+    """Dynamic pressure and axial load peaks (parabola-refined samples) at the configured
+    step agree with the 40x finer run, and the good design respects both limits."""
+    launcher = problem.model.launcher
+    q, q_fine = configured.max_dynamic_pressure_pa[0], fine.max_dynamic_pressure_pa[0]
+    n, n_fine = configured.max_axial_load_g[0], fine.max_axial_load_g[0]
+    print(f"max q {q:.1f} Pa (fine {q_fine:.1f}), max axial load {n:.4f} g (fine {n_fine:.4f})")
+    assert q == pytest.approx(q_fine, rel=1e-3)
+    assert n == pytest.approx(n_fine, rel=1e-3)
+    assert configured.max_dynamic_pressure_time_s[0] == pytest.approx(
+        fine.max_dynamic_pressure_time_s[0], abs=0.5
+    )
+    assert q < launcher.max_dynamic_pressure_pa
+    assert n < launcher.max_axial_load_g
+    assert configured.min_altitude_m[0] == pytest.approx(fine.min_altitude_m[0], abs=1.0)
 
 
 # -- 5. rocket equation and speed budget -------------------------------------------------
@@ -600,14 +625,20 @@ def test_speed_budget_closes_on_the_rocket_equation(scenario, problem, configure
         f"ideal {state[IDEAL]:.4f} m/s (rocket equation {ideal_library:.4f}), gain "
         f"{gain:.4f} m/s, losses {losses}, closure {closure:.2e} m/s"
     )
-    assert abs(closure) < 1e-2 * state[IDEAL]
-    assert abs(closure) < 1e-5 * state[IDEAL]  # measured ~5e-7
+    assert abs(closure) < 1e-5 * state[IDEAL]  # measured ~5e-7 (the brief asks 1 %)
     for name, loss in losses.items():
         assert loss > -1e-6, name
     assert losses["gravity"] > 0.0 and losses["aero"] > 0.0  # a climb through the air
     assert ideal_library > gain
-    # The start speed is the drop speed plus the Earth's rotation at the drop point.
-    assert out.speed_start_inertial_mps[0] > problem.model.drop.mach * 290.0
+    # The start speed: the carrier's airspeed (Mach times the US76 speed of sound, level)
+    # plus the Earth's rotation at the drop point.
+    drop, earth = problem.model.drop, problem.model.earth
+    airspeed = drop.mach * float(default_atmosphere().speed_of_sound(drop.altitude_m))
+    v_drop = np.array([airspeed, 0.0, 0.0])
+    big_r = np.array([0.0, earth.radius + drop.altitude_m, 0.0])
+    omega = earth_rate_vectors(problem.model, out.design[:, AZIMUTH])[0]
+    start = np.linalg.norm(v_drop + np.cross(omega, big_r))
+    assert out.speed_start_inertial_mps[0] == pytest.approx(start, rel=1e-4)
 
 
 # -- 6. atmosphere table -----------------------------------------------------------------
