@@ -462,8 +462,8 @@ class TabulatedAtmosphere:
     ``top_m``. Altitudes outside the grid are clamped to it (a trajectory that
     leaves it is flagged by its caller, not here), so the lookup never raises
     inside a batch. :meth:`lookup` costs a few array operations whatever the
-    model behind it; ``tests/test_atmosphere.py`` bounds its error against the
-    model it samples.
+    model behind it; ``tests/test_launch_dynamics.py`` bounds its error against the
+    model it samples (1e-4, 1e-3 in the cells holding a US76 layer base).
 
     Parameters
     ----------

@@ -85,7 +85,7 @@ class FairingConfig(StrictModel):
 class AeroTableConfig(StrictModel):
     """Axial- and normal-force coefficients against Mach, monotone cubic (PCHIP) in Mach.
 
-    Body: ``C_A(M)`` and ``C_N = C_N_alpha(M) alpha`` on ``reference_area_m2``.
+    Body: ``C_A(M)`` and ``C_N = C_N_alpha(M) sin(alpha)`` on ``reference_area_m2``.
     Wing (first-stage flight only): ``C_N_alpha_wing(M)`` on ``wing_area_m2``.
     Lift and drag follow from the body-axis forces (``C_L = C_N cos a - C_A sin a``,
     ``C_D = C_N sin a + C_A cos a``).

@@ -28,7 +28,7 @@ with the step size of each row its own (coast lengths differ), so staging falls
 on step boundaries. The fairing leaves when the altitude first exceeds its
 threshold; the step in which that happens is redone in two parts split at the
 interpolated crossing, so results stay continuous in the design variables.
-``tests/test_launch.py`` checks the scheme against scipy's DOP853.
+``tests/test_launch_dynamics.py`` checks the scheme against scipy's DOP853.
 
 Along with the motion the state carries the speed budget in the inertial frame:
 ``d|V|/dt = F_vac/m - p_a A_e/m - F (1 - cos(P, V))/m - (-A.V/|V|)/m - (-g.V/|V|)``
@@ -358,15 +358,19 @@ def _refined_max(times: NDArray, values: NDArray) -> tuple[NDArray, NDArray]:
         ki = k[interior]
         t0, t1, t2 = times[ki - 1, c], times[ki, c], times[ki + 1, c]
         f0, f1, f2 = values[ki - 1, c], values[ki, c], values[ki + 1, c]
-        # Vertex of the parabola through three points (uniform steps within a phase).
-        h = t1 - t0
-        denom = f0 - 2.0 * f1 + f2
-        ok = denom < 0.0
-        shift = np.where(ok, 0.5 * (f0 - f2) / np.where(ok, denom, 1.0), 0.0)
-        shift = np.clip(shift, -0.5, 0.5)
-        peak[interior] = f1 - 0.25 * (f0 - f2) * shift
-        peak_t[interior] = t1 + shift * h
-        del t2
+        # Vertex of the parabola through three unevenly spaced points (corners of the
+        # programme put extra, possibly zero-length, steps in the grid).
+        h0, h1 = t1 - t0, t2 - t1
+        ok = (h0 > 0.0) & (h1 > 0.0)
+        d0 = np.where(ok, (f1 - f0) / np.where(ok, h0, 1.0), 0.0)
+        d1 = np.where(ok, (f2 - f1) / np.where(ok, h1, 1.0), 0.0)
+        curvature = np.where(ok, (d1 - d0) / np.where(ok, h0 + h1, 1.0), 0.0)
+        ok &= curvature < 0.0
+        slope_at_t1 = d0 + curvature * h0  # derivative of the parabola at t1
+        shift = np.where(ok, -slope_at_t1 / (2.0 * np.where(ok, curvature, -1.0)), 0.0)
+        shift = np.clip(shift, -h0, h1)
+        peak[interior] = f1 + slope_at_t1 * shift + curvature * shift * shift
+        peak_t[interior] = t1 + shift
     return peak, peak_t
 
 
