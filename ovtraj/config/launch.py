@@ -18,6 +18,7 @@ from typing import Any, Literal
 import yaml
 from pydantic import Field, field_validator, model_validator
 
+from ovtraj.astro.constants import default_earth
 from ovtraj.config.base import StrictModel, bounded
 from ovtraj.paths import config_dir
 
@@ -154,7 +155,7 @@ class LauncherConfig(StrictModel):
 
     @model_validator(mode="after")
     def _stage_data_consistent(self) -> LauncherConfig:
-        g0 = _STANDARD_GRAVITY
+        g0 = _standard_gravity()
         problems = []
         for k, stage in enumerate(self.stages, start=1):
             derived = stage.derived_burn_time_s(g0)
@@ -196,9 +197,9 @@ class LauncherConfig(StrictModel):
         return problems
 
 
-# Only used to cross-check launcher figures (burn time vs Isp); the dynamics take g0
-# from the Earth model.
-_STANDARD_GRAVITY = 9.80665
+def _standard_gravity() -> float:
+    """g0 [m/s^2] of ``configs/earth.yaml``, for the plausibility checks of launcher data."""
+    return default_earth().g0_m_s2
 
 
 class DropConfig(StrictModel):
@@ -361,7 +362,7 @@ class LaunchSettings(StrictModel):
         if self.fit.altitude_min_km < 150 or self.target_altitude_km < 150:
             problems.append("target altitudes below 150 km are not orbits a launch can aim at")
         lightest = self.design_bounds.payload_kg.lower
-        problems += self.launcher.check_thrust_to_weight(lightest, _STANDARD_GRAVITY)
+        problems += self.launcher.check_thrust_to_weight(lightest, _standard_gravity())
         if problems:
             raise ValueError("; ".join(problems))
         return self

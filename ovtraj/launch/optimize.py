@@ -248,6 +248,25 @@ class _StallMonitor:
         return solver_message
 
 
+def _local_outcome(
+    name: str, problem: LaunchProblem, result: object, start: float, before: int, message: str
+) -> tuple[NDArray, PhaseRecord]:
+    """End point of a scipy local method and its record (re-evaluated, not trusted)."""
+    x = np.clip(result.x, 0.0, 1.0)
+    payload, violation = _evaluate_one(problem, x)
+    return x, PhaseRecord(
+        name=name,
+        payload_kg=payload,
+        max_violation=violation,
+        feasible=violation <= 0.0,
+        accepted=False,
+        iterations=int(result.nit),
+        trajectories=problem.trajectories - before,
+        wall_time_s=time.perf_counter() - start,
+        message=message,
+    )
+
+
 def run_slsqp(
     problem: LaunchProblem, x0: NDArray, settings: LocalConfig
 ) -> tuple[NDArray, PhaseRecord]:
@@ -267,18 +286,8 @@ def run_slsqp(
         options={"maxiter": settings.slsqp_max_iterations, "ftol": settings.slsqp_ftol},
         callback=monitor,
     )
-    x = np.clip(result.x, 0.0, 1.0)
-    payload, violation = _evaluate_one(problem, x)
-    return x, PhaseRecord(
-        name="slsqp",
-        payload_kg=payload,
-        max_violation=violation,
-        feasible=violation <= 0.0,
-        accepted=False,
-        iterations=int(result.nit),
-        trajectories=problem.trajectories - before,
-        wall_time_s=time.perf_counter() - start,
-        message=monitor.message(str(result.message)),
+    return _local_outcome(
+        "slsqp", problem, result, start, before, monitor.message(str(result.message))
     )
 
 
@@ -311,19 +320,8 @@ def run_trust_constr(
         },
         callback=monitor,
     )
-    x = np.clip(result.x, 0.0, 1.0)
-    payload, violation = _evaluate_one(problem, x)
-    return x, PhaseRecord(
-        name="trust-constr",
-        payload_kg=payload,
-        max_violation=violation,
-        feasible=violation <= 0.0,
-        accepted=False,
-        iterations=int(result.nit),
-        trajectories=problem.trajectories - before,
-        wall_time_s=time.perf_counter() - start,
-        message=f"{monitor.message(str(result.message))} (method {result.method})",
-    )
+    message = f"{monitor.message(str(result.message))} (method {result.method})"
+    return _local_outcome("trust-constr", problem, result, start, before, message)
 
 
 def optimise_launch(

@@ -39,7 +39,13 @@ from ovtraj.launch.ascent import (
 from ovtraj.launch.frame import launch_frame_axes
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.launch.optimize import OptimisationOutcome, optimise_launch
-from ovtraj.launch.problem import InsertionTarget, LaunchProblem
+from ovtraj.launch.problem import (
+    EQUALITY_NAMES,
+    INEQUALITY_NAMES,
+    Evaluation,
+    InsertionTarget,
+    LaunchProblem,
+)
 from ovtraj.launch.result import LaunchResult, trajectory_table
 from ovtraj.launch.vehicle import LauncherModel
 
@@ -249,9 +255,7 @@ def _finish(
     )
 
 
-def _worst_constraints(ev: object) -> str:
-    from ovtraj.launch.problem import EQUALITY_NAMES, INEQUALITY_NAMES
-
+def _worst_constraints(ev: Evaluation) -> str:
     eq = np.abs(ev.equality[0])
     parts = [f"{n} {v:.3g} tolerances" for n, v in zip(EQUALITY_NAMES, eq, strict=True) if v > 1]
     parts += [
