@@ -2,10 +2,12 @@
 
 1. solve the launch at the scenario's target altitude (genetic + local search);
 2. solve the grid altitudes above and below it as two chains of tasks running in
-   parallel, each point starting from its neighbour's optimum;
+   parallel, each point starting from the secant prediction through the chain's
+   last two optima;
 3. fit the Fourier series (patent 5.1) and save coefficients and grid.
 
-Every point is a task cached on its inputs, so a re-run recomputes nothing.
+Every point is a task cached on its inputs (scenario, altitude, seed rows, code
+version), so a re-run recomputes nothing; the summary counts the cached points.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from prefect.task_runners import ProcessPoolTaskRunner
 
 from ovtraj.config import load_scenario
 from ovtraj.launch.fit import continuation_chains, fit_rows
+from ovtraj.version import code_version
 from tasks.launch import launch_point_task
 
 
@@ -35,16 +38,20 @@ def launch_fit_flow(
     reference_km = settings.target_altitude_km
     grid_km = settings.fit.altitudes_km()
 
-    reference = launch_point_task.submit(resolved, reference_km)
+    code = code_version()
+    reference = launch_point_task.submit(resolved, reference_km, code=code)
     futures = {reference_km: reference}
     up, down = continuation_chains(grid_km, reference_km)
     for chain in (up, down):
-        previous = reference
+        previous, seed = None, reference
         for altitude_km in chain:
-            previous = futures[altitude_km] = launch_point_task.submit(
-                resolved, altitude_km, previous
+            previous, seed = (
+                seed,
+                launch_point_task.submit(resolved, altitude_km, seed, previous, code=code),
             )
+            futures[altitude_km] = seed
     rows = {h: future.result() for h, future in futures.items()}
+    cached = sum(1 for future in futures.values() if future.state.name == "Cached")
     on_grid = [rows[h] for h in grid_km if h in rows]
     for row in on_grid:
         logger.info(
@@ -59,6 +66,9 @@ def launch_fit_flow(
     fit.save(directory)
     summary = {
         "points": len(on_grid),
+        "solved_points": len(futures),
+        "cached_points": cached,
+        "payload_kg": [row["payload_kg"] for row in on_grid],
         "altitude_range_km": list(fit.altitude_range_km),
         "directory": str(directory),
     }

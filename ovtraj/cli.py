@@ -175,7 +175,7 @@ def launch(
         shown.append(
             (
                 f"phase {phase.name}",
-                f"payload {phase.payload_kg:.2f} kg, violation {phase.max_violation:.3g}, "
+                f"payload {phase.payload_kg:.2f} kg, residual {phase.max_residual:.3g}, "
                 f"{phase.iterations} it, {phase.trajectories} traj, {phase.wall_time_s:.1f} s"
                 f"{'' if phase.accepted else ' (not kept)'}",
             )
@@ -222,3 +222,55 @@ def launch_fit_command(
             )
         )
     _print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
+
+
+_DEORBIT_ROWS = [
+    ("burn epoch (UTC)", "burn_epoch_utc"),
+    ("wait on the preparation orbit [s]", "wait_time_s"),
+    ("impulse [m/s]", "dv_mps"),
+    ("impulse radial/along/cross [m/s]", None),
+    ("two-body estimate [m/s]", "estimate_dv_mps"),
+    ("burn to entry [s]", "descent_time_s"),
+    ("entry epoch (UTC)", "entry_epoch_utc"),
+    ("entry latitude [deg]", "entry_lat_deg"),
+    ("entry longitude [deg]", "entry_lon_deg"),
+    ("entry error [km]", "entry_error_km"),
+    ("entry speed, inertial [m/s]", "entry_speed_mps"),
+    ("entry flight-path angle, inertial [deg]", "entry_fpa_deg"),
+    ("entry speed, Earth-relative [m/s]", "entry_relative_speed_mps"),
+    ("entry flight-path angle, Earth-relative [deg]", "entry_relative_fpa_deg"),
+    ("entry heading [deg]", "entry_heading_deg"),
+    ("SLSQP iterations", "iterations"),
+    ("propagations", "propagations"),
+    ("wall time [s]", "wall_time_s"),
+]
+
+
+@app.command()
+def deorbit(config: ConfigArg, as_json: JsonOpt = False) -> None:
+    """Deorbit: ground-track forecast, two-body estimate, SQP correction under J2."""
+    from ovtraj.deorbit import deorbit_input, solve_deorbit
+
+    scenario = _load(config)
+    try:
+        inp = deorbit_input(scenario)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    result = solve_deorbit(inp)
+    row = _json_safe(result.to_row())
+    if as_json:
+        typer.echo(json.dumps(row, indent=2))
+    else:
+        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+        if row["reason"]:
+            shown.append(("reason", row["reason"]))
+        for label, key in _DEORBIT_ROWS:
+            if key is not None:
+                shown.append((label, row[key]))
+            elif row["dv_radial_mps"] is not None:
+                parts = (row[f"dv_{n}_mps"] for n in ("radial", "along_track", "cross_track"))
+                shown.append((label, " / ".join(f"{p:.3f}" for p in parts)))
+        _print_rows(f"deorbit: {scenario.name}", shown)
+    if not result.feasible:
+        raise typer.Exit(code=1)

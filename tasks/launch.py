@@ -7,10 +7,16 @@ from typing import Any
 from prefect import task
 from prefect.cache_policies import INPUTS
 
-from ovtraj import __version__
 from ovtraj.config import scenario_from_dict
 from ovtraj.launch import launch_input, solve_launch
-from ovtraj.launch.fit import design_of
+from ovtraj.launch.fit import design_of, predicted_design
+from ovtraj.version import code_version
+
+
+def _solved(row: dict[str, Any] | None) -> tuple[float, dict[str, float]] | None:
+    if row is None or not row["feasible"]:
+        return None
+    return row["target_altitude_km"] * 1e3, design_of(row)
 
 
 @task(
@@ -24,15 +30,19 @@ def launch_point_task(
     resolved_scenario: dict[str, Any],
     altitude_km: float,
     seed_row: dict[str, Any] | None = None,
-    code_version: str = __version__,
+    previous_row: dict[str, Any] | None = None,
+    code: str = code_version(),
 ) -> dict[str, Any]:
     """Maximum-payload launch to ``altitude_km``; returns the flat result row.
 
-    Without ``seed_row`` the full genetic + local search runs; with one (a
-    neighbouring grid point's row) only the local phases, from its design. The
-    scenario, altitude, seed and ``code_version`` form the cache key.
+    Without a feasible ``seed_row`` the full genetic + local search runs; with one
+    (the chain's last solved grid point, ``previous_row`` the one before it) only
+    the local phases, from the secant prediction through them. The scenario, the
+    altitude, the seed rows and the code version form the cache key.
     """
     inp = launch_input(scenario_from_dict(resolved_scenario), altitude_km=altitude_km)
-    if seed_row is None or not seed_row["feasible"]:
+    seed = _solved(seed_row)
+    if seed is None:
         return solve_launch(inp).to_row()
-    return solve_launch(inp, seed_design=design_of(seed_row), global_search=False).to_row()
+    start = predicted_design(altitude_km * 1e3, seed, _solved(previous_row))
+    return solve_launch(inp, seed_design=start, global_search=False).to_row()

@@ -14,7 +14,7 @@ from ovtraj.cli import app
 from ovtraj.config import ConfigError
 from ovtraj.launch import launch_input, solve_launch
 from ovtraj.launch.fit import design_of
-from ovtraj.launch.optimize import is_better
+from ovtraj.launch.optimize import Standing, is_better
 from ovtraj.launch.stage import insertion_time_s, nominal_azimuth_rad
 from tests.conftest import REPO, build_scenario
 
@@ -86,11 +86,19 @@ def test_nominal_azimuth_is_the_spherical_trigonometry_one():
     assert math.degrees(nominal_azimuth_rad(phi, phi, "ascending")) == pytest.approx(90.0)
 
 
-def test_phase_ordering_is_feasibility_first():
-    assert is_better((300.0, 0.0), (400.0, 0.5))  # feasible beats a heavier infeasible one
-    assert is_better((410.0, 0.0), (400.0, 0.0))
-    assert not is_better((390.0, 0.0), (400.0, 0.0))
-    assert is_better((200.0, 0.1), (400.0, 0.5))  # between infeasible: smaller violation
+def test_phase_ordering_is_converged_then_feasible_then_payload():
+    def better(a: tuple, b: tuple) -> bool:
+        return is_better(Standing(*a), Standing(*b), converged_residual=0.1)
+
+    # (payload kg, violation, residual)
+    assert better((300.0, 0.0, 0.5), (400.0, 0.5, 1.5))  # feasible beats heavier infeasible
+    assert better((410.0, 0.0, 0.05), (400.0, 0.0, 0.05))
+    assert not better((390.0, 0.0, 0.05), (400.0, 0.0, 0.05))
+    assert better((200.0, 0.1, 1.1), (400.0, 0.5, 1.5))  # between infeasible: less violation
+    # A converged design beats a heavier one at the edge of the tolerance box...
+    assert better((399.9, 0.0, 0.05), (400.1, 0.0, 0.9))
+    # ...and between two merely feasible designs the payload decides.
+    assert better((400.1, 0.0, 0.9), (399.9, 0.0, 0.5))
 
 
 # -- the optimised ascent at two altitudes (one global search, one continuation) -----------
@@ -121,8 +129,9 @@ def test_insertion_constraints_met_within_tolerances_at_two_altitudes(solved, sc
         # here from the final ECI state).
         assert abs(row["raan_error_deg"]) < 1e-6
         limits = scenario.launch.launcher.limits
-        assert row["max_dynamic_pressure_pa"] <= limits.max_dynamic_pressure_kpa * 1e3
-        assert row["max_axial_load_g"] <= limits.max_axial_load_g
+        over = 1.0 + tol.path_limit_fraction
+        assert row["max_dynamic_pressure_pa"] <= limits.max_dynamic_pressure_kpa * 1e3 * over
+        assert row["max_axial_load_g"] <= limits.max_axial_load_g * over
         # Independent check of the insertion orbit: near-circular at the target radius.
         radius = scenario.earth.radius + result.target_altitude_m
         assert row["semi_major_axis_km"] * 1e3 == pytest.approx(radius, abs=2 * tol.altitude_m)
@@ -135,18 +144,19 @@ def test_payload_decreases_with_target_altitude(solved):
     assert lower.payload_kg > reference.payload_kg
 
 
-def test_local_phases_never_end_worse_than_their_seed(solved):
+def test_local_phases_never_end_worse_than_their_seed(solved, scenario):
+    converged = scenario.launch.local.converged_residual
     for result in solved:
-        best = (result.phases[0].payload_kg, result.phases[0].max_violation)
+        best = result.phases[0].standing
         for phase in result.phases[1:]:
+            # A phase replaces the incumbent exactly when it ranks better.
+            assert phase.accepted == is_better(phase.standing, best, converged)
             if phase.accepted:
-                assert is_better((phase.payload_kg, phase.max_violation), best)
-                best = (phase.payload_kg, phase.max_violation)
-        assert (result.payload_kg, 0.0) == (best[0], 0.0)
-        assert not is_better(
-            (result.phases[0].payload_kg, result.phases[0].max_violation),
-            (result.payload_kg, 0.0 if result.feasible else 1.0),
-        )
+                best = phase.standing
+        assert result.payload_kg == best.payload_kg
+        assert not is_better(result.phases[0].standing, best, converged)
+        # The local phases closed the constraints to a converged design.
+        assert best.residual <= converged
     reference = solved[0]
     assert reference.phases[0].name == "genetic"
     assert [p.name for p in reference.phases] == ["genetic", "slsqp", "trust-constr"]

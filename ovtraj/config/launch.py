@@ -262,6 +262,11 @@ class InsertionTolerancesConfig(StrictModel):
     speed_mps: float = bounded(unit="m/s", gt=0)
     flight_path_angle_deg: float = bounded(unit="deg", gt=0)
     inclination_deg: float = bounded(unit="deg", gt=0)
+    path_limit_fraction: float = bounded(
+        gt=0,
+        le=0.05,
+        description="a path maximum counts as within its limit up to this fraction over it",
+    )
 
 
 class IntegrationConfig(StrictModel):
@@ -295,8 +300,11 @@ class LocalConfig(StrictModel):
     stall_payload_kg: float = bounded(
         unit="kg", ge=0, description="a phase whose payload moves less over stall_iterations stops"
     )
-    stall_violation: float = bounded(
-        ge=0, description="... if its constraints are within this many tolerances"
+    converged_residual: float = bounded(
+        gt=0,
+        le=1,
+        description="a design is converged when every |c| is within this fraction of its "
+        "tolerance; converged designs rank above merely feasible ones",
     )
 
 
@@ -307,7 +315,19 @@ class FitGridConfig(StrictModel):
     altitude_max_km: float = bounded(unit="km", le=2000)
     points: int = bounded(ge=3, le=1000)
     order: int = bounded(ge=1, le=20)
-    ridge: float = bounded(ge=0, description="Tikhonov weight on the harmonics (fourier.py)")
+    ridge_candidates: tuple[float, ...] = Field(
+        min_length=1,
+        description="Tikhonov weights on the harmonics (fourier.py); each output's fit "
+        "keeps the one with the smallest leave-one-out error",
+    )
+
+    @field_validator("ridge_candidates")
+    @classmethod
+    def _non_negative_ridges(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        bad = [r for r in value if not (r >= 0.0 and r < float("inf"))]
+        if bad:
+            raise ValueError(f"ridge weights must be finite and >= 0, got {bad}")
+        return value
 
     @model_validator(mode="after")
     def _ordered(self) -> FitGridConfig:

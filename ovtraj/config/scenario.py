@@ -15,6 +15,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from ovtraj.astro.constants import EarthModel, default_earth
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 
 ElementSet = Literal["osculating", "mean"]
@@ -135,6 +136,7 @@ class Scenario(StrictModel):
     tolerances: TolerancesConfig
     rendezvous: RendezvousSettings
     launch: LaunchSettings | None = None
+    deorbit: DeorbitSettings | None = None
 
     @field_validator("epoch_utc")
     @classmethod
@@ -152,11 +154,27 @@ class Scenario(StrictModel):
             problems.append(f"target.orbit: perigee altitude {perigee:.1f} km")
         if self.parking_orbit.altitude_km < floor:
             problems.append(f"parking_orbit.altitude_km: {self.parking_orbit.altitude_km:g} km")
+        if self.deorbit is not None and self.deorbit.preparation_orbit.altitude_km < floor:
+            altitude = self.deorbit.preparation_orbit.altitude_km
+            problems.append(f"deorbit.preparation_orbit.altitude_km: {altitude:g} km")
         if problems:
             raise ValueError(
                 "; ".join(problems)
                 + f" below the minimum perigee altitude (allowed >= {floor:g} km,"
                 " limits.min_perigee_altitude_km)"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _entry_below_preparation_orbit(self) -> Scenario:
+        if self.deorbit is None:
+            return self
+        entry = self.deorbit.entry.altitude_km
+        orbit = self.deorbit.preparation_orbit.altitude_km
+        if entry >= orbit:
+            raise ValueError(
+                f"deorbit.entry.altitude_km = {entry:g} must lie below the preparation orbit "
+                f"(deorbit.preparation_orbit.altitude_km = {orbit:g})"
             )
         return self
 

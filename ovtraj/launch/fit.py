@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,12 +60,43 @@ def solve_reference(inp: LaunchInput) -> LaunchResult:
     return solve_launch(inp)
 
 
-def solve_from(inp: LaunchInput, altitude_m: float, seed: LaunchResult) -> LaunchResult:
-    """Local search at ``altitude_m`` from a neighbouring optimum (continuation step)."""
+def predicted_design(
+    altitude_m: float,
+    seed: tuple[float, dict[str, float]],
+    previous: tuple[float, dict[str, float]] | None = None,
+) -> dict[str, float]:
+    """Start of a continuation step: the neighbour's design, or the secant through two.
+
+    ``seed`` and ``previous`` are ``(altitude_m, design)`` of the last two solved
+    points of a chain (``seed`` the nearer). With both, the design is extrapolated
+    linearly in altitude (the secant predictor of numerical continuation, Allgower
+    and Georg, *Introduction to Numerical Continuation Methods*, sec. 2.2), which
+    starts the local search a fraction of a tolerance from the new optimum instead
+    of one grid step away; the optimiser clips it to the design bounds.
+    """
+    h1, d1 = seed
+    if previous is None or abs(h1 - previous[0]) < 1e-9:
+        return dict(d1)
+    h0, d0 = previous
+    ratio = (altitude_m - h1) / (h1 - h0)
+    return {name: d1[name] + ratio * (d1[name] - d0[name]) for name in d1}
+
+
+def solve_from(
+    inp: LaunchInput,
+    altitude_m: float,
+    seed: LaunchResult,
+    previous: LaunchResult | None = None,
+) -> LaunchResult:
+    """Local search at ``altitude_m`` from the chain's last optima (continuation step)."""
     target = inp.at_altitude(altitude_m)
-    if not seed.design:
+    if not seed.feasible or not seed.design:
         return solve_launch(target)  # nothing to continue from: search globally
-    return solve_launch(target, seed_design=seed.design, global_search=False)
+    before = None
+    if previous is not None and previous.feasible and previous.design:
+        before = (previous.target_altitude_m, previous.design)
+    start = predicted_design(altitude_m, (seed.target_altitude_m, seed.design), before)
+    return solve_launch(target, seed_design=start, global_search=False)
 
 
 def solve_grid(inp: LaunchInput, fit: FitGridConfig) -> list[LaunchResult]:
@@ -74,9 +105,10 @@ def solve_grid(inp: LaunchInput, fit: FitGridConfig) -> list[LaunchResult]:
     results = {inp.target_altitude_m: reference}
     up, down = continuation_chains(grid_altitudes_m(fit), inp.target_altitude_m)
     for chain in (up, down):
-        seed = reference
+        previous, seed = None, reference
         for h in chain:
-            seed = results[h] = solve_from(inp, h, seed)
+            previous, seed = seed, solve_from(inp, h, seed, previous)
+            results[h] = seed
     wanted = grid_altitudes_m(fit)
     return [results[h] for h in sorted(results) if _on_grid(h, wanted)]
 
@@ -92,6 +124,7 @@ class LaunchFit:
     series: dict[str, FourierSeries]
     grid: pd.DataFrame  # one row per solved altitude (LaunchResult.to_row())
     launcher: str
+    ridges: dict[str, float] = field(default_factory=dict)  # the weight each fit kept
 
     @property
     def altitude_range_km(self) -> tuple[float, float]:
@@ -114,6 +147,7 @@ class LaunchFit:
     def to_dict(self) -> dict[str, Any]:
         return {
             "launcher": self.launcher,
+            "ridges": self.ridges,
             "series": {name: s.to_dict() for name, s in self.series.items()},
         }
 
@@ -136,6 +170,7 @@ class LaunchFit:
             series={n: FourierSeries.from_dict(d) for n, d in data["series"].items()},
             grid=pd.read_parquet(directory / "grid.parquet"),
             launcher=data["launcher"],
+            ridges=data.get("ridges", {}),
         )
 
 
@@ -158,15 +193,32 @@ def fit_rows(rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str) -> L
         raise ValueError(f"launch fit needs every grid point solved; infeasible: {listing}")
     grid = pd.DataFrame(sorted(rows, key=lambda row: row["target_altitude_km"]))
     h = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
-    series = {}
+    series, ridges = {}, {}
     for name, (unit, column) in FITTED_OUTPUTS.items():
         y = grid[column].to_numpy(dtype=float)
         if name == "insertion_u_deg":
             y = np.degrees(np.unwrap(np.radians(y)))
-        series[name] = fit_fourier_series(
-            h, y, name=name, unit=unit, order=fit.order, ridge=fit.ridge, compute_loo=True
+        series[name], ridges[name] = fit_by_cross_validation(h, y, name, unit, fit)
+    return LaunchFit(series=series, grid=grid, launcher=launcher, ridges=ridges)
+
+
+def fit_by_cross_validation(
+    h_m: np.ndarray, y: np.ndarray, name: str, unit: str, fit: FitGridConfig
+) -> tuple[FourierSeries, float]:
+    """The series whose ridge weight gives the smallest leave-one-out error.
+
+    Each output has its own noise level (the payload is converged to grams, the
+    insertion time only to a second: the optimum is flat in directions that move
+    it), so each gets its own weight from the configured candidates.
+    """
+    best: tuple[FourierSeries, float] | None = None
+    for ridge in fit.ridge_candidates:
+        series = fit_fourier_series(
+            h_m, y, name=name, unit=unit, order=fit.order, ridge=ridge, compute_loo=True
         )
-    return LaunchFit(series=series, grid=grid, launcher=launcher)
+        if best is None or series.loo_max_error < best[0].loo_max_error:
+            best = (series, ridge)
+    return best
 
 
 def design_of(row: dict[str, Any]) -> dict[str, float]:

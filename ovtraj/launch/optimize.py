@@ -38,6 +38,7 @@ class PhaseRecord:
     name: str
     payload_kg: float
     max_violation: float  # scaled: 0 when every constraint is within its tolerance
+    max_residual: float  # scaled: largest |c| (1 is one tolerance)
     feasible: bool
     accepted: bool  # replaced the incumbent design
     iterations: int
@@ -48,12 +49,17 @@ class PhaseRecord:
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
 
+    @property
+    def standing(self) -> Standing:
+        return Standing(self.payload_kg, self.max_violation, self.max_residual)
+
 
 @dataclass
 class OptimisationOutcome:
     x: NDArray  # best scaled design
     payload_kg: float
     max_violation: float
+    max_residual: float
     phases: list[PhaseRecord]
     trajectories: int
     wall_time_s: float
@@ -63,22 +69,51 @@ class OptimisationOutcome:
         return self.max_violation <= 0.0
 
 
-def is_better(candidate: tuple[float, float], incumbent: tuple[float, float]) -> bool:
-    """Feasibility first, then payload; ``(payload_kg, violation)`` pairs."""
-    (p_new, v_new), (p_old, v_old) = candidate, incumbent
-    if v_new <= 0.0 and v_old <= 0.0:
-        return p_new > p_old
-    if v_new <= 0.0 or v_old <= 0.0:
-        return v_new <= 0.0
-    return v_new < v_old
+@dataclass(frozen=True)
+class Standing:
+    """How good a design is: its payload and how far it is from the constraints.
+
+    ``violation`` is the largest scaled violation (0 when every constraint is within
+    its tolerance); ``residual`` the largest scaled residual, ``max |c_eq|`` and the
+    path limits' shortfall (``<= 1`` is within tolerance, 0 is exact).
+    """
+
+    payload_kg: float
+    violation: float
+    residual: float
+
+    def rank(self, converged_residual: float) -> tuple[int, float]:
+        """Sort key, smaller is better: converged, then feasible, then infeasible.
+
+        A design counts as converged when its residual is at most
+        ``converged_residual`` (a fraction of the tolerances). Ranking converged
+        designs first keeps a phase from being beaten by a design that merely sits
+        at the favourable edge of the tolerance box, which would make the payload a
+        noisy function of the target altitude.
+        """
+        if self.violation > 0.0:
+            return 2, self.violation
+        return (0 if self.residual <= converged_residual else 1), -self.payload_kg
+
+
+def is_better(candidate: Standing, incumbent: Standing, converged_residual: float) -> bool:
+    """Converged first, then feasible, then by payload (or, if infeasible, violation)."""
+    return candidate.rank(converged_residual) < incumbent.rank(converged_residual)
 
 
 class _Oracle:
-    """Values and central-difference Jacobians of a LaunchProblem, one batch per point."""
+    """Values and central-difference Jacobians of a LaunchProblem, one batch per point.
+
+    The local methods see the path limits as the plain margins ``1 - q_max / q_limit``
+    (``>= 0``), not divided by their small tolerance: values of a few hundred on the
+    inactive load limit upset ``trust-constr``'s barrier. The tolerance enters only
+    through the ranking of designs (:class:`Standing`).
+    """
 
     def __init__(self, problem: LaunchProblem, step: float) -> None:
         self.problem = problem
         self.step = step
+        self._margin = problem.target.path_limit_fraction
         self._key: bytes | None = None
         self._values: tuple[NDArray, NDArray] | None = None
         self._jac_key: bytes | None = None
@@ -89,7 +124,7 @@ class _Oracle:
         if key != self._key:
             ev = self.problem.evaluate(x)
             self._key = key
-            self._values = (ev.equality[0], ev.inequality[0])
+            self._values = (ev.equality[0], ev.inequality[0] * self._margin)
 
     def _evaluate_jacobian(self, x: NDArray) -> None:
         key = np.asarray(x, dtype=float).tobytes()
@@ -99,11 +134,11 @@ class _Oracle:
         h = self.step
         rows = np.vstack([x, x + h * np.eye(n), x - h * np.eye(n)])
         ev = self.problem.evaluate(rows)
-        self._key, self._values = key, (ev.equality[0], ev.inequality[0])
+        self._key, self._values = key, (ev.equality[0], ev.inequality[0] * self._margin)
         self._jac_key = key
         self._jacobians = (
             ((ev.equality[1 : n + 1] - ev.equality[n + 1 :]) / (2 * h)).T,
-            ((ev.inequality[1 : n + 1] - ev.inequality[n + 1 :]) / (2 * h)).T,
+            ((ev.inequality[1 : n + 1] - ev.inequality[n + 1 :]) * self._margin / (2 * h)).T,
         )
 
     @staticmethod
@@ -140,17 +175,18 @@ class _GeneticProblem(Problem):
         super().__init__(n_var=problem.dimension, n_obj=1, n_ieq_constr=6, xl=0.0, xu=1.0)
         self.problem = problem
         self.relaxation = relaxation
-        self.best: tuple[NDArray, float, float] | None = None  # x, payload, true violation
 
     def _evaluate(self, x: NDArray, out: dict, *args: object, **kwargs: object) -> None:
         ev = self.problem.evaluate(x)
         out["F"] = -x[:, PAYLOAD_INDEX : PAYLOAD_INDEX + 1]
-        out["G"] = np.hstack([np.abs(ev.equality) - self.relaxation, -ev.inequality])
+        out["G"] = np.hstack(
+            [np.abs(ev.equality) - self.relaxation, -ev.inequality - self.relaxation]
+        )
 
 
-def _evaluate_one(problem: LaunchProblem, x: NDArray) -> tuple[float, float]:
+def _evaluate_one(problem: LaunchProblem, x: NDArray) -> Standing:
     ev: Evaluation = problem.evaluate(x)
-    return float(ev.payload_kg[0]), float(ev.violation[0])
+    return Standing(float(ev.payload_kg[0]), float(ev.violation[0]), float(ev.residual[0]))
 
 
 def run_genetic(
@@ -187,12 +223,13 @@ def run_genetic(
     f = population.get("F")[:, 0]
     best_index = int(np.lexsort((f, cv))[0])
     x = np.clip(population.get("X")[best_index], 0.0, 1.0)
-    payload, violation = _evaluate_one(problem, x)
+    standing = _evaluate_one(problem, x)
     record = PhaseRecord(
         name="genetic",
-        payload_kg=payload,
-        max_violation=violation,
-        feasible=violation <= 0.0,
+        payload_kg=standing.payload_kg,
+        max_violation=standing.violation,
+        max_residual=standing.residual,
+        feasible=standing.violation <= 0.0,
         accepted=True,
         iterations=settings.generations,
         trajectories=problem.trajectories - before,
@@ -204,61 +241,95 @@ def run_genetic(
 
 
 class _StallMonitor:
-    """Stops a local method once the payload has stopped moving near feasibility.
+    """Stops a local method once it has stopped improving on the best design it has seen.
 
     The optimum is flat along some directions of the programme (e.g. alpha_2 against
     t_23), where SLSQP's step-length test never fires and its iterates drift along
-    the flat valley a few tolerances off the constraints although the payload has
-    long converged. ``stall_iterations`` iterations whose payloads stay within
-    ``stall_payload_kg`` and whose violation stays below ``stall_violation``
-    tolerances end the phase; the next phase (or the acceptance rule) takes it from
-    there.
+    the flat valley while the payload has long converged; and ``trust-constr``
+    started on a converged design wanders into the interior (its barrier pushes it
+    off the active constraints) for its whole iteration budget. Both are cut off by
+    one rule: ``stall_iterations`` consecutive iterations that bring no converged
+    design (residual at most ``converged_residual`` of the tolerances, see
+    :meth:`Standing.rank`) with a payload more than ``stall_payload_kg`` above the
+    best such design so far (the start included) end the phase. The acceptance rule
+    in :func:`optimise_launch` then keeps whichever design is better.
     """
 
-    def __init__(self, problem: LaunchProblem, oracle: _Oracle, settings: LocalConfig) -> None:
+    def __init__(
+        self, problem: LaunchProblem, oracle: _Oracle, settings: LocalConfig, x0: NDArray
+    ) -> None:
         self.problem = problem
         self.oracle = oracle
         self.window = settings.stall_iterations
         self.threshold = settings.stall_payload_kg
-        self.max_violation = settings.stall_violation
-        self.payloads: list[float] = []
+        self.converged_residual = settings.converged_residual
+        self.reference = self._admissible_payload(np.asarray(x0, dtype=float))
+        self.best_payload = self.reference
+        self.best_x: NDArray | None = None  # best converged iterate (the start excluded)
+        self.idle = 0
         self.stalled = False
+
+    def _admissible_payload(self, x: NDArray) -> float:
+        """Payload of ``x`` if it is converged (module notes), else -inf."""
+        eq = self.oracle.equality(x)
+        ineq = self.oracle.inequality(x) / self.problem.target.path_limit_fraction
+        residual = max(float(np.max(np.abs(eq))), float(np.max(-ineq)), 0.0)
+        if residual > self.converged_residual:
+            return -np.inf
+        return float(self.problem.to_config_units(x)[PAYLOAD_INDEX])
 
     def __call__(self, intermediate_result: object) -> None:
         x = np.asarray(getattr(intermediate_result, "x", intermediate_result), dtype=float)
-        eq, ineq = self.oracle.equality(x), self.oracle.inequality(x)
-        violation = max(float(np.max(np.abs(eq))) - 1.0, float(np.max(-ineq)), 0.0)
-        payload = float(self.problem.to_config_units(x)[PAYLOAD_INDEX])
-        self.payloads.append(payload if violation <= self.max_violation else -np.inf)
-        recent = self.payloads[-(self.window + 1) :]
-        if (
-            len(recent) == self.window + 1
-            and np.all(np.isfinite(recent))
-            and max(recent) - min(recent) < self.threshold
-        ):
+        payload = self._admissible_payload(x)
+        if payload > self.best_payload:
+            self.best_payload, self.best_x = payload, x.copy()
+        if payload > self.reference + self.threshold:
+            self.reference, self.idle = payload, 0
+            return
+        if np.isfinite(self.best_payload):
+            self.idle += 1
+        if self.idle >= self.window:
             self.stalled = True
             raise StopIteration
 
     def message(self, solver_message: str) -> str:
         if self.stalled:
             return (
-                f"stalled: payload within {self.threshold:g} kg over {self.window} "
-                f"iterations at most {self.max_violation:g} tolerances off"
+                f"stalled: {self.window} iterations without a converged design more than "
+                f"{self.threshold:g} kg better (residual <= {self.converged_residual:g})"
             )
         return solver_message
 
 
 def _local_outcome(
-    name: str, problem: LaunchProblem, result: object, start: float, before: int, message: str
+    name: str,
+    problem: LaunchProblem,
+    result: object,
+    monitor: _StallMonitor,
+    start: float,
+    before: int,
+    message: str,
 ) -> tuple[NDArray, PhaseRecord]:
-    """End point of a scipy local method and its record (re-evaluated, not trusted)."""
+    """A scipy local method's end point and its record (re-evaluated, not trusted).
+
+    The end point is the solver's last iterate or, when it ranks better, the best
+    converged iterate the phase visited: SLSQP on a flat optimum can walk from a
+    converged design to one at the edge of the tolerances for a few grams.
+    """
     x = np.clip(result.x, 0.0, 1.0)
-    payload, violation = _evaluate_one(problem, x)
+    standing = _evaluate_one(problem, x)
+    if monitor.best_x is not None:
+        visited = np.clip(monitor.best_x, 0.0, 1.0)
+        visited_standing = _evaluate_one(problem, visited)
+        if is_better(visited_standing, standing, monitor.converged_residual):
+            x, standing = visited, visited_standing
+            message = f"{message}; best converged iterate kept"
     return x, PhaseRecord(
         name=name,
-        payload_kg=payload,
-        max_violation=violation,
-        feasible=violation <= 0.0,
+        payload_kg=standing.payload_kg,
+        max_violation=standing.violation,
+        max_residual=standing.residual,
+        feasible=standing.violation <= 0.0,
         accepted=False,
         iterations=int(result.nit),
         trajectories=problem.trajectories - before,
@@ -272,7 +343,7 @@ def run_slsqp(
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings)
+    monitor = _StallMonitor(problem, oracle, settings, x0)
     result = minimize(
         oracle.objective,
         x0,
@@ -287,7 +358,7 @@ def run_slsqp(
         callback=monitor,
     )
     return _local_outcome(
-        "slsqp", problem, result, start, before, monitor.message(str(result.message))
+        "slsqp", problem, result, monitor, start, before, monitor.message(str(result.message))
     )
 
 
@@ -296,7 +367,7 @@ def run_trust_constr(
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings)
+    monitor = _StallMonitor(problem, oracle, settings, x0)
     n = len(x0)
     result = minimize(
         oracle.objective,
@@ -321,7 +392,7 @@ def run_trust_constr(
         callback=monitor,
     )
     message = f"{monitor.message(str(result.message))} (method {result.method})"
-    return _local_outcome("trust-constr", problem, result, start, before, message)
+    return _local_outcome("trust-constr", problem, result, monitor, start, before, message)
 
 
 def optimise_launch(
@@ -339,22 +410,33 @@ def optimise_launch(
         x, record = run_genetic(problem, genetic, seed_x=seed_x)
     else:
         x = np.clip(np.asarray(seed_x, dtype=float), 0.0, 1.0)
-        payload, violation = _evaluate_one(problem, x)
+        standing = _evaluate_one(problem, x)
         record = PhaseRecord(
-            "seed", payload, violation, violation <= 0.0, True, 0, 1, 0.0, "given start"
+            name="seed",
+            payload_kg=standing.payload_kg,
+            max_violation=standing.violation,
+            max_residual=standing.residual,
+            feasible=standing.violation <= 0.0,
+            accepted=True,
+            iterations=0,
+            trajectories=1,
+            wall_time_s=0.0,
+            message="given start",
         )
     phases.append(record)
-    best = (record.payload_kg, record.max_violation)
+    best = record.standing
+    converged = local.converged_residual
     for run in (run_slsqp, run_trust_constr):
         x_new, record = run(problem, x, local)
-        accepted = is_better((record.payload_kg, record.max_violation), best)
+        accepted = is_better(record.standing, best, converged)
         phases.append(PhaseRecord(**(record.as_dict() | {"accepted": accepted})))
         if accepted:
-            x, best = x_new, (record.payload_kg, record.max_violation)
+            x, best = x_new, record.standing
     return OptimisationOutcome(
         x=x,
-        payload_kg=best[0],
-        max_violation=best[1],
+        payload_kg=best.payload_kg,
+        max_violation=best.violation,
+        max_residual=best.residual,
         phases=phases,
         trajectories=problem.trajectories - before,
         wall_time_s=time.perf_counter() - start,

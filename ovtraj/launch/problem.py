@@ -11,7 +11,8 @@ Constraints, scaled by the insertion tolerances so that ``|c| <= 1`` means met:
 * equalities: altitude ``|R| - (R_E + h)``, inertial speed minus the circular
   speed ``sqrt(mu / (R_E + h))``, inertial flight-path angle, and the mean
   (first-order J2) inclination minus the target's mean inclination;
-* inequalities ``>= 0``: ``1 - q_max / q_limit`` and ``1 - n_max / n_limit``.
+* inequalities ``>= 0``: ``1 - q_max / q_limit`` and ``1 - n_max / n_limit``, divided
+  by the path-limit tolerance (a fraction), so that ``>= -1`` means met.
 
 The ascending node is not a constraint: the trajectory relative to the Earth does
 not depend on the launch epoch (zonal gravity, co-rotating air), so the epoch is
@@ -54,6 +55,7 @@ class InsertionTarget:
     speed_tol_mps: float
     flight_path_angle_tol_rad: float
     inclination_tol_rad: float
+    path_limit_fraction: float
 
 
 @dataclass
@@ -64,13 +66,20 @@ class Evaluation:
     outcome: AscentOutcome
     payload_kg: NDArray
     equality: NDArray  # (N, 4), |c| <= 1 is met
-    inequality: NDArray  # (N, 2), >= 0 is met
+    inequality: NDArray  # (N, 2), >= -1 is met (0 is exactly at the limit)
     errors: dict[str, NDArray]
 
     @property
     def violation(self) -> NDArray:
         """Largest scaled constraint violation of each row (0 when every constraint holds)."""
         eq = np.max(np.maximum(np.abs(self.equality) - 1.0, 0.0), axis=1)
+        ineq = np.max(np.maximum(-self.inequality - 1.0, 0.0), axis=1)
+        return np.maximum(eq, ineq)
+
+    @property
+    def residual(self) -> NDArray:
+        """Largest scaled residual of each row: ``max |c_eq|`` or a path-limit shortfall."""
+        eq = np.max(np.abs(self.equality), axis=1)
         ineq = np.max(np.maximum(-self.inequality, 0.0), axis=1)
         return np.maximum(eq, ineq)
 
@@ -146,12 +155,15 @@ class LaunchProblem:
             axis=1,
         )
         launcher = self.model.launcher
-        inequality = np.stack(
-            [
-                1.0 - outcome.max_dynamic_pressure_pa / launcher.max_dynamic_pressure_pa,
-                1.0 - outcome.max_axial_load_g / launcher.max_axial_load_g,
-            ],
-            axis=1,
+        inequality = (
+            np.stack(
+                [
+                    1.0 - outcome.max_dynamic_pressure_pa / launcher.max_dynamic_pressure_pa,
+                    1.0 - outcome.max_axial_load_g / launcher.max_axial_load_g,
+                ],
+                axis=1,
+            )
+            / t.path_limit_fraction
         )
         return Evaluation(
             x=x,

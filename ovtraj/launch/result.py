@@ -145,6 +145,7 @@ class LaunchResult:
             key = phase.name.replace("-", "_")
             row[f"{key}_payload_kg"] = phase.payload_kg
             row[f"{key}_violation"] = phase.max_violation
+            row[f"{key}_residual"] = phase.max_residual
             row[f"{key}_accepted"] = phase.accepted
             row[f"{key}_iterations"] = phase.iterations
             row[f"{key}_trajectories"] = phase.trajectories

@@ -104,6 +104,7 @@ def launch_problem(inp: LaunchInput) -> LaunchProblem:
             speed_tol_mps=tol.speed_mps,
             flight_path_angle_tol_rad=math.radians(tol.flight_path_angle_deg),
             inclination_tol_rad=math.radians(tol.inclination_deg),
+            path_limit_fraction=tol.path_limit_fraction,
         ),
         np.array(lower),
         np.array(upper),
@@ -259,8 +260,8 @@ def _worst_constraints(ev: Evaluation) -> str:
     eq = np.abs(ev.equality[0])
     parts = [f"{n} {v:.3g} tolerances" for n, v in zip(EQUALITY_NAMES, eq, strict=True) if v > 1]
     parts += [
-        f"{n} over its limit by {-100 * v:.2g} %"
+        f"{n} over its limit by {-v:.3g} tolerances"
         for n, v in zip(INEQUALITY_NAMES, ev.inequality[0], strict=True)
-        if v < 0
+        if v < -1
     ]
     return ", ".join(parts)

@@ -1,0 +1,91 @@
+"""Settings of the deorbit stage (patent step 103).
+
+Angles in degrees and distances in km in the file (the key names say so); the
+stage converts to SI once, in :mod:`ovtraj.deorbit.inputs`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import field_validator, model_validator
+
+from ovtraj.astro.epoch import Epoch
+from ovtraj.config.base import StrictModel, bounded
+
+
+class PreparationOrbitConfig(StrictModel):
+    """Stand-alone start: the OV on a near-circular preparation orbit (altitude H_dp).
+
+    The mission chain passes the OV's actual state instead. ``mean`` elements
+    (first-order J2, zero mean eccentricity) define a circular orbit under J2.
+    """
+
+    epoch_utc: str
+    element_set: Literal["mean", "osculating"] = "mean"
+    altitude_km: float = bounded(unit="km", gt=120, le=2000)
+    inclination_deg: float = bounded(unit="deg", ge=0, le=180)
+    raan_deg: float = bounded(unit="deg", ge=-360, le=360)
+    arg_latitude_deg: float = bounded(unit="deg", ge=-360, le=360)
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _parses_as_utc(cls, value: str) -> str:
+        Epoch.from_iso(value)
+        return value
+
+
+class EntryRegionConfig(StrictModel):
+    """Where and how the OV must reach the entry interface.
+
+    The region is a latitude/longitude box around the entry point (geocentric,
+    spherical Earth); the flight-path angle is inertial, at the entry altitude.
+    """
+
+    latitude_deg: float = bounded(unit="deg", ge=-90, le=90)
+    longitude_deg: float = bounded(unit="deg", ge=-180, le=360)
+    latitude_tolerance_deg: float = bounded(unit="deg", gt=0, le=20)
+    longitude_tolerance_deg: float = bounded(unit="deg", gt=0, le=45)
+    altitude_km: float = bounded(unit="km", ge=60, le=300)
+    fpa_min_deg: float = bounded(unit="deg", gt=-30, lt=0, description="steepest allowed")
+    fpa_max_deg: float = bounded(unit="deg", gt=-30, lt=0, description="shallowest allowed")
+    fpa_target_deg: float = bounded(
+        unit="deg", gt=-30, lt=0, description="aim of the two-body estimate"
+    )
+
+    @model_validator(mode="after")
+    def _ordered_angles(self) -> EntryRegionConfig:
+        if not self.fpa_min_deg <= self.fpa_target_deg <= self.fpa_max_deg:
+            raise ValueError(
+                f"needs fpa_min_deg <= fpa_target_deg <= fpa_max_deg, got {self.fpa_min_deg:g}, "
+                f"{self.fpa_target_deg:g}, {self.fpa_max_deg:g}"
+            )
+        return self
+
+
+class DeorbitSolverConfig(StrictModel):
+    """SLSQP correction under J2 and the finite-difference steps of its gradients."""
+
+    max_iterations: int = bounded(ge=1, le=10000)
+    ftol: float = bounded(gt=0, lt=1, description="SLSQP ftol on the scaled objective")
+    time_scale_s: float = bounded(unit="s", gt=0, description="burn-epoch variable unit")
+    dv_scale_mps: float = bounded(unit="m/s", gt=0, description="impulse variable unit")
+    burn_window_s: float = bounded(
+        unit="s", gt=0, description="the correction may move the burn by up to this"
+    )
+    finite_difference_step: float = bounded(gt=0, lt=0.1, description="scaled variables")
+    constraint_tolerance: float = bounded(
+        gt=0, lt=1, description="accepted violation, as a fraction of each constraint's scale"
+    )
+    max_passes: int = bounded(ge=1, le=1000, description="passes tried before giving up")
+
+
+class DeorbitSettings(StrictModel):
+    preparation_orbit: PreparationOrbitConfig
+    entry: EntryRegionConfig
+    horizon_h: float = bounded(unit="h", gt=0, le=720, description="ground-track forecast span")
+    max_descent_revolutions: float = bounded(
+        gt=0, le=3, description="burn-to-entry time limit, in preparation-orbit periods"
+    )
+    solver: DeorbitSolverConfig
+    trajectory_step_s: float = bounded(unit="s", gt=0, description="trajectory table sampling")

@@ -1,0 +1,153 @@
+"""Ground-track forecast: where the preparation orbit's track passes the entry region.
+
+The sub-satellite point is the geocentric latitude and longitude of the OV over a
+spherical Earth rotating at ``omega`` (Earth-fixed longitude = inertial right
+ascension minus the Earth rotation angle ``theta0 + omega t``). One propagation
+under J2 covers the whole horizon with dense output; the track crosses the entry
+latitude at the roots of ``z/|r| - sin(lat_E)``, which heyoka's event detection
+finds inside its steps (no time grid). Near each crossing the track point nearest
+the entry point (great-circle distance) is found by a bounded scalar minimisation
+over a quarter of a revolution either side; that point is the pass's *virtual
+entry point*. A pass goes through the region when its crossing of the entry
+latitude lies in the box (the crossing is then a point of the track inside the
+region); only those passes are refined, the others keep their crossing point.
+
+A track whose highest latitude (the inclination, or its supplement) lies below the
+entry latitude never crosses it: the forecast says so instead of searching.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, great_circle_distance
+from ovtraj.astro.propagation import LatitudeCrossing, OrbitPropagator, PropagationResult
+from ovtraj.deorbit.inputs import EntryRegion
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class TrackPass:
+    """One pass of the ground track by the entry point (times in s from the epoch)."""
+
+    t_s: float  # virtual entry point: the track point nearest the entry point
+    latitude_rad: float
+    longitude_rad: float
+    distance_m: float  # great-circle distance from the entry point, on the sphere R_E
+    crossing_t_s: float  # when the track crosses the entry latitude
+    crossing_longitude_rad: float
+    northbound: bool
+    in_region: bool  # the crossing lies in the box: the track passes through the region
+    state: np.ndarray  # ECI state at t_s
+
+
+@dataclass
+class Forecast:
+    passes: list[TrackPass]  # every crossing of the entry latitude, in time order
+    trajectory: PropagationResult  # dense output over [0, horizon]
+    reason: str | None = None  # why there is no pass, if there is none
+
+    @property
+    def in_region(self) -> list[TrackPass]:
+        return [p for p in self.passes if p.in_region]
+
+
+def subsatellite_point(
+    state: np.ndarray, t_s: float | np.ndarray, earth_angle0_rad: float, omega: float, radius: float
+) -> tuple[float | np.ndarray, float | np.ndarray]:
+    """Geocentric latitude and longitude [rad] of ECI states at times ``t_s`` [s]."""
+    state = np.asarray(state, dtype=float)
+    theta = earth_angle0_rad + omega * np.asarray(t_s, dtype=float)
+    lat, lon, _ = ecef_to_geocentric(eci_to_ecef(state[..., :3], theta), radius=radius)
+    return lat, lon
+
+
+def highest_latitude_rad(state: np.ndarray) -> float:
+    """Highest geocentric latitude the orbit plane reaches [rad] (inclination or 180 - i)."""
+    h = np.cross(state[:3], state[3:6])
+    inclination = math.acos(max(-1.0, min(1.0, h[2] / float(np.linalg.norm(h)))))
+    return min(inclination, math.pi - inclination)
+
+
+def forecast_passes(
+    propagator: OrbitPropagator,
+    state0: np.ndarray,
+    horizon_s: float,
+    entry: EntryRegion,
+) -> Forecast:
+    """Propagate over ``[0, horizon_s]`` and list the passes by the entry point."""
+    ctx = propagator.context
+    radius = propagator.earth.radius
+    reach = highest_latitude_rad(state0)
+    result = propagator.propagate(
+        state0,
+        0.0,
+        horizon_s,
+        events=[LatitudeCrossing(entry.latitude_rad, "any")],
+        dense=True,
+    )
+    if not result.ok:
+        return Forecast([], result, f"forecast propagation failed: {result.message}")
+    if abs(entry.latitude_rad) > reach:
+        return Forecast(
+            [],
+            result,
+            f"entry latitude {math.degrees(entry.latitude_rad):.3f} deg is beyond the "
+            f"highest latitude of the orbit ({math.degrees(reach):.3f} deg, from its "
+            "inclination): the ground track never crosses it",
+        )
+    r0 = float(np.linalg.norm(state0[:3]))
+    period = TWO_PI * math.sqrt(r0**3 / propagator.earth.mu)
+
+    def distance(t: float) -> float:
+        lat, lon = subsatellite_point(
+            result.state_at(t), t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
+        )
+        return float(
+            great_circle_distance(lat, lon, entry.latitude_rad, entry.longitude_rad, radius=radius)
+        )
+
+    passes = []
+    for hit in result.hits:
+        lat_c, lon_c = subsatellite_point(
+            hit.state, hit.t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
+        )
+        through = entry.contains(float(lat_c), float(lon_c))
+        t_near, state, d_near = hit.t, hit.state, distance(hit.t)
+        if through:  # refine only the passes that matter: the others keep the crossing
+            lo = max(0.0, hit.t - 0.25 * period)
+            hi = min(horizon_s, hit.t + 0.25 * period)
+            best = minimize_scalar(
+                distance, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}
+            )
+            t_near, d_near = float(best.x), float(best.fun)
+            state = result.state_at(t_near)
+        lat, lon = subsatellite_point(
+            state, t_near, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
+        )
+        passes.append(
+            TrackPass(
+                t_s=t_near,
+                latitude_rad=float(lat),
+                longitude_rad=float(lon),
+                distance_m=d_near,
+                crossing_t_s=hit.t,
+                crossing_longitude_rad=float(lon_c),
+                northbound=bool(hit.state[5] > 0.0),
+                in_region=through,
+                state=np.array(state, dtype=float),
+            )
+        )
+    reason = None
+    if not any(p.in_region for p in passes):
+        reason = (
+            f"no pass of the ground track through the entry region within the "
+            f"{horizon_s / 3600.0:g} h horizon ({len(passes)} crossings of the entry latitude, "
+            f"nearest {min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f} km)"
+        )
+    return Forecast(passes, result, reason)

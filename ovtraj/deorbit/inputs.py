@@ -1,0 +1,125 @@
+"""The deorbit stage's input: the OV's state at an epoch and the entry requirements (SI)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ovtraj.astro.constants import EarthModel
+from ovtraj.astro.elements import NonsingularElements, coe_to_rv
+from ovtraj.astro.epoch import Epoch
+from ovtraj.astro.j2_elements import mean_to_state
+from ovtraj.config.deorbit import DeorbitSolverConfig, PreparationOrbitConfig
+from ovtraj.config.scenario import Scenario
+
+
+def _wrap_pi(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class EntryRegion:
+    """The entry interface: a latitude/longitude box at an altitude, and its angle limits.
+
+    Latitudes and longitudes are geocentric over a spherical Earth; the
+    flight-path angles are inertial (the orbital angle at the entry radius).
+    """
+
+    latitude_rad: float
+    longitude_rad: float
+    latitude_tol_rad: float
+    longitude_tol_rad: float
+    altitude_m: float
+    fpa_min_rad: float
+    fpa_max_rad: float
+    fpa_target_rad: float
+
+    def offsets(self, latitude_rad: float, longitude_rad: float) -> tuple[float, float]:
+        """(latitude, longitude) of a point minus the entry point's [rad], longitude wrapped."""
+        return latitude_rad - self.latitude_rad, _wrap_pi(longitude_rad - self.longitude_rad)
+
+    def contains(self, latitude_rad: float, longitude_rad: float, slack: float = 0.0) -> bool:
+        """Inside the box, each half-width enlarged by the fraction ``slack``."""
+        d_lat, d_lon = self.offsets(latitude_rad, longitude_rad)
+        return abs(d_lat) <= self.latitude_tol_rad * (1.0 + slack) and abs(
+            d_lon
+        ) <= self.longitude_tol_rad * (1.0 + slack)
+
+
+@dataclass(frozen=True)
+class DeorbitInput:
+    """Everything the deorbit stage needs; times are seconds from ``epoch``."""
+
+    epoch: Epoch
+    state0: np.ndarray  # ECI position [m] and velocity [m/s] at the epoch
+    earth: EarthModel
+    integrator_tol: float
+    entry: EntryRegion
+    max_impulse_mps: float
+    horizon_s: float
+    max_descent_revolutions: float
+    solver: DeorbitSolverConfig
+    trajectory_step_s: float
+
+    @property
+    def earth_angle0_rad(self) -> float:
+        return self.epoch.gmst_rad()
+
+
+def preparation_state(orbit: PreparationOrbitConfig, earth: EarthModel) -> np.ndarray:
+    """ECI state of a circular preparation orbit given by its elements at its epoch."""
+    a = earth.radius + orbit.altitude_km * 1e3
+    i, raan = math.radians(orbit.inclination_deg), math.radians(orbit.raan_deg)
+    u = math.radians(orbit.arg_latitude_deg)
+    if orbit.element_set == "mean":
+        r, v = mean_to_state(
+            NonsingularElements(a=a, ex=0.0, ey=0.0, i=i, raan=raan, u=u),
+            mu=earth.mu,
+            radius=earth.radius,
+            j2=earth.j2,
+        )
+    else:
+        r, v = coe_to_rv(a, 0.0, i, raan, 0.0, u, mu=earth.mu)
+    return np.r_[r, v]
+
+
+def deorbit_input(
+    scenario: Scenario, *, state0: np.ndarray | None = None, epoch: Epoch | None = None
+) -> DeorbitInput:
+    """The deorbit problem of a scenario; ``state0``/``epoch`` override its preparation orbit.
+
+    Raises ``ValueError`` when the scenario has no ``deorbit`` section.
+    """
+    settings = scenario.deorbit
+    if settings is None:
+        raise ValueError("the scenario has no deorbit section")
+    earth = scenario.earth
+    entry = settings.entry
+    if state0 is None:
+        state0 = preparation_state(settings.preparation_orbit, earth)
+        epoch = Epoch.from_iso(settings.preparation_orbit.epoch_utc)
+    elif epoch is None:
+        raise ValueError("epoch is required with state0")
+    return DeorbitInput(
+        epoch=epoch,
+        state0=np.asarray(state0, dtype=float),
+        earth=earth,
+        integrator_tol=scenario.tolerances.integrator,
+        entry=EntryRegion(
+            latitude_rad=math.radians(entry.latitude_deg),
+            longitude_rad=_wrap_pi(math.radians(entry.longitude_deg)),
+            latitude_tol_rad=math.radians(entry.latitude_tolerance_deg),
+            longitude_tol_rad=math.radians(entry.longitude_tolerance_deg),
+            altitude_m=entry.altitude_km * 1e3,
+            fpa_min_rad=math.radians(entry.fpa_min_deg),
+            fpa_max_rad=math.radians(entry.fpa_max_deg),
+            fpa_target_rad=math.radians(entry.fpa_target_deg),
+        ),
+        max_impulse_mps=scenario.vehicle.max_impulse_mps,
+        horizon_s=settings.horizon_h * 3600.0,
+        max_descent_revolutions=settings.max_descent_revolutions,
+        solver=settings.solver,
+        trajectory_step_s=settings.trajectory_step_s,
+    )

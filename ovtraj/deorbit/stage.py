@@ -1,0 +1,257 @@
+"""The deorbit stage (patent step 103): ground-track forecast, two-body estimate, SQP.
+
+1. Forecast the preparation orbit's ground track under J2 over the horizon and
+   list its passes through the entry region (:mod:`.forecast`).
+2. For the first such pass, size a tangential impulse by energy and angular
+   momentum for the target entry angle (:mod:`.estimate`); its central angle,
+   divided by the orbit's angular rate, places the burn before the virtual entry
+   point.
+3. Correct the burn epoch and the impulse vector with SLSQP under J2
+   (:mod:`.correction`). If the pass cannot be met within the limits, the next
+   pass is tried, up to ``solver.max_passes``.
+
+Every failure comes back as an infeasible result with its reason; nothing raises
+out of :func:`solve_deorbit` on a numerical failure.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.astro.frames import (
+    ecef_to_geocentric,
+    eci_to_ecef,
+    flight_path_angle,
+    great_circle_distance,
+    heading,
+    relative_velocity_state,
+)
+from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.deorbit.correction import Correction, DescentModel, correct_burn
+from ovtraj.deorbit.estimate import TangentialDeorbit, tangential_deorbit
+from ovtraj.deorbit.forecast import Forecast, TrackPass, forecast_passes
+from ovtraj.deorbit.inputs import DeorbitInput
+from ovtraj.deorbit.result import DeorbitResult
+
+TWO_PI = 2.0 * math.pi
+# Margin on the two-body minimum impulse before a case is refused without a solve:
+# J2 changes the impulse by well under this.
+_ESTIMATE_MARGIN = 1.05
+
+
+def propagator_for(inp: DeorbitInput) -> OrbitPropagator:
+    return OrbitPropagator(inp.earth, tol=inp.integrator_tol, earth_angle0_rad=inp.earth_angle0_rad)
+
+
+def burn_estimate(inp: DeorbitInput, state: np.ndarray, fpa_rad: float) -> TangentialDeorbit:
+    """Two-body tangential impulse from the radius of ``state`` for the entry angle."""
+    earth = inp.earth
+    return tangential_deorbit(
+        float(np.linalg.norm(state[:3])),
+        earth.radius + inp.entry.altitude_m,
+        fpa_rad,
+        earth.mu,
+    )
+
+
+def first_burn_time_s(track_pass: TrackPass, estimate: TangentialDeorbit) -> float:
+    """Burn epoch that puts the entry a central angle after the burn, at the virtual point."""
+    r, v = track_pass.state[:3], track_pass.state[3:]
+    angular_rate = float(np.linalg.norm(np.cross(r, v))) / float(r @ r)
+    return track_pass.t_s - estimate.central_angle_rad / angular_rate
+
+
+def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
+    """Minimum-impulse deorbit burn to the entry region; see the module notes."""
+    start = time.perf_counter()
+    propagator = propagator_for(inp)
+    forecast = forecast_passes(propagator, inp.state0, inp.horizon_s, inp.entry)
+    candidates = forecast.in_region
+    if not candidates:
+        return DeorbitResult(False, forecast.reason, inp.epoch, wall_time_s=_since(start))
+    entry = inp.entry
+    try:
+        shallowest = burn_estimate(inp, candidates[0].state, entry.fpa_max_rad)
+    except ValueError as err:
+        return DeorbitResult(False, str(err), inp.epoch, wall_time_s=_since(start))
+    if shallowest.dv_mps > inp.max_impulse_mps * _ESTIMATE_MARGIN:
+        return DeorbitResult(
+            False,
+            f"impulse limit {inp.max_impulse_mps:g} m/s is below the "
+            f"{shallowest.dv_mps:.1f} m/s the shallowest allowed entry angle "
+            f"({math.degrees(entry.fpa_max_rad):g} deg) needs (two-body estimate)",
+            inp.epoch,
+            passes_in_region=len(candidates),
+            wall_time_s=_since(start),
+        )
+    r0 = float(np.linalg.norm(inp.state0[:3]))
+    period = TWO_PI * math.sqrt(r0**3 / inp.earth.mu)
+    model = DescentModel(
+        propagator, forecast.trajectory, entry, inp.max_descent_revolutions * period
+    )
+    tried, reasons = 0, []
+    best: tuple[Correction, TrackPass, TangentialDeorbit] | None = None
+    for track_pass in candidates:
+        if tried >= inp.solver.max_passes:
+            break
+        estimate = burn_estimate(inp, track_pass.state, entry.fpa_target_rad)
+        burn_t0 = first_burn_time_s(track_pass, estimate)
+        if burn_t0 + inp.solver.burn_window_s < 0.0:
+            reasons.append(f"pass at {track_pass.t_s:.0f} s: the burn would precede the epoch")
+            continue
+        tried += 1
+        correction = correct_burn(
+            model,
+            burn_t0,
+            np.array([0.0, -estimate.dv_mps, 0.0]),
+            dv_max_mps=inp.max_impulse_mps,
+            t_min_s=0.0,
+            t_max_s=inp.horizon_s,
+            settings=inp.solver,
+        )
+        if best is None or correction.max_violation < best[0].max_violation:
+            best = (correction, track_pass, estimate)
+        if _accepted(correction, inp):
+            break
+        reasons.append(f"pass at {track_pass.t_s:.0f} s: {_failure(correction, inp)}")
+    if best is None:
+        reason = "; ".join(reasons) or "no pass could be tried"
+        return DeorbitResult(False, reason, inp.epoch, wall_time_s=_since(start))
+    correction, track_pass, estimate = best
+    feasible = _accepted(correction, inp)
+    reason = None if feasible else "; ".join(reasons)
+    return _result(
+        inp,
+        forecast,
+        correction,
+        track_pass,
+        estimate,
+        feasible=feasible,
+        reason=reason,
+        passes_in_region=len(candidates),
+        passes_tried=tried,
+        propagations=model.propagations + 1,
+        wall_time_s=_since(start),
+    )
+
+
+def _since(start: float) -> float:
+    return time.perf_counter() - start
+
+
+def _accepted(correction: Correction, inp: DeorbitInput) -> bool:
+    return correction.shot.reached and (correction.max_violation <= inp.solver.constraint_tolerance)
+
+
+def _failure(correction: Correction, inp: DeorbitInput) -> str:
+    """The constraints a correction left violated, in words."""
+    c = correction.constraints
+    tol = inp.solver.constraint_tolerance
+    words = []
+    if not correction.shot.reached:
+        words.append(f"the descent does not reach {inp.entry.altitude_m / 1e3:g} km")
+    if min(c["latitude_upper"], c["latitude_lower"]) < -tol:
+        words.append("entry latitude outside the region")
+    if min(c["longitude_upper"], c["longitude_lower"]) < -tol:
+        words.append("entry longitude outside the region")
+    if min(c["fpa_above_min"], c["fpa_below_max"]) < -tol:
+        words.append(f"entry flight-path angle {math.degrees(correction.shot.fpa_rad):.3f} deg")
+    if c["impulse_limit"] < -tol:
+        dv = float(np.linalg.norm(correction.shot.dv_rsw_mps))
+        words.append(f"impulse {dv:.1f} m/s above the limit {inp.max_impulse_mps:g} m/s")
+    detail = ", ".join(words) or "constraints not met"
+    return f"{detail} (SLSQP: {correction.message}, {correction.iterations} iterations)"
+
+
+def _result(
+    inp: DeorbitInput,
+    forecast: Forecast,
+    correction: Correction,
+    track_pass: TrackPass,
+    estimate: TangentialDeorbit,
+    **extra: object,
+) -> DeorbitResult:
+    earth = inp.earth
+    shot = correction.shot
+    r, v = shot.entry_state[:3], shot.entry_state[3:]
+    v_rel = relative_velocity_state(r, v, omega=earth.omega)
+    entry = inp.entry
+    return DeorbitResult(
+        epoch=inp.epoch,
+        burn_t_s=shot.burn_t_s,
+        dv_eci_mps=shot.dv_eci_mps,
+        dv_rsw_mps=shot.dv_rsw_mps,
+        entry_t_s=shot.entry_t_s,
+        entry_r_eci_m=r,
+        entry_v_eci_mps=v,
+        entry_latitude_rad=shot.latitude_rad,
+        entry_longitude_rad=shot.longitude_rad,
+        entry_altitude_m=float(np.linalg.norm(r)) - earth.radius,
+        entry_speed_mps=float(np.linalg.norm(v)),
+        entry_fpa_rad=shot.fpa_rad,
+        entry_relative_speed_mps=float(np.linalg.norm(v_rel)),
+        entry_relative_fpa_rad=float(flight_path_angle(r, v_rel)),
+        entry_heading_rad=float(heading(r, v_rel)),
+        entry_error_m=float(
+            great_circle_distance(
+                shot.latitude_rad,
+                shot.longitude_rad,
+                entry.latitude_rad,
+                entry.longitude_rad,
+                radius=earth.radius,
+            )
+        ),
+        virtual_entry_t_s=track_pass.t_s,
+        virtual_entry_latitude_rad=track_pass.latitude_rad,
+        virtual_entry_longitude_rad=track_pass.longitude_rad,
+        estimate_dv_mps=estimate.dv_mps,
+        estimate_central_angle_rad=estimate.central_angle_rad,
+        estimate_time_of_flight_s=estimate.time_of_flight_s,
+        iterations=correction.iterations,
+        solver_message=correction.message,
+        constraints=correction.constraints,
+        trajectory=trajectory_table(inp, forecast, correction),
+        **extra,
+    )
+
+
+def trajectory_table(inp: DeorbitInput, forecast: Forecast, correction: Correction) -> pd.DataFrame:
+    """Preparation orbit up to the burn, then the descent to the entry altitude.
+
+    Columns: time [s from the epoch], phase, ECI position and velocity, altitude,
+    geocentric latitude and longitude of the sub-satellite point (the ground
+    track), inertial speed and flight-path angle.
+    """
+    shot = correction.shot
+    step = inp.trajectory_step_s
+    t_wait = np.r_[np.arange(0.0, shot.burn_t_s, step), shot.burn_t_s]
+    t_down = np.r_[np.arange(shot.burn_t_s, shot.entry_t_s, step), shot.entry_t_s]
+    wait = forecast.trajectory.dense(t_wait)
+    down = shot.descent.dense(t_down) if shot.descent._dense is not None else np.empty((0, 6))
+    t = np.r_[t_wait, t_down[: len(down)]]
+    states = np.vstack([wait, down])
+    earth = inp.earth
+    theta = inp.earth_angle0_rad + earth.omega * t
+    lat, lon, alt = ecef_to_geocentric(eci_to_ecef(states[:, :3], theta), radius=earth.radius)
+    table = pd.DataFrame(
+        {
+            "time_s": t,
+            "phase": ["preparation"] * len(t_wait) + ["descent"] * len(down),
+            "x_m": states[:, 0],
+            "y_m": states[:, 1],
+            "z_m": states[:, 2],
+            "vx_mps": states[:, 3],
+            "vy_mps": states[:, 4],
+            "vz_mps": states[:, 5],
+            "altitude_km": np.asarray(alt) / 1e3,
+            "latitude_deg": np.degrees(lat),
+            "longitude_deg": np.degrees(lon),
+            "speed_mps": np.linalg.norm(states[:, 3:], axis=1),
+            "fpa_deg": np.degrees(flight_path_angle(states[:, :3], states[:, 3:])),
+        }
+    )
+    return table
