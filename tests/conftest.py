@@ -28,6 +28,18 @@ REQUIRED_KEYS = {
     "miss_distance_m",
     "feasible",
 }
+# Keys `ovtraj deorbit --json` must carry (issue 4).
+DEORBIT_KEYS = {
+    "burn_epoch_utc",
+    "dv_mps",
+    "wait_time_s",
+    "entry_lat_deg",
+    "entry_lon_deg",
+    "entry_fpa_deg",
+    "entry_speed_mps",
+    "entry_error_km",
+    "feasible",
+}
 DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
 
 

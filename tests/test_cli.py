@@ -9,7 +9,7 @@ import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from tests.conftest import DEFAULT_SCENARIO, REPO, REQUIRED_KEYS
+from tests.conftest import DEFAULT_SCENARIO, DEORBIT_KEYS, REPO, REQUIRED_KEYS
 
 runner = CliRunner()
 
@@ -68,3 +68,33 @@ def test_ci_runs_the_readme_test_command():
     assert len(commands) == 2  # one runs the main job, one runs the tests
     test_command = next(c for c in commands if "pytest" in c)
     assert test_command in ci.splitlines()
+
+
+def test_deorbit_json_carries_the_issue_keys_and_summary_prints():
+    result = runner.invoke(app, ["deorbit", str(DEFAULT_SCENARIO), "--json"])
+    assert result.exit_code == 0, result.output
+    row = json.loads(result.stdout)
+    assert DEORBIT_KEYS <= row.keys()
+    assert row["feasible"] is True
+    deorbit = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))["deorbit"]
+    assert (
+        deorbit["entry"]["fpa_min_deg"]
+        <= row["entry_fpa_deg"]
+        <= deorbit["entry"]["fpa_max_deg"] + 1e-9
+    )
+    summary = runner.invoke(app, ["deorbit", str(DEFAULT_SCENARIO)])
+    assert summary.exit_code == 0 and "burn epoch (UTC)" in summary.stdout
+
+
+def test_deorbit_infeasible_exits_1_and_bad_config_exits_2(tmp_path):
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["deorbit"]["horizon_h"] = 2.0
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["deorbit", str(path), "--json"])
+    assert result.exit_code == 1
+    assert "within the 2 h horizon" in json.loads(result.stdout)["reason"]
+    data["deorbit"]["entry"]["altitude_km"] = 400.0
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    bad = runner.invoke(app, ["deorbit", str(path)])
+    assert bad.exit_code == 2 and "deorbit.entry.altitude_km" in bad.stderr

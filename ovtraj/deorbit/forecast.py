@@ -14,6 +14,10 @@ region); only those passes are refined, the others keep their crossing point.
 
 A track whose highest latitude (the inclination, or its supplement) lies below the
 entry latitude never crosses it: the forecast says so instead of searching.
+
+Limitation: a pass counts when it crosses the entry point's latitude inside the
+box. A track that clips a corner of the box without crossing that latitude there
+(possible when the box reaches the orbit's highest latitude) is not counted.
 """
 
 from __future__ import annotations
@@ -146,8 +150,9 @@ def forecast_passes(
     reason = None
     if not any(p.in_region for p in passes):
         reason = (
-            f"no pass of the ground track through the entry region within the "
-            f"{horizon_s / 3600.0:g} h horizon ({len(passes)} crossings of the entry latitude, "
-            f"nearest {min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f} km)"
+            f"no pass of the ground track crossing the entry latitude inside the entry region "
+            f"within the {horizon_s / 3600.0:g} h horizon ({len(passes)} crossings of the entry "
+            f"latitude, nearest {min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
+            " km)"
         )
     return Forecast(passes, result, reason)

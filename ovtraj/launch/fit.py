@@ -161,6 +161,8 @@ class LaunchFit:
         with tempfile.NamedTemporaryFile(dir=directory, suffix=".tmp", delete=False) as tmp:
             self.grid.to_parquet(tmp.name, index=False)
         os.replace(tmp.name, directory / "grid.parquet")
+        for name in ("coefficients.json", "grid.parquet"):
+            (directory / name).chmod(0o644)  # temporary files are created owner-only
 
     @classmethod
     def load(cls, directory: str | Path) -> LaunchFit:
