@@ -274,3 +274,58 @@ def deorbit(config: ConfigArg, as_json: JsonOpt = False) -> None:
         _print_rows(f"deorbit: {scenario.name}", shown)
     if not result.feasible:
         raise typer.Exit(code=1)
+
+
+_REENTRY_ROWS = [
+    ("flags", "flags"),
+    ("miss distance [km]", "miss_distance_km"),
+    ("flight time [s]", "flight_time_s"),
+    ("terminal epoch (UTC)", "terminal_epoch_utc"),
+    ("terminal altitude [km]", "terminal_altitude_km"),
+    ("terminal speed [m/s]", "terminal_speed_mps"),
+    ("terminal latitude [deg]", "terminal_lat_deg"),
+    ("terminal longitude [deg]", "terminal_lon_deg"),
+    ("terminal flight-path angle [deg]", "terminal_fpa_deg"),
+    ("max heat rate [kW/m^2]", "max_heat_rate_kw_m2"),
+    ("max load [g]", "max_load_g"),
+    ("max dynamic pressure [kPa]", "max_dynamic_pressure_kpa"),
+    ("max |bank| [deg]", "max_bank_deg"),
+    ("margins heat/load/q/bank", None),
+    ("bank sigma_0 / sigma_1 [deg]", None),
+    ("bank reversals", "reversals"),
+    ("golden-section evaluations", "golden_evaluations"),
+    ("trajectories integrated", "trajectories"),
+    ("wall time [s]", "wall_time_s"),
+]
+
+
+@app.command()
+def reentry(config: ConfigArg, as_json: JsonOpt = False) -> None:
+    """Reentry: guided lifting entry to the terminal interface near the landing site."""
+    from ovtraj.reentry import reentry_input, solve_reentry
+
+    scenario = _load(config)
+    try:
+        inp = reentry_input(scenario)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    result = solve_reentry(inp)
+    row = _json_safe(result.to_row())
+    if as_json:
+        typer.echo(json.dumps(row, indent=2))
+    else:
+        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+        if row["reason"]:
+            shown.append(("reason", row["reason"]))
+        for label, key in _REENTRY_ROWS:
+            if key is not None:
+                shown.append((label, row[key]))
+            elif label.startswith("margins") and row["heat_rate_margin"] is not None:
+                names = ("heat_rate", "load", "dynamic_pressure", "bank")
+                shown.append((label, " / ".join(f"{row[f'{n}_margin']:.3f}" for n in names)))
+            elif label.startswith("bank sigma") and row["sigma0_deg"] is not None:
+                shown.append((label, f"{row['sigma0_deg']:.2f} / {row['sigma1_deg']:.2f}"))
+        _print_rows(f"reentry: {scenario.name} (to {inp.settings.landing_site.name})", shown)
+    if not result.feasible:
+        raise typer.Exit(code=1)

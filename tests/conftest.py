@@ -40,6 +40,17 @@ DEORBIT_KEYS = {
     "entry_error_km",
     "feasible",
 }
+# Keys `ovtraj reentry --json` must carry (issue 5).
+REENTRY_KEYS = {
+    "miss_distance_km",
+    "flight_time_s",
+    "max_heat_rate_kw_m2",
+    "max_load_g",
+    "max_dynamic_pressure_kpa",
+    "terminal_altitude_km",
+    "terminal_speed_mps",
+    "feasible",
+}
 DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
 
 

@@ -9,7 +9,7 @@ import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from tests.conftest import DEFAULT_SCENARIO, DEORBIT_KEYS, REPO, REQUIRED_KEYS
+from tests.conftest import DEFAULT_SCENARIO, DEORBIT_KEYS, REENTRY_KEYS, REPO, REQUIRED_KEYS
 
 runner = CliRunner()
 
@@ -98,3 +98,17 @@ def test_deorbit_infeasible_exits_1_and_bad_config_exits_2(tmp_path):
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     bad = runner.invoke(app, ["deorbit", str(path)])
     assert bad.exit_code == 2 and "deorbit.entry.altitude_km" in bad.stderr
+
+
+def test_reentry_json_carries_the_issue_keys_and_an_unreachable_site_exits_1(tmp_path):
+    result = runner.invoke(app, ["reentry", str(DEFAULT_SCENARIO), "--json"])
+    assert result.exit_code == 0, result.output
+    row = json.loads(result.stdout)
+    assert REENTRY_KEYS <= row.keys()
+    assert row["feasible"] is True and row["miss_distance_km"] <= 5.0
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["reentry"]["landing_site"].update({"latitude_deg": -10.0, "longitude_deg": 100.0})
+    path = tmp_path / "far.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    far = runner.invoke(app, ["reentry", str(path)])
+    assert far.exit_code == 1 and "outside the footprint" in far.stdout

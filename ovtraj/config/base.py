@@ -100,7 +100,7 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
         value = item.get("input")
         if kind == "extra_forbidden":
             parent_info, siblings = _field_info(model, loc[:-1]) if len(loc) > 1 else (None, [])
-            parent = parent_info.annotation if parent_info is not None else model
+            parent = _model_in(parent_info.annotation) if parent_info is not None else model
             if isinstance(parent, type) and issubclass(parent, BaseModel):
                 siblings = sorted(parent.model_fields)
             lines.append(f"{path}: unknown key (allowed keys: {', '.join(siblings)})")

@@ -17,6 +17,7 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
+from ovtraj.config.reentry import ReentrySettings
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -137,6 +138,7 @@ class Scenario(StrictModel):
     rendezvous: RendezvousSettings
     launch: LaunchSettings | None = None
     deorbit: DeorbitSettings | None = None
+    reentry: ReentrySettings | None = None
 
     @field_validator("epoch_utc")
     @classmethod

@@ -1,0 +1,187 @@
+"""The reentry stage (patent step 104): guided lifting entry to the terminal interface.
+
+``solve_reentry`` builds the compiled entry model for the input, runs the bank
+guidance (:mod:`.guidance`) and reports the landing-site miss, the terminal
+state, each path maximum with its time and margin, the bank reversals and the
+iterations. A target outside the footprint, a path limit that cannot be kept, a
+terminal altitude off its interface or a skip/crash come back as an infeasible
+result with flags and the reason; nothing raises on a numerical failure.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.reentry.dynamics import HISTORY_COLUMNS, STATUS_TEXT
+from ovtraj.reentry.guidance import BankGuidance, Limits, Shot, unit_bounds
+from ovtraj.reentry.inputs import ReentryInput
+from ovtraj.reentry.model import EntryModel
+from ovtraj.reentry.result import ReentryResult
+
+
+def guidance_for(inp: ReentryInput, model: EntryModel) -> BankGuidance:
+    s = inp.settings
+    return BankGuidance(
+        model,
+        Limits(
+            heat_rate_w_m2=s.limits.max_heat_rate_kw_m2 * 1e3,
+            load_g=s.limits.max_load_g,
+            dynamic_pressure_pa=s.limits.max_dynamic_pressure_kpa * 1e3,
+        ),
+        sigma_max_rad=math.radians(s.limits.max_bank_deg),
+        newton_iterations=s.guidance.newton_iterations,
+        newton_tolerance_m=s.guidance.newton_tolerance_km * 1e3,
+        finite_difference_rad=math.radians(s.guidance.finite_difference_deg),
+        violation_weight_m=s.guidance.violation_weight_km * 1e3,
+        terminal_radius_m=inp.earth.radius + s.terminal.altitude_km * 1e3,
+    )
+
+
+def solve_reentry(inp: ReentryInput, *, model: EntryModel | None = None) -> ReentryResult:
+    """Guided entry from ``inp.entry`` to the terminal interface near the landing site."""
+    start = time.perf_counter()
+    s = inp.settings
+    try:
+        model = model or EntryModel(inp)
+        guidance = guidance_for(inp, model)
+        before = model.flights
+        with np.errstate(all="ignore"):
+            best, evaluations = guidance.solve(
+                unit_bounds(s.guidance.sigma_1_bounds_deg, s.limits.max_bank_deg),
+                s.guidance.golden_iterations,
+            )
+            final = guidance.shoot(best.sigma0_rad, best.sigma1_rad, record=True)
+    except (ArithmeticError, ValueError) as err:
+        return ReentryResult(
+            False,
+            f"numerical failure: {type(err).__name__}: {err}",
+            inp.entry.epoch,
+            flags=("numerical_failure",),
+            wall_time_s=time.perf_counter() - start,
+        )
+    final.newton_iterations = best.newton_iterations
+    return _result(
+        inp,
+        model,
+        final,
+        evaluations=evaluations,
+        trajectories=model.flights - before,
+        wall_time_s=time.perf_counter() - start,
+    )
+
+
+def _result(
+    inp: ReentryInput,
+    model: EntryModel,
+    shot: Shot,
+    *,
+    evaluations: int,
+    trajectories: int,
+    wall_time_s: float,
+) -> ReentryResult:
+    s = inp.settings
+    flight = shot.flight
+    x = flight.state
+    earth = inp.earth
+    altitude = float(x[0] - earth.radius)
+    limits = s.limits
+    margins = {
+        "heat": 1.0 - flight.max_heat_rate_w_m2 / (limits.max_heat_rate_kw_m2 * 1e3),
+        "load": 1.0 - flight.max_load_g / limits.max_load_g,
+        "q": 1.0 - flight.max_dynamic_pressure_pa / (limits.max_dynamic_pressure_kpa * 1e3),
+        "bank": 1.0 - flight.max_bank_rad / math.radians(limits.max_bank_deg),
+    }
+    flags, reasons = [], []
+    if not flight.reached:
+        flags.append("terminal_not_reached")
+        reasons.append(STATUS_TEXT[flight.status])
+    if shot.miss_m > s.terminal.miss_tolerance_km * 1e3:
+        flags.append("outside_footprint")
+        side = "short of" if shot.range_error_m > 0 else "beyond"
+        reasons.append(
+            f"the landing site is outside the footprint: the best trajectory ends "
+            f"{shot.miss_m / 1e3:.1f} km {side} it (tolerance {s.terminal.miss_tolerance_km:g} km)"
+        )
+    for name, key in (("heat rate", "heat"), ("load", "load"), ("dynamic pressure", "q")):
+        if margins[key] < 0.0:
+            flags.append(f"{key}_limit")
+            reasons.append(f"{name} over its limit by {-100 * margins[key]:.1f} %")
+    if flight.reached and abs(altitude / 1e3 - s.terminal.altitude_km) > (
+        s.terminal.altitude_tolerance_km
+    ):
+        flags.append("terminal_altitude")
+        reasons.append(
+            f"terminal altitude {altitude / 1e3:.1f} km outside "
+            f"{s.terminal.altitude_km:g} +- {s.terminal.altitude_tolerance_km:g} km"
+        )
+    feasible = not flags
+    return ReentryResult(
+        feasible=feasible,
+        reason=None if feasible else "; ".join(reasons),
+        epoch=inp.entry.epoch,
+        flags=tuple(flags),
+        miss_distance_m=shot.miss_m,
+        flight_time_s=flight.time_s,
+        terminal_altitude_m=altitude,
+        terminal_speed_mps=float(x[3]),
+        terminal_latitude_rad=float(x[2]),
+        terminal_longitude_rad=float(x[1]),
+        terminal_fpa_rad=float(x[4]),
+        terminal_heading_rad=float(x[5] % (2.0 * math.pi)),
+        max_heat_rate_w_m2=flight.max_heat_rate_w_m2,
+        max_heat_rate_time_s=flight.max_heat_rate_time_s,
+        max_load_g=flight.max_load_g,
+        max_load_time_s=flight.max_load_time_s,
+        max_dynamic_pressure_pa=flight.max_dynamic_pressure_pa,
+        max_dynamic_pressure_time_s=flight.max_dynamic_pressure_time_s,
+        max_bank_rad=flight.max_bank_rad,
+        heat_rate_margin=margins["heat"],
+        load_margin=margins["load"],
+        dynamic_pressure_margin=margins["q"],
+        bank_margin=margins["bank"],
+        sigma0_rad=shot.sigma0_rad,
+        sigma1_rad=shot.sigma1_rad,
+        reversals=flight.reversals,
+        newton_iterations=shot.newton_iterations,
+        golden_evaluations=evaluations,
+        trajectories=trajectories,
+        wall_time_s=wall_time_s,
+        trajectory=trajectory_table(inp, flight.history),
+    )
+
+
+def trajectory_table(inp: ReentryInput, history: np.ndarray | None) -> pd.DataFrame:
+    """Time, altitude, position, speed, angles, bank, Mach and path quantities, sampled."""
+    if history is None or len(history) == 0:
+        return pd.DataFrame()
+    frame = pd.DataFrame(history, columns=HISTORY_COLUMNS)
+    step = inp.settings.integration.trajectory_step_s
+    keep = np.r_[
+        np.flatnonzero(np.diff(np.floor(frame["time_s"].to_numpy() / step)) > 0) + 1,
+        0,
+        len(frame) - 1,
+    ]
+    frame = frame.iloc[np.unique(keep)].reset_index(drop=True)
+    radius = inp.earth.radius
+    return pd.DataFrame(
+        {
+            "time_s": frame["time_s"],
+            "altitude_km": (frame["radius_m"] - radius) / 1e3,
+            "latitude_deg": np.degrees(frame["latitude_rad"]),
+            "longitude_deg": np.degrees(frame["longitude_rad"]),
+            "speed_mps": frame["speed_mps"],
+            "fpa_deg": np.degrees(frame["fpa_rad"]),
+            "heading_deg": np.degrees(frame["heading_rad"]) % 360.0,
+            "alpha_deg": np.degrees(frame["alpha_rad"]),
+            "bank_deg": np.degrees(frame["bank_rad"]),
+            "mach": frame["mach"],
+            "heat_rate_kw_m2": frame["heat_rate_w_m2"] / 1e3,
+            "load_g": frame["load_g"],
+            "dynamic_pressure_kpa": frame["dynamic_pressure_pa"] / 1e3,
+            "range_to_go_km": frame["range_to_go_m"] / 1e3,
+        }
+    )
