@@ -20,11 +20,12 @@ eqs. 1-6)::
 
 Angle of attack from a Mach table, bank magnitude linear in speed between
 ``sigma_0`` and ``sigma_1``, bank sign reversed when the heading error to the
-landing site leaves a corridor narrowing with range to go. Fixed-step RK4 (the
-control held over each step), the terminal speed located by linear interpolation
-inside the last step. Path quantities at every step: heat rate
-``k_Q sqrt(rho) V^n``, normal load ``|L cos(alpha) + D sin(alpha)| / g0``, dynamic
-pressure ``rho V^2 / 2``.
+landing site leaves a corridor narrowing with range to go. Fixed-step RK4: the
+bank magnitude is evaluated at every stage (it is a function of the speed, so
+the scheme keeps its fourth order), the sign is held over the step; the terminal
+speed is located by linear interpolation inside the last step. Path quantities
+at every step and at the end point: heat rate ``k_Q sqrt(rho) V^n``, normal load
+``|L cos(alpha) + D sin(alpha)| / g0``, dynamic pressure ``rho V^2 / 2``.
 """
 
 from __future__ import annotations
@@ -182,9 +183,17 @@ def _aero(
 
 
 @njit(cache=True)
+def _bank_magnitude(v: float, p: np.ndarray) -> float:
+    span = p[P_V_START] - p[P_V_END]
+    frac = 0.0 if span <= 0.0 else min(max((p[P_V_START] - v) / span, 0.0), 1.0)
+    sigma = p[P_SIGMA0] + (p[P_SIGMA1] - p[P_SIGMA0]) * frac
+    return min(max(sigma, 0.0), p[P_SIGMA_MAX])
+
+
+@njit(cache=True)
 def _derivatives(
     x: np.ndarray,
-    sigma: float,
+    sign: float,
     p: np.ndarray,
     cl: np.ndarray,
     cd: np.ndarray,
@@ -195,6 +204,9 @@ def _derivatives(
     out: np.ndarray,
 ) -> None:
     r, lat, v, gamma, psi = x[0], x[2], x[3], x[4], x[5]
+    # The magnitude follows the stage's speed (it is a function of the state); only
+    # the sign, a guidance decision, is held over the step.
+    sigma = sign * _bank_magnitude(v, p)
     lift, drag, _, _, _ = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
     g = p[P_MU] / (r * r)
     w = p[P_OMEGA]
@@ -220,11 +232,31 @@ def _derivatives(
 
 
 @njit(cache=True)
-def _bank_magnitude(v: float, p: np.ndarray) -> float:
-    span = p[P_V_START] - p[P_V_END]
-    frac = 0.0 if span <= 0.0 else min(max((p[P_V_START] - v) / span, 0.0), 1.0)
-    sigma = p[P_SIGMA0] + (p[P_SIGMA1] - p[P_SIGMA0]) * frac
-    return min(max(sigma, 0.0), p[P_SIGMA_MAX])
+def _path(
+    x: np.ndarray,
+    p: np.ndarray,
+    cl: np.ndarray,
+    cd: np.ndarray,
+    mach_nodes: np.ndarray,
+    alpha_nodes: np.ndarray,
+    log_rho: np.ndarray,
+    sound: np.ndarray,
+) -> tuple[float, float, float, float, float, float]:
+    """Angle of attack, Mach, density, heat rate, normal load [g], dynamic pressure."""
+    lift, drag, alpha, mach, rho = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
+    heat = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
+    load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
+    return alpha, mach, rho, heat, load, 0.5 * rho * x[3] * x[3]
+
+
+@njit(cache=True)
+def _update_maxima(maxima: np.ndarray, t: float, heat: float, load: float, qdyn: float) -> None:
+    if heat > maxima[0]:
+        maxima[0], maxima[1] = heat, t
+    if load > maxima[2]:
+        maxima[2], maxima[3] = load, t
+    if qdyn > maxima[4]:
+        maxima[4], maxima[5] = qdyn, t
 
 
 @njit(cache=True)
@@ -273,16 +305,10 @@ def fly(
                 sign = 1.0
                 reversals += 1
         sigma = sign * _bank_magnitude(x[3], p)
-        lift, drag, alpha, mach, rho = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
-        heat = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
-        load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
-        qdyn = 0.5 * rho * x[3] * x[3]
-        if heat > maxima[0]:
-            maxima[0], maxima[1] = heat, t
-        if load > maxima[2]:
-            maxima[2], maxima[3] = load, t
-        if qdyn > maxima[4]:
-            maxima[4], maxima[5] = qdyn, t
+        alpha, mach, rho, heat, load, qdyn = _path(
+            x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound
+        )
+        _update_maxima(maxima, t, heat, load, qdyn)
         maxima[6] = max(maxima[6], abs(sigma))
         if record:
             history[n, 0] = t
@@ -296,7 +322,7 @@ def fly(
             history[n, 13] = qdyn
             history[n, 14] = togo
         n += 1
-        args = (sigma, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
+        args = (sign, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
         _derivatives(x, *args, k1)
         for i in range(6):
             stage[i] = x[i] + 0.5 * dt * k1[i]
@@ -329,18 +355,22 @@ def fly(
         if x[0] > p[P_SKIP_RADIUS] and x[4] > 0.0:
             status = SKIPPED
             break
+    # The end point (e.g. interpolated to the terminal speed) counts for the maxima too.
+    alpha, mach, rho, heat, load, qdyn = _path(
+        x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound
+    )
+    _update_maxima(maxima, t, heat, load, qdyn)
     if record:
         history[n, 0] = t
         history[n, 1:7] = x
-        lift, drag, alpha, mach, rho = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
         angle, _ = range_and_bearing(x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON])
         history[n, 7] = alpha
         history[n, 8] = sign * _bank_magnitude(x[3], p)
         history[n, 9] = mach
         history[n, 10] = rho
-        history[n, 11] = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
-        history[n, 12] = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
-        history[n, 13] = 0.5 * rho * x[3] * x[3]
+        history[n, 11] = heat
+        history[n, 12] = load
+        history[n, 13] = qdyn
         history[n, 14] = angle * p[P_RADIUS]
         n += 1
     return status, t, x, maxima, reversals, history, n

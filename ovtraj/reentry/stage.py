@@ -101,10 +101,9 @@ def _result(
         reasons.append(STATUS_TEXT[flight.status])
     if shot.miss_m > s.terminal.miss_tolerance_km * 1e3:
         flags.append("outside_footprint")
-        side = "short of" if shot.range_error_m > 0 else "beyond"
         reasons.append(
             f"the landing site is outside the footprint: the best trajectory ends "
-            f"{shot.miss_m / 1e3:.1f} km {side} it (tolerance {s.terminal.miss_tolerance_km:g} km)"
+            f"{shot.miss_m / 1e3:.1f} km from it (tolerance {s.terminal.miss_tolerance_km:g} km)"
         )
     for name, key in (("heat rate", "heat"), ("load", "load"), ("dynamic pressure", "q")):
         if margins[key] < 0.0:
