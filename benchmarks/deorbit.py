@@ -1,6 +1,7 @@
 """Deorbit stage: time of one solve (2-day ground-track forecast + SQP) after warm-up.
 
-The default scenario's deorbit (345 km preparation orbit, 48 h horizon) is solved
+The default scenario's deorbit (345 km preparation orbit) with the issue's 48 h
+horizon is solved
 once to build the heyoka integrators, then timed over repeated solves in this
 process. Printed next to it: the forecast alone, and the same forecast done by a
 fine time-grid scan of the ground track (10 s samples), which the event-based
@@ -16,9 +17,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef
-from ovtraj.config import load_scenario
+from ovtraj.config import scenario_from_dict
 from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.deorbit.forecast import forecast_passes
 from ovtraj.deorbit.stage import propagator_for
@@ -26,6 +28,7 @@ from ovtraj.deorbit.stage import propagator_for
 ROOT = Path(__file__).resolve().parents[1]
 REPEATS = 10
 GOAL_S = 0.100  # issue 4: under 100 ms after warm-up
+HORIZON_H = 48.0  # issue 4: a 2-day forecast
 SCAN_STEP_S = 10.0
 
 
@@ -39,7 +42,9 @@ def _median_time(run: object, repeats: int = REPEATS) -> tuple[float, object]:
 
 
 def main() -> None:
-    scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
+    data = yaml.safe_load((ROOT / "configs" / "scenario.yaml").read_text(encoding="utf-8"))
+    data["deorbit"]["horizon_h"] = HORIZON_H
+    scenario = scenario_from_dict(data, "benchmark")
     inp = deorbit_input(scenario)
     start = time.perf_counter()
     solve_deorbit(inp)  # warm-up: compiles the integrators

@@ -19,7 +19,7 @@ from prefect import flow, get_run_logger
 from prefect.task_runners import ProcessPoolTaskRunner
 
 from ovtraj.config import load_scenario
-from ovtraj.launch.fit import continuation_chains, fit_rows
+from ovtraj.launch.fit import FIT_ROOTS, continuation_chains, fit_rows, launch_fit_key
 from ovtraj.version import code_version
 from tasks.launch import launch_point_task
 
@@ -61,8 +61,9 @@ def launch_fit_flow(
             row["feasible"],
             row["wall_time_s"],
         )
-    fit = fit_rows(on_grid, settings.fit, settings.launcher.name)
-    directory = Path(output_dir) if output_dir else Path("data") / "launch_fit" / scenario.name
+    key = launch_fit_key(scenario)
+    fit = fit_rows(on_grid, settings.fit, settings.launcher.name, key=key)
+    directory = Path(output_dir) if output_dir else FIT_ROOTS[0] / key
     fit.save(directory)
     summary = {
         "points": len(on_grid),
@@ -71,6 +72,7 @@ def launch_fit_flow(
         "payload_kg": [row["payload_kg"] for row in on_grid],
         "altitude_range_km": list(fit.altitude_range_km),
         "directory": str(directory),
+        "key": key,
     }
     for name, series in fit.series.items():
         summary[f"{name}_loo_max"] = series.loo_max_error

@@ -195,7 +195,7 @@ def launch_fit_command(
 ) -> None:
     """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series."""
     from ovtraj.launch import launch_input
-    from ovtraj.launch.fit import launch_fit
+    from ovtraj.launch.fit import FIT_ROOTS, launch_fit, launch_fit_key
 
     scenario = _load(config)
     try:
@@ -204,11 +204,11 @@ def launch_fit_command(
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     try:
-        fit = launch_fit(inp, scenario.launch.fit)
+        fit = launch_fit(inp, scenario.launch.fit, key=launch_fit_key(scenario))
     except ValueError as err:
         typer.echo(f"launch fit failed: {err}", err=True)
         raise typer.Exit(code=1) from None
-    directory = output or Path("data") / "launch_fit" / scenario.name
+    directory = output or FIT_ROOTS[0] / launch_fit_key(scenario)
     fit.save(directory)
     lo, hi = fit.altitude_range_km
     rows = [("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"), ("saved to", str(directory))]

@@ -256,9 +256,12 @@ def test_forecast_matches_a_brute_force_ground_track_scan(inp, scan):
     lon_forecast = np.array([p.crossing_longitude_rad for p in passes])
     assert np.max(np.abs(wrap_pi(lon_forecast - lon_cross))) < math.radians(1e-4)
 
-    # in_region is "the crossing lies in the box": at the crossing the latitude is the entry
-    # latitude, so it reduces to the longitude offset.
+    # in_region is "the crossing lies in the box, in the configured direction": at the
+    # crossing the latitude is the entry latitude, so it reduces to the longitude offset.
     in_box = np.abs(wrap_pi(lon_cross - entry.longitude_rad)) <= entry.longitude_tol_rad
+    northbound = f[k + 1] > f[k]
+    if entry.pass_direction != "any":
+        in_box &= northbound == (entry.pass_direction == "northbound")
     assert [p.in_region for p in passes] == list(in_box)
     assert len(forecast.in_region) == int(np.count_nonzero(in_box)) >= 1
     assert forecast.reason is None
@@ -294,15 +297,20 @@ def test_forecast_matches_a_brute_force_ground_track_scan(inp, scan):
         assert p.longitude_rad == pytest.approx(float(lon_p), abs=1e-9)
         assert np.linalg.norm(p.state[:3] - scan["sol"].sol(p.t_s)[:3]) < 10.0
 
-    # Every scanned sample inside the box belongs to an in-region pass (true for the default
-    # case; a pass clipping a box corner without crossing the entry latitude inside it would
-    # not count, by the forecast's definition).
+    # Every scanned sample inside the box belongs to a pass crossing the entry latitude
+    # inside it (true for the default case; a pass clipping a box corner without crossing
+    # the entry latitude inside it would not count, by the forecast's definition); it is
+    # in region exactly when its direction is the configured one.
     inside = (np.abs(f) <= entry.latitude_tol_rad) & (
         np.abs(wrap_pi(lon - entry.longitude_rad)) <= entry.longitude_tol_rad
     )
     assert inside.any()
     nearest = np.argmin(np.abs(t[inside][:, None] - t_cross[None, :]), axis=1)
-    assert all(passes[n].in_region for n in nearest)
+    assert all(passes[n].in_region == bool(in_box[n]) for n in nearest)
+    assert all(
+        np.abs(wrap_pi(lon_cross[n] - entry.longitude_rad)) <= entry.longitude_tol_rad
+        for n in nearest
+    )
 
 
 # --- 3. unreachable cases ----------------------------------------------------------------------
@@ -364,7 +372,7 @@ def test_horizon_before_the_first_pass_is_infeasible(scenario_data, scan, inp):
     scenario_data["deorbit"]["horizon_h"] = 2.0
     result = _solve(scenario_data)
     _assert_infeasible(result)
-    assert "no pass" in result.reason and "within the 2 h horizon" in result.reason
+    assert "no northbound pass" in result.reason and "within the 2 h horizon" in result.reason
 
 
 # --- 4. two-body estimate and the J2-corrected impulse -----------------------------------------

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import StrictModel, bounded
@@ -51,6 +51,9 @@ class EntryRegionConfig(StrictModel):
     fpa_max_deg: float = bounded(unit="deg", gt=-30, lt=0, description="shallowest allowed")
     fpa_target_deg: float = bounded(
         unit="deg", gt=-30, lt=0, description="aim of the two-body estimate"
+    )
+    pass_direction: Literal["northbound", "southbound", "any"] = Field(
+        description="which passes may be used: the approach to the landing site sets it"
     )
 
     @model_validator(mode="after")

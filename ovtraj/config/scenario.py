@@ -17,6 +17,7 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
+from ovtraj.config.mission import MissionSettings
 from ovtraj.config.reentry import ReentrySettings
 
 ElementSet = Literal["osculating", "mean"]
@@ -139,6 +140,7 @@ class Scenario(StrictModel):
     launch: LaunchSettings | None = None
     deorbit: DeorbitSettings | None = None
     reentry: ReentrySettings | None = None
+    mission: MissionSettings | None = None
 
     @field_validator("epoch_utc")
     @classmethod
@@ -178,6 +180,33 @@ class Scenario(StrictModel):
                 f"deorbit.entry.altitude_km = {entry:g} must lie below the preparation orbit "
                 f"(deorbit.preparation_orbit.altitude_km = {orbit:g})"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _mission_bounds_inside_the_stages(self) -> Scenario:
+        if self.mission is None:
+            return self
+        missing = [name for name in ("launch", "deorbit", "reentry") if getattr(self, name) is None]
+        if missing:
+            raise ValueError(f"mission: needs the {', '.join(missing)} section(s) too")
+        parking = self.mission.design_bounds.parking_altitude_km
+        fit = self.launch.fit
+        if parking.lower < fit.altitude_min_km or parking.upper > fit.altitude_max_km:
+            raise ValueError(
+                f"mission.design_bounds.parking_altitude_km [{parking.lower:g}, "
+                f"{parking.upper:g}] must lie inside the launch fit's range "
+                f"[{fit.altitude_min_km:g}, {fit.altitude_max_km:g}] km (launch.fit)"
+            )
+        prep = self.mission.design_bounds.preparation_altitude_km
+        floor = max(self.limits.min_perigee_altitude_km, self.deorbit.entry.altitude_km)
+        if prep.lower <= floor:
+            raise ValueError(
+                f"mission.design_bounds.preparation_altitude_km lower bound {prep.lower:g} km "
+                f"must lie above {floor:g} km (minimum perigee and entry altitude)"
+            )
+        delay = self.mission.design_bounds.separation_delay_h
+        if delay.lower < 0.0:
+            raise ValueError("mission.design_bounds.separation_delay_h must not be negative")
         return self
 
     @property

@@ -10,7 +10,8 @@ the entry point (great-circle distance) is found by a bounded scalar minimisatio
 over a quarter of a revolution either side; that point is the pass's *virtual
 entry point*. A pass goes through the region when its crossing of the entry
 latitude lies in the box (the crossing is then a point of the track inside the
-region); only those passes are refined, the others keep their crossing point.
+region) in the configured direction (an approach from the south-west needs a
+northbound pass); only those passes are refined, the others keep their crossing.
 
 A track whose highest latitude (the inclination, or its supplement) lies below the
 entry latitude never crosses it: the forecast says so instead of searching.
@@ -121,7 +122,8 @@ def forecast_passes(
         lat_c, lon_c = subsatellite_point(
             hit.state, hit.t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
         )
-        through = entry.contains(float(lat_c), float(lon_c))
+        northbound = bool(hit.state[5] > 0.0)
+        through = entry.contains(float(lat_c), float(lon_c)) and entry.accepts_direction(northbound)
         t_near, state, d_near = hit.t, hit.state, distance(hit.t)
         if through:  # refine only the passes that matter: the others keep the crossing
             lo = max(0.0, hit.t - 0.25 * period)
@@ -142,7 +144,7 @@ def forecast_passes(
                 distance_m=d_near,
                 crossing_t_s=hit.t,
                 crossing_longitude_rad=float(lon_c),
-                northbound=bool(hit.state[5] > 0.0),
+                northbound=northbound,
                 in_region=through,
                 state=np.array(state, dtype=float),
             )
@@ -150,7 +152,8 @@ def forecast_passes(
     reason = None
     if not any(p.in_region for p in passes):
         reason = (
-            f"no pass of the ground track crossing the entry latitude inside the entry region "
+            f"no {entry.pass_direction} pass of the ground track crossing the entry latitude "
+            "inside the entry region "
             f"within the {horizon_s / 3600.0:g} h horizon ({len(passes)} crossings of the entry "
             f"latitude, nearest {min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
             " km)"

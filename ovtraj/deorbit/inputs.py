@@ -35,6 +35,12 @@ class EntryRegion:
     fpa_min_rad: float
     fpa_max_rad: float
     fpa_target_rad: float
+    pass_direction: str = "any"  # northbound, southbound or any
+
+    def accepts_direction(self, northbound: bool) -> bool:
+        if self.pass_direction == "any":
+            return True
+        return northbound == (self.pass_direction == "northbound")
 
     def offsets(self, latitude_rad: float, longitude_rad: float) -> tuple[float, float]:
         """(latitude, longitude) of a point minus the entry point's [rad], longitude wrapped."""
@@ -116,6 +122,7 @@ def deorbit_input(
             fpa_min_rad=math.radians(entry.fpa_min_deg),
             fpa_max_rad=math.radians(entry.fpa_max_deg),
             fpa_target_rad=math.radians(entry.fpa_target_deg),
+            pass_direction=entry.pass_direction,
         ),
         max_impulse_mps=scenario.vehicle.max_impulse_mps,
         horizon_s=settings.horizon_h * 3600.0,

@@ -21,6 +21,7 @@ into ``[0, 360)`` deg on evaluation.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -31,6 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.config import Scenario
 from ovtraj.config.launch import FitGridConfig
 from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
 from ovtraj.launch.inputs import LaunchInput
@@ -41,7 +43,10 @@ FITTED_OUTPUTS = {
     "payload_kg": ("kg", "payload_kg"),
     "insertion_time_s": ("s", "insertion_time_s"),
     "insertion_u_deg": ("deg", "insertion_u_deg"),
+    "flight_time_s": ("s", "flight_time_s"),  # drop to insertion: the mission's start
 }
+# Where solved fits live: the flow's store, then the tracked reference data.
+FIT_ROOTS = (Path("data") / "launch_fit", Path("data") / "reference" / "launch_fit")
 
 
 def grid_altitudes_m(fit: FitGridConfig) -> list[float]:
@@ -125,6 +130,7 @@ class LaunchFit:
     grid: pd.DataFrame  # one row per solved altitude (LaunchResult.to_row())
     launcher: str
     ridges: dict[str, float] = field(default_factory=dict)  # the weight each fit kept
+    key: str = ""  # launch_fit_key() of the scenario it was solved for
 
     @property
     def altitude_range_km(self) -> tuple[float, float]:
@@ -147,6 +153,7 @@ class LaunchFit:
     def to_dict(self) -> dict[str, Any]:
         return {
             "launcher": self.launcher,
+            "key": self.key,
             "ridges": self.ridges,
             "series": {name: s.to_dict() for name, s in self.series.items()},
         }
@@ -173,6 +180,7 @@ class LaunchFit:
             grid=pd.read_parquet(directory / "grid.parquet"),
             launcher=data["launcher"],
             ridges=data.get("ridges", {}),
+            key=data.get("key", ""),
         )
 
 
@@ -182,12 +190,9 @@ def _atomic_write_bytes(path: Path, payload: bytes) -> None:
     os.replace(tmp.name, path)
 
 
-def fit_launch(results: list[LaunchResult], fit: FitGridConfig, launcher: str) -> LaunchFit:
-    """Fit every output over the solved grid; infeasible points are refused."""
-    return fit_rows([r.to_row() for r in results], fit, launcher)
-
-
-def fit_rows(rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str) -> LaunchFit:
+def fit_rows(
+    rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str, key: str = ""
+) -> LaunchFit:
     """Fit every output over solved grid rows (``LaunchResult.to_row()``)."""
     bad = [r for r in rows if not r["feasible"]]
     if bad:
@@ -201,7 +206,7 @@ def fit_rows(rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str) -> L
         if name == "insertion_u_deg":
             y = np.degrees(np.unwrap(np.radians(y)))
         series[name], ridges[name] = fit_by_cross_validation(h, y, name, unit, fit)
-    return LaunchFit(series=series, grid=grid, launcher=launcher, ridges=ridges)
+    return LaunchFit(series=series, grid=grid, launcher=launcher, ridges=ridges, key=key)
 
 
 def fit_by_cross_validation(
@@ -228,6 +233,30 @@ def design_of(row: dict[str, Any]) -> dict[str, float]:
     return {k.removeprefix("design_"): v for k, v in row.items() if k.startswith("design_")}
 
 
-def launch_fit(inp: LaunchInput, fit: FitGridConfig) -> LaunchFit:
+def launch_fit(inp: LaunchInput, fit: FitGridConfig, key: str = "") -> LaunchFit:
     """Solve the grid and fit it (the library path; the flow parallelises the grid)."""
-    return fit_launch(solve_grid(inp, fit), fit, inp.launcher.name)
+    return fit_rows([r.to_row() for r in solve_grid(inp, fit)], fit, inp.launcher.name, key)
+
+
+def launch_fit_key(scenario: Scenario) -> str:
+    """Content hash of everything a launch fit depends on (not the code version).
+
+    The launch section (launcher, drop, day, bounds, settings, grid), the target's
+    orbit and epoch (they set the plane) and the Earth model.
+    """
+    resolved = scenario.resolved()
+    content = {k: resolved[k] for k in ("launch", "target", "epoch_utc", "earth")}
+    text = json.dumps(content, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] = FIT_ROOTS) -> LaunchFit | None:
+    """The stored fit solved for this scenario's launch (matching key), if any."""
+    key = launch_fit_key(scenario)
+    for root in roots:
+        candidates = [root / key, *sorted(root.glob("*"))] if root.is_dir() else []
+        for directory in candidates:
+            path = directory / "coefficients.json"
+            if path.is_file() and json.loads(path.read_text(encoding="utf-8")).get("key") == key:
+                return LaunchFit.load(directory)
+    return None

@@ -1,0 +1,247 @@
+"""The whole-mission chain for one design point (SPEC step 5).
+
+Design ``(H_P0, H_dp, t_dsp)``: the parking (launch target) altitude, the deorbit
+preparation altitude and the separation delay after the configured stay. The
+chain composes the stages; it never changes their results:
+
+1. the target, propagated under J2 to the launch day's 0 h, gives the plane;
+2. launch from the launch fit at H_P0: payload, drop-to-insertion time, insertion
+   time and argument of latitude; the OV starts on a circular (mean) orbit at
+   H_P0 in the target's plane;
+3. rendezvous with the target (patent step 102);
+4. docked for ``stay_h`` plus ``t_dsp``, then the transfer to the circular
+   preparation orbit H_dp (the rendezvous machinery without a target);
+5. deorbit (step 103) from the end of the transfer;
+6. reentry (step 104) from the deorbit's entry state.
+
+Totals: ``T_total`` from the drop to the terminal interface, ``dV_total`` the sum
+of every OV impulse (rendezvous 2, transfer 2, deorbit 1), ``M_load`` the payload.
+A stage failure ends the chain for the sample with the stage and its reason;
+nothing raises out of :func:`evaluate` on a stage's numerical failure. All times
+are seconds from the launch day's 0 h UTC.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.j2_elements import mean_to_state
+from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.config import Scenario
+from ovtraj.deorbit import deorbit_input, solve_deorbit
+from ovtraj.launch.fit import LaunchFit
+from ovtraj.launch.fourier import FourierRangeError
+from ovtraj.launch.inputs import TargetPlane, target_plane_at
+from ovtraj.reentry import EntryState, reentry_input, solve_reentry
+from ovtraj.rendezvous.result import RendezvousInput, TransferInput
+from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
+from ovtraj.targets import target_state
+
+STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
+DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
+
+
+@dataclass(frozen=True)
+class MissionDesign:
+    parking_altitude_km: float  # H_P0
+    preparation_altitude_km: float  # H_dp
+    separation_delay_h: float  # t_dsp, after the stay
+
+    def as_dict(self) -> dict[str, float]:
+        return {name: float(getattr(self, name)) for name in DESIGN_NAMES}
+
+
+@dataclass
+class MissionRecord:
+    """One evaluated design: each stage's own row, the totals and the trajectories."""
+
+    design: MissionDesign
+    stages: dict[str, dict[str, Any]] = field(default_factory=dict)
+    trajectories: dict[str, pd.DataFrame] = field(default_factory=dict)
+    feasible: bool = False
+    failed_stage: str | None = None
+    reason: str | None = None
+    t_total_s: float | None = None
+    dv_total_mps: float | None = None
+    m_load_kg: float | None = None
+    wall_time_s: float = 0.0
+
+    def totals(self) -> dict[str, Any]:
+        return {
+            **self.design.as_dict(),
+            "feasible": self.feasible,
+            "failed_stage": self.failed_stage,
+            "reason": self.reason,
+            "t_total_s": self.t_total_s,
+            "dv_total_mps": self.dv_total_mps,
+            "m_load_kg": self.m_load_kg,
+            "wall_time_s": self.wall_time_s,
+        }
+
+
+class _StageFailed(Exception):
+    def __init__(self, stage: str, reason: str) -> None:
+        super().__init__(reason)
+        self.stage = stage
+        self.reason = reason
+
+
+class MissionContext:
+    """What every sample of a scenario shares: the launch day, the plane, the fit."""
+
+    def __init__(self, scenario: Scenario, launch_fit: LaunchFit) -> None:
+        if scenario.mission is None or scenario.launch is None:
+            raise ValueError("the scenario needs mission and launch sections")
+        from ovtraj.astro.epoch import Epoch
+
+        self.scenario = scenario
+        self.fit = launch_fit
+        self.day = Epoch.from_iso(scenario.launch.launch_date_utc)
+        self.plane: TargetPlane = target_plane_at(scenario, self.day)
+        self.propagator = OrbitPropagator(scenario.earth, tol=scenario.tolerances.integrator)
+        self.target0 = target_state(scenario.target.orbit, scenario)
+        self.target_offset_s = self.day.seconds_since(scenario.epoch)
+
+    def target_at(self, t_s: float) -> np.ndarray:
+        """Target ECI state ``t_s`` after the launch day's 0 h (J2)."""
+        result = self.propagator.propagate(self.target0, 0.0, t_s + self.target_offset_s)
+        if not result.ok:
+            raise _StageFailed("rendezvous", f"target propagation failed: {result.message}")
+        return result.state
+
+    def propagate(self, state: np.ndarray, t0: float, t1: float, stage: str) -> np.ndarray:
+        result = self.propagator.propagate(state, t0, t1)
+        if not result.ok:
+            raise _StageFailed(stage, f"propagation failed: {result.message}")
+        return result.state
+
+
+def evaluate(context: MissionContext, design: MissionDesign) -> MissionRecord:
+    """Run the chain for one design; see the module notes."""
+    start = time.perf_counter()
+    record = MissionRecord(design=design)
+    try:
+        _run(context, design, record)
+        record.feasible = True
+    except _StageFailed as failure:
+        record.failed_stage, record.reason = failure.stage, failure.reason
+    record.wall_time_s = time.perf_counter() - start
+    return record
+
+
+def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> None:
+    scenario = ctx.scenario
+    earth = scenario.earth
+    # 2. launch from the fit
+    try:
+        launch = ctx.fit.evaluate(design.parking_altitude_km * 1e3)
+    except FourierRangeError as err:
+        raise _StageFailed("launch", str(err)) from None
+    t_ins = launch["insertion_time_s"]
+    t_drop = t_ins - launch["flight_time_s"]
+    u = math.radians(launch["insertion_u_deg"])
+    a = earth.radius + design.parking_altitude_km * 1e3
+    r, v = mean_to_state(
+        NonsingularElements(
+            a=a, ex=0.0, ey=0.0, i=ctx.plane.inclination_rad, raan=ctx.plane.raan_at(t_ins), u=u
+        ),
+        mu=earth.mu,
+        radius=earth.radius,
+        j2=earth.j2,
+    )
+    record.stages["launch"] = {
+        "source": "launch fit",
+        "launcher": ctx.fit.launcher,
+        "parking_altitude_km": design.parking_altitude_km,
+        "payload_kg": launch["payload_kg"],
+        "drop_time_s": t_drop,
+        "insertion_time_s": t_ins,
+        "insertion_u_deg": launch["insertion_u_deg"] % 360.0,
+        "drop_epoch_utc": ctx.day.plus_seconds(t_drop).iso(),
+        "insertion_epoch_utc": ctx.day.plus_seconds(t_ins).iso(),
+        "feasible": True,
+        "reason": None,
+    }
+    # 3. rendezvous
+    common = {
+        "settings": scenario.rendezvous,
+        "miss_tolerance_m": scenario.tolerances.miss_distance_m,
+        "max_impulse_mps": scenario.vehicle.max_impulse_mps,
+        "integrator_tol": scenario.tolerances.integrator,
+        "earth": earth,
+    }
+    rdv = solve_rendezvous(
+        RendezvousInput(
+            epoch=ctx.day,
+            t0_s=t_ins,
+            chaser_state=np.r_[r, v],
+            target_state=ctx.target_at(t_ins),
+            **common,
+        )
+    )
+    _keep(record, "rendezvous", rdv.to_row(), rdv.trajectory, rdv.feasible, rdv.reason)
+    # 4. stay, separation, transfer to the preparation orbit
+    t_sep = rdv.arrival_time_s + 3600.0 * (scenario.mission.stay_h + design.separation_delay_h)
+    docked = ctx.propagate(rdv.final_state, rdv.arrival_time_s, t_sep, "transfer")
+    transfer = circular_transfer(
+        TransferInput(
+            epoch=ctx.day,
+            t0_s=t_sep,
+            chaser_state=docked,
+            target_altitude_m=design.preparation_altitude_km * 1e3,
+            burn_time_s=t_sep,
+            **common,
+        )
+    )
+    _keep(
+        record,
+        "transfer",
+        transfer.to_row(),
+        transfer.trajectory,
+        transfer.feasible,
+        transfer.reason,
+    )
+    # 5. deorbit from the end of the transfer
+    t_prep = transfer.arrival_time_s
+    deorbit = solve_deorbit(
+        deorbit_input(scenario, state0=transfer.final_state, epoch=ctx.day.plus_seconds(t_prep))
+    )
+    _keep(record, "deorbit", deorbit.to_row(), deorbit.trajectory, deorbit.feasible, deorbit.reason)
+    # 6. reentry from the deorbit's entry state
+    entry = EntryState(
+        epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
+        latitude_rad=deorbit.entry_latitude_rad,
+        longitude_rad=deorbit.entry_longitude_rad,
+        altitude_m=deorbit.entry_altitude_m,
+        speed_mps=deorbit.entry_relative_speed_mps,
+        fpa_rad=deorbit.entry_relative_fpa_rad,
+        heading_rad=deorbit.entry_heading_rad,
+    )
+    reentry = solve_reentry(reentry_input(scenario, entry=entry))
+    _keep(record, "reentry", reentry.to_row(), reentry.trajectory, reentry.feasible, reentry.reason)
+    # totals
+    t_terminal = t_prep + deorbit.entry_t_s + reentry.flight_time_s
+    record.t_total_s = t_terminal - t_drop
+    record.dv_total_mps = rdv.dv_total_mps + transfer.dv_total_mps + deorbit.dv_mps
+    record.m_load_kg = launch["payload_kg"]
+
+
+def _keep(
+    record: MissionRecord,
+    stage: str,
+    row: dict[str, Any],
+    trajectory: pd.DataFrame,
+    feasible: bool,
+    reason: str | None,
+) -> None:
+    record.stages[stage] = row
+    record.trajectories[stage] = trajectory
+    if not feasible:
+        raise _StageFailed(stage, reason or "infeasible")
