@@ -329,3 +329,124 @@ def reentry(config: ConfigArg, as_json: JsonOpt = False) -> None:
         _print_rows(f"reentry: {scenario.name} (to {inp.settings.landing_site.name})", shown)
     if not result.feasible:
         raise typer.Exit(code=1)
+
+
+def _store(root: Path | None, scenario: Scenario | None = None) -> Any:
+    from ovtraj.runs import RunStore
+
+    if root is not None:
+        return RunStore(root)
+    if scenario is not None and scenario.mission is not None:
+        return RunStore(scenario.mission.doe.store)
+    return RunStore()
+
+
+StoreOpt = Annotated[
+    Path | None, typer.Option("--store", help="run store root (default: the config's, data/runs)")
+]
+
+
+@app.command()
+def run(
+    config: ConfigArg,
+    samples: Annotated[int | None, typer.Option("--samples", help="number of samples")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
+    append: Annotated[
+        str | None, typer.Option("--append", help="add the samples to this run (a child run)")
+    ] = None,
+    store_root: StoreOpt = None,
+) -> None:
+    """DoE of the whole mission into the run store (serial; flows/doe.py runs it in parallel)."""
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.runs import StoreError, prepare_run, run_doe
+    from ovtraj.version import code_version
+
+    scenario = _load(config)
+    if scenario.mission is None:
+        typer.echo(f"{config}: the scenario has no mission section", err=True)
+        raise typer.Exit(code=2)
+    fit = find_launch_fit(scenario)
+    if fit is None:
+        typer.echo(
+            "no launch fit for this scenario: run `python -m flows.launch_fit` or "
+            "`ovtraj launch-fit CONFIG` first",
+            err=True,
+        )
+        raise typer.Exit(code=2)
+    settings = scenario.mission.doe
+    store = _store(store_root, scenario)
+    try:
+        parent = store.run(append) if append else None
+        stored = prepare_run(
+            scenario,
+            samples=samples or settings.samples,
+            seed=settings.seed if seed is None else seed,
+            code=code_version(),
+            store=store,
+            parent=parent,
+        )
+        run_doe(scenario, stored, fit, batch_size=settings.batch_size, progress=typer.echo)
+    except (StoreError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    _print_rows(f"run {stored.id}", list(stored.summary().items()))
+
+
+@app.command()
+def runs(store_root: StoreOpt = None) -> None:
+    """List the stored runs with their key figures."""
+    catalog = _store(store_root).catalog()
+    if not catalog:
+        typer.echo("no runs")
+        return
+    for row in catalog:
+        dv = row.get("min_dv_total_mps")
+        typer.echo(
+            f"{row['run_id']}  {row.get('created_utc') or '-':25}  {row.get('status') or '-':10}  "
+            f"{row.get('scenario') or '-':20}  samples {row.get('samples')}  feasible "
+            f"{row.get('feasible')}  min dV {'-' if dv is None else f'{dv:.1f} m/s'}"
+        )
+
+
+@app.command()
+def show(run_id: str, store_root: StoreOpt = None) -> None:
+    """Print a run's manifest and summary."""
+    from ovtraj.runs import StoreError
+
+    try:
+        stored = _store(store_root).run(run_id)
+        manifest, summary = stored.manifest, stored.summary()
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(json.dumps({"manifest": manifest, "summary": summary}, indent=2, default=str))
+
+
+@app.command()
+def replay(run_id: str, store_root: StoreOpt = None) -> None:
+    """Re-derive the mission totals from the stored stage rows (no simulation)."""
+    import numpy as np
+
+    from ovtraj.runs import StoreError
+    from ovtraj.runs import replay as replay_run
+
+    try:
+        stored = _store(store_root).run(run_id)
+        derived = replay_run(stored)
+        totals = stored.totals()
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    merged = derived.merge(totals, on="sample_id", suffixes=("", "_stored"))
+    worst = 0.0
+    for column in ("t_total_s", "dv_total_mps", "m_load_kg"):
+        a, b = merged[column].to_numpy(float), merged[f"{column}_stored"].to_numpy(float)
+        both = np.isfinite(a) & np.isfinite(b)
+        if both.any():
+            worst = max(worst, float(np.max(np.abs(a[both] - b[both]))))
+    rows = [
+        ("samples", len(derived)),
+        ("feasible", int(derived["feasible"].sum())),
+        ("largest difference from the stored totals", worst),
+    ]
+    _print_rows(f"replay of {stored.id} (no simulation)", rows)

@@ -259,7 +259,7 @@ def _update_maxima(maxima: np.ndarray, t: float, heat: float, load: float, qdyn:
         maxima[4], maxima[5] = qdyn, t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fly(
     x0: np.ndarray,
     p: np.ndarray,

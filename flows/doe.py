@@ -1,0 +1,145 @@
+"""Flow: a DoE of the whole mission into the run store (``flows/doe.py:doe_flow``).
+
+1. read the scenario and its DoE settings; make sure the launch fit exists (the
+   launch-fit flow runs as a subflow when it does not);
+2. create (or reopen) the run: its id hashes the resolved config, seed, sample
+   count, parent run and code version;
+3. evaluate the batches the store does not hold yet as parallel tasks on the
+   configured task runner (threads, processes, or Dask), each cached on its
+   inputs, and store every batch as it completes;
+4. finish the manifest and publish a table artifact of the run.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from prefect import flow, get_run_logger
+from prefect.artifacts import create_table_artifact
+from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
+
+from ovtraj.config import Scenario, load_scenario
+from ovtraj.config.mission import DoeSettings
+from ovtraj.launch.fit import find_launch_fit
+from ovtraj.runs import RunStore, prepare_run, split_batches
+from ovtraj.runs.execute import finish
+from ovtraj.version import code_version
+from tasks.doe import mission_batch_task
+
+
+def task_runner(settings: DoeSettings) -> Any:
+    """The configured task runner: local threads or processes, or a Dask cluster."""
+    if settings.task_runner == "threads":
+        return ThreadPoolTaskRunner(max_workers=settings.workers)
+    if settings.task_runner == "processes":
+        return ProcessPoolTaskRunner(max_workers=settings.workers)
+    from prefect_dask import DaskTaskRunner
+
+    if settings.dask_address:
+        return DaskTaskRunner(address=settings.dask_address)
+    return DaskTaskRunner(
+        cluster_kwargs={"n_workers": settings.workers, "processes": False, "threads_per_worker": 1}
+    )
+
+
+@flow(name="doe-batches")
+def evaluate_run_flow(
+    resolved: dict[str, Any], run_dir: str, batch_size: int, retries: int, code: str
+) -> dict[str, Any]:
+    """Submit every missing batch, store each one as it completes."""
+    from ovtraj.runs.store import Run
+
+    logger = get_run_logger()
+    run = Run(Path(run_dir))
+    batches = split_batches(run.samples(), batch_size)
+    done = run.done_batches()
+    todo = [k for k in range(len(batches)) if k not in done]
+    run.update_manifest(status="running", batches=len(batches))
+    logger.info(
+        "run %s: %d batches, %d stored, %d to evaluate", run.id, len(batches), len(done), len(todo)
+    )
+    batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
+    futures = {
+        k: batch_task.submit(resolved, batches[k].to_dict(orient="records"), code) for k in todo
+    }
+    failures = []
+    for k, future in futures.items():
+        try:
+            records = future.result()
+        except Exception as err:
+            failures.append(f"batch {k}: {type(err).__name__}: {err}")
+            logger.error("batch %d failed: %s", k, err)
+            continue
+        run.write_batch(k, records, [int(i) for i in batches[k]["sample_id"]])
+        logger.info("batch %d/%d stored (%d samples)", k + 1, len(batches), len(records))
+    finish(run)
+    if failures:
+        run.update_manifest(status="incomplete", failures=failures)
+        raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {'; '.join(failures)}")
+    return {"evaluated_batches": len(todo), "stored_batches": len(done)}
+
+
+@flow(name="doe", log_prints=True)
+def doe_flow(
+    config: str = "configs/scenario.yaml",
+    samples: int | None = None,
+    seed: int | None = None,
+    append_to: str | None = None,
+    store_root: str | None = None,
+) -> dict[str, Any]:
+    """DoE of the mission chain; returns the run's summary (run id, counts, ranges)."""
+    logger = get_run_logger()
+    scenario: Scenario = load_scenario(Path(config))
+    if scenario.mission is None:
+        raise ValueError(f"{config}: the scenario has no mission section")
+    settings = scenario.mission.doe
+    if find_launch_fit(scenario) is None:
+        from flows.launch_fit import launch_fit_flow
+
+        logger.info("no launch fit for this scenario yet: running the launch-fit flow")
+        launch_fit_flow(config)
+    store = RunStore(store_root or settings.store)
+    parent = store.run(append_to) if append_to else None
+    code = code_version()
+    run = prepare_run(
+        scenario,
+        samples=samples or settings.samples,
+        seed=settings.seed if seed is None else seed,
+        code=code,
+        store=store,
+        parent=parent,
+    )
+    logger.info("run %s (%s), %d samples", run.id, scenario.name, len(run.samples()))
+    if parent is not None:
+        _adopt_parent_batches(run, parent, settings.batch_size)
+    evaluate_run_flow.with_options(task_runner=task_runner(settings))(
+        scenario.resolved(), str(run.directory), settings.batch_size, settings.task_retries, code
+    )
+    summary = run.summary()
+    create_table_artifact(
+        key="doe-run",
+        table=[{k: v for k, v in summary.items()}],
+        description=f"DoE run {run.id} of {scenario.name}",
+    )
+    return summary
+
+
+def _adopt_parent_batches(run: Any, parent: Any, batch_size: int) -> None:
+    """A child run starts with its parent's samples: reuse their stored batches.
+
+    Only when the parent's sample count is a whole number of batches, so that the
+    child's first batches hold exactly the parent's samples.
+    """
+    import shutil
+
+    if len(parent.samples()) % batch_size:
+        return
+    for folder in ("stages", "totals", "trajectories", "batches"):
+        source = parent.directory / folder
+        if source.is_dir():
+            shutil.copytree(source, run.directory / folder, dirs_exist_ok=True)
+
+
+if __name__ == "__main__":
+    print(doe_flow())

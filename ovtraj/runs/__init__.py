@@ -1,0 +1,18 @@
+"""DoE runs of the mission chain and their Parquet run store (issue 6)."""
+
+from ovtraj.runs.doe import latin_hypercube
+from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe, split_batches
+from ovtraj.runs.store import Run, RunStore, StoreError, run_id
+
+__all__ = [
+    "Run",
+    "RunStore",
+    "StoreError",
+    "evaluate_batch",
+    "latin_hypercube",
+    "prepare_run",
+    "replay",
+    "run_doe",
+    "run_id",
+    "split_batches",
+]

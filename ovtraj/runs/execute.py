@@ -1,0 +1,145 @@
+"""Running a DoE into the store (serial library path; the Prefect flow parallelises it)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.config import Scenario
+from ovtraj.launch.fit import LaunchFit
+from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.runs.doe import latin_hypercube
+from ovtraj.runs.store import Run, RunStore
+
+# Counts mission evaluations in this process (tests assert that a re-run makes none).
+EVALUATIONS = {"count": 0}
+
+
+def split_batches(samples: pd.DataFrame, batch_size: int) -> list[pd.DataFrame]:
+    if batch_size < 1:
+        raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+    return [samples.iloc[i : i + batch_size] for i in range(0, len(samples), batch_size)]
+
+
+def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
+    """Every sample of a batch; a failing sample is recorded, never raised."""
+    records = []
+    for row in batch.itertuples(index=False):
+        EVALUATIONS["count"] += 1
+        design = MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
+        records.append(evaluate(context, design))
+    return records
+
+
+def prepare_run(
+    scenario: Scenario,
+    *,
+    samples: int,
+    seed: int,
+    code: str,
+    store: RunStore,
+    parent: Run | None = None,
+) -> Run:
+    """The run of a scenario's DoE; with ``parent``, its samples plus ``samples`` more."""
+    if scenario.mission is None:
+        raise ValueError("the scenario has no mission section")
+    bounds = scenario.mission.design_bounds
+    if parent is None:
+        design = latin_hypercube(bounds, samples, seed)
+    else:
+        previous = parent.samples()
+        more = latin_hypercube(bounds, samples, seed, first_id=len(previous))
+        design = pd.concat([previous, more], ignore_index=True)
+    return store.create(
+        resolved=scenario.resolved(),
+        samples=design,
+        seed=seed,
+        code=code,
+        parent=None if parent is None else parent.id,
+    )
+
+
+def run_doe(
+    scenario: Scenario,
+    run: Run,
+    launch_fit: LaunchFit,
+    *,
+    batch_size: int,
+    progress: Callable[[str], None] | None = None,
+) -> Run:
+    """Evaluate every batch the run does not hold yet, serially, and finish the manifest."""
+    context = MissionContext(scenario, launch_fit)
+    batches = split_batches(run.samples(), batch_size)
+    done = run.done_batches()
+    run.update_manifest(status="running", batches=len(batches))
+    for k, batch in enumerate(batches):
+        if k in done:
+            continue
+        start = time.perf_counter()
+        records = evaluate_batch(context, batch)
+        run.write_batch(k, records, [int(i) for i in batch["sample_id"]])
+        if progress:
+            progress(
+                f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
+                f"{time.perf_counter() - start:.1f} s"
+            )
+    return finish(run)
+
+
+def finish(run: Run) -> Run:
+    totals = run.totals()
+    samples = len(run.samples())
+    status = "complete" if len(totals) == samples else "incomplete"
+    run.update_manifest(
+        status=status,
+        evaluated=len(totals),
+        feasible=int(totals["feasible"].sum()) if len(totals) else 0,
+    )
+    return run
+
+
+def replay(run: Run) -> pd.DataFrame:
+    """The mission totals re-derived from the stored stage rows (no simulation).
+
+    ``dV_total`` = rendezvous + transfer impulses + the deorbit impulse, ``M_load`` the
+    launch payload, ``T_total`` from the drop to the terminal interface (the deorbit
+    starts at the end of the transfer, its times count from there).
+    """
+    samples = run.samples()[["sample_id"]]
+    frames = {
+        stage: run.stage(stage)
+        for stage in ("launch", "rendezvous", "transfer", "deorbit", "reentry")
+    }
+    out = samples.copy()
+    merged = samples
+    for stage, frame in frames.items():
+        if len(frame) == 0:
+            return out.assign(
+                feasible=False, t_total_s=np.nan, dv_total_mps=np.nan, m_load_kg=np.nan
+            )
+        merged = merged.merge(
+            frame.add_prefix(f"{stage}.").rename(columns={f"{stage}.sample_id": "sample_id"}),
+            on="sample_id",
+            how="left",
+        )
+    feasible = np.ones(len(merged), dtype=bool)
+    for stage in frames:
+        feasible &= merged[f"{stage}.feasible"].fillna(False).astype(bool).to_numpy()
+    dv = (
+        merged["rendezvous.dv_total_mps"]
+        + merged["transfer.dv_total_mps"]
+        + merged["deorbit.dv_mps"]
+    )
+    t_terminal = (
+        merged["transfer.burn2_t_s"]
+        + merged["deorbit.entry_time_s"]
+        + merged["reentry.flight_time_s"]
+    )
+    out["feasible"] = feasible
+    out["t_total_s"] = np.where(feasible, t_terminal - merged["launch.drop_time_s"], np.nan)
+    out["dv_total_mps"] = np.where(feasible, dv, np.nan)
+    out["m_load_kg"] = np.where(feasible, merged["launch.payload_kg"], np.nan)
+    return out

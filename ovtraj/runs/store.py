@@ -1,0 +1,265 @@
+"""The run store: one directory per DoE run under ``data/runs/<run_id>/``.
+
+Layout::
+
+    config.json                      resolved scenario (every default filled in)
+    manifest.json                    run id, parent, created, code and dependency
+                                     versions, seed, samples, status, counts
+    samples.parquet                  sample_id and the design variables
+    stages/<stage>/part-<k>.parquet  each stage's own rows, keyed by sample_id
+    totals/part-<k>.parquet          the mission totals, keyed by sample_id
+    trajectories/<stage>/sample-<id>.parquet
+    batches/<k>.json                 written last: batch k is complete
+
+The run id is a content hash of what changes results: the resolved config (which
+holds the design bounds), the seed, the number of samples, the parent run and the
+code version. Every file is written to a temporary name and renamed, and a batch
+counts only once its marker exists, so an interrupted run resumes at the first
+incomplete batch and a complete run is never recomputed. Stored files are never
+overwritten; a file that cannot be read raises :class:`StoreError` naming it.
+"""
+
+from __future__ import annotations
+
+import datetime
+import hashlib
+import json
+import os
+import platform
+import tempfile
+from collections.abc import Iterable
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ovtraj.mission import STAGES, MissionRecord
+
+DEFAULT_ROOT = Path("data") / "runs"
+DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
+
+
+class StoreError(RuntimeError):
+    """A run store file that is missing, unreadable or inconsistent (named in the text)."""
+
+
+def run_id(resolved: dict[str, Any], seed: int, samples: int, code: str, parent: str | None) -> str:
+    content = {
+        "config": resolved,
+        "seed": seed,
+        "samples": samples,
+        "code": code,
+        "parent": parent,
+    }
+    text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def dependency_versions() -> dict[str, str]:
+    versions = {"python": platform.python_version()}
+    for name in DEPENDENCIES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
+
+
+def _atomic_bytes(path: Path, payload: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
+        tmp.write(payload)
+    os.chmod(tmp.name, 0o644)
+    os.replace(tmp.name, path)
+
+
+def _atomic_parquet(path: Path, frame: pd.DataFrame) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
+        name = tmp.name
+    frame.to_parquet(name, index=False)
+    os.chmod(name, 0o644)
+    os.replace(name, path)
+
+
+def _read_parquet(path: Path) -> pd.DataFrame:
+    try:
+        return pq.read_table(path).to_pandas()
+    except (OSError, pa.ArrowException) as err:
+        raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise StoreError(f"{path}: unreadable JSON file ({err})") from None
+
+
+class Run:
+    """One stored run."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+        self.id = directory.name
+
+    # -- metadata -------------------------------------------------------------------------
+    @property
+    def manifest(self) -> dict[str, Any]:
+        return _read_json(self.directory / "manifest.json")
+
+    def update_manifest(self, **changes: Any) -> None:
+        manifest = self.manifest | changes
+        _atomic_bytes(self.directory / "manifest.json", json.dumps(manifest, indent=2).encode())
+
+    @property
+    def config(self) -> dict[str, Any]:
+        return _read_json(self.directory / "config.json")
+
+    def samples(self) -> pd.DataFrame:
+        return _read_parquet(self.directory / "samples.parquet")
+
+    # -- batches --------------------------------------------------------------------------
+    def done_batches(self) -> set[int]:
+        folder = self.directory / "batches"
+        if not folder.is_dir():
+            return set()
+        return {int(p.stem) for p in folder.glob("*.json")}
+
+    def write_batch(
+        self, batch: int, records: Iterable[MissionRecord], sample_ids: list[int]
+    ) -> bool:
+        """Store a batch's records; returns False (and writes nothing) if already stored."""
+        marker = self.directory / "batches" / f"{batch}.json"
+        if marker.exists():
+            return False
+        records = list(records)
+        part = f"part-{batch:05d}.parquet"
+        for stage in STAGES:
+            rows = [
+                {"sample_id": sid, **rec.stages[stage]}
+                for sid, rec in zip(sample_ids, records, strict=True)
+                if stage in rec.stages
+            ]
+            if rows:
+                _atomic_parquet(self.directory / "stages" / stage / part, pd.DataFrame(rows))
+            for sid, rec in zip(sample_ids, records, strict=True):
+                table = rec.trajectories.get(stage)
+                if table is not None and len(table):
+                    path = self.directory / "trajectories" / stage / f"sample-{sid:06d}.parquet"
+                    _atomic_parquet(path, table)
+        totals = [
+            {"sample_id": sid, **rec.totals()} for sid, rec in zip(sample_ids, records, strict=True)
+        ]
+        _atomic_parquet(self.directory / "totals" / part, pd.DataFrame(totals))
+        _atomic_bytes(marker, json.dumps({"batch": batch, "sample_ids": sample_ids}).encode())
+        return True
+
+    # -- reading ----------------------------------------------------------------------------
+    def _dataset(self, folder: Path) -> pd.DataFrame:
+        parts = sorted(folder.glob("part-*.parquet")) if folder.is_dir() else []
+        if not parts:
+            return pd.DataFrame()
+        frame = pd.concat([_read_parquet(p) for p in parts], ignore_index=True)
+        return frame.sort_values("sample_id", kind="stable").reset_index(drop=True)
+
+    def stage(self, name: str) -> pd.DataFrame:
+        if name not in STAGES:
+            raise ValueError(f"stage must be one of {', '.join(STAGES)}; got {name!r}")
+        return self._dataset(self.directory / "stages" / name)
+
+    def totals(self) -> pd.DataFrame:
+        return self._dataset(self.directory / "totals")
+
+    def trajectory(self, stage: str, sample_id: int) -> pd.DataFrame:
+        return _read_parquet(
+            self.directory / "trajectories" / stage / f"sample-{sample_id:06d}.parquet"
+        )
+
+    def summary(self) -> dict[str, Any]:
+        manifest = self.manifest
+        totals = self.totals()
+        feasible = totals[totals["feasible"]] if len(totals) else totals
+        summary = {
+            "run_id": self.id,
+            "parent": manifest.get("parent"),
+            "created_utc": manifest.get("created_utc"),
+            "status": manifest.get("status"),
+            "scenario": manifest.get("scenario"),
+            "samples": manifest.get("samples"),
+            "evaluated": len(totals),
+            "feasible": len(feasible),
+        }
+        for column in ("t_total_s", "dv_total_mps", "m_load_kg"):
+            summary[f"min_{column}"] = float(feasible[column].min()) if len(feasible) else None
+            summary[f"max_{column}"] = float(feasible[column].max()) if len(feasible) else None
+        return summary
+
+
+class RunStore:
+    """All runs under a root directory (``data/runs`` by default)."""
+
+    def __init__(self, root: str | Path = DEFAULT_ROOT) -> None:
+        self.root = Path(root)
+
+    def run(self, run_id: str) -> Run:
+        directory = self.root / run_id
+        if not (directory / "manifest.json").is_file():
+            raise StoreError(f"{directory}: no such run (no manifest.json)")
+        return Run(directory)
+
+    def create(
+        self,
+        *,
+        resolved: dict[str, Any],
+        samples: pd.DataFrame,
+        seed: int,
+        code: str,
+        parent: str | None = None,
+    ) -> Run:
+        """The run of these inputs: created, or the stored one if it exists (same id)."""
+        rid = run_id(resolved, seed, len(samples), code, parent)
+        directory = self.root / rid
+        if (directory / "manifest.json").is_file():
+            run = Run(directory)
+            stored = run.samples()
+            if not stored.equals(samples.reset_index(drop=True)):
+                raise StoreError(
+                    f"{directory / 'samples.parquet'}: differs from this run's samples"
+                )
+            return run
+        directory.mkdir(parents=True, exist_ok=True)
+        _atomic_bytes(directory / "config.json", json.dumps(resolved, indent=2).encode())
+        _atomic_parquet(directory / "samples.parquet", samples.reset_index(drop=True))
+        manifest = {
+            "run_id": rid,
+            "parent": parent,
+            "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "scenario": resolved.get("name"),
+            "code_version": code,
+            "dependencies": dependency_versions(),
+            "seed": seed,
+            "samples": len(samples),
+            "status": "created",
+            "evaluated": 0,
+            "feasible": 0,
+        }
+        _atomic_bytes(directory / "manifest.json", json.dumps(manifest, indent=2).encode())
+        return Run(directory)
+
+    def catalog(self) -> list[dict[str, Any]]:
+        """Every run's summary, newest first; an unreadable run is listed with its error."""
+        if not self.root.is_dir():
+            return []
+        rows = []
+        for directory in sorted(self.root.iterdir()):
+            if not (directory / "manifest.json").is_file():
+                continue
+            try:
+                rows.append(Run(directory).summary())
+            except StoreError as err:
+                rows.append({"run_id": directory.name, "status": f"error: {err}"})
+        return sorted(rows, key=lambda r: r.get("created_utc") or "", reverse=True)

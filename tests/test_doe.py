@@ -1,0 +1,209 @@
+"""DoE flow and run store (issue 6): parallel batches, cache, resume, corruption, ids."""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+
+import pandas as pd
+import pytest
+import yaml
+from prefect.testing.utilities import prefect_test_harness
+
+from ovtraj.mission import STAGES
+from ovtraj.runs import RunStore, StoreError, execute, latin_hypercube, run_id
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+
+
+@pytest.fixture(scope="module")
+def prefect_server():
+    with prefect_test_harness(server_startup_timeout=60):
+        yield
+
+
+def _config(tmp_path, **doe) -> str:
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(doe)
+    build_scenario(copy.deepcopy(data))
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return str(path)
+
+
+def _digest(directory) -> dict[str, str]:
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob("*.parquet"))
+    }
+
+
+@pytest.fixture(scope="module")
+def eight(prefect_server, tmp_path_factory):
+    """The flow on 8 samples, run twice on the same store."""
+    from flows.doe import doe_flow
+
+    tmp = tmp_path_factory.mktemp("doe")
+    config = _config(tmp, samples=8, batch_size=4, store=str(tmp / "runs"))
+    before = execute.EVALUATIONS["count"]
+    first = doe_flow(config)
+    after_first = execute.EVALUATIONS["count"]
+    store = RunStore(tmp / "runs")
+    digest = _digest(store.run(first["run_id"]).directory)
+    second = doe_flow(config)
+    return {
+        "first": first,
+        "second": second,
+        "evaluations": (after_first - before, execute.EVALUATIONS["count"] - after_first),
+        "digest": digest,
+        "store": store,
+    }
+
+
+def test_flow_stores_one_row_per_sample_and_stage(eight):
+    run = eight["store"].run(eight["first"]["run_id"])
+    assert run.manifest["status"] == "complete" and eight["first"]["evaluated"] == 8
+    totals = run.totals()
+    assert list(totals["sample_id"]) == list(range(8))
+    assert {"t_total_s", "dv_total_mps", "m_load_kg", "feasible", "failed_stage", "reason"} <= set(
+        totals.columns
+    )
+    reached = {stage: 0 for stage in STAGES}
+    for row in totals.itertuples():
+        last = STAGES.index(row.failed_stage) if isinstance(row.failed_stage, str) else 4
+        for stage in STAGES[: last + 1]:
+            reached[stage] += 1
+    for stage in STAGES:
+        frame = run.stage(stage)
+        assert len(frame) == reached[stage] and frame["sample_id"].is_unique
+        assert "feasible" in frame.columns
+    assert set(run.stage("rendezvous").columns) >= {"dv1_mps", "dv2_mps", "miss_distance_m"}
+    assert set(run.stage("reentry").columns) >= {"miss_distance_km", "max_heat_rate_kw_m2"}
+    # Trajectory tables in their own files.
+    sid = int(totals.loc[totals["feasible"], "sample_id"].iloc[0])
+    assert len(run.trajectory("reentry", sid)) > 10
+
+
+def test_second_identical_run_simulates_nothing_and_changes_nothing(eight):
+    assert eight["evaluations"] == (8, 0)
+    assert eight["second"]["run_id"] == eight["first"]["run_id"]
+    run = eight["store"].run(eight["first"]["run_id"])
+    assert _digest(run.directory) == eight["digest"]
+
+
+def test_replay_rederives_the_totals_without_simulation(eight):
+    run = eight["store"].run(eight["first"]["run_id"])
+    before = execute.EVALUATIONS["count"]
+    derived = execute.replay(run)
+    assert execute.EVALUATIONS["count"] == before
+    stored = run.totals()
+    assert list(derived["feasible"]) == list(stored["feasible"])
+    for column in ("t_total_s", "dv_total_mps", "m_load_kg"):
+        pd.testing.assert_series_equal(derived[column], stored[column], check_names=False)
+
+
+def test_interrupted_run_resumes_without_recomputing_finished_batches(
+    prefect_server, tmp_path, monkeypatch
+):
+    from flows.doe import doe_flow
+
+    config = _config(tmp_path, samples=6, batch_size=2, task_retries=0, store=str(tmp_path / "r"))
+    original = execute.evaluate_batch
+    failed = {"done": False}
+
+    def flaky(context, batch):
+        if 2 in set(batch["sample_id"]) and not failed["done"]:
+            failed["done"] = True
+            raise ConnectionError("worker lost")
+        return original(context, batch)
+
+    monkeypatch.setattr(execute, "evaluate_batch", flaky)
+    with pytest.raises(RuntimeError, match="batch 1"):
+        doe_flow(config)
+    store = RunStore(tmp_path / "r")
+    (run,) = [store.run(r["run_id"]) for r in store.catalog()]
+    assert run.done_batches() == {0, 2} and run.manifest["status"] == "incomplete"
+    before = execute.EVALUATIONS["count"]
+    summary = doe_flow(config)
+    assert execute.EVALUATIONS["count"] - before == 2  # only the failed batch's samples
+    assert summary["evaluated"] == 6 and run.manifest["status"] == "complete"
+
+
+def test_infeasible_deorbit_is_stored_with_its_reason(tmp_path, scenario):
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.runs import prepare_run, run_doe
+
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["deorbit"]["horizon_h"] = 12.0  # some samples find no pass in time
+    short = build_scenario(data)
+    store = RunStore(tmp_path)
+    run = prepare_run(short, samples=8, seed=3, code="test", store=store)
+    run_doe(short, run, find_launch_fit(scenario), batch_size=4)
+    totals = run.totals()
+    assert len(totals) == 8
+    failed = totals[totals["failed_stage"] == "deorbit"]
+    assert len(failed) >= 1 and all("no northbound pass" in r for r in failed["reason"])
+    assert totals["feasible"].sum() >= 1
+    deorbit = run.stage("deorbit")
+    stored = deorbit[deorbit["sample_id"].isin(failed["sample_id"])]
+    assert (~stored["feasible"]).all() and stored["reason"].str.contains("horizon").all()
+
+
+def test_corrupted_parquet_is_named_and_nothing_else_is_overwritten(eight, tmp_path):
+    import shutil
+
+    source = eight["store"].run(eight["first"]["run_id"]).directory
+    copy_dir = tmp_path / "runs" / source.name
+    shutil.copytree(source, copy_dir)
+    store = RunStore(tmp_path / "runs")
+    run = store.run(source.name)
+    victim = copy_dir / "stages" / "deorbit" / "part-00001.parquet"
+    victim.write_bytes(victim.read_bytes()[:100])  # truncated
+    before = {k: v for k, v in _digest(copy_dir).items() if "deorbit/part-00001" not in k}
+    with pytest.raises(StoreError, match=r"part-00001\.parquet"):
+        run.stage("deorbit")
+    with pytest.raises(StoreError, match=r"part-00001\.parquet"):
+        execute.replay(run)
+    # Writing an already stored batch again is refused: nothing is overwritten.
+    assert run.write_batch(1, [], []) is False
+    after = {k: v for k, v in _digest(copy_dir).items() if "deorbit/part-00001" not in k}
+    assert after == before
+    assert any("error" in (row.get("status") or "") or row["run_id"] for row in store.catalog())
+
+
+def test_run_id_is_a_content_hash(scenario):
+    resolved = scenario.resolved()
+    assert run_id(resolved, 1, 8, "v1", None) == run_id(copy.deepcopy(resolved), 1, 8, "v1", None)
+    changed = copy.deepcopy(resolved)
+    changed["mission"]["stay_h"] += 1.0
+    ids = {
+        run_id(resolved, 1, 8, "v1", None),
+        run_id(changed, 1, 8, "v1", None),
+        run_id(resolved, 2, 8, "v1", None),
+        run_id(resolved, 1, 9, "v1", None),
+        run_id(resolved, 1, 8, "v2", None),
+        run_id(resolved, 1, 8, "v1", "parent"),
+    }
+    assert len(ids) == 6
+
+
+def test_latin_hypercube_is_seeded_stratified_and_inside_the_bounds(scenario):
+    bounds = scenario.mission.design_bounds
+    a = latin_hypercube(bounds, 10, seed=5)
+    assert a.equals(latin_hypercube(bounds, 10, seed=5))
+    assert not a.equals(latin_hypercube(bounds, 10, seed=6))
+    lo, hi = bounds.parking_altitude_km.lower, bounds.parking_altitude_km.upper
+    strata = ((a["parking_altitude_km"] - lo) / (hi - lo) * 10).astype(int)
+    assert sorted(strata) == list(range(10))  # one sample per stratum
+    more = latin_hypercube(bounds, 4, seed=5, first_id=10)
+    assert list(more["sample_id"]) == [10, 11, 12, 13]
+
+
+def test_flow_runs_on_a_local_dask_cluster(prefect_server, tmp_path):
+    from flows.doe import doe_flow
+
+    config = _config(
+        tmp_path, samples=4, batch_size=2, task_runner="dask", workers=2, store=str(tmp_path / "d")
+    )
+    summary = doe_flow(config)
+    assert summary["evaluated"] == 4 and summary["status"] == "complete"
