@@ -224,11 +224,50 @@ def launch_fit_command(
     _print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
 
 
+_RSW = ("radial", "along_track", "cross_track")
+_MARGINS = ("heat_rate", "load", "dynamic_pressure", "bank")
+RowSpec = list[tuple[str, Any]]  # (label, row key or function of the row)
+
+
+def _joined(row: dict[str, Any], pattern: str, names: tuple[str, ...], fmt: str) -> str | None:
+    """``a / b / c`` of ``row[pattern.format(name)]``; None when the stage did not get there."""
+    values = [row.get(pattern.format(name)) for name in names]
+    if any(v is None for v in values):
+        return None
+    return " / ".join(fmt.format(v) for v in values)
+
+
+def _stage_input(build: Any, scenario: Scenario) -> Any:
+    try:
+        return build(scenario)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
+    """Print a stage result (JSON or a table); exit 1 when it is infeasible."""
+    row = _json_safe(result.to_row())
+    if as_json:
+        typer.echo(json.dumps(row, indent=2))
+    else:
+        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+        if row["reason"]:
+            shown.append(("reason", row["reason"]))
+        for label, how in rows:
+            value = how(row) if callable(how) else row[how]
+            if value is not None or not callable(how):
+                shown.append((label, value))
+        _print_rows(title, shown)
+    if not result.feasible:
+        raise typer.Exit(code=1)
+
+
 _DEORBIT_ROWS = [
     ("burn epoch (UTC)", "burn_epoch_utc"),
     ("wait on the preparation orbit [s]", "wait_time_s"),
     ("impulse [m/s]", "dv_mps"),
-    ("impulse radial/along/cross [m/s]", None),
+    ("impulse radial/along/cross [m/s]", lambda row: _joined(row, "dv_{}_mps", _RSW, "{:.3f}")),
     ("two-body estimate [m/s]", "estimate_dv_mps"),
     ("burn to entry [s]", "descent_time_s"),
     ("entry epoch (UTC)", "entry_epoch_utc"),
@@ -252,28 +291,8 @@ def deorbit(config: ConfigArg, as_json: JsonOpt = False) -> None:
     from ovtraj.deorbit import deorbit_input, solve_deorbit
 
     scenario = _load(config)
-    try:
-        inp = deorbit_input(scenario)
-    except (ConfigError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    result = solve_deorbit(inp)
-    row = _json_safe(result.to_row())
-    if as_json:
-        typer.echo(json.dumps(row, indent=2))
-    else:
-        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
-        if row["reason"]:
-            shown.append(("reason", row["reason"]))
-        for label, key in _DEORBIT_ROWS:
-            if key is not None:
-                shown.append((label, row[key]))
-            elif row["dv_radial_mps"] is not None:
-                parts = (row[f"dv_{n}_mps"] for n in ("radial", "along_track", "cross_track"))
-                shown.append((label, " / ".join(f"{p:.3f}" for p in parts)))
-        _print_rows(f"deorbit: {scenario.name}", shown)
-    if not result.feasible:
-        raise typer.Exit(code=1)
+    inp = _stage_input(deorbit_input, scenario)
+    _report(f"deorbit: {scenario.name}", solve_deorbit(inp), _DEORBIT_ROWS, as_json)
 
 
 _REENTRY_ROWS = [
@@ -290,8 +309,8 @@ _REENTRY_ROWS = [
     ("max load [g]", "max_load_g"),
     ("max dynamic pressure [kPa]", "max_dynamic_pressure_kpa"),
     ("max |bank| [deg]", "max_bank_deg"),
-    ("margins heat/load/q/bank", None),
-    ("bank sigma_0 / sigma_1 [deg]", None),
+    ("margins heat/load/q/bank", lambda row: _joined(row, "{}_margin", _MARGINS, "{:.3f}")),
+    ("bank sigma_0 / sigma_1 [deg]", lambda row: _joined(row, "sigma{}_deg", ("0", "1"), "{:.2f}")),
     ("bank reversals", "reversals"),
     ("golden-section evaluations", "golden_evaluations"),
     ("trajectories integrated", "trajectories"),
@@ -305,30 +324,9 @@ def reentry(config: ConfigArg, as_json: JsonOpt = False) -> None:
     from ovtraj.reentry import reentry_input, solve_reentry
 
     scenario = _load(config)
-    try:
-        inp = reentry_input(scenario)
-    except (ConfigError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    result = solve_reentry(inp)
-    row = _json_safe(result.to_row())
-    if as_json:
-        typer.echo(json.dumps(row, indent=2))
-    else:
-        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
-        if row["reason"]:
-            shown.append(("reason", row["reason"]))
-        for label, key in _REENTRY_ROWS:
-            if key is not None:
-                shown.append((label, row[key]))
-            elif label.startswith("margins") and row["heat_rate_margin"] is not None:
-                names = ("heat_rate", "load", "dynamic_pressure", "bank")
-                shown.append((label, " / ".join(f"{row[f'{n}_margin']:.3f}" for n in names)))
-            elif label.startswith("bank sigma") and row["sigma0_deg"] is not None:
-                shown.append((label, f"{row['sigma0_deg']:.2f} / {row['sigma1_deg']:.2f}"))
-        _print_rows(f"reentry: {scenario.name} (to {inp.settings.landing_site.name})", shown)
-    if not result.feasible:
-        raise typer.Exit(code=1)
+    inp = _stage_input(reentry_input, scenario)
+    title = f"reentry: {scenario.name} (to {inp.settings.landing_site.name})"
+    _report(title, solve_reentry(inp), _REENTRY_ROWS, as_json)
 
 
 def _store(root: Path | None, scenario: Scenario | None = None) -> Any:

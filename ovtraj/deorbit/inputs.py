@@ -8,11 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ovtraj.astro.constants import EarthModel
-from ovtraj.astro.elements import NonsingularElements, coe_to_rv
 from ovtraj.astro.epoch import Epoch
-from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.config.deorbit import DeorbitSolverConfig, PreparationOrbitConfig
 from ovtraj.config.scenario import Scenario
+from ovtraj.targets import circular_orbit_state
 
 
 def _wrap_pi(angle: float) -> float:
@@ -76,19 +75,14 @@ class DeorbitInput:
 
 def preparation_state(orbit: PreparationOrbitConfig, earth: EarthModel) -> np.ndarray:
     """ECI state of a circular preparation orbit given by its elements at its epoch."""
-    a = earth.radius + orbit.altitude_km * 1e3
-    i, raan = math.radians(orbit.inclination_deg), math.radians(orbit.raan_deg)
-    u = math.radians(orbit.arg_latitude_deg)
-    if orbit.element_set == "mean":
-        r, v = mean_to_state(
-            NonsingularElements(a=a, ex=0.0, ey=0.0, i=i, raan=raan, u=u),
-            mu=earth.mu,
-            radius=earth.radius,
-            j2=earth.j2,
-        )
-    else:
-        r, v = coe_to_rv(a, 0.0, i, raan, 0.0, u, mu=earth.mu)
-    return np.r_[r, v]
+    return circular_orbit_state(
+        orbit.altitude_km * 1e3,
+        math.radians(orbit.inclination_deg),
+        math.radians(orbit.raan_deg),
+        math.radians(orbit.arg_latitude_deg),
+        element_set=orbit.element_set,
+        earth=earth,
+    )
 
 
 def deorbit_input(

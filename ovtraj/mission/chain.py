@@ -31,8 +31,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.elements import NonsingularElements
-from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
@@ -42,7 +40,7 @@ from ovtraj.launch.inputs import TargetPlane, target_plane_at
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.targets import target_state
+from ovtraj.targets import circular_orbit_state, target_state
 
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
 DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
@@ -147,14 +145,13 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
     t_ins = launch["insertion_time_s"]
     t_drop = t_ins - launch["flight_time_s"]
     u = math.radians(launch["insertion_u_deg"])
-    a = earth.radius + design.parking_altitude_km * 1e3
-    r, v = mean_to_state(
-        NonsingularElements(
-            a=a, ex=0.0, ey=0.0, i=ctx.plane.inclination_rad, raan=ctx.plane.raan_at(t_ins), u=u
-        ),
-        mu=earth.mu,
-        radius=earth.radius,
-        j2=earth.j2,
+    parked = circular_orbit_state(
+        design.parking_altitude_km * 1e3,
+        ctx.plane.inclination_rad,
+        ctx.plane.raan_at(t_ins),
+        u,
+        element_set="mean",
+        earth=earth,
     )
     record.stages["launch"] = {
         "source": "launch fit",
@@ -181,7 +178,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         RendezvousInput(
             epoch=ctx.day,
             t0_s=t_ins,
-            chaser_state=np.r_[r, v],
+            chaser_state=parked,
             target_state=ctx.target_at(t_ins),
             **common,
         )

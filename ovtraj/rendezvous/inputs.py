@@ -6,14 +6,10 @@ import math
 
 import numpy as np
 
-from ovtraj.astro.elements import (
-    NonsingularElements,
-    coe_to_rv,
-)
-from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
+from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.scenario import ParkingOrbitConfig, Scenario
 from ovtraj.rendezvous.result import RendezvousInput
-from ovtraj.targets import target_state
+from ovtraj.targets import circular_orbit_state, target_state
 
 
 def parking_state(
@@ -27,20 +23,14 @@ def parking_state(
     target_mean = state_to_mean(
         target[:3], target[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2
     )
-    a = earth.radius + parking.altitude_km * 1e3
-    i = float(target_mean.i) + math.radians(parking.inclination_offset_deg)
-    raan = float(target_mean.raan) + math.radians(parking.raan_offset_deg)
-    u = math.radians(parking.arg_latitude_deg)
-    if parking.element_set == "mean":
-        r, v = mean_to_state(
-            NonsingularElements(a=a, ex=0.0, ey=0.0, i=i, raan=raan, u=u),
-            mu=earth.mu,
-            radius=earth.radius,
-            j2=earth.j2,
-        )
-    else:
-        r, v = coe_to_rv(a, 0.0, i, raan, 0.0, u, mu=earth.mu)
-    return np.r_[r, v]
+    return circular_orbit_state(
+        parking.altitude_km * 1e3,
+        float(target_mean.i) + math.radians(parking.inclination_offset_deg),
+        float(target_mean.raan) + math.radians(parking.raan_offset_deg),
+        math.radians(parking.arg_latitude_deg),
+        element_set=parking.element_set,
+        earth=earth,
+    )
 
 
 def rendezvous_input(scenario: Scenario) -> RendezvousInput:
