@@ -19,7 +19,7 @@ from prefect import flow, get_run_logger
 from prefect.task_runners import ProcessPoolTaskRunner
 
 from ovtraj.config import load_scenario
-from ovtraj.launch.fit import FIT_ROOTS, continuation_chains, fit_rows, launch_fit_key
+from ovtraj.launch.fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
 from ovtraj.version import code_version
 from tasks.launch import launch_point_task
 
@@ -63,7 +63,7 @@ def launch_fit_flow(
         )
     key = launch_fit_key(scenario)
     fit = fit_rows(on_grid, settings.fit, settings.launcher.name, key=key)
-    directory = Path(output_dir) if output_dir else FIT_ROOTS[0] / key
+    directory = Path(output_dir) if output_dir else fit_roots()[0] / key
     fit.save(directory)
     summary = {
         "points": len(on_grid),

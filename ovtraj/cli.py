@@ -195,7 +195,7 @@ def launch_fit_command(
 ) -> None:
     """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series."""
     from ovtraj.launch import launch_input
-    from ovtraj.launch.fit import FIT_ROOTS, launch_fit, launch_fit_key
+    from ovtraj.launch.fit import fit_roots, launch_fit, launch_fit_key
 
     scenario = _load(config)
     try:
@@ -208,7 +208,7 @@ def launch_fit_command(
     except ValueError as err:
         typer.echo(f"launch fit failed: {err}", err=True)
         raise typer.Exit(code=1) from None
-    directory = output or FIT_ROOTS[0] / launch_fit_key(scenario)
+    directory = output or fit_roots()[0] / launch_fit_key(scenario)
     fit.save(directory)
     lo, hi = fit.altitude_range_km
     rows = [("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"), ("saved to", str(directory))]

@@ -23,3 +23,8 @@ def config_path(name: str) -> Path:
     if not path.is_file():
         raise FileNotFoundError(f"configuration file not found: {path}")
     return path
+
+
+def data_dir() -> Path:
+    """Directory of stored results and tracked reference data (``OVTRAJ_DATA_DIR``)."""
+    return Path(os.environ.get("OVTRAJ_DATA_DIR", REPO_ROOT / "data"))

@@ -38,6 +38,7 @@ from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import solve_launch
+from ovtraj.paths import data_dir
 
 FITTED_OUTPUTS = {
     "payload_kg": ("kg", "payload_kg"),
@@ -45,8 +46,10 @@ FITTED_OUTPUTS = {
     "insertion_u_deg": ("deg", "insertion_u_deg"),
     "flight_time_s": ("s", "flight_time_s"),  # drop to insertion: the mission's start
 }
-# Where solved fits live: the flow's store, then the tracked reference data.
-FIT_ROOTS = (Path("data") / "launch_fit", Path("data") / "reference" / "launch_fit")
+def fit_roots() -> tuple[Path, Path]:
+    """Where solved fits live: the flow's store, then the tracked reference data."""
+    return data_dir() / "launch_fit", data_dir() / "reference" / "launch_fit"
+
 
 
 def grid_altitudes_m(fit: FitGridConfig) -> list[float]:
@@ -250,10 +253,12 @@ def launch_fit_key(scenario: Scenario) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
-def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] = FIT_ROOTS) -> LaunchFit | None:
+def find_launch_fit(
+    scenario: Scenario, roots: tuple[Path, ...] | None = None
+) -> LaunchFit | None:
     """The stored fit solved for this scenario's launch (matching key), if any."""
     key = launch_fit_key(scenario)
-    for root in roots:
+    for root in roots or fit_roots():
         candidates = [root / key, *sorted(root.glob("*"))] if root.is_dir() else []
         for directory in candidates:
             path = directory / "coefficients.json"
