@@ -7,7 +7,7 @@ evaluation (measured inside the tasks), and the overhead = wall time minus the
 summed evaluation time over the workers, as a fraction of the wall time.
 Goals (issue 6): one evaluation under 0.5 s median, overhead under 15 %.
 
-Run: ``python benchmarks/doe.py [samples] [threads|processes]``. Threads share the
+Run: ``python benchmarks/doe.py [samples] [threads|processes] [batch size]``. Threads share the
 compiled integrators of the process (the warm-up compiles them once) but contend
 for the GIL in scipy's optimisers; processes run in parallel but each compiles
 and imports on its own, which a 64-sample DoE does not amortise.
@@ -30,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = 64
 WORKERS = 2
 RUNNER = sys.argv[2] if len(sys.argv) > 2 else "threads"
+BATCH = int(sys.argv[3]) if len(sys.argv) > 3 else 4
 EVALUATION_GOAL_S = 0.5
 OVERHEAD_GOAL = 0.15
 
@@ -45,7 +46,13 @@ def main() -> None:
     data = yaml.safe_load((ROOT / "configs" / "scenario.yaml").read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(ROOT / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"].update(
-        {"samples": samples, "workers": WORKERS, "task_runner": RUNNER, "store": str(workdir)}
+        {
+            "samples": samples,
+            "workers": WORKERS,
+            "task_runner": RUNNER,
+            "store": str(workdir),
+            "batch_size": BATCH,
+        }
     )
     config = workdir / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
