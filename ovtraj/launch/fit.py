@@ -46,10 +46,11 @@ FITTED_OUTPUTS = {
     "insertion_u_deg": ("deg", "insertion_u_deg"),
     "flight_time_s": ("s", "flight_time_s"),  # drop to insertion: the mission's start
 }
+
+
 def fit_roots() -> tuple[Path, Path]:
     """Where solved fits live: the flow's store, then the tracked reference data."""
     return data_dir() / "launch_fit", data_dir() / "reference" / "launch_fit"
-
 
 
 def grid_altitudes_m(fit: FitGridConfig) -> list[float]:
@@ -253,9 +254,7 @@ def launch_fit_key(scenario: Scenario) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
-def find_launch_fit(
-    scenario: Scenario, roots: tuple[Path, ...] | None = None
-) -> LaunchFit | None:
+def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] | None = None) -> LaunchFit | None:
     """The stored fit solved for this scenario's launch (matching key), if any."""
     key = launch_fit_key(scenario)
     for root in roots or fit_roots():
