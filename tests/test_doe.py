@@ -207,3 +207,52 @@ def test_flow_runs_on_a_local_dask_cluster(prefect_server, tmp_path):
     )
     summary = doe_flow(config)
     assert summary["evaluated"] == 4 and summary["status"] == "complete"
+
+
+def test_append_makes_a_child_run_that_reuses_the_parent_batches(tmp_path, scenario):
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.runs import prepare_run, run_doe
+
+    store = RunStore(tmp_path)
+    fit = find_launch_fit(scenario)
+    parent = prepare_run(scenario, samples=2, seed=11, code="test", store=store)
+    run_doe(scenario, parent, fit, batch_size=2)
+    child = prepare_run(scenario, samples=2, seed=11, code="test", store=store, parent=parent)
+    assert child.id != parent.id and child.manifest["parent"] == parent.id
+    samples = child.samples()
+    assert len(samples) == 4 and list(samples["sample_id"]) == [0, 1, 2, 3]
+    pd.testing.assert_frame_equal(samples.iloc[:2], parent.samples())
+    # The appended samples are new points of the design space.
+    assert (
+        not samples.iloc[2:][["parking_altitude_km"]]
+        .isin(parent.samples()["parking_altitude_km"].tolist())
+        .any()
+        .any()
+    )
+
+
+def test_cli_run_runs_show_and_replay(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from ovtraj.cli import app
+
+    runner = CliRunner()
+    store = str(tmp_path / "runs")
+    done = runner.invoke(
+        app, ["run", str(DEFAULT_SCENARIO), "--samples", "2", "--seed", "4", "--store", store]
+    )
+    assert done.exit_code == 0, done.output
+    (rid,) = [p.name for p in (tmp_path / "runs").iterdir()]
+    listed = runner.invoke(app, ["runs", "--store", store])
+    assert listed.exit_code == 0 and rid in listed.stdout and "samples 2" in listed.stdout
+    shown = runner.invoke(app, ["show", rid, "--store", store])
+    manifest = json.loads(shown.stdout)["manifest"]
+    assert manifest["run_id"] == rid and manifest["status"] == "complete"
+    assert {"numpy", "heyoka", "prefect"} <= manifest["dependencies"].keys()
+    replayed = runner.invoke(app, ["replay", rid, "--store", store])
+    assert replayed.exit_code == 0
+    assert "largest difference from the stored totals  0" in replayed.stdout
+    missing = runner.invoke(app, ["show", "nope", "--store", store])
+    assert missing.exit_code == 2 and "no such run" in missing.stderr
