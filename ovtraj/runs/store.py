@@ -8,7 +8,7 @@ Layout::
     samples.parquet                  sample_id and the design variables
     stages/<stage>/part-<k>.parquet  each stage's own rows, keyed by sample_id
     totals/part-<k>.parquet          the mission totals, keyed by sample_id
-    trajectories/<stage>/sample-<id>.parquet
+    trajectories/<stage>/part-<k>.parquet   the batch's trajectory tables, with sample_id
     batches/<k>.json                 written last: batch k is complete
 
 The run id is a content hash of what changes results: the resolved config (which
@@ -146,11 +146,14 @@ class Run:
             ]
             if rows:
                 _atomic_parquet(self.directory / "stages" / stage / part, pd.DataFrame(rows))
-            for sid, rec in zip(sample_ids, records, strict=True):
-                table = rec.trajectories.get(stage)
-                if table is not None and len(table):
-                    path = self.directory / "trajectories" / stage / f"sample-{sid:06d}.parquet"
-                    _atomic_parquet(path, table)
+            tables = [
+                rec.trajectories[stage].assign(sample_id=sid)
+                for sid, rec in zip(sample_ids, records, strict=True)
+                if len(rec.trajectories.get(stage, ()))
+            ]
+            if tables:
+                path = self.directory / "trajectories" / stage / part
+                _atomic_parquet(path, pd.concat(tables, ignore_index=True))
         totals = [
             {"sample_id": sid, **rec.totals()} for sid, rec in zip(sample_ids, records, strict=True)
         ]
@@ -175,9 +178,18 @@ class Run:
         return self._dataset(self.directory / "totals")
 
     def trajectory(self, stage: str, sample_id: int) -> pd.DataFrame:
-        return _read_parquet(
-            self.directory / "trajectories" / stage / f"sample-{sample_id:06d}.parquet"
-        )
+        """One sample's trajectory table of a stage (empty if the stage has none)."""
+        for marker in sorted((self.directory / "batches").glob("*.json")):
+            if sample_id in _read_json(marker)["sample_ids"]:
+                path = (
+                    self.directory / "trajectories" / stage / f"part-{int(marker.stem):05d}.parquet"
+                )
+                if not path.is_file():
+                    return pd.DataFrame()
+                frame = _read_parquet(path)
+                rows = frame[frame["sample_id"] == sample_id]
+                return rows.drop(columns="sample_id").reset_index(drop=True)
+        raise StoreError(f"{self.directory}: sample {sample_id} is not stored")
 
     def summary(self) -> dict[str, Any]:
         manifest = self.manifest
