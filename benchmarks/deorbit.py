@@ -52,7 +52,13 @@ def main() -> None:
     solve_time, result = _median_time(lambda: solve_deorbit(inp))
     propagator = propagator_for(inp)
     forecast_time, forecast = _median_time(
-        lambda: forecast_passes(propagator, inp.state0, inp.horizon_s, inp.entry)
+        lambda: forecast_passes(
+            propagator,
+            inp.state0,
+            inp.horizon_s,
+            inp.entry,
+            time_tolerance_s=inp.solver.nearest_point_tolerance_s,
+        )
     )
 
     def scan() -> int:

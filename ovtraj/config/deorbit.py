@@ -81,6 +81,15 @@ class DeorbitSolverConfig(StrictModel):
         gt=0, lt=1, description="accepted violation, as a fraction of each constraint's scale"
     )
     max_passes: int = bounded(ge=1, le=1000, description="passes tried before giving up")
+    estimate_margin: float = bounded(
+        ge=1,
+        le=2,
+        description="refuse without a solve when the two-body impulse at the shallowest "
+        "angle exceeds the limit times this",
+    )
+    nearest_point_tolerance_s: float = bounded(
+        unit="s", gt=0, le=10, description="time accuracy of the virtual entry point"
+    )
 
 
 class DeorbitSettings(StrictModel):

@@ -84,6 +84,8 @@ def forecast_passes(
     state0: np.ndarray,
     horizon_s: float,
     entry: EntryRegion,
+    *,
+    time_tolerance_s: float,
 ) -> Forecast:
     """Propagate over ``[0, horizon_s]`` and list the passes by the entry point."""
     ctx = propagator.context
@@ -129,7 +131,7 @@ def forecast_passes(
             lo = max(0.0, hit.t - 0.25 * period)
             hi = min(horizon_s, hit.t + 0.25 * period)
             best = minimize_scalar(
-                distance, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}
+                distance, bounds=(lo, hi), method="bounded", options={"xatol": time_tolerance_s}
             )
             t_near, d_near = float(best.x), float(best.fun)
             state = result.state_at(t_near)

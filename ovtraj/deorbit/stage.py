@@ -38,9 +38,6 @@ from ovtraj.deorbit.inputs import DeorbitInput
 from ovtraj.deorbit.result import DeorbitResult
 
 TWO_PI = 2.0 * math.pi
-# Margin on the two-body minimum impulse before a case is refused without a solve:
-# J2 changes the impulse by well under this.
-_ESTIMATE_MARGIN = 1.05
 
 
 def propagator_for(inp: DeorbitInput) -> OrbitPropagator:
@@ -69,7 +66,13 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     """Minimum-impulse deorbit burn to the entry region; see the module notes."""
     start = time.perf_counter()
     propagator = propagator_for(inp)
-    forecast = forecast_passes(propagator, inp.state0, inp.horizon_s, inp.entry)
+    forecast = forecast_passes(
+        propagator,
+        inp.state0,
+        inp.horizon_s,
+        inp.entry,
+        time_tolerance_s=inp.solver.nearest_point_tolerance_s,
+    )
     candidates = forecast.in_region
     if not candidates:
         return DeorbitResult(False, forecast.reason, inp.epoch, wall_time_s=_since(start))
@@ -78,7 +81,7 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
         shallowest = burn_estimate(inp, candidates[0].state, entry.fpa_max_rad)
     except ValueError as err:
         return DeorbitResult(False, str(err), inp.epoch, wall_time_s=_since(start))
-    if shallowest.dv_mps > inp.max_impulse_mps * _ESTIMATE_MARGIN:
+    if shallowest.dv_mps > inp.max_impulse_mps * inp.solver.estimate_margin:
         return DeorbitResult(
             False,
             f"impulse limit {inp.max_impulse_mps:g} m/s is below the "
