@@ -6,7 +6,7 @@
    count, parent run and code version;
 3. evaluate the batches the store does not hold yet as parallel tasks on the
    configured task runner (threads, processes, or Dask), each cached on its
-   inputs, and store every batch as it completes;
+   inputs and storing its own batch (the records never travel back);
 4. finish the manifest and publish a table artifact of the run.
 """
 
@@ -43,11 +43,50 @@ def task_runner(settings: DoeSettings) -> Any:
     )
 
 
+def _failed(k: int, failures: list[str]) -> bool:
+    return any(f.startswith(f"batch {k}:") for f in failures)
+
+
+def _run_batches(
+    batch_task: Any,
+    resolved: dict[str, Any],
+    run: Any,
+    batches: list[Any],
+    todo: list[int],
+    code: str,
+    logger: Any,
+) -> list[str]:
+    """Submit the batches, wait for them, log each; returns the failures."""
+    futures = {
+        k: batch_task.submit(
+            resolved, str(run.directory), k, batches[k].to_dict(orient="records"), code
+        )
+        for k in todo
+    }
+    failures = []
+    for k, future in futures.items():
+        try:
+            summary = future.result()
+        except Exception as err:
+            failures.append(f"batch {k}: {type(err).__name__}: {err}")
+            logger.error("batch %d failed: %s", k, err)
+            continue
+        logger.info(
+            "batch %d/%d stored: %d samples, %d feasible, %.1f s",
+            k + 1,
+            len(batches),
+            summary["samples"],
+            summary["feasible"],
+            summary["wall_time_s"],
+        )
+    return failures
+
+
 @flow(name="doe-batches")
 def evaluate_run_flow(
     resolved: dict[str, Any], run_dir: str, batch_size: int, retries: int, code: str
 ) -> dict[str, Any]:
-    """Submit every missing batch, store each one as it completes."""
+    """Submit every batch the run does not hold; each task stores its own batch."""
     from ovtraj.runs.store import Run
 
     logger = get_run_logger()
@@ -60,19 +99,12 @@ def evaluate_run_flow(
         "run %s: %d batches, %d stored, %d to evaluate", run.id, len(batches), len(done), len(todo)
     )
     batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
-    futures = {
-        k: batch_task.submit(resolved, batches[k].to_dict(orient="records"), code) for k in todo
-    }
-    failures = []
-    for k, future in futures.items():
-        try:
-            records = future.result()
-        except Exception as err:
-            failures.append(f"batch {k}: {type(err).__name__}: {err}")
-            logger.error("batch %d failed: %s", k, err)
-            continue
-        run.write_batch(k, records, [int(i) for i in batches[k]["sample_id"]])
-        logger.info("batch %d/%d stored (%d samples)", k + 1, len(batches), len(records))
+    failures = _run_batches(batch_task, resolved, run, batches, todo, code, logger)
+    missing = [k for k in todo if k not in run.done_batches() and not _failed(k, failures)]
+    if missing:  # cached results whose files are gone: evaluate them again
+        logger.info("batches %s cached but not stored: refreshing", missing)
+        refresh = batch_task.with_options(refresh_cache=True)
+        failures += _run_batches(refresh, resolved, run, batches, missing, code, logger)
     finish(run)
     if failures:
         run.update_manifest(status="incomplete", failures=failures)

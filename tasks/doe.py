@@ -1,7 +1,9 @@
-"""Prefect task: one batch of mission evaluations, cached on its inputs and the code."""
+"""Prefect task: one batch of mission evaluations, stored, cached on its inputs and code."""
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
 from typing import Any
 
 from prefect import task
@@ -9,25 +11,40 @@ from prefect.cache_policies import INPUTS
 
 from ovtraj.config import scenario_from_dict
 from ovtraj.launch.fit import find_launch_fit
-from ovtraj.mission import MissionContext, MissionRecord
+from ovtraj.mission import MissionContext
 from ovtraj.runs import execute
+from ovtraj.runs.store import Run
 
 
 @task(name="mission-batch", cache_policy=INPUTS, persist_result=True)
 def mission_batch_task(
     resolved_scenario: dict[str, Any],
+    run_dir: str,
+    batch_index: int,
     batch: list[dict[str, float]],
     code: str,
-) -> list[MissionRecord]:
-    """Evaluate the mission chain for each sample row (sample_id and design variables).
+) -> dict[str, Any]:
+    """Evaluate the mission chain for each sample row and store the batch in the run.
 
-    The cache key is the hash of the resolved scenario, the batch's samples and the
-    code version, so a re-run with nothing changed reads the persisted records.
+    The worker writes the batch itself (atomic parts, marker last), so the records
+    never travel back through Prefect; the task returns a small summary. The cache
+    key is the hash of the inputs (scenario, run, batch, samples, code version):
+    the flow submits only batches the run does not hold, and resubmits with a
+    refreshed cache a batch whose files went missing after a cached run.
     """
     import pandas as pd
 
+    start = time.perf_counter()
     scenario = scenario_from_dict(resolved_scenario)
     fit = find_launch_fit(scenario)
     if fit is None:
         raise RuntimeError("no launch fit for this scenario: run flows/launch_fit.py first")
-    return execute.evaluate_batch(MissionContext(scenario, fit), pd.DataFrame(batch))
+    frame = pd.DataFrame(batch)
+    records = execute.evaluate_batch(MissionContext(scenario, fit), frame)
+    Run(Path(run_dir)).write_batch(batch_index, records, [int(i) for i in frame["sample_id"]])
+    return {
+        "batch": batch_index,
+        "samples": len(records),
+        "feasible": sum(r.feasible for r in records),
+        "wall_time_s": time.perf_counter() - start,
+    }

@@ -256,3 +256,18 @@ def test_cli_run_runs_show_and_replay(tmp_path):
     assert "largest difference from the stored totals  0" in replayed.stdout
     missing = runner.invoke(app, ["show", "nope", "--store", store])
     assert missing.exit_code == 2 and "no such run" in missing.stderr
+
+
+def test_a_deleted_run_is_recomputed_although_its_tasks_are_cached(prefect_server, tmp_path):
+    import shutil
+
+    from flows.doe import doe_flow
+
+    config = _config(tmp_path, samples=4, batch_size=2, store=str(tmp_path / "runs"))
+    first = doe_flow(config)
+    shutil.rmtree(tmp_path / "runs" / first["run_id"])
+    before = execute.EVALUATIONS["count"]
+    second = doe_flow(config)  # same run id, cached task results, no stored files
+    assert second["run_id"] == first["run_id"]
+    assert execute.EVALUATIONS["count"] - before == 4
+    assert second["evaluated"] == 4 and second["status"] == "complete"
