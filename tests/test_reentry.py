@@ -635,12 +635,7 @@ def test_seed_001_aero_expressible():
     lift, drag, alpha, mach_model, rho = dyn._aero(
         x,
         model.params,
-        model.cl,
-        model.cd,
-        model.mach_nodes,
-        model.alpha_nodes,
-        model.log_rho,
-        model.sound,
+        model.tables,
     )
     assert math.degrees(alpha) == pytest.approx(a)
     assert mach_model == pytest.approx(mach)

@@ -53,6 +53,18 @@ class PhaseRecord:
     def standing(self) -> Standing:
         return Standing(self.payload_kg, self.max_violation, self.max_residual)
 
+    @classmethod
+    def reached(cls, name: str, standing: Standing, **counts: object) -> PhaseRecord:
+        """The record of a phase that ended at a design of this standing."""
+        return cls(
+            name=name,
+            payload_kg=standing.payload_kg,
+            max_violation=standing.violation,
+            max_residual=standing.residual,
+            feasible=standing.violation <= 0.0,
+            **counts,
+        )
+
 
 @dataclass
 class OptimisationOutcome:
@@ -224,12 +236,9 @@ def run_genetic(
     best_index = int(np.lexsort((f, cv))[0])
     x = np.clip(population.get("X")[best_index], 0.0, 1.0)
     standing = _evaluate_one(problem, x)
-    record = PhaseRecord(
-        name="genetic",
-        payload_kg=standing.payload_kg,
-        max_violation=standing.violation,
-        max_residual=standing.residual,
-        feasible=standing.violation <= 0.0,
+    record = PhaseRecord.reached(
+        "genetic",
+        standing,
         accepted=True,
         iterations=settings.generations,
         trajectories=problem.trajectories - before,
@@ -324,12 +333,9 @@ def _local_outcome(
         if is_better(visited_standing, standing, monitor.converged_residual):
             x, standing = visited, visited_standing
             message = f"{message}; best converged iterate kept"
-    return x, PhaseRecord(
-        name=name,
-        payload_kg=standing.payload_kg,
-        max_violation=standing.violation,
-        max_residual=standing.residual,
-        feasible=standing.violation <= 0.0,
+    return x, PhaseRecord.reached(
+        name,
+        standing,
         accepted=False,
         iterations=int(result.nit),
         trajectories=problem.trajectories - before,
@@ -411,12 +417,9 @@ def optimise_launch(
     else:
         x = np.clip(np.asarray(seed_x, dtype=float), 0.0, 1.0)
         standing = _evaluate_one(problem, x)
-        record = PhaseRecord(
-            name="seed",
-            payload_kg=standing.payload_kg,
-            max_violation=standing.violation,
-            max_residual=standing.residual,
-            feasible=standing.violation <= 0.0,
+        record = PhaseRecord.reached(
+            "seed",
+            standing,
             accepted=True,
             iterations=0,
             trajectories=1,

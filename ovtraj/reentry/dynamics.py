@@ -62,6 +62,10 @@ HISTORY_COLUMNS = (
     "dynamic_pressure_pa",
     "range_to_go_m",
 )
+# The vehicle and atmosphere arrays every kernel needs, passed as one tuple: lift and
+# drag coefficient matrices, the Mach and alpha nodes of the schedule, the log-density
+# and speed-of-sound tables.
+Tables = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 # Indices of the float parameter vector.
 (
     P_MU,
@@ -163,14 +167,10 @@ def _interp(x: float, xs: np.ndarray, ys: np.ndarray) -> float:
 def _aero(
     x: np.ndarray,
     p: np.ndarray,
-    cl: np.ndarray,
-    cd: np.ndarray,
-    mach_nodes: np.ndarray,
-    alpha_nodes: np.ndarray,
-    log_rho: np.ndarray,
-    sound: np.ndarray,
+    tables: Tables,
 ) -> tuple[float, float, float, float, float]:
     """Lift and drag accelerations, angle of attack, Mach and density at state x."""
+    cl, cd, mach_nodes, alpha_nodes, log_rho, sound = tables
     h = x[0] - p[P_RADIUS]
     rho, a = _atmosphere(h, p, log_rho, sound)
     mach = x[3] / a
@@ -195,19 +195,14 @@ def _derivatives(
     x: np.ndarray,
     sign: float,
     p: np.ndarray,
-    cl: np.ndarray,
-    cd: np.ndarray,
-    mach_nodes: np.ndarray,
-    alpha_nodes: np.ndarray,
-    log_rho: np.ndarray,
-    sound: np.ndarray,
+    tables: Tables,
     out: np.ndarray,
 ) -> None:
     r, lat, v, gamma, psi = x[0], x[2], x[3], x[4], x[5]
     # The magnitude follows the stage's speed (it is a function of the state); only
     # the sign, a guidance decision, is held over the step.
     sigma = sign * _bank_magnitude(v, p)
-    lift, drag, _, _, _ = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
+    lift, drag, _, _, _ = _aero(x, p, tables)
     g = p[P_MU] / (r * r)
     w = p[P_OMEGA]
     cg, sg = math.cos(gamma), math.sin(gamma)
@@ -235,15 +230,10 @@ def _derivatives(
 def _path(
     x: np.ndarray,
     p: np.ndarray,
-    cl: np.ndarray,
-    cd: np.ndarray,
-    mach_nodes: np.ndarray,
-    alpha_nodes: np.ndarray,
-    log_rho: np.ndarray,
-    sound: np.ndarray,
+    tables: Tables,
 ) -> tuple[float, float, float, float, float, float]:
     """Angle of attack, Mach, density, heat rate, normal load [g], dynamic pressure."""
-    lift, drag, alpha, mach, rho = _aero(x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
+    lift, drag, alpha, mach, rho = _aero(x, p, tables)
     heat = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
     load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
     return alpha, mach, rho, heat, load, 0.5 * rho * x[3] * x[3]
@@ -263,12 +253,7 @@ def _update_maxima(maxima: np.ndarray, t: float, heat: float, load: float, qdyn:
 def fly(
     x0: np.ndarray,
     p: np.ndarray,
-    cl: np.ndarray,
-    cd: np.ndarray,
-    mach_nodes: np.ndarray,
-    alpha_nodes: np.ndarray,
-    log_rho: np.ndarray,
-    sound: np.ndarray,
+    tables: Tables,
     record: bool,
 ) -> tuple[int, float, np.ndarray, np.ndarray, int, np.ndarray, int]:
     """Integrate one entry; returns (status, t, final state, maxima, reversals, history, n).
@@ -305,9 +290,7 @@ def fly(
                 sign = 1.0
                 reversals += 1
         sigma = sign * _bank_magnitude(x[3], p)
-        alpha, mach, rho, heat, load, qdyn = _path(
-            x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound
-        )
+        alpha, mach, rho, heat, load, qdyn = _path(x, p, tables)
         _update_maxima(maxima, t, heat, load, qdyn)
         maxima[6] = max(maxima[6], abs(sigma))
         if record:
@@ -322,7 +305,7 @@ def fly(
             history[n, 13] = qdyn
             history[n, 14] = togo
         n += 1
-        args = (sign, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound)
+        args = (sign, p, tables)
         _derivatives(x, *args, k1)
         for i in range(6):
             stage[i] = x[i] + 0.5 * dt * k1[i]
@@ -356,9 +339,7 @@ def fly(
             status = SKIPPED
             break
     # The end point (e.g. interpolated to the terminal speed) counts for the maxima too.
-    alpha, mach, rho, heat, load, qdyn = _path(
-        x, p, cl, cd, mach_nodes, alpha_nodes, log_rho, sound
-    )
+    alpha, mach, rho, heat, load, qdyn = _path(x, p, tables)
     _update_maxima(maxima, t, heat, load, qdyn)
     if record:
         history[n, 0] = t

@@ -84,6 +84,14 @@ class EntryModel:
         p[dyn.P_GUIDED] = 1.0
         p[dyn.P_BANK_SIGN] = 1.0
         self.params = p
+        self.tables: dyn.Tables = (
+            self.cl,
+            self.cd,
+            self.mach_nodes,
+            self.alpha_nodes,
+            self.log_rho,
+            self.sound,
+        )
         self.x0 = initial_state(inp.entry, earth.radius)
         self.flights = 0
 
@@ -105,12 +113,7 @@ class EntryModel:
         status, t, x, maxima, reversals, history, n = dyn.fly(
             self.x0 if x0 is None else np.asarray(x0, dtype=float),
             p,
-            self.cl,
-            self.cd,
-            self.mach_nodes,
-            self.alpha_nodes,
-            self.log_rho,
-            self.sound,
+            self.tables,
             record,
         )
         return Flight(
