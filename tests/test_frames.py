@@ -288,3 +288,13 @@ def test_great_circle_distance_is_vectorised_and_symmetric() -> None:
     u2 = geocentric_to_ecef(lat2, lon2, 0.0, radius=1.0)
     chord_angle = np.arctan2(np.linalg.norm(np.cross(u1, u2), axis=-1), np.sum(u1 * u2, axis=-1))
     np.testing.assert_allclose(d12, EARTH.radius * chord_angle, rtol=1e-10)
+
+
+def test_fast_cross_matches_numpy_cross_with_broadcasting():
+    from ovtraj.astro.vectors import cross
+
+    rng = np.random.default_rng(7)
+    a, b = rng.normal(size=(4, 3)), rng.normal(size=3)
+    np.testing.assert_allclose(cross(a, b), np.cross(a, b), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(cross(a[0], b), np.cross(a[0], b), rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(cross([1, 0, 0], [0, 1, 0]), [0.0, 0.0, 1.0])

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ovtraj.astro.vectors import cross
+
 FloatOrArray = float | NDArray[np.float64]
 
 _EPS = float(np.finfo(float).eps)
@@ -137,7 +139,7 @@ def _angle_about(
     atan2 of the two projections stays accurate at every angle, where acos
     loses half the digits near 0 and pi.
     """
-    return np.arctan2(_dot(axis_hat, np.cross(start, end)), _dot(start, end))
+    return np.arctan2(_dot(axis_hat, cross(start, end)), _dot(start, end))
 
 
 def _in_plane_basis(
@@ -214,7 +216,7 @@ def _plane_geometry(
     r: NDArray[np.float64], v: NDArray[np.float64], equatorial_tol: float
 ) -> _PlaneGeometry:
     """Inclination, node and in-plane basis; equatorial orbits take the x axis as node."""
-    h = np.cross(r, v)
+    h = cross(r, v)
     h_norm = _norm(h)
     h_hat = h / h_norm[..., None]
     node = np.stack([-h[..., 1], h[..., 0], np.zeros_like(h_norm)], axis=-1)
@@ -225,7 +227,7 @@ def _plane_geometry(
     x_hat = np.broadcast_to(np.array([1.0, 0.0, 0.0]), node.shape)
     node_hat = np.where(equatorial[..., None], x_hat, node / safe_node_norm[..., None])
     raan = np.where(equatorial, 0.0, _wrap_2pi(np.arctan2(node[..., 1], node[..., 0])))
-    ahead_hat = np.cross(h_hat, node_hat)
+    ahead_hat = cross(h_hat, node_hat)
     return _PlaneGeometry(h_hat=h_hat, node_hat=node_hat, ahead_hat=ahead_hat, i=i, raan=raan)
 
 
@@ -557,7 +559,7 @@ def rv_to_equinoctial(r: ArrayLike, v: ArrayLike, *, mu: float) -> EquinoctialEl
     r [m], v [m/s], mu [m^3/s^2].
     """
     r, v = np.broadcast_arrays(_as_float(r), _as_float(v))
-    ang_mom = np.cross(r, v)
+    ang_mom = cross(r, v)
     w_hat = ang_mom / _norm(ang_mom)[..., None]
     p = w_hat[..., 0] / (1.0 + w_hat[..., 2])
     q = -w_hat[..., 1] / (1.0 + w_hat[..., 2])

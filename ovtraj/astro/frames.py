@@ -30,6 +30,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ovtraj.astro.vectors import cross
+
 __all__ = [
     "ecef_to_eci",
     "ecef_to_eci_state",
@@ -264,12 +266,12 @@ def rsw_basis(r: ArrayLike, v: ArrayLike) -> np.ndarray:
         If r x v = 0 somewhere (rectilinear motion: no orbit plane).
     """
     r, v = _vectors(r), _vectors(v)
-    h = np.cross(r, v)
+    h = cross(r, v)
     if np.any(np.linalg.norm(h, axis=-1) == 0.0):
         raise ValueError("RSW frame undefined: r x v = 0 (rectilinear motion or zero vector)")
     radial = _unit(r)
     cross_track = _unit(h)
-    along_track = np.cross(cross_track, radial)
+    along_track = cross(cross_track, radial)
     radial, along_track, cross_track = np.broadcast_arrays(radial, along_track, cross_track)
     return np.stack([radial, along_track, cross_track], axis=-2)
 
@@ -296,7 +298,7 @@ def flight_path_angle(r: ArrayLike, v: ArrayLike) -> float | np.ndarray:
     flight-path angle, the inertial one for the orbital angle.
     """
     r, v = _vectors(r), _vectors(v)
-    return _scalar_or_array(np.arctan2(_dot(r, v), np.linalg.norm(np.cross(r, v), axis=-1)))
+    return _scalar_or_array(np.arctan2(_dot(r, v), np.linalg.norm(cross(r, v), axis=-1)))
 
 
 def heading(r_eci: ArrayLike, v_rel_eci: ArrayLike) -> float | np.ndarray:

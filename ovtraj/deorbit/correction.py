@@ -34,6 +34,7 @@ from scipy.optimize import minimize
 
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, flight_path_angle, rsw_basis
 from ovtraj.astro.propagation import AltitudeCrossing, OrbitPropagator, PropagationResult
+from ovtraj.astro.vectors import cross
 from ovtraj.config.deorbit import DeorbitSolverConfig
 from ovtraj.deorbit.inputs import EntryRegion
 
@@ -139,8 +140,8 @@ class DescentModel:
 def _perigee_radius(state: NDArray, mu: float) -> float:
     r, v = state[:3], state[3:]
     r_norm = float(np.linalg.norm(r))
-    h = np.cross(r, v)
-    e_vec = np.cross(v, h) / mu - r / r_norm
+    h = cross(r, v)
+    e_vec = cross(v, h) / mu - r / r_norm
     p = float(h @ h) / mu
     return p / (1.0 + float(np.linalg.norm(e_vec)))
 

@@ -31,6 +31,7 @@ from scipy.optimize import minimize_scalar
 
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, great_circle_distance
 from ovtraj.astro.propagation import LatitudeCrossing, OrbitPropagator, PropagationResult
+from ovtraj.astro.vectors import cross
 from ovtraj.deorbit.inputs import EntryRegion
 
 TWO_PI = 2.0 * math.pi
@@ -74,7 +75,7 @@ def subsatellite_point(
 
 def highest_latitude_rad(state: np.ndarray) -> float:
     """Highest geocentric latitude the orbit plane reaches [rad] (inclination or 180 - i)."""
-    h = np.cross(state[:3], state[3:6])
+    h = cross(state[:3], state[3:6])
     inclination = math.acos(max(-1.0, min(1.0, h[2] / float(np.linalg.norm(h)))))
     return min(inclination, math.pi - inclination)
 

@@ -31,6 +31,7 @@ from ovtraj.astro.frames import (
     relative_velocity_state,
 )
 from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.astro.vectors import cross
 from ovtraj.deorbit.correction import Correction, DescentModel, correct_burn
 from ovtraj.deorbit.estimate import TangentialDeorbit, tangential_deorbit
 from ovtraj.deorbit.forecast import Forecast, TrackPass, forecast_passes
@@ -58,7 +59,7 @@ def burn_estimate(inp: DeorbitInput, state: np.ndarray, fpa_rad: float) -> Tange
 def first_burn_time_s(track_pass: TrackPass, estimate: TangentialDeorbit) -> float:
     """Burn epoch that puts the entry a central angle after the burn, at the virtual point."""
     r, v = track_pass.state[:3], track_pass.state[3:]
-    angular_rate = float(np.linalg.norm(np.cross(r, v))) / float(r @ r)
+    angular_rate = float(np.linalg.norm(cross(r, v))) / float(r @ r)
     return track_pass.t_s - estimate.central_angle_rad / angular_rate
 
 

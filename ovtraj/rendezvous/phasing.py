@@ -10,6 +10,7 @@ import numpy as np
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.astro.j2_elements import secular_rates
+from ovtraj.astro.vectors import cross
 from ovtraj.rendezvous.hohmann import wrap_angle
 
 
@@ -20,15 +21,15 @@ def phase_angle(chaser_state: np.ndarray, target_position: np.ndarray) -> float:
     out-of-plane offset does not enter.
     """
     r, v = chaser_state[:3], chaser_state[3:6]
-    h = np.cross(r, v)
+    h = cross(r, v)
     h_hat = h / np.linalg.norm(h)
-    return math.atan2(float(h_hat @ np.cross(r, target_position)), float(r @ target_position))
+    return math.atan2(float(h_hat @ cross(r, target_position)), float(r @ target_position))
 
 
 def plane_difference(state_a: np.ndarray, state_b: np.ndarray) -> float:
     """Angle [rad] between the orbital planes (angular momentum directions)."""
-    ha = np.cross(state_a[:3], state_a[3:6])
-    hb = np.cross(state_b[:3], state_b[3:6])
+    ha = cross(state_a[:3], state_a[3:6])
+    hb = cross(state_b[:3], state_b[3:6])
     c = float(ha @ hb / (np.linalg.norm(ha) * np.linalg.norm(hb)))
     return math.acos(min(1.0, max(-1.0, c)))
 
