@@ -49,11 +49,10 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-import yaml
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from ovtraj.paths import config_path
+from ovtraj.paths import config_path, read_yaml
 
 __all__ = [
     "Atmosphere",
@@ -146,7 +145,7 @@ class US76Table(BaseModel):
 def load_us76_table(path: str | Path) -> US76Table:
     """Read the US76 figures from a YAML file."""
     with open(path, encoding="utf-8") as fh:
-        return US76Table.model_validate(yaml.safe_load(fh))
+        return US76Table.model_validate(read_yaml(fh))
 
 
 def _readonly(values: ArrayLike) -> NDArray[np.float64]:

@@ -11,10 +11,9 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
-from ovtraj.paths import config_path
+from ovtraj.paths import config_path, read_yaml
 
 
 class EarthModel(BaseModel):
@@ -44,7 +43,7 @@ class EarthModel(BaseModel):
 def load_earth(path: str | Path) -> EarthModel:
     """Read an Earth model from a YAML file."""
     with open(path, encoding="utf-8") as fh:
-        return EarthModel.model_validate(yaml.safe_load(fh))
+        return EarthModel.model_validate(read_yaml(fh))
 
 
 @lru_cache(maxsize=1)

@@ -20,7 +20,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ovtraj.astro.constants import default_earth
 from ovtraj.config.base import StrictModel, bounded
-from ovtraj.paths import config_dir
+from ovtraj.paths import config_dir, read_yaml
 
 # The ten design variables of patent step 101, in the order of the design vector.
 DESIGN_VARIABLES: tuple[str, ...] = (
@@ -393,7 +393,7 @@ def _read_launcher(name: str) -> dict[str, Any]:
     if not path.is_absolute():
         path = config_dir() / path
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = read_yaml(path.read_text(encoding="utf-8"))
     except OSError as err:
         raise ValueError(f"cannot read launcher file {path}: {err.strerror}") from None
     except yaml.YAMLError as err:

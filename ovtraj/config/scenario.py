@@ -19,6 +19,7 @@ from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
 from ovtraj.config.reentry import ReentrySettings
+from ovtraj.paths import read_yaml
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -238,7 +239,7 @@ def load_scenario(path: str | Path) -> Scenario:
     except OSError as err:
         raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
     try:
-        data = yaml.safe_load(text)
+        data = read_yaml(text)
     except yaml.YAMLError as err:
         raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
     return scenario_from_dict(data, str(path))
