@@ -1,18 +1,26 @@
 """DoE of the whole mission: wall time, time per evaluation, orchestration overhead.
 
-A 64-sample DoE of the default scenario with 2 workers (threads, batches of 4),
-run by ``flows/doe.py:doe_flow`` under a temporary Prefect server, into a fresh
-store. Printed: the flow's wall time, the median and total time of one mission
+A 64-sample DoE of the default scenario with 2 workers, run by
+``flows/doe.py:doe_flow`` under a temporary Prefect server, into a fresh store.
+Printed: the flow's wall time, the median and total time of one mission
 evaluation (measured inside the tasks), and the overhead = wall time minus the
 summed evaluation time over the workers, as a fraction of the wall time.
 Goals (issue 6): one evaluation under 0.5 s median, overhead under 15 %.
 
-Run: ``python benchmarks/doe.py [samples] [threads|processes|dask-cluster] [batch]``;
-``dask-cluster`` starts a local Dask cluster of worker processes, warms it with a
-small run and times the DoE on it (the set-up of ``mission.doe.dask_address``). Threads share the
-compiled integrators of the process (the warm-up compiles them once) but contend
-for the GIL in scipy's optimisers; processes run in parallel but each compiles
-and imports on its own, which a 64-sample DoE does not amortise.
+Run: ``python benchmarks/doe.py [samples] [dask-cluster|threads|processes] [batch]``
+(default: 64 samples on a Dask cluster of 2 worker processes, batches of 16).
+
+- ``dask-cluster``: a local Dask cluster of worker processes is started and warmed
+  by a small run, then the DoE is timed on it (the set-up of
+  ``mission.doe.dask_address``: a cluster that outlives the flow runs keeps its
+  imports and compiled integrators). Prefect re-creates its settings and API client
+  for every task run in a worker process (~0.5 s measured here), so batches should
+  hold several seconds of work: 16 samples make 4 tasks for 2 workers.
+- ``threads``: the tasks share the compiled integrators of the flow's process but
+  hold the GIL for most of an evaluation (scipy's optimisers), so 2 threads run at
+  about the speed of one and each evaluation takes about twice as long.
+- ``processes``: Prefect's process pool is created per flow run; each process
+  imports and compiles on its own (~3-5 s), which a 64-sample DoE does not amortise.
 """
 
 from __future__ import annotations
@@ -31,8 +39,8 @@ os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = 64
 WORKERS = 2
-RUNNER = sys.argv[2] if len(sys.argv) > 2 else "threads"
-BATCH = int(sys.argv[3]) if len(sys.argv) > 3 else 4
+RUNNER = sys.argv[2] if len(sys.argv) > 2 else "dask-cluster"
+BATCH = int(sys.argv[3]) if len(sys.argv) > 3 else 16
 EVALUATION_GOAL_S = 0.5
 OVERHEAD_GOAL = 0.15
 
@@ -77,8 +85,12 @@ def main() -> None:
                 {"task_runner": "dask", "dask_address": cluster.scheduler_address}
             )
             config.write_text(yaml.safe_dump(doe), encoding="utf-8")
-        warm = 2 * WORKERS * BATCH  # every worker gets a batch: compile, warm
-        doe_flow(str(config), samples=warm, store_root=str(workdir / "warm-up"))
+        # Warm-up: small batches so that every worker imports, compiles and evaluates.
+        warm = yaml.safe_load(config.read_text(encoding="utf-8"))
+        warm["mission"]["doe"]["batch_size"] = 2
+        warm_config = workdir / "warm-up.yaml"
+        warm_config.write_text(yaml.safe_dump(warm), encoding="utf-8")
+        doe_flow(str(warm_config), samples=4 * WORKERS, store_root=str(workdir / "warm-up"))
         start = time.perf_counter()
         summary = doe_flow(str(config))
         wall = time.perf_counter() - start

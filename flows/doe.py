@@ -5,13 +5,15 @@
 2. create (or reopen) the run: its id hashes the resolved config, seed, sample
    count, parent run and code version;
 3. evaluate the batches the store does not hold yet as parallel tasks on the
-   configured task runner (threads, processes, or Dask), each cached on its
-   inputs and storing its own batch (the records never travel back);
+   configured task runner (threads, processes, or Dask; started only when there
+   is something to evaluate), each cached on its inputs and storing its own
+   batch (the records never travel back);
 4. finish the manifest and publish a table artifact of the run.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +50,7 @@ def _failed(k: int, failures: list[str]) -> bool:
 
 
 def _run_batches(
+    runner: Any,
     batch_task: Any,
     resolved: dict[str, Any],
     run: Any,
@@ -56,10 +59,17 @@ def _run_batches(
     code: str,
     logger: Any,
 ) -> list[str]:
-    """Submit the batches, wait for them, log each; returns the failures."""
+    """Submit the batches to the runner, wait for them, log each; returns the failures."""
     futures = {
-        k: batch_task.submit(
-            resolved, str(run.directory), k, batches[k].to_dict(orient="records"), code
+        k: runner.submit(
+            batch_task,
+            {
+                "resolved_scenario": resolved,
+                "run_dir": str(run.directory),
+                "batch_index": k,
+                "batch": batches[k].to_dict(orient="records"),
+                "code": code,
+            },
         )
         for k in todo
     }
@@ -82,15 +92,20 @@ def _run_batches(
     return failures
 
 
-@flow(name="doe-batches")
-def evaluate_run_flow(
-    resolved: dict[str, Any], run_dir: str, batch_size: int, retries: int, code: str
+def evaluate_batches(
+    runner: Any,
+    resolved: dict[str, Any],
+    run: Any,
+    batch_size: int,
+    retries: int,
+    code: str,
 ) -> dict[str, Any]:
-    """Submit every batch the run does not hold; each task stores its own batch."""
-    from ovtraj.runs.store import Run
+    """Submit every batch the run does not hold; each task stores its own batch.
 
+    The runner is the configured one, used as a context manager inside the flow run
+    (a subflow with the runner as an option would cost a second flow run per DoE).
+    """
     logger = get_run_logger()
-    run = Run(Path(run_dir))
     batches = split_batches(run.samples(), batch_size)
     done = run.done_batches()
     todo = [k for k in range(len(batches)) if k not in done]
@@ -99,12 +114,12 @@ def evaluate_run_flow(
         "run %s: %d batches, %d stored, %d to evaluate", run.id, len(batches), len(done), len(todo)
     )
     batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
-    failures = _run_batches(batch_task, resolved, run, batches, todo, code, logger)
+    failures = _run_batches(runner, batch_task, resolved, run, batches, todo, code, logger)
     missing = [k for k in todo if k not in run.done_batches() and not _failed(k, failures)]
     if missing:  # cached results whose files are gone: evaluate them again
         logger.info("batches %s cached but not stored: refreshing", missing)
         refresh = batch_task.with_options(refresh_cache=True)
-        failures += _run_batches(refresh, resolved, run, batches, missing, code, logger)
+        failures += _run_batches(runner, refresh, resolved, run, batches, missing, code, logger)
     finish(run)
     if failures:
         run.update_manifest(status="incomplete", failures=failures)
@@ -145,9 +160,18 @@ def doe_flow(
     logger.info("run %s (%s), %d samples", run.id, scenario.name, len(run.samples()))
     if parent is not None:
         _adopt_parent_batches(run, parent, settings.batch_size)
-    evaluate_run_flow.with_options(task_runner=task_runner(settings))(
-        scenario.resolved(), str(run.directory), settings.batch_size, settings.task_retries, code
-    )
+    if len(run.done_batches()) < math.ceil(len(run.samples()) / settings.batch_size):
+        with task_runner(settings) as runner:
+            evaluate_batches(
+                runner,
+                scenario.resolved(),
+                run,
+                settings.batch_size,
+                settings.task_retries,
+                code,
+            )
+    else:
+        finish(run)
     summary = run.summary()
     create_table_artifact(
         key="doe-run",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -14,6 +16,16 @@ from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission import MissionContext
 from ovtraj.runs import execute
 from ovtraj.runs.store import Run
+
+
+@functools.lru_cache(maxsize=4)
+def _context(resolved_json: str) -> MissionContext:
+    """The scenario's shared context, built once per worker process and scenario."""
+    scenario = scenario_from_dict(json.loads(resolved_json))
+    fit = find_launch_fit(scenario)
+    if fit is None:
+        raise RuntimeError("no launch fit for this scenario: run flows/launch_fit.py first")
+    return MissionContext(scenario, fit)
 
 
 @task(name="mission-batch", cache_policy=INPUTS, persist_result=True)
@@ -35,12 +47,9 @@ def mission_batch_task(
     import pandas as pd
 
     start = time.perf_counter()
-    scenario = scenario_from_dict(resolved_scenario)
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        raise RuntimeError("no launch fit for this scenario: run flows/launch_fit.py first")
+    context = _context(json.dumps(resolved_scenario, sort_keys=True, default=str))
     frame = pd.DataFrame(batch)
-    records = execute.evaluate_batch(MissionContext(scenario, fit), frame)
+    records = execute.evaluate_batch(context, frame)
     Run(Path(run_dir)).write_batch(batch_index, records, [int(i) for i in frame["sample_id"]])
     return {
         "batch": batch_index,

@@ -76,11 +76,13 @@ def _atomic_bytes(path: Path, payload: bytes) -> None:
     os.replace(tmp.name, path)
 
 
-def _atomic_parquet(path: Path, frame: pd.DataFrame) -> None:
+def _atomic_parquet(path: Path, table: pd.DataFrame | pa.Table) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(table, pd.DataFrame):
+        table = pa.Table.from_pandas(table, preserve_index=False)
     with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
         name = tmp.name
-    frame.to_parquet(name, index=False)
+    pq.write_table(table, name)
     os.chmod(name, 0o644)
     os.replace(name, path)
 
@@ -145,7 +147,10 @@ class Run:
                 if stage in rec.stages
             ]
             if rows:
-                _atomic_parquet(self.directory / "stages" / stage / part, pd.DataFrame(rows))
+                # Rows straight to Arrow: pandas' object-column conversion costs more
+                # than the write itself on a batch of a few samples.
+                path = self.directory / "stages" / stage / part
+                _atomic_parquet(path, pa.Table.from_pylist(rows))
             tables = [
                 rec.trajectories[stage].assign(sample_id=sid)
                 for sid, rec in zip(sample_ids, records, strict=True)
@@ -157,7 +162,7 @@ class Run:
         totals = [
             {"sample_id": sid, **rec.totals()} for sid, rec in zip(sample_ids, records, strict=True)
         ]
-        _atomic_parquet(self.directory / "totals" / part, pd.DataFrame(totals))
+        _atomic_parquet(self.directory / "totals" / part, pa.Table.from_pylist(totals))
         _atomic_bytes(marker, json.dumps({"batch": batch, "sample_ids": sample_ids}).encode())
         return True
 
