@@ -1,0 +1,148 @@
+"""Feasibility check of an optimised entry (seed 001, sec. 3.3).
+
+The optimal controls, known at the (unequally spaced) collocation points, are
+interpolated in time, linearly or by a cubic spline (seed: "linear or cubic spline"),
+and flown from the initial state to the optimised final time by the independent numpy
+model and integrator of :mod:`ovtraj.reentry.pseudospectral.flight`. The difference
+between the integrated and the optimised terminal states measures how far the discrete
+optimum is from a trajectory the vehicle can fly.
+
+Controls are held at their first and last collocation values outside the collocation
+points (LG has none at the ends), and a spline is clipped to the control bounds. The
+position error is the straight-line distance between the two terminal points
+(``r = R + h`` on the spherical Earth); the angle error is the largest of the
+flight-path angle, heading, latitude and longitude differences.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline
+
+from ovtraj.reentry.pseudospectral.flight import PointMass, fly
+from ovtraj.reentry.pseudospectral.problem import EntryProblem
+
+__all__ = ["FeasibilityReport", "check_feasibility", "control_interpolant"]
+
+
+@dataclass(frozen=True)
+class FeasibilityReport:
+    """Integrated minus optimised terminal state, and the integrated path's maxima."""
+
+    interpolation: str
+    status: str
+    position_error_km: float
+    altitude_error_km: float
+    speed_error_mps: float
+    fpa_error_deg: float
+    heading_error_deg: float
+    latitude_error_deg: float
+    longitude_error_deg: float
+    max_load_g: float
+    max_dynamic_pressure_kpa: float
+    max_heat_rate_kw_m2: float
+    t: NDArray[np.float64]  # integrated times [s]
+    y: NDArray[np.float64]  # rows of (h, lon, lat, V, gamma, psi), SI
+
+    @property
+    def angle_error_deg(self) -> float:
+        return max(
+            abs(self.fpa_error_deg),
+            abs(self.heading_error_deg),
+            abs(self.latitude_error_deg),
+            abs(self.longitude_error_deg),
+        )
+
+
+def control_interpolant(
+    t: NDArray[np.float64],
+    values: NDArray[np.float64],
+    kind: str,
+    lower: float,
+    upper: float,
+) -> Callable[[float], float]:
+    """``f(t)`` through ``(t, values)``: linear or not-a-knot cubic spline, held at the ends."""
+    t = np.asarray(t, dtype=float)
+    values = np.asarray(values, dtype=float)
+    if kind == "linear":
+
+        def linear(x: float) -> float:
+            return float(np.interp(x, t, values))
+
+        return linear
+    if kind == "cubic":
+        spline = CubicSpline(t, values)
+
+        def cubic(x: float) -> float:
+            return float(np.clip(spline(min(max(x, t[0]), t[-1])), lower, upper))
+
+        return cubic
+    raise ValueError(f"unknown interpolation {kind!r} (use 'linear' or 'cubic')")
+
+
+def _cartesian(state: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
+    r = radius + state[0]
+    lon, lat = state[1], state[2]
+    return r * np.array(
+        [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
+    )
+
+
+def check_feasibility(
+    problem: EntryProblem,
+    t_controls: NDArray[np.float64],
+    alpha: NDArray[np.float64],
+    bank: NDArray[np.float64],
+    final_time: float,
+    final_state: NDArray[np.float64],
+    interpolation: str,
+) -> FeasibilityReport:
+    """Fly the controls ``alpha(t)``, ``bank(t)`` [rad] to ``final_time`` [s] and compare.
+
+    ``final_state`` is the optimised terminal ``(h, lon, lat, V, gamma, psi)`` (SI).
+    """
+    settings = problem.config.feasibility
+    lo, hi = problem.control_lower, problem.control_upper
+    f_alpha = control_interpolant(t_controls, alpha, interpolation, lo[0], hi[0])
+    f_bank = control_interpolant(t_controls, bank, interpolation, lo[1], hi[1])
+    flown = fly(
+        problem,
+        lambda t: (f_alpha(t), f_bank(t)),
+        final_time,
+        rtol=settings.relative_tolerance,
+        atol=settings.absolute_tolerance,
+        breaks=np.asarray(t_controls) if interpolation == "linear" else None,
+    )
+    end = flown.y[-1]
+    model = PointMass(problem)
+    values = [
+        model.path_values(row[0], row[3], f_alpha(t))
+        for t, row in zip(flown.t, flown.y, strict=True)
+    ]
+    deg = math.degrees
+    position = float(
+        np.linalg.norm(_cartesian(end, problem.radius) - _cartesian(final_state, problem.radius))
+    )
+    if flown.status != "completed":
+        position = math.inf
+    return FeasibilityReport(
+        interpolation=interpolation,
+        status=flown.status,
+        position_error_km=position / 1e3,
+        altitude_error_km=float(end[0] - final_state[0]) / 1e3,
+        speed_error_mps=float(end[3] - final_state[3]),
+        fpa_error_deg=deg(end[4] - final_state[4]),
+        heading_error_deg=deg(end[5] - final_state[5]),
+        latitude_error_deg=deg(end[2] - final_state[2]),
+        longitude_error_deg=deg(end[1] - final_state[1]),
+        max_load_g=max(abs(v.load_g) for v in values),
+        max_dynamic_pressure_kpa=max(v.dynamic_pressure for v in values) / 1e3,
+        max_heat_rate_kw_m2=max(v.heat_rate for v in values) / 1e3,
+        t=flown.t,
+        y=flown.y,
+    )
