@@ -329,6 +329,74 @@ def reentry(config: ConfigArg, as_json: JsonOpt = False) -> None:
     _report(title, solve_reentry(inp), _REENTRY_ROWS, as_json)
 
 
+_OPTIMAL_ENTRY_ROWS = [
+    ("status", "status"),
+    ("objective", "objective"),
+    (
+        "formulation",
+        lambda row: (
+            f"{row['independent']}, {row['method']} {row['segments']}x{row['nodes_per_segment']}"
+        ),
+    ),
+    ("objective value", "objective_value"),
+    ("final time [s]", "final_time_s"),
+    ("range [km]", "range_km"),
+    ("cross-range [km]", "crossrange_km"),
+    ("final latitude [deg]", "final_latitude_deg"),
+    ("final altitude [km]", "final_altitude_km"),
+    ("final speed [m/s]", "final_speed_mps"),
+    ("final flight-path angle [deg]", "final_fpa_deg"),
+    ("max load [g]", "max_load_g"),
+    ("max dynamic pressure [kPa]", "max_dynamic_pressure_kpa"),
+    ("max heat rate", "max_heat_rate"),
+    ("NLP iterations", "nlp_iterations"),
+    ("solve time [s]", "solve_time_s"),
+    ("feasibility error [km]", "feasibility_error_km"),
+    ("feasibility error [deg]", "feasibility_error_deg"),
+]
+
+Choice = Annotated[str | None, typer.Option(help="override the config's choice")]
+
+
+@app.command("optimal-entry")
+def optimal_entry(
+    config: Annotated[Path, typer.Argument(help="optimal-entry YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+    independent: Choice = None,
+    transcription: Choice = None,
+    out: Annotated[
+        Path | None, typer.Option(help="where the histories go (default data/optimal_entry)")
+    ] = None,
+) -> None:
+    """Optimal lifting entry by Gauss pseudospectral collocation (seed 001)."""
+    from ovtraj.paths import data_dir
+    from ovtraj.reentry.pseudospectral import (
+        load_optimal_entry,
+        solve_optimal_entry,
+        write_histories,
+    )
+
+    try:
+        problem = load_optimal_entry(config)
+        result = solve_optimal_entry(problem, independent=independent, transcription=transcription)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    paths = write_histories(result, out or data_dir() / "optimal_entry")
+    row = _json_safe({k: v for k, v in result.to_row().items() if v is not None})
+    if as_json:
+        typer.echo(json.dumps(row | {k: str(v) for k, v in paths.items()}, indent=2))
+    else:
+        shown: list[tuple[str, Any]] = [("converged", row["converged"])]
+        for label, how in _OPTIMAL_ENTRY_ROWS:
+            value = how(row) if callable(how) else row.get(how)
+            shown.append((label, value))
+        shown += [(f"{name} file", str(path)) for name, path in paths.items()]
+        _print_rows(f"optimal entry: {result.name}", shown)
+    if not result.converged:
+        raise typer.Exit(code=1)
+
+
 def _store(root: Path | None, scenario: Scenario | None = None) -> Any:
     from ovtraj.runs import RunStore
 

@@ -112,3 +112,45 @@ def test_reentry_json_carries_the_issue_keys_and_an_unreachable_site_exits_1(tmp
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     far = runner.invoke(app, ["reentry", str(path)])
     assert far.exit_code == 1 and "outside the footprint" in far.stdout
+
+
+OPTIMAL_ENTRY_KEYS = {
+    "objective_value",
+    "final_time_s",
+    "range_km",
+    "crossrange_km",
+    "final_latitude_deg",
+    "max_load_g",
+    "max_dynamic_pressure_kpa",
+    "max_heat_rate",
+    "nlp_iterations",
+    "solve_time_s",
+    "feasibility_error_km",
+    "converged",
+}
+OPTIMAL_ENTRY_CASE = REPO / "configs" / "cases" / "suborbital_return.yaml"
+
+
+def test_optimal_entry_json_has_the_issue_keys_and_writes_the_histories(tmp_path):
+    result = runner.invoke(
+        app, ["optimal-entry", str(OPTIMAL_ENTRY_CASE), "--json", "--out", str(tmp_path)]
+    )
+    assert result.exit_code == 0, result.output
+    row = json.loads(result.stdout)
+    assert OPTIMAL_ENTRY_KEYS <= row.keys()
+    assert row["converged"] is True
+    # The terminal conditions of the case hold at the optimum.
+    assert abs(row["final_altitude_km"] - 30.0) < 1e-3
+    assert abs(row["final_speed_mps"] - 860.0) < 0.1
+    for name in ("states", "controls", "plot"):
+        assert (tmp_path / row[name].split("/")[-1]).is_file()
+
+
+def test_optimal_entry_unposable_config_exits_2_with_the_field(tmp_path):
+    data = yaml.safe_load(OPTIMAL_ENTRY_CASE.read_text(encoding="utf-8"))
+    data["terminal"]["speed_mps"] = {"value": 3000.0}  # terminal energy above the initial
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["optimal-entry", str(path), "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "energy" in result.output
