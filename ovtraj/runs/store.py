@@ -80,9 +80,16 @@ def _atomic_parquet(path: Path, table: pd.DataFrame | pa.Table) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if isinstance(table, pd.DataFrame):
         table = pa.Table.from_pandas(table, preserve_index=False)
+    # Dictionary-encode the text columns only: on the float columns of trajectory tables
+    # the attempt costs 4-5x the write (185 -> 36 ms for 75k rows) for a third less size.
+    text = [
+        f.name
+        for f in table.schema
+        if pa.types.is_string(f.type) or pa.types.is_large_string(f.type)
+    ]
     with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
         name = tmp.name
-    pq.write_table(table, name)
+    pq.write_table(table, name, use_dictionary=text)
     os.chmod(name, 0o644)
     os.replace(name, path)
 
