@@ -397,6 +397,72 @@ def optimal_entry(
         raise typer.Exit(code=1)
 
 
+_MANEUVER_ROWS = [
+    ("reason", "reason"),
+    ("time of flight [s]", "time_of_flight_s"),
+    ("time of flight, impulses [s]", "impulsive_time_of_flight_s"),
+    ("impulse epochs [s]", "impulse_epochs_s"),
+    ("impulses [m/s]", "impulse_dv_mps"),
+    ("total dv, impulses [m/s]", "total_dv_mps"),
+    ("dv budget (eq. 14) [m/s]", "dv_budget_mps"),
+    ("dv capacity, burn-time limit [m/s]", "dv_capacity_mps"),
+    ("finite burns, total dv [m/s]", "finite_total_dv_mps"),
+    ("total burn time [s]", "total_burn_time_s"),
+    ("final position error [m]", "final_position_error_m"),
+    ("final velocity error [m/s]", "final_velocity_error_mps"),
+    ("DE generations / evaluations", lambda d: f"{d['generations']} / {d['evaluations']}"),
+    ("wall time [s]", "wall_time_s"),
+]
+
+
+def _listed(value: Any) -> Any:
+    if isinstance(value, list):
+        return ", ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
+    return value
+
+
+@app.command()
+def maneuver(
+    config: Annotated[Path, typer.Argument(help="manoeuvre YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+) -> None:
+    """Quick multi-impulse manoeuvre of an upper stage, then finite burns (seed 003)."""
+    from ovtraj.maneuver import comparison_rows, load_maneuver, solve_maneuver
+
+    try:
+        problem = load_maneuver(config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    result = solve_maneuver(problem)
+    if as_json:
+        typer.echo(result.json())
+    else:
+        doc = result.to_json()
+        shown: list[tuple[str, Any]] = [("converged", doc["converged"])]
+        for label, how in _MANEUVER_ROWS:
+            value = how(doc) if callable(how) else _listed(doc.get(how))
+            if value not in (None, ""):
+                shown.append((label, value))
+        for k, burn in enumerate(doc["burns"], start=1):
+            shown.append(
+                (
+                    f"burn {k}: start, duration [s], dv [m/s], mass [kg]",
+                    f"{burn['start_s']:.1f}, {burn['duration_s']:.1f}, {burn['dv_mps']:.1f}, "
+                    f"{burn['mass_before_kg']:.1f} -> {burn['mass_after_kg']:.1f}",
+                )
+            )
+        _print_rows(f"manoeuvre: {config.stem}", shown)
+        comparison = comparison_rows(problem, result)
+        if comparison:
+            typer.echo("published vs ours")
+            width = max(len(q) for q, _, _ in comparison)
+            for quantity, published, ours in comparison:
+                typer.echo(f"  {quantity:<{width}}  {published:>24}  {ours}")
+    if not result.converged:
+        raise typer.Exit(code=1)
+
+
 def _store(root: Path | None, scenario: Scenario | None = None) -> Any:
     from ovtraj.runs import RunStore
 

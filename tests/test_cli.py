@@ -154,3 +154,29 @@ def test_optimal_entry_unposable_config_exits_2_with_the_field(tmp_path):
     result = runner.invoke(app, ["optimal-entry", str(path), "--out", str(tmp_path)])
     assert result.exit_code == 2
     assert "energy" in result.output
+
+
+MANEUVER_CASE = REPO / "configs" / "cases" / "upper_stage_rendezvous.yaml"
+
+
+def test_maneuver_json_has_the_issue_keys():
+    result = runner.invoke(app, ["maneuver", str(MANEUVER_CASE), "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    from tests.test_maneuver import BURN_KEYS, MANEUVER_KEYS
+
+    assert MANEUVER_KEYS <= doc.keys()
+    assert all(BURN_KEYS <= burn.keys() for burn in doc["burns"])
+    assert doc["converged"] is True
+    assert doc["total_dv_mps"] <= doc["dv_budget_mps"]
+    assert doc["final_position_error_m"] < 10.0
+
+
+def test_maneuver_bad_config_exits_2_naming_the_field(tmp_path):
+    data = yaml.safe_load(MANEUVER_CASE.read_text(encoding="utf-8"))
+    data["stage"]["initial_mass_kg"] = -1.0
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["maneuver", str(path)])
+    assert result.exit_code == 2
+    assert "stage.initial_mass_kg = -1.0: out of range" in result.output
