@@ -32,6 +32,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -159,13 +160,17 @@ class Run:
                 path = self.directory / "stages" / stage / part
                 _atomic_parquet(path, pa.Table.from_pylist(rows))
             tables = [
-                rec.trajectories[stage].assign(sample_id=sid)
+                (sid, rec.trajectories[stage])
                 for sid, rec in zip(sample_ids, records, strict=True)
                 if len(rec.trajectories.get(stage, ()))
             ]
             if tables:
-                path = self.directory / "trajectories" / stage / part
-                _atomic_parquet(path, pd.concat(tables, ignore_index=True))
+                # One concatenation, then the key column (a per-table assign copies each).
+                frame = pd.concat([table for _, table in tables], ignore_index=True)
+                frame["sample_id"] = np.repeat(
+                    [sid for sid, _ in tables], [len(table) for _, table in tables]
+                )
+                _atomic_parquet(self.directory / "trajectories" / stage / part, frame)
         totals = [
             {"sample_id": sid, **rec.totals()} for sid, rec in zip(sample_ids, records, strict=True)
         ]
