@@ -1,0 +1,112 @@
+"""What ``ovtraj deorbit-burn`` prints: the solve, its history, an optional Monte Carlo.
+
+:func:`deorbit_burn_report` gathers plain JSON types; :func:`format_report` renders them
+as text. The CLI only loads the problem (``ConfigError`` -> exit 2) and prints one of them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ovtraj.deorbit.burn.montecarlo import MonteCarloContext, monte_carlo_summary, run_monte_carlo
+from ovtraj.deorbit.burn.problem import DeorbitBurnProblem
+from ovtraj.deorbit.burn.published import published_comparison
+from ovtraj.deorbit.burn.solve import BurnSolver
+
+__all__ = ["REPORT_KEYS", "deorbit_burn_report", "format_report"]
+
+# The fields of the solve that the CLI prints (issue 10, point 8); ``--json`` gives them all.
+REPORT_KEYS = (
+    "converged",
+    "reason",
+    "strategy",
+    "iterations",
+    "u_open_deg",
+    "burn_duration_s",
+    "dv_mps",
+    "burn_angle_deg",
+    "entry_u_error_deg",
+    "along_track_error_km",
+    "entry_fpa_error_deg",
+    "entry_speed_error_mps",
+    "impulsive_dv_mps",
+    "impulsive_burn_angle_deg",
+    "solve_time_s",
+)
+
+
+def _plain(value: Any) -> Any:
+    if hasattr(value, "item"):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def deorbit_burn_report(
+    problem: DeorbitBurnProblem,
+    *,
+    strategy: int | None = None,
+    monte_carlo_runs: int | None = None,
+) -> dict[str, Any]:
+    """Solve (and with ``monte_carlo_runs``, run the Monte Carlo in this process).
+
+    Returns ``{"result": to_row(), "history": [...], "monte_carlo": [per-strategy
+    statistics] | None, "published": [...]}``. The Monte Carlo flies ``strategy`` if given,
+    else the config's strategies, with the config's seed.
+    """
+    solver = BurnSolver(problem)
+    result = solver.solve(strategy=strategy)
+    report: dict[str, Any] = {
+        "result": result.to_row(),
+        "history": [
+            {k: _plain(v) for k, v in record.as_dict().items()} for record in result.history
+        ],
+        "monte_carlo": None,
+    }
+    summary = None
+    if monte_carlo_runs:
+        config = problem.config.monte_carlo
+        strategies = [strategy] if strategy is not None else list(config.strategies)
+        frame = run_monte_carlo(
+            problem,
+            monte_carlo_runs,
+            strategies,
+            config.seed,
+            context=MonteCarloContext(problem),
+        )
+        summary = monte_carlo_summary(frame)
+        report["monte_carlo"] = [
+            {k: _plain(v) for k, v in row.items()} for row in summary.to_dict(orient="records")
+        ]
+    report["published"] = [
+        row.as_dict() for row in published_comparison(problem, result=result, summary=summary)
+    ]
+    return report
+
+
+def _fmt(value: float | None, spec: str) -> str:
+    return "n/a" if value is None else format(value, spec)
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """Text for a terminal: the solve's fields, then the Monte Carlo statistics."""
+    row = report["result"]
+    lines = [f"deorbit burn: {row['name']}"]
+    width = max(len(k) for k in REPORT_KEYS)
+    for key in REPORT_KEYS:
+        value = row.get(key)
+        shown = f"{value:.6g}" if isinstance(value, float) else str(value)
+        lines.append(f"  {key:<{width}}  {shown}")
+    for stats in report.get("monte_carlo") or []:
+        lines.append(
+            f"  Monte Carlo strategy {stats['strategy']}: {stats['runs']} runs, "
+            f"{stats['failed']} failed; along-track max |err| "
+            f"{_fmt(stats['along_track_error_km_max_abs'], '.3f')} km (std "
+            f"{_fmt(stats['along_track_error_km_std'], '.3f')}); fpa max |err| "
+            f"{_fmt(stats['entry_fpa_error_deg_max_abs'], '.2e')} deg (std "
+            f"{_fmt(stats['entry_fpa_error_deg_std'], '.2e')}); dv mean "
+            f"{_fmt(stats['dv_mps_mean'], '.2f')} m/s"
+        )
+    return "\n".join(lines)
