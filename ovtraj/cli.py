@@ -463,6 +463,37 @@ def maneuver(
         raise typer.Exit(code=1)
 
 
+@app.command("deorbit-burn")
+def deorbit_burn(
+    config: Annotated[Path, typer.Argument(help="deorbit-burn YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+    monte_carlo: Annotated[
+        int | None, typer.Option("--monte-carlo", min=1, help="runs of the dispersion study")
+    ] = None,
+    strategy: Annotated[
+        int | None,
+        typer.Option(min=1, max=2, help="cut-off: 1 argument of latitude, 2 flight-path angle"),
+    ] = None,
+) -> None:
+    """Finite-thrust deorbit burn by osculating-element prediction (seed 004)."""
+    from ovtraj.deorbit.burn import deorbit_burn_report, format_report, load_deorbit_burn
+
+    try:
+        problem = load_deorbit_burn(config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    report = deorbit_burn_report(problem, strategy=strategy, monte_carlo_runs=monte_carlo)
+    if as_json:
+        # The solve's fields at the top level, the history and statistics alongside.
+        flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
+        typer.echo(json.dumps(flat, default=str))
+    else:
+        typer.echo(format_report(report))
+    if not report["result"]["converged"]:
+        raise typer.Exit(code=1)
+
+
 def _store(root: Path | None, scenario: Scenario | None = None) -> Any:
     from ovtraj.runs import RunStore
 

@@ -180,3 +180,41 @@ def test_maneuver_bad_config_exits_2_naming_the_field(tmp_path):
     result = runner.invoke(app, ["maneuver", str(path)])
     assert result.exit_code == 2
     assert "stage.initial_mass_kg = -1.0: out of range" in result.output
+
+
+DEORBIT_BURN_CASE = REPO / "configs" / "cases" / "shuttle_deorbit.yaml"
+DEORBIT_BURN_KEYS = {
+    "iterations",
+    "u_open_deg",
+    "burn_duration_s",
+    "dv_mps",
+    "burn_angle_deg",
+    "entry_u_error_deg",
+    "entry_fpa_error_deg",
+    "entry_speed_error_mps",
+    "converged",
+}
+
+
+def test_deorbit_burn_json_has_the_issue_keys_and_the_dispersion_statistics():
+    result = runner.invoke(
+        app,
+        ["deorbit-burn", str(DEORBIT_BURN_CASE), "--json", "--monte-carlo", "3", "--strategy", "1"],
+    )
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert DEORBIT_BURN_KEYS <= doc.keys()
+    assert doc["converged"] is True and doc["strategy"] == 1
+    assert abs(doc["entry_u_error_deg"]) <= 0.01  # the configured convergence tolerance
+    (stats,) = doc["monte_carlo"]
+    assert stats["strategy"] == 1 and stats["runs"] == 3
+
+
+def test_deorbit_burn_bad_value_exits_2_naming_the_field(tmp_path):
+    data = yaml.safe_load(DEORBIT_BURN_CASE.read_text(encoding="utf-8"))
+    data["guidance"]["gain_ku"] = 1.5
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(app, ["deorbit-burn", str(path)])
+    assert result.exit_code == 2
+    assert "guidance.gain_ku = 1.5: out of range" in result.output
