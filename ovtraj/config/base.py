@@ -7,10 +7,16 @@ value is reported as ``target.orbit.eccentricity = 1.2: out of range, allowed
 
 from __future__ import annotations
 
-from typing import Any, get_args
+from pathlib import Path
+from typing import Any, TypeVar, get_args
 
+import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pydantic.fields import FieldInfo
+
+from ovtraj.paths import read_yaml
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
 class StrictModel(BaseModel):
@@ -128,3 +134,29 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
         else:
             lines.append(f"{path} = {value!r}: {msg}{suffix}")
     return lines
+
+
+def model_from_dict(model: type[ModelT], data: Any, source: str = "") -> ModelT:
+    """Validate a mapping into ``model``, raising :class:`ConfigError` (one line per field)."""
+    if not isinstance(data, dict):
+        raise ConfigError(
+            [f"expected a mapping at the top level, got {type(data).__name__}"], source
+        )
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(format_validation_error(err, model), source) from None
+
+
+def load_model(model: type[ModelT], path: str | Path) -> ModelT:
+    """Read a YAML file and validate it into ``model``; every failure is a ConfigError."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
+    try:
+        data = read_yaml(text)
+    except yaml.YAMLError as err:
+        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
+    return model_from_dict(model, data, str(path))

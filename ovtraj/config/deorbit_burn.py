@@ -15,10 +15,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-from pydantic import Field, ValidationError, field_validator
+from pydantic import Field, field_validator
 
-from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+from ovtraj.config.base import StrictModel, bounded, load_model, model_from_dict
 
 __all__ = [
     "DeorbitBurnConfig",
@@ -216,25 +215,9 @@ class DeorbitBurnConfig(StrictModel):
 
 def deorbit_burn_config_from_dict(data: Any, source: str = "") -> DeorbitBurnConfig:
     """Validate a mapping into a :class:`DeorbitBurnConfig`, raising :class:`ConfigError`."""
-    if not isinstance(data, dict):
-        raise ConfigError(
-            [f"expected a mapping at the top level, got {type(data).__name__}"], source
-        )
-    try:
-        return DeorbitBurnConfig.model_validate(data)
-    except ValidationError as err:
-        raise ConfigError(format_validation_error(err, DeorbitBurnConfig), source) from None
+    return model_from_dict(DeorbitBurnConfig, data, source)
 
 
 def load_deorbit_burn_config(path: str | Path) -> DeorbitBurnConfig:
     """Read and validate a deorbit-burn YAML file."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
-    return deorbit_burn_config_from_dict(data, str(path))
+    return load_model(DeorbitBurnConfig, path)

@@ -14,10 +14,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+from ovtraj.config.base import StrictModel, bounded, load_model, model_from_dict
 
 __all__ = [
     "BudgetConfig",
@@ -219,25 +218,9 @@ class ManeuverConfig(StrictModel):
 
 def maneuver_config_from_dict(data: Any, source: str = "") -> ManeuverConfig:
     """Validate a mapping into a :class:`ManeuverConfig`, raising :class:`ConfigError`."""
-    if not isinstance(data, dict):
-        raise ConfigError(
-            [f"expected a mapping at the top level, got {type(data).__name__}"], source
-        )
-    try:
-        return ManeuverConfig.model_validate(data)
-    except ValidationError as err:
-        raise ConfigError(format_validation_error(err, ManeuverConfig), source) from None
+    return model_from_dict(ManeuverConfig, data, source)
 
 
 def load_maneuver_config(path: str | Path) -> ManeuverConfig:
     """Read and validate a manoeuvre YAML file."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
-    return maneuver_config_from_dict(data, str(path))
+    return load_model(ManeuverConfig, path)

@@ -9,17 +9,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ovtraj.astro.constants import EarthModel, default_earth
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config.base import ConfigError, StrictModel, bounded, format_validation_error
+from ovtraj.config.base import StrictModel, bounded, load_model, model_from_dict
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
 from ovtraj.config.reentry import ReentrySettings
-from ovtraj.paths import read_yaml
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -221,25 +219,9 @@ class Scenario(StrictModel):
 
 def scenario_from_dict(data: Any, source: str = "") -> Scenario:
     """Validate a mapping into a :class:`Scenario`, raising :class:`ConfigError`."""
-    if not isinstance(data, dict):
-        raise ConfigError(
-            [f"expected a mapping at the top level, got {type(data).__name__}"], source
-        )
-    try:
-        return Scenario.model_validate(data)
-    except ValidationError as err:
-        raise ConfigError(format_validation_error(err, Scenario), source) from None
+    return model_from_dict(Scenario, data, source)
 
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario YAML file."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
-    try:
-        data = read_yaml(text)
-    except yaml.YAMLError as err:
-        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
-    return scenario_from_dict(data, str(path))
+    return load_model(Scenario, path)

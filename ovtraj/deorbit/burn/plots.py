@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ovtraj.deorbit.burn.store import atomic_bytes
+from ovtraj.files import atomic_bytes
 
 __all__ = ["plot_dispersions"]
 

@@ -17,8 +17,8 @@ and the published figures, :func:`results_config`), the number of runs, the stra
 seed and the code version. Every file is written to a temporary name and
 renamed (atomic on POSIX), a batch counts only once its marker exists, and a stored batch is
 never overwritten, so an interrupted run resumes at the first missing batch. A file that
-cannot be read raises :class:`StoreError` naming it. (The same conventions as the DoE store,
-:mod:`ovtraj.runs.store`, which is not imported here: it pulls in the mission chain.)
+cannot be read raises :class:`StoreError` naming it. (The DoE store's conventions; both use
+:mod:`ovtraj.files`.)
 """
 
 from __future__ import annotations
@@ -26,17 +26,15 @@ from __future__ import annotations
 import datetime
 import hashlib
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA
+from ovtraj.files import StoreError, atomic_bytes, atomic_parquet, read_json, read_parquet
 
 __all__ = [
     "DEFAULT_ROOT",
@@ -51,10 +49,6 @@ __all__ = [
 
 DEFAULT_ROOT = Path("data") / "runs"
 RUN_KIND = "deorbit_monte_carlo"
-
-
-class StoreError(RuntimeError):
-    """A stored file that is missing, unreadable or inconsistent (named in the text)."""
 
 
 # Settings that change how a Monte Carlo is executed or reported, not its rows (the number of
@@ -90,49 +84,6 @@ def monte_carlo_run_id(
     }
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
-
-
-def atomic_bytes(path: Path, payload: bytes) -> None:
-    """Write ``payload`` to a temporary file beside ``path`` and rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
-        tmp.write(payload)
-    os.chmod(tmp.name, 0o644)
-    os.replace(tmp.name, path)
-
-
-def atomic_parquet(
-    path: Path, table: pa.Table | pd.DataFrame, schema: pa.Schema | None = None
-) -> None:
-    """Write a Parquet file atomically (temporary name, then rename), with ``schema`` if given."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if isinstance(table, pd.DataFrame):
-        table = pa.Table.from_pandas(table, schema=schema, preserve_index=False)
-    elif schema is not None:
-        table = table.cast(schema)
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
-        name = tmp.name
-    try:
-        pq.write_table(table, name)
-    except BaseException:
-        os.unlink(name)
-        raise
-    os.chmod(name, 0o644)
-    os.replace(name, path)
-
-
-def read_parquet(path: Path) -> pd.DataFrame:
-    try:
-        return pq.read_table(path).to_pandas()
-    except (OSError, pa.ArrowException) as err:
-        raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as err:
-        raise StoreError(f"{path}: unreadable JSON file ({err})") from None
 
 
 class MonteCarloRun:
@@ -178,7 +129,7 @@ class MonteCarloRun:
 
     @property
     def info(self) -> dict[str, Any]:
-        return _read_json(self.directory / self.INFO)
+        return read_json(self.directory / self.INFO)
 
     def update_info(self, **changes: Any) -> None:
         info = self.info | changes
@@ -190,7 +141,7 @@ class MonteCarloRun:
 
     def done_runs(self) -> set[int]:
         """Run numbers stored by complete batches."""
-        return {int(r) for marker in self._markers() for r in _read_json(marker)["runs"]}
+        return {int(r) for marker in self._markers() for r in read_json(marker)["runs"]}
 
     def write_batch(self, batch: int, frame: pd.DataFrame) -> bool:
         """Store a batch's rows (``RUN_SCHEMA``); False (nothing written) if already stored.
