@@ -1,7 +1,8 @@
 """DoE of the whole mission: wall time, time per evaluation, orchestration overhead.
 
 A 64-sample DoE of the default scenario with 2 workers, run by
-``flows/doe.py:doe_flow`` under a temporary Prefect server, into a fresh store.
+``flows/doe.py:doe_flow`` (through ``run_doe_flow``) under a temporary Prefect
+server, into a fresh store.
 Printed for each of ``repeats`` timed runs (fresh stores, nothing cached): the
 flow's wall time, the median and total time of one mission evaluation (measured
 inside the tasks), and the overhead = wall time minus the summed evaluation time
@@ -52,7 +53,7 @@ REPEATS = int(sys.argv[4]) if len(sys.argv) > 4 else 5
 def main() -> None:
     from prefect.testing.utilities import prefect_test_harness
 
-    from flows.doe import doe_flow
+    from flows.doe import run_doe_flow
     from ovtraj.runs import RunStore
 
     samples = int(sys.argv[1]) if len(sys.argv) > 1 else SAMPLES
@@ -94,12 +95,13 @@ def main() -> None:
         warm["mission"]["doe"]["batch_size"] = 2
         warm_config = workdir / "warm-up.yaml"
         warm_config.write_text(yaml.safe_dump(warm), encoding="utf-8")
-        doe_flow(str(warm_config), samples=4 * WORKERS, store_root=str(workdir / "warm-up"))
+        warm_store = str(workdir / "warm-up")
+        run_doe_flow(config=str(warm_config), samples=4 * WORKERS, store_root=warm_store)
         timings = []
         for rep in range(REPEATS):  # fresh stores: each repetition simulates everything
             store = workdir / f"timed-{rep}"
             start = time.perf_counter()
-            summary = doe_flow(str(config), store_root=str(store))
+            summary = run_doe_flow(config=str(config), store_root=str(store))
             wall = time.perf_counter() - start
             totals = RunStore(store).run(summary["run_id"]).totals()
             timings.append((wall, totals["wall_time_s"].to_numpy(), summary))

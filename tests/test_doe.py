@@ -41,22 +41,26 @@ def _digest(directory) -> dict[str, str]:
 @pytest.fixture(scope="module")
 def eight(prefect_server, tmp_path_factory):
     """The flow on 8 samples, run twice on the same store."""
-    from flows.doe import doe_flow
+    from flows.doe import run_doe_flow
 
     tmp = tmp_path_factory.mktemp("doe")
     config = _config(tmp, samples=8, batch_size=4, store=str(tmp / "runs"))
     before = execute.EVALUATIONS["count"]
-    first = doe_flow(config)
+    first = run_doe_flow(config=config)
     after_first = execute.EVALUATIONS["count"]
+    from prefect.artifacts import Artifact
+
+    artifact = Artifact.get("doe-run")
     store = RunStore(tmp / "runs")
     digest = _digest(store.run(first["run_id"]).directory)
-    second = doe_flow(config)
+    second = run_doe_flow(config=config)
     return {
         "first": first,
         "second": second,
         "evaluations": (after_first - before, execute.EVALUATIONS["count"] - after_first),
         "digest": digest,
         "store": store,
+        "artifact": artifact,
     }
 
 
@@ -84,6 +88,12 @@ def test_flow_stores_one_row_per_sample_and_stage(eight):
     assert len(run.trajectory("reentry", sid)) > 10
 
 
+def test_flow_publishes_a_table_artifact_of_the_run(eight):
+    artifact = eight["artifact"]
+    assert artifact is not None and artifact.type == "table"
+    assert eight["first"]["run_id"] in str(artifact.data)
+
+
 def test_second_identical_run_simulates_nothing_and_changes_nothing(eight):
     assert eight["evaluations"] == (8, 0)
     assert eight["second"]["run_id"] == eight["first"]["run_id"]
@@ -105,7 +115,7 @@ def test_replay_rederives_the_totals_without_simulation(eight):
 def test_interrupted_run_resumes_without_recomputing_finished_batches(
     prefect_server, tmp_path, monkeypatch
 ):
-    from flows.doe import doe_flow
+    from flows.doe import run_doe_flow
 
     config = _config(tmp_path, samples=6, batch_size=2, task_retries=0, store=str(tmp_path / "r"))
     original = execute.evaluate_batch
@@ -119,12 +129,12 @@ def test_interrupted_run_resumes_without_recomputing_finished_batches(
 
     monkeypatch.setattr(execute, "evaluate_batch", flaky)
     with pytest.raises(RuntimeError, match="batch 1"):
-        doe_flow(config)
+        run_doe_flow(config=config)
     store = RunStore(tmp_path / "r")
     (run,) = [store.run(r["run_id"]) for r in store.catalog()]
     assert run.done_batches() == {0, 2} and run.manifest["status"] == "incomplete"
     before = execute.EVALUATIONS["count"]
-    summary = doe_flow(config)
+    summary = run_doe_flow(config=config)
     assert execute.EVALUATIONS["count"] - before == 2  # only the failed batch's samples
     assert summary["evaluated"] == 6 and run.manifest["status"] == "complete"
 
@@ -200,12 +210,12 @@ def test_latin_hypercube_is_seeded_stratified_and_inside_the_bounds(scenario):
 
 
 def test_flow_runs_on_a_local_dask_cluster(prefect_server, tmp_path):
-    from flows.doe import doe_flow
+    from flows.doe import run_doe_flow
 
     config = _config(
         tmp_path, samples=4, batch_size=2, task_runner="dask", workers=2, store=str(tmp_path / "d")
     )
-    summary = doe_flow(config)
+    summary = run_doe_flow(config=config)
     assert summary["evaluated"] == 4 and summary["status"] == "complete"
 
 
@@ -261,13 +271,13 @@ def test_cli_run_runs_show_and_replay(tmp_path):
 def test_a_deleted_run_is_recomputed_although_its_tasks_are_cached(prefect_server, tmp_path):
     import shutil
 
-    from flows.doe import doe_flow
+    from flows.doe import run_doe_flow
 
     config = _config(tmp_path, samples=4, batch_size=2, store=str(tmp_path / "runs"))
-    first = doe_flow(config)
+    first = run_doe_flow(config=config)
     shutil.rmtree(tmp_path / "runs" / first["run_id"])
     before = execute.EVALUATIONS["count"]
-    second = doe_flow(config)  # same run id, cached task results, no stored files
+    second = run_doe_flow(config=config)  # same run id, cached task results, no stored files
     assert second["run_id"] == first["run_id"]
     assert execute.EVALUATIONS["count"] - before == 4
     assert second["evaluated"] == 4 and second["status"] == "complete"
