@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import asyncio
-import math
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +24,7 @@ from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
 from ovtraj.config import Scenario, load_scenario
 from ovtraj.config.mission import DoeSettings
 from ovtraj.launch.fit import find_launch_fit
-from ovtraj.runs import RunStore, prepare_run, split_batches
+from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
 from ovtraj.version import code_version
 from tasks.doe import mission_batch_task
@@ -55,7 +54,7 @@ def _run_batches(
     batch_task: Any,
     resolved: dict[str, Any],
     run: Any,
-    batches: list[Any],
+    batches: dict[int, Any],
     todo: list[int],
     code: str,
     logger: Any,
@@ -107,9 +106,9 @@ def evaluate_batches(
     (a subflow with the runner as an option would cost a second flow run per DoE).
     """
     logger = get_run_logger()
-    batches = split_batches(run.samples(), batch_size)
+    batches = dict(run.batches(batch_size))
     done = run.done_batches()
-    todo = [k for k in range(len(batches)) if k not in done]
+    todo = [k for k in batches if k not in done]
     run.update_manifest(status="running", batches=len(batches))
     logger.info(
         "run %s: %d batches, %d stored, %d to evaluate", run.id, len(batches), len(done), len(todo)
@@ -158,6 +157,27 @@ def run_doe_flow(**parameters: Any) -> dict[str, Any]:
     return asyncio.run(doe_flow(**parameters))
 
 
+def ensure_launch_fit(config: str, scenario: Scenario) -> None:
+    """Run the launch-fit flow when no stored fit matches the scenario."""
+    if find_launch_fit(scenario) is None:
+        from flows.launch_fit import launch_fit_flow
+
+        get_run_logger().info("no launch fit for this scenario yet: running the launch-fit flow")
+        launch_fit_flow(config)
+
+
+def evaluate_run(runner: Any, scenario: Scenario, run: Any, code: str) -> Any:
+    """Evaluate the run's pending batches on the runner (nothing to do: just finish)."""
+    settings = scenario.mission.doe
+    if run.pending_batches(settings.batch_size):
+        evaluate_batches(
+            runner, scenario.resolved(), run, settings.batch_size, settings.task_retries, code
+        )
+    else:
+        finish(run)
+    return run
+
+
 def _doe(
     config: str,
     samples: int | None,
@@ -170,11 +190,7 @@ def _doe(
     if scenario.mission is None:
         raise ValueError(f"{config}: the scenario has no mission section")
     settings = scenario.mission.doe
-    if find_launch_fit(scenario) is None:
-        from flows.launch_fit import launch_fit_flow
-
-        logger.info("no launch fit for this scenario yet: running the launch-fit flow")
-        launch_fit_flow(config)
+    ensure_launch_fit(config, scenario)
     store = RunStore(store_root or settings.store)
     parent = store.run(append_to) if append_to else None
     code = code_version()
@@ -187,37 +203,12 @@ def _doe(
         parent=parent,
     )
     logger.info("run %s (%s), %d samples", run.id, scenario.name, len(run.samples()))
-    if parent is not None:
-        _adopt_parent_batches(run, parent, settings.batch_size)
-    if len(run.done_batches()) < math.ceil(len(run.samples()) / settings.batch_size):
+    if run.pending_batches(settings.batch_size):
         with task_runner(settings) as runner:
-            evaluate_batches(
-                runner,
-                scenario.resolved(),
-                run,
-                settings.batch_size,
-                settings.task_retries,
-                code,
-            )
+            evaluate_run(runner, scenario, run, code)
     else:
         finish(run)
     return run.summary()
-
-
-def _adopt_parent_batches(run: Any, parent: Any, batch_size: int) -> None:
-    """A child run starts with its parent's samples: reuse their stored batches.
-
-    Only when the parent's sample count is a whole number of batches, so that the
-    child's first batches hold exactly the parent's samples.
-    """
-    import shutil
-
-    if len(parent.samples()) % batch_size:
-        return
-    for folder in ("stages", "totals", "trajectories", "batches"):
-        source = parent.directory / folder
-        if source.is_dir():
-            shutil.copytree(source, run.directory / folder, dirs_exist_ok=True)
 
 
 if __name__ == "__main__":

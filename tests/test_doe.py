@@ -183,18 +183,33 @@ def test_corrupted_parquet_is_named_and_nothing_else_is_overwritten(eight, tmp_p
 
 def test_run_id_is_a_content_hash(scenario):
     resolved = scenario.resolved()
-    assert run_id(resolved, 1, 8, "v1", None) == run_id(copy.deepcopy(resolved), 1, 8, "v1", None)
+    bounds = scenario.mission.design_bounds
+    eight, nine = latin_hypercube(bounds, 8, 1), latin_hypercube(bounds, 9, 1)
+    moved = eight.copy()
+    moved.loc[3, "separation_delay_h"] += 1e-9
+    assert run_id(resolved, 1, eight, "v1", None) == run_id(
+        copy.deepcopy(resolved), 1, eight.copy(), "v1", None
+    )
     changed = copy.deepcopy(resolved)
     changed["mission"]["stay_h"] += 1.0
     ids = {
-        run_id(resolved, 1, 8, "v1", None),
-        run_id(changed, 1, 8, "v1", None),
-        run_id(resolved, 2, 8, "v1", None),
-        run_id(resolved, 1, 9, "v1", None),
-        run_id(resolved, 1, 8, "v2", None),
-        run_id(resolved, 1, 8, "v1", "parent"),
+        run_id(resolved, 1, eight, "v1", None),
+        run_id(changed, 1, eight, "v1", None),
+        run_id(resolved, 2, eight, "v1", None),
+        run_id(resolved, 1, nine, "v1", None),
+        run_id(resolved, 1, moved, "v1", None),
+        run_id(resolved, 1, eight, "v2", None),
+        run_id(resolved, 1, eight, "v1", "parent"),
     }
-    assert len(ids) == 6
+    assert len(ids) == 7
+    # How the DoE executes, and what is done with its results, do not change them.
+    execution = copy.deepcopy(resolved)
+    execution["mission"]["doe"]["workers"] += 3
+    execution["mission"]["doe"]["batch_size"] += 1
+    execution["mission"]["surrogate"]["folds"] += 1
+    execution["mission"]["optimize"]["generations"] += 10
+    execution["mission"]["verify"]["budget"] += 1
+    assert run_id(execution, 1, eight, "v1", None) == run_id(resolved, 1, eight, "v1", None)
 
 
 def test_latin_hypercube_is_seeded_stratified_and_inside_the_bounds(scenario):
@@ -239,6 +254,18 @@ def test_append_makes_a_child_run_that_reuses_the_parent_batches(tmp_path, scena
         .any()
         .any()
     )
+    # The parent's stored batch is adopted (whatever the batch size): only the two new
+    # samples are simulated, and the parent's rows are the child's, byte for byte.
+    assert child.manifest["inherited_batches"] == 1 and child.done_batches() == {0}
+    assert [list(b["sample_id"]) for _, b in child.batches(3)] == [[0, 1], [2, 3]]
+    before = execute.EVALUATIONS["count"]
+    run_doe(scenario, child, fit, batch_size=3)
+    assert execute.EVALUATIONS["count"] - before == 2
+    assert child.manifest["status"] == "complete"
+    pd.testing.assert_frame_equal(child.totals().iloc[:2], parent.totals(), check_dtype=False)
+    # Reopening the child adopts nothing twice.
+    again = prepare_run(scenario, samples=2, seed=11, code="test", store=store, parent=parent)
+    assert again.id == child.id and again.done_batches() == {0, 1}
 
 
 def test_cli_run_runs_show_and_replay(tmp_path):

@@ -43,23 +43,57 @@ def prepare_run(
     store: RunStore,
     parent: Run | None = None,
 ) -> Run:
-    """The run of a scenario's DoE; with ``parent``, its samples plus ``samples`` more."""
+    """The run of a scenario's DoE; with ``parent``, its samples plus ``samples`` more.
+
+    A child run adopts the parent's stored batches (:meth:`Run.adopt`).
+    """
     if scenario.mission is None:
         raise ValueError("the scenario has no mission section")
     bounds = scenario.mission.design_bounds
     if parent is None:
-        design = latin_hypercube(bounds, samples, seed)
-    else:
-        previous = parent.samples()
-        more = latin_hypercube(bounds, samples, seed, first_id=len(previous))
-        design = pd.concat([previous, more], ignore_index=True)
-    return store.create(
+        return store.create(
+            resolved=scenario.resolved(),
+            samples=latin_hypercube(bounds, samples, seed),
+            seed=seed,
+            code=code,
+        )
+    previous = parent.samples()
+    more = latin_hypercube(bounds, samples, seed, first_id=int(previous["sample_id"].max()) + 1)
+    return extend_run(scenario, parent, more, seed=seed, code=code, store=store)
+
+
+def extend_run(
+    scenario: Scenario,
+    parent: Run,
+    designs: pd.DataFrame,
+    *,
+    seed: int,
+    code: str,
+    store: RunStore,
+    origin: str = "latin hypercube",
+) -> Run:
+    """A child run of ``parent``: its samples plus ``designs`` (new ids), parent batches adopted.
+
+    ``designs`` holds the design variables, with or without ``sample_id`` (numbered on
+    from the parent's when absent). ``origin`` says where the new samples come from
+    (the Latin hypercube, or the pipeline's infill).
+    """
+    previous = parent.samples()
+    more = designs.reset_index(drop=True)
+    if "sample_id" not in more:
+        first = int(previous["sample_id"].max()) + 1 if len(previous) else 0
+        more = more.assign(sample_id=np.arange(first, first + len(more), dtype=np.int64))
+    more = more[["sample_id", *DESIGN_NAMES]]
+    child = store.create(
         resolved=scenario.resolved(),
-        samples=design,
+        samples=pd.concat([previous, more], ignore_index=True),
         seed=seed,
         code=code,
-        parent=None if parent is None else parent.id,
+        parent=parent.id,
+        origin=origin,
     )
+    child.adopt(parent)
+    return child
 
 
 def run_doe(
@@ -71,13 +105,11 @@ def run_doe(
     progress: Callable[[str], None] | None = None,
 ) -> Run:
     """Evaluate every batch the run does not hold yet, serially, and finish the manifest."""
-    context = MissionContext(scenario, launch_fit)
-    batches = split_batches(run.samples(), batch_size)
-    done = run.done_batches()
+    batches = run.batches(batch_size)
+    pending = run.pending_batches(batch_size)
     run.update_manifest(status="running", batches=len(batches))
-    for k, batch in enumerate(batches):
-        if k in done:
-            continue
+    context = MissionContext(scenario, launch_fit) if pending else None
+    for k, batch in pending:
         start = time.perf_counter()
         records = evaluate_batch(context, batch)
         run.write_batch(k, records, [int(i) for i in batch["sample_id"]])

@@ -12,8 +12,17 @@ Layout::
     batches/<k>.json                 written last: batch k is complete
 
 The run id is a content hash of what changes results: the resolved config (which
-holds the design bounds), the seed, the number of samples, the parent run and the
-code version. Every file is written to a temporary name and renamed, and a batch
+holds the design bounds) without the settings that only say how the run executes
+or what is done with it afterwards (``mission.doe``, ``mission.surrogate``,
+``mission.optimize``, ``mission.verify``, ``mission.plan``), the seed, the samples
+themselves, the parent run and the code version.
+
+A child run (``parent``) starts with its parent's samples: the parent's stored
+batches are adopted as the child's first batches (hard links where the file system
+allows), so only the new samples are evaluated. Its manifest says how many batches
+were adopted (``inherited_batches``); the rest of its samples are split after them.
+
+Every file is written to a temporary name and renamed, and a batch
 counts only once its marker exists, so an interrupted run resumes at the first
 incomplete batch and a complete run is never recomputed. Stored files are never
 overwritten; a file that cannot be read raises :class:`StoreError` naming it.
@@ -24,6 +33,7 @@ from __future__ import annotations
 import datetime
 import hashlib
 import json
+import os
 import platform
 from collections.abc import Iterable
 from importlib import metadata
@@ -43,11 +53,38 @@ DEFAULT_ROOT = Path("data") / "runs"
 DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
 
 
-def run_id(resolved: dict[str, Any], seed: int, samples: int, code: str, parent: str | None) -> str:
+# Settings that do not change a sample's results: how the DoE executes, and what
+# the pipeline does with the results afterwards.
+NON_RESULT_SETTINGS = ("doe", "surrogate", "optimize", "verify", "plan")
+
+
+def results_config(resolved: dict[str, Any]) -> dict[str, Any]:
+    """The resolved config without :data:`NON_RESULT_SETTINGS` (a copy)."""
+    content = dict(resolved)
+    mission = content.get("mission")
+    if isinstance(mission, dict):
+        content["mission"] = {k: v for k, v in mission.items() if k not in NON_RESULT_SETTINGS}
+    return content
+
+
+def samples_hash(samples: pd.DataFrame) -> str:
+    """Hash of the design table (ids and values, bit for bit)."""
+    table = samples.reset_index(drop=True)
+    digest = hashlib.sha256()
+    for column in sorted(table.columns):
+        digest.update(column.encode("utf-8"))
+        digest.update(np.ascontiguousarray(table[column].to_numpy(dtype=float)).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def run_id(
+    resolved: dict[str, Any], seed: int, samples: pd.DataFrame, code: str, parent: str | None
+) -> str:
     content = {
-        "config": resolved,
+        "config": results_config(resolved),
         "seed": seed,
-        "samples": samples,
+        "samples": len(samples),
+        "samples_hash": samples_hash(samples),
         "code": code,
         "parent": parent,
     }
@@ -94,6 +131,59 @@ class Run:
         if not folder.is_dir():
             return set()
         return {int(p.stem) for p in folder.glob("*.json")}
+
+    def batches(self, batch_size: int) -> list[tuple[int, pd.DataFrame]]:
+        """Every batch of the run as (index, samples), stored or not.
+
+        The batches adopted from the parent come first, as stored; the other samples
+        follow in order, ``batch_size`` at a time.
+        """
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        samples = self.samples()
+        inherited = int(self.manifest.get("inherited_batches", 0))
+        out: list[tuple[int, pd.DataFrame]] = []
+        adopted: set[int] = set()
+        for k in range(inherited):
+            ids = read_json(self.directory / "batches" / f"{k}.json")["sample_ids"]
+            adopted.update(ids)
+            out.append((k, samples[samples["sample_id"].isin(ids)]))
+        rest = samples[~samples["sample_id"].isin(adopted)]
+        for j, start in enumerate(range(0, len(rest), batch_size)):
+            out.append((inherited + j, rest.iloc[start : start + batch_size]))
+        return out
+
+    def pending_batches(self, batch_size: int) -> list[tuple[int, pd.DataFrame]]:
+        done = self.done_batches()
+        return [(k, batch) for k, batch in self.batches(batch_size) if k not in done]
+
+    def adopt(self, parent: Run) -> int:
+        """Take the parent's stored batches as this run's first ones; returns their count.
+
+        Done once, when the child is created: files are hard-linked (copied where links
+        are not possible) under renumbered names, the batch markers last, then the
+        manifest records the count. Re-running it after an interruption is harmless.
+        """
+        if "inherited_batches" in self.manifest:
+            return int(self.manifest["inherited_batches"])
+        stored = sorted(parent.done_batches())
+        for new, old in enumerate(stored):
+            for folder in ("stages", "trajectories"):
+                for stage in STAGES:
+                    _link(
+                        parent.directory / folder / stage / f"part-{old:05d}.parquet",
+                        self.directory / folder / stage / f"part-{new:05d}.parquet",
+                    )
+            _link(
+                parent.directory / "totals" / f"part-{old:05d}.parquet",
+                self.directory / "totals" / f"part-{new:05d}.parquet",
+            )
+        for new, old in enumerate(stored):
+            marker = read_json(parent.directory / "batches" / f"{old}.json")
+            marker["batch"] = new
+            atomic_bytes(self.directory / "batches" / f"{new}.json", json.dumps(marker).encode())
+        self.update_manifest(inherited_batches=len(stored))
+        return len(stored)
 
     def write_batch(
         self, batch: int, records: Iterable[MissionRecord], sample_ids: list[int]
@@ -184,6 +274,17 @@ class Run:
         return summary
 
 
+def _link(source: Path, target: Path) -> None:
+    """``target`` becomes ``source``'s content: a hard link, or a copy across devices."""
+    if not source.is_file() or target.exists():
+        return
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.link(source, target)
+    except OSError:
+        atomic_bytes(target, source.read_bytes())
+
+
 class RunStore:
     """All runs under a root directory (``data/runs`` by default)."""
 
@@ -204,9 +305,10 @@ class RunStore:
         seed: int,
         code: str,
         parent: str | None = None,
+        origin: str = "latin hypercube",
     ) -> Run:
         """The run of these inputs: created, or the stored one if it exists (same id)."""
-        rid = run_id(resolved, seed, len(samples), code, parent)
+        rid = run_id(resolved, seed, samples, code, parent)
         directory = self.root / rid
         if (directory / "manifest.json").is_file():
             run = Run(directory)
@@ -228,6 +330,7 @@ class RunStore:
             "dependencies": dependency_versions(),
             "seed": seed,
             "samples": len(samples),
+            "origin": origin,
             "status": "created",
             "evaluated": 0,
             "feasible": 0,
