@@ -33,7 +33,98 @@ class DoeSettings(StrictModel):
     store: str = Field(description="run store root, relative to the working directory")
 
 
+RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET"]
+ClassifierName = Literal["svc", "gpc", "logistic"]
+
+
+class SurrogateSettings(StrictModel):
+    """Surrogate candidates and how they are selected and validated (issue 7)."""
+
+    regressors: list[RegressorName] = Field(min_length=1, description="candidates per output")
+    classifiers: list[ClassifierName] = Field(
+        min_length=1, description="scikit-learn candidates for the feasibility model"
+    )
+    folds: int = bounded(ge=2, le=20, description="k of the k-fold cross-validation")
+    holdout_fraction: float = bounded(
+        gt=0, le=0.5, description="share of the samples kept out of fitting and selection"
+    )
+    min_training_samples: int = bounded(ge=4, le=100000, description="feasible, after hold-out")
+    kpls_components: int = bounded(ge=1, le=3)
+    rbf_d0: float = bounded(gt=0, le=10, description="RBF basis scale, unit-cube inputs")
+    extra_trees: int = bounded(ge=1, le=10000, description="trees of the ET candidate")
+    kriging_starts: int = bounded(
+        ge=1, le=50, description="SMT n_start of KRG/KPLS: multistarts of the likelihood optimiser"
+    )
+    gpc_length_scale: float = bounded(
+        gt=0, le=10, description="initial RBF length scale of the GP classifier, unit cube"
+    )
+    gpc_length_scale_bounds: Bound  # of the GP classifier's length scale, unit-cube inputs
+    gpc_amplitude_bounds: Bound  # variance of the GP classifier's latent function
+    seed: int = bounded(ge=0)
+
+
+class ObjectivePoint(StrictModel):
+    t_total_h: float = bounded(unit="h", gt=0)
+    dv_total_mps: float = bounded(unit="m/s", ge=0)
+    m_load_kg: float = bounded(unit="kg", ge=0)
+
+
+class OptimizeSettings(StrictModel):
+    """NSGA-II on the surrogates (pymoo) and the hypervolume's normalisation (issue 7)."""
+
+    population: int = bounded(ge=4, le=100000)
+    generations: int = bounded(ge=1, le=100000)
+    seed: int = bounded(ge=0)
+    feasibility_threshold: float = bounded(
+        gt=0, lt=1, description="probability of feasibility the optimiser requires"
+    )
+    seed_with_real_front: bool = Field(
+        description="first generation = the real non-dominated designs, topped up at random"
+    )
+    ideal: ObjectivePoint  # maps to 0 in the normalised objectives
+    reference: ObjectivePoint  # maps to 1: the hypervolume's reference point
+
+
+class VerifySettings(StrictModel):
+    """Verification of front points with the real chain and infill (issue 7)."""
+
+    points_per_iteration: int = bounded(ge=1, le=1000)
+    selection: Literal["hypervolume", "spread"] = Field(
+        description="infill: greedy predicted hypervolume gain, or spread along the front"
+    )
+    max_iterations: int = bounded(ge=1, le=100)
+    budget: int = bounded(ge=1, le=100000, description="real evaluations for infill, in all")
+    tolerance: float = bounded(
+        gt=0, le=1, description="surrogate error on the front, fraction of ideal-to-reference"
+    )
+    min_distance: float = bounded(
+        ge=0, le=1, description="unit-cube distance under which a point counts as evaluated"
+    )
+
+
+class PlanSettings(StrictModel):
+    """The mission plan and its independent replay (SPEC step 6; ``ovtraj.mission.fly``)."""
+
+    orbit_rtol: float = bounded(gt=0, lt=1e-3, description="replay DOP853, orbital arcs")
+    orbit_atol: float = bounded(gt=0, description="replay DOP853, orbital arcs (m and m/s)")
+    entry_rtol: float = bounded(gt=0, lt=1e-3, description="replay DOP853, atmospheric entry")
+    entry_atol: float = bounded(gt=0, description="replay DOP853, entry (m, rad, m/s)")
+    path_sample_step_s: float = bounded(
+        unit="s", gt=0, description="sampling of the replayed entry for the path maxima"
+    )
+    prediction_tolerance_km: float = bounded(
+        unit="km", gt=0, description="replayed terminal point vs the plan's predicted one"
+    )
+    entry_fpa_tolerance_deg: float = bounded(
+        unit="deg", ge=0, description="slack of the replayed entry angle on its limits"
+    )
+
+
 class MissionSettings(StrictModel):
     stay_h: float = bounded(unit="h", ge=0, description="docked with the target after arrival")
     design_bounds: MissionBoundsConfig
     doe: DoeSettings
+    surrogate: SurrogateSettings
+    optimize: OptimizeSettings
+    verify: VerifySettings
+    plan: PlanSettings

@@ -1,0 +1,1 @@
+"""Plots of the optimisation and the mission (matplotlib, Agg canvas)."""

@@ -1,0 +1,220 @@
+"""The candidate models: SMT regressors and scikit-learn feasibility classifiers.
+
+Regressors (SMT 2.15, https://smt.readthedocs.io, "Surrogate models"):
+
+- ``KRG``: ordinary Kriging (constant trend, squared-exponential correlation), hyper-
+  parameters by maximum likelihood with SMT's TNC optimiser, ``n_start`` =
+  ``kriging_starts`` multistarts, seeded with ``seed`` (SMT 2.15's option; it replaced the
+  older ``random_state``).
+- ``KPLS``: Kriging with partial-least-squares reduced length scales (Bouhlel et al. 2016),
+  ``n_comp`` = ``kpls_components`` capped at the number of inputs; seeded like KRG.
+- ``RBF``: Gaussian radial basis function interpolation, basis scale ``d0`` = ``rbf_d0`` on
+  unit-cube inputs.
+- ``QP``: full quadratic polynomial by least squares; needs (d + 1)(d + 2) / 2 samples.
+- ``ET``: extremely randomised trees (Geurts, Ernst & Wehenkel 2006; scikit-learn's
+  ``ExtraTreesRegressor``, ``extra_trees`` trees, seeded): piecewise constant, so it can
+  follow the mission's steps (T_total moves by whole days when the deorbit waits for the
+  next pass) that the smooth SMT models blur. Not SMT: wrapped in SMT's interface.
+
+Classifiers (scikit-learn), for the probability that a design is feasible:
+
+- ``svc``: RBF-kernel SVC with Platt (sigmoid) scaling of its decision function, built as
+  ``CalibratedClassifierCV(SVC(random_state=seed), method="sigmoid", ensemble=False)`` -
+  scikit-learn 1.9 deprecated ``SVC(probability=True)`` in favour of exactly this, and the
+  internal calibration folds are a seeded stratified k-fold here.
+- ``gpc``: ``GaussianProcessClassifier(kernel, random_state=seed)`` (Laplace approximation)
+  with ``kernel = ConstantKernel(a) * RBF(gpc_length_scale)``, both hyperparameters fitted
+  within ``gpc_amplitude_bounds`` / ``gpc_length_scale_bounds`` (a = the amplitude's lower
+  bound). scikit-learn's default kernel keeps 1.0 * RBF(1.0) *fixed*, which on unit-cube
+  inputs is far too smooth (mean accuracy ~0.70 against 0.91 on ball-shaped regions).
+- ``logistic``: ``LogisticRegression`` (L2-regularised, lbfgs).
+
+A training set that holds a single class (a CV fold without any infeasible sample, or all
+samples feasible) gets a constant classifier instead: probability 1 (or 0) everywhere.
+
+Any failure while fitting a candidate is raised as :class:`CandidateError`; the caller
+records its text and moves on to the next candidate.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sklearn.base import ClassifierMixin
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.ensemble import ExtraTreesRegressor
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process import GaussianProcessClassifier
+from sklearn.gaussian_process.kernels import RBF as RBFKernel
+from sklearn.gaussian_process.kernels import ConstantKernel
+from sklearn.linear_model import LogisticRegression
+from sklearn.model_selection import StratifiedKFold
+from sklearn.svm import SVC
+from smt.surrogate_models import KPLS, KRG, QP, RBF
+from smt.surrogate_models.surrogate_model import SurrogateModel
+
+from ovtraj.config.mission import SurrogateSettings
+
+__all__ = [
+    "ALL_FEASIBLE",
+    "CandidateError",
+    "FeasibilityClassifier",
+    "Regressor",
+    "fit_classifier",
+    "fit_regressor",
+    "min_regressor_samples",
+]
+
+ALL_FEASIBLE = "all-feasible"
+
+
+class CandidateError(RuntimeError):
+    """A candidate model that could not be fitted or predicts non-finite values."""
+
+
+def min_regressor_samples(name: str, dim: int) -> int:
+    """The fewest training samples a regressor can be fitted on."""
+    if name == "QP":
+        # A full quadratic in d inputs has (d + 1)(d + 2) / 2 coefficients.
+        return (dim + 1) * (dim + 2) // 2
+    return 2
+
+
+def _smt_model(name: str, dim: int, settings: SurrogateSettings) -> SurrogateModel | Any:
+    common: dict[str, Any] = {"print_global": False}
+    if name == "KRG":
+        return KRG(n_start=settings.kriging_starts, seed=settings.seed, **common)
+    if name == "KPLS":
+        n_comp = min(settings.kpls_components, dim)
+        return KPLS(n_comp=n_comp, n_start=settings.kriging_starts, seed=settings.seed, **common)
+    if name == "RBF":
+        return RBF(d0=settings.rbf_d0, **common)
+    if name == "QP":
+        return QP(**common)
+    if name == "ET":
+        return _ExtraTrees(settings.extra_trees, settings.seed)
+    raise CandidateError(f"unknown regressor {name!r} (allowed: KRG, KPLS, RBF, QP, ET)")
+
+
+class _ExtraTrees:
+    """scikit-learn's ExtraTreesRegressor behind the part of SMT's interface used here."""
+
+    def __init__(self, trees: int, seed: int) -> None:
+        self.estimator = ExtraTreesRegressor(n_estimators=trees, random_state=seed, n_jobs=1)
+        self._training: tuple[np.ndarray, np.ndarray] | None = None
+
+    def set_training_values(self, u: np.ndarray, y: np.ndarray) -> None:
+        self._training = (np.asarray(u, dtype=float), np.asarray(y, dtype=float).reshape(-1))
+
+    def train(self) -> None:
+        u, y = self._training
+        self.estimator.fit(u, y)
+
+    def predict_values(self, u: np.ndarray) -> np.ndarray:
+        return self.estimator.predict(np.asarray(u, dtype=float))[:, None]
+
+
+@dataclass
+class Regressor:
+    """A fitted SMT model on unit-cube inputs."""
+
+    name: str
+    model: SurrogateModel | Any
+
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        """Unit-cube points (m, d) -> predictions (m,)."""
+        return np.asarray(self.model.predict_values(np.asarray(u, dtype=float))).reshape(-1)
+
+
+def fit_regressor(
+    name: str, u: np.ndarray, y: np.ndarray, settings: SurrogateSettings
+) -> Regressor:
+    """Fit the SMT candidate ``name`` on unit-cube inputs ``u`` (n, d) and values ``y`` (n,)."""
+    n, dim = u.shape
+    need = min_regressor_samples(name, dim)
+    if n < need:
+        raise CandidateError(f"{name} needs at least {need} training samples in {dim}-D, got {n}")
+    model = _smt_model(name, dim, settings)
+    try:
+        model.set_training_values(np.ascontiguousarray(u, dtype=float), np.asarray(y, float))
+        model.train()
+    except Exception as err:  # SMT raises bare Exceptions, LinAlgErrors, ValueErrors ...
+        raise CandidateError(f"{name} training failed: {type(err).__name__}: {err}") from err
+    regressor = Regressor(name, model)
+    check = regressor.predict(u)
+    if not np.all(np.isfinite(check)):
+        raise CandidateError(f"{name} predicts non-finite values at its training samples")
+    return regressor
+
+
+def _classifier(name: str, y: np.ndarray, settings: SurrogateSettings) -> ClassifierMixin:
+    if name == "svc":
+        minority = int(min(np.count_nonzero(y), np.count_nonzero(~y)))
+        if minority < 2:
+            raise CandidateError(
+                "svc: the Platt calibration needs at least 2 samples of each class, "
+                f"the smaller class has {minority}"
+            )
+        folds = StratifiedKFold(
+            n_splits=min(settings.folds, minority), shuffle=True, random_state=settings.seed
+        )
+        return CalibratedClassifierCV(
+            SVC(random_state=settings.seed), method="sigmoid", cv=folds, ensemble=False
+        )
+    if name == "gpc":
+        # scikit-learn's default kernel for GPC is 1.0 * RBF(1.0) with *fixed* hyperparameters;
+        # an explicit kernel makes the length scale and amplitude maximum-likelihood fits.
+        amplitude = settings.gpc_amplitude_bounds
+        length = settings.gpc_length_scale_bounds
+        kernel = ConstantKernel(
+            amplitude.lower, constant_value_bounds=(amplitude.lower, amplitude.upper)
+        ) * RBFKernel(settings.gpc_length_scale, length_scale_bounds=(length.lower, length.upper))
+        return GaussianProcessClassifier(kernel=kernel, random_state=settings.seed)
+    if name == "logistic":
+        return LogisticRegression()
+    raise CandidateError(f"unknown classifier {name!r} (allowed: svc, gpc, logistic)")
+
+
+@dataclass
+class FeasibilityClassifier:
+    """A fitted classifier on unit-cube inputs, or a constant one (single-class training)."""
+
+    name: str
+    estimator: Any | None
+    constant: float | None = None
+
+    def proba(self, u: np.ndarray) -> np.ndarray:
+        """Unit-cube points (m, d) -> probability of feasibility (m,) in [0, 1]."""
+        u = np.asarray(u, dtype=float)
+        if self.estimator is None:
+            return np.full(u.shape[0], float(self.constant))
+        classes = list(self.estimator.classes_)
+        p = self.estimator.predict_proba(u)[:, classes.index(True)]
+        return np.clip(p, 0.0, 1.0)
+
+
+def fit_classifier(
+    name: str, u: np.ndarray, y: np.ndarray, settings: SurrogateSettings
+) -> FeasibilityClassifier:
+    """Fit the scikit-learn candidate ``name`` on ``u`` (n, d) and feasibility ``y`` (n,) bool."""
+    y = np.asarray(y, dtype=bool)
+    if y.size == 0:
+        raise CandidateError(f"{name}: no training samples")
+    if y.all() or not y.any():
+        return FeasibilityClassifier(name, None, 1.0 if y.all() else 0.0)
+    estimator = _classifier(name, y, settings)
+    try:
+        with warnings.catch_warnings():
+            # The classifiers' optimisers may stop at their iteration limit on tiny sets;
+            # the fit is still usable and CV judges it.
+            warnings.simplefilter("ignore", category=ConvergenceWarning)
+            estimator.fit(np.asarray(u, dtype=float), y)
+    except Exception as err:
+        raise CandidateError(f"{name} training failed: {type(err).__name__}: {err}") from err
+    classifier = FeasibilityClassifier(name, estimator)
+    if not np.all(np.isfinite(classifier.proba(u))):
+        raise CandidateError(f"{name} predicts non-finite probabilities")
+    return classifier

@@ -1,0 +1,656 @@
+"""Fitting, selecting and storing the surrogate set of the whole-mission chain (issue 7).
+
+:func:`fit_surrogates` turns a design of experiments (physical inputs, the chain's outputs,
+the feasibility flags) into a :class:`SurrogateSet`: one SMT regressor per output, chosen
+among ``settings.regressors`` by k-fold cross-validation on the feasible training samples,
+and one scikit-learn classifier of feasibility, chosen among ``settings.classifiers``.
+The method (unit-cube scaling, stratified held-out split, k-fold CV, metrics) is described
+in :mod:`ovtraj.surrogate.validation` and ``docs/surrogate.md``.
+
+Store layout of :meth:`SurrogateSet.save` (one directory)::
+
+    models.pkl            pickle of the fitted models, unit cube and names
+    validation.parquet    one row per (model, candidate): CV and held-out metrics, errors
+    predictions.parquet   CV and held-out predictions of the selected candidates
+    meta.json             data hash, selection, settings, names, bounds, library versions,
+                          SHA-256 of the three files above, plus the caller's meta
+
+``meta.json`` is written last, so a directory with a ``meta.json`` whose checksums match
+is complete. Pickles execute code when loaded: load only stores this project wrote.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pickle
+import platform
+import threading
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import sklearn
+import smt
+from pydantic import ValidationError
+from threadpoolctl import threadpool_limits
+
+from ovtraj.config.mission import SurrogateSettings
+from ovtraj.files import StoreError, atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.surrogate.candidates import ALL_FEASIBLE, FeasibilityClassifier, Regressor
+from ovtraj.surrogate.scaling import SurrogateError, UnitCube
+from ovtraj.surrogate.validation import (
+    ClassifierScore,
+    RegressorScore,
+    classification_folds,
+    evaluate_classifier,
+    evaluate_regressor,
+    holdout_mask,
+    regression_folds,
+    select_classifier,
+    select_regressor,
+)
+
+__all__ = ["FEASIBLE", "SurrogateSet", "fit_surrogates", "training_data_hash"]
+
+FEASIBLE = "feasible"  # model name of the feasibility classifier in the tables
+STORE_FORMAT = 1
+MODELS_FILE = "models.pkl"
+VALIDATION_FILE = "validation.parquet"
+PREDICTIONS_FILE = "predictions.parquet"
+META_FILE = "meta.json"
+
+_TEXT = ("model", "kind", "candidate", "error")
+_COUNTS = ("n_folds", "n_train", "n_heldout")
+_METRICS = (
+    "cv_rmse",
+    "cv_q2",
+    "heldout_rmse",
+    "heldout_r2",
+    "cv_accuracy",
+    "cv_balanced_accuracy",
+    "cv_log_loss",
+    "heldout_accuracy",
+    "fit_time_s",
+)
+VALIDATION_COLUMNS = ("model", "kind", "candidate", "selected", *_COUNTS, *_METRICS, "error")
+PREDICTION_COLUMNS = ("model", "sample_id", "split", "y_true", "y_pred")
+
+
+def training_data_hash(
+    X: np.ndarray,
+    outputs: dict[str, np.ndarray],
+    feasible: np.ndarray,
+) -> str:
+    """SHA-256 (first 16 hex digits) of the exact training data.
+
+    Hashed in this order, each as little-endian float64 bytes preceded by a tag and its
+    shape: X, feasible (0/1), then every output in sorted name order. NaNs are hashed as
+    one canonical NaN, so only the values count, not a NaN's payload bits.
+    """
+    digest = hashlib.sha256()
+
+    def add(tag: str, values: np.ndarray) -> None:
+        array = np.ascontiguousarray(np.asarray(values, dtype=float), dtype="<f8")
+        array = np.where(np.isnan(array), np.nan, array).astype("<f8")
+        digest.update(f"{tag}{array.shape}".encode() + b"\0")
+        digest.update(array.tobytes())
+
+    add("X", X)
+    add("feasible", np.asarray(feasible, dtype=bool).astype(float))
+    for name in sorted(outputs):
+        add(f"output:{name}", outputs[name])
+    return digest.hexdigest()[:16]
+
+
+def _typed_validation(frame: pd.DataFrame) -> pd.DataFrame:
+    """Fixed column order and dtypes: text as objects (None when missing), Int64, Float64."""
+    frame = frame.loc[:, list(VALIDATION_COLUMNS)].copy()
+    for column in _TEXT:
+        values = frame[column].astype(object)
+        frame[column] = values.where(values.notna(), None).astype(object)
+    frame["selected"] = frame["selected"].astype(bool)
+    for column in _COUNTS:
+        frame[column] = frame[column].astype("Int64")
+    for column in _METRICS:
+        frame[column] = pd.array(
+            [None if pd.isna(v) else float(v) for v in frame[column]], dtype="Float64"
+        )
+    return frame.reset_index(drop=True)
+
+
+def _typed_predictions(frame: pd.DataFrame) -> pd.DataFrame:
+    frame = frame.loc[:, list(PREDICTION_COLUMNS)].copy()
+    for column in ("model", "split"):
+        frame[column] = frame[column].astype(object)
+    frame["sample_id"] = frame["sample_id"].astype(np.int64)
+    for column in ("y_true", "y_pred"):
+        frame[column] = frame[column].astype(np.float64)
+    return frame.reset_index(drop=True)
+
+
+class SurrogateSet:
+    """Selected surrogates of every output and of feasibility, with their validation.
+
+    Attributes: ``input_names``, ``output_names``, ``cube`` (the design space's
+    :class:`UnitCube`), ``selected`` (output name -> candidate; ``"feasible"`` ->
+    classifier or ``"all-feasible"``), ``validation`` and ``predictions`` (tables, see
+    ``docs/surrogate.md``), ``data_hash`` (:func:`training_data_hash`), ``settings``, and
+    ``meta`` (the contents of ``meta.json`` for a loaded set; empty after a fit).
+    """
+
+    def __init__(
+        self,
+        *,
+        input_names: tuple[str, ...],
+        output_names: tuple[str, ...],
+        cube: UnitCube,
+        regressors: dict[str, Regressor],
+        classifier: FeasibilityClassifier,
+        selected: dict[str, str],
+        validation: pd.DataFrame,
+        predictions: pd.DataFrame,
+        data_hash: str,
+        settings: SurrogateSettings,
+        meta: dict[str, Any] | None = None,
+    ) -> None:
+        self.input_names = tuple(input_names)
+        self.output_names = tuple(output_names)
+        self.cube = cube
+        self._regressors = dict(regressors)
+        self._classifier = classifier
+        self.selected = dict(selected)
+        self.validation = validation
+        self.predictions = predictions
+        self.data_hash = data_hash
+        self.settings = settings
+        self.meta = dict(meta or {})
+
+    def __repr__(self) -> str:
+        return (
+            f"SurrogateSet(inputs={self.input_names}, selected={self.selected}, "
+            f"data_hash={self.data_hash!r})"
+        )
+
+    def _unit(self, X: np.ndarray) -> np.ndarray:
+        try:
+            x = np.asarray(X, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise SurrogateError(f"X: not a numeric array ({err})") from None
+        if x.ndim != 2 or x.shape[1] != self.cube.dim:
+            raise SurrogateError(
+                f"X: expected shape (m, {self.cube.dim}) for inputs {self.input_names}, "
+                f"got {x.shape}"
+            )
+        if not np.all(np.isfinite(x)):
+            raise SurrogateError("X: NaN or infinite values; every input must be finite")
+        return self.cube.to_unit(x)
+
+    def predict(self, X: np.ndarray) -> dict[str, np.ndarray]:
+        """Physical inputs (m, d) -> {output name: prediction (m,)} of the selected models."""
+        u = self._unit(X)
+        if u.shape[0] == 0:
+            return {name: np.empty(0) for name in self.output_names}
+        return {name: self._regressors[name].predict(u) for name in self.output_names}
+
+    def feasibility(self, X: np.ndarray) -> np.ndarray:
+        """Physical inputs (m, d) -> probability of feasibility (m,) in [0, 1]."""
+        u = self._unit(X)
+        return self._classifier.proba(u) if u.shape[0] else np.empty(0)
+
+    # -- storage --------------------------------------------------------------------------
+
+    def _state(self) -> dict[str, Any]:
+        return {
+            "format": STORE_FORMAT,
+            "input_names": self.input_names,
+            "output_names": self.output_names,
+            "lower": np.asarray(self.cube.lower).tolist(),
+            "upper": np.asarray(self.cube.upper).tolist(),
+            "regressors": self._regressors,
+            "classifier": self._classifier,
+            "selected": self.selected,
+            "data_hash": self.data_hash,
+        }
+
+    def save(self, directory: Path, *, meta: dict[str, Any]) -> None:
+        """Write the set to ``directory`` (layout in the module docstring), atomically per file.
+
+        ``meta`` (e.g. the run id) is merged into ``meta.json``; its keys must not collide
+        with the set's own keys and its values must be JSON-serialisable.
+        """
+        directory = Path(directory)
+        own: dict[str, Any] = {
+            "format": STORE_FORMAT,
+            "data_hash": self.data_hash,
+            "selected": self.selected,
+            "settings": self.settings.model_dump(mode="json"),
+            "input_names": list(self.input_names),
+            "output_names": list(self.output_names),
+            "lower": np.asarray(self.cube.lower).tolist(),
+            "upper": np.asarray(self.cube.upper).tolist(),
+            "versions": _versions(),
+            "files": {},
+        }
+        clash = sorted(set(own) & set(meta))
+        if clash:
+            raise SurrogateError(
+                f"save: meta keys {clash} are reserved by the surrogate store "
+                f"(reserved: {sorted(own)})"
+            )
+        document = {**meta, **own}
+        payload = pickle.dumps(self._state(), protocol=pickle.HIGHEST_PROTOCOL)
+        atomic_bytes(directory / MODELS_FILE, payload)
+        atomic_parquet(directory / VALIDATION_FILE, self.validation)
+        atomic_parquet(directory / PREDICTIONS_FILE, self.predictions)
+        for name in (MODELS_FILE, VALIDATION_FILE, PREDICTIONS_FILE):
+            document["files"][name] = hashlib.sha256((directory / name).read_bytes()).hexdigest()
+        try:
+            text = json.dumps(document, indent=2, sort_keys=True, allow_nan=False)
+        except (TypeError, ValueError) as err:
+            raise SurrogateError(f"save: meta is not JSON-serialisable ({err})") from None
+        atomic_bytes(directory / META_FILE, (text + "\n").encode("utf-8"))
+
+    @classmethod
+    def load(cls, directory: Path) -> SurrogateSet:
+        """Read a set written by :meth:`save`; SurrogateError names a missing or corrupt file."""
+        directory = Path(directory)
+        meta_path = directory / META_FILE
+        if not meta_path.is_file():
+            raise SurrogateError(f"{meta_path}: missing (not a saved surrogate set)")
+        try:
+            meta = read_json(meta_path)
+        except StoreError as err:
+            raise SurrogateError(str(err)) from None
+        found = meta.get("format") if isinstance(meta, dict) else None
+        if found != STORE_FORMAT:
+            raise SurrogateError(
+                f"{meta_path}: unknown store format {found!r} (this version reads format "
+                f"{STORE_FORMAT})"
+            )
+        try:
+            checksums = dict(meta["files"])
+            settings = SurrogateSettings.model_validate(meta["settings"])
+        except (KeyError, TypeError, ValueError, ValidationError) as err:
+            raise SurrogateError(f"{meta_path}: corrupt or outdated content ({err})") from None
+        blobs = {}
+        for name in (MODELS_FILE, VALIDATION_FILE, PREDICTIONS_FILE):
+            path = directory / name
+            try:
+                blob = path.read_bytes()
+            except OSError as err:
+                raise SurrogateError(f"{path}: missing or unreadable ({err.strerror})") from None
+            if hashlib.sha256(blob).hexdigest() != checksums.get(name):
+                raise SurrogateError(
+                    f"{path}: content does not match the checksum in {META_FILE} "
+                    "(corrupt, or written by another save)"
+                )
+            blobs[name] = blob
+        try:
+            state = pickle.loads(blobs[MODELS_FILE])
+        except Exception as err:
+            raise SurrogateError(f"{directory / MODELS_FILE}: corrupt pickle ({err})") from None
+        if not isinstance(state, dict) or state.get("data_hash") != meta.get("data_hash"):
+            raise SurrogateError(f"{directory / MODELS_FILE}: does not match {META_FILE}")
+        try:
+            validation = _typed_validation(read_parquet(directory / VALIDATION_FILE))
+            predictions = _typed_predictions(read_parquet(directory / PREDICTIONS_FILE))
+        except StoreError as err:
+            raise SurrogateError(str(err)) from None
+        except (KeyError, ValueError, TypeError) as err:
+            raise SurrogateError(f"{directory}: table with unexpected columns ({err})") from None
+        stored = meta.get("versions", {})
+        current = _versions()
+        changed = {k: (stored.get(k), v) for k, v in current.items() if stored.get(k) != v}
+        if changed.keys() & {"smt", "scikit-learn"}:
+            warnings.warn(
+                f"{meta_path}: fitted with other library versions {changed}; refit if in doubt",
+                stacklevel=2,
+            )
+        return cls(
+            input_names=tuple(state["input_names"]),
+            output_names=tuple(state["output_names"]),
+            cube=UnitCube(np.asarray(state["lower"]), np.asarray(state["upper"])),
+            regressors=state["regressors"],
+            classifier=state["classifier"],
+            selected=state["selected"],
+            validation=validation,
+            predictions=predictions,
+            data_hash=state["data_hash"],
+            settings=settings,
+            meta=meta,
+        )
+
+
+def _versions() -> dict[str, str]:
+    return {
+        "smt": smt.__version__,
+        "scikit-learn": sklearn.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+# -- fitting -----------------------------------------------------------------------------
+
+
+def _ids(indices: np.ndarray, sample_ids: np.ndarray, limit: int = 8) -> str:
+    shown = ", ".join(str(int(sample_ids[i])) for i in indices[:limit])
+    more = f", ... ({indices.size} in all)" if indices.size > limit else ""
+    return f"[{shown}{more}]"
+
+
+def _checked(
+    X: np.ndarray,
+    outputs: dict[str, np.ndarray],
+    feasible: np.ndarray,
+    input_names: tuple[str, ...],
+    sample_ids: np.ndarray | None,
+) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    try:
+        x = np.array(X, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise SurrogateError(f"X: not a numeric array ({err})") from None
+    if x.ndim != 2:
+        raise SurrogateError(f"X: expected a 2-D array (n samples, d inputs), got shape {x.shape}")
+    n, dim = x.shape
+    if n == 0:
+        raise SurrogateError("no samples: X has 0 rows; the surrogates need feasible samples")
+    if dim == 0:
+        raise SurrogateError("X has 0 columns; at least one input is needed")
+    if len(input_names) != dim or len(set(input_names)) != dim:
+        raise SurrogateError(
+            f"input_names: {len(input_names)} names {tuple(input_names)} for X with {dim} "
+            "columns; one distinct name per column is needed"
+        )
+    ids = np.arange(n) if sample_ids is None else np.asarray(sample_ids)
+    if ids.shape != (n,) or not np.issubdtype(ids.dtype, np.integer):
+        raise SurrogateError(
+            f"sample_ids: expected {n} integers (shape ({n},)), got dtype {ids.dtype} and "
+            f"shape {ids.shape}"
+        )
+    if np.unique(ids).size != n:
+        raise SurrogateError("sample_ids: the ids must be distinct")
+    ids = ids.astype(np.int64)
+    flags = np.asarray(feasible)
+    if flags.shape != (n,) or flags.dtype != bool:
+        raise SurrogateError(
+            f"feasible: expected a boolean array of shape ({n},) (one flag per row of X), "
+            f"got dtype {flags.dtype} and shape {flags.shape}"
+        )
+    bad_rows = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
+    if bad_rows.size:
+        raise SurrogateError(
+            f"X: NaN or infinite inputs at sample_id {_ids(bad_rows, ids)}; every input must "
+            "be finite"
+        )
+    values: dict[str, np.ndarray] = {}
+    for name, column in outputs.items():
+        if not isinstance(name, str) or not name or name == FEASIBLE:
+            raise SurrogateError(
+                f"outputs: invalid name {name!r} (a non-empty string other than {FEASIBLE!r})"
+            )
+        try:
+            y = np.array(column, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise SurrogateError(f"output {name!r}: not numeric ({err})") from None
+        if y.shape != (n,):
+            raise SurrogateError(
+                f"output {name!r}: expected shape ({n},) (one value per row of X), got {y.shape}"
+            )
+        values[name] = y
+    n_feasible = int(np.count_nonzero(flags))
+    if n_feasible == 0:
+        raise SurrogateError(
+            f"all {n} samples are infeasible; the surrogates need feasible samples"
+        )
+    for name, y in values.items():
+        bad = np.flatnonzero(flags & ~np.isfinite(y))
+        if bad.size:
+            raise SurrogateError(
+                f"output {name!r}: NaN or infinite values at feasible samples (sample_id "
+                f"{_ids(bad, ids)}); a feasible sample needs a finite value of every output"
+            )
+    return x, values, flags, ids
+
+
+def _regressor_rows(output: str, scores: list[RegressorScore], chosen: str) -> list[dict]:
+    return [
+        {
+            "model": output,
+            "kind": "regressor",
+            "candidate": s.name,
+            "selected": s.name == chosen,
+            "n_train": s.n_train,
+            "n_heldout": s.n_heldout,
+            "cv_rmse": s.cv_rmse,
+            "cv_q2": s.cv_q2,
+            "heldout_rmse": s.heldout_rmse,
+            "heldout_r2": s.heldout_r2,
+            "fit_time_s": s.fit_time_s,
+            "error": s.error,
+        }
+        for s in scores
+    ]
+
+
+def _classifier_rows(scores: list[ClassifierScore], chosen: str) -> list[dict]:
+    return [
+        {
+            "model": FEASIBLE,
+            "kind": "classifier",
+            "candidate": s.name,
+            "selected": s.name == chosen,
+            "n_train": s.n_train,
+            "n_heldout": s.n_heldout,
+            "cv_accuracy": s.cv_accuracy,
+            "cv_balanced_accuracy": s.cv_balanced_accuracy,
+            "cv_log_loss": s.cv_log_loss,
+            "heldout_accuracy": s.heldout_accuracy,
+            "fit_time_s": s.fit_time_s,
+            "error": s.error,
+        }
+        for s in scores
+    ]
+
+
+def _prediction_rows(
+    model: str,
+    train_ids: np.ndarray,
+    y_train: np.ndarray,
+    cv_pred: np.ndarray,
+    held_ids: np.ndarray,
+    y_held: np.ndarray,
+    held_pred: np.ndarray,
+) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "model": model,
+            "sample_id": np.concatenate([train_ids, held_ids]),
+            "split": ["cv"] * train_ids.size + ["heldout"] * held_ids.size,
+            "y_true": np.concatenate([y_train, y_held]).astype(float),
+            "y_pred": np.concatenate([cv_pred, held_pred]).astype(float),
+        }
+    )
+
+
+def _failures(scores: list[RegressorScore] | list[ClassifierScore]) -> str:
+    return "; ".join(f"{s.name}: {s.error}" for s in scores)
+
+
+_FIT_LOCK = threading.Lock()
+
+
+@contextmanager
+def _serial_blas() -> Iterator[None]:
+    """One BLAS thread while fitting, one fit at a time in the process.
+
+    The Kriging likelihood works on n x n matrices with n ~ 30-80, where OpenBLAS's thread
+    pool costs far more than it gains: on a busy 2-core machine a KRG fit on 30 samples
+    took 0.2-4 s with 2 BLAS threads and a steady 0.12 s with one. The lock keeps two
+    threads of one process (a threaded task runner) from restoring each other's limits
+    out of order.
+    """
+    with _FIT_LOCK, threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def fit_surrogates(
+    X: np.ndarray,
+    outputs: dict[str, np.ndarray],
+    feasible: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    settings: SurrogateSettings,
+    *,
+    input_names: tuple[str, ...],
+    sample_ids: np.ndarray | None = None,
+) -> SurrogateSet:
+    """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
+
+    ``X`` (n, d) physical inputs inside [lower, upper]; ``outputs`` name -> (n,) values (NaN
+    allowed at infeasible samples only); ``feasible`` (n,) bool; ``sample_ids`` (n,) distinct
+    ints for the predictions table (default 0..n-1).
+
+    1. Inputs are scaled to the unit cube of [lower, upper].
+    2. A stratified, seeded share ``holdout_fraction`` of all samples is held out
+       (:func:`~ovtraj.surrogate.validation.holdout_mask`).
+    3. Per output, every candidate of ``settings.regressors`` is cross-validated with the
+       same k folds of the feasible training samples (ascending sample order, ``KFold(k,
+       shuffle=True, random_state=seed)``); the lowest ``cv_rmse`` is selected (ties: config
+       order). Every candidate is then fitted on all feasible training samples and scored
+       on the held-out feasible samples, for the report only.
+    4. Feasibility: every candidate of ``settings.classifiers`` is cross-validated on all
+       training samples (stratified folds); highest balanced accuracy wins (ties: lower log
+       loss, then config order). If every training sample is feasible, a constant
+       probability 1 ("all-feasible") replaces the classifiers.
+
+    A candidate that fails gets its reason in the ``error`` column and is not selected.
+    Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
+    feasible training samples, shapes, NaN) or when no candidate of a model can be fitted.
+    """
+    x, values, flags, ids = _checked(X, outputs, feasible, tuple(input_names), sample_ids)
+    n, dim = x.shape
+    cube = UnitCube(lower, upper)
+    if cube.dim != dim:
+        raise SurrogateError(
+            f"bounds: {cube.dim} lower/upper values for X with {dim} columns; one per input"
+        )
+    data_hash = training_data_hash(x, values, flags)
+    u = cube.to_unit(x)
+
+    held = holdout_mask(flags, settings.holdout_fraction, settings.seed)
+    n_train = int(np.count_nonzero(~held & flags))
+    if n_train < settings.min_training_samples:
+        raise SurrogateError(
+            f"{n_train} feasible training samples ({int(flags.sum())} feasible of {n}, "
+            f"{int(held.sum())} held out); at least {settings.min_training_samples} are "
+            f"needed (min_training_samples, allowed >= {settings.min_training_samples})"
+        )
+
+    with _serial_blas():
+        regressors, selected, rows, tables = _fit_regressors(u, values, flags, ids, held, settings)
+        classifier, rows_cls, table_cls = _fit_classifier(u, flags, ids, held, settings)
+    selected[FEASIBLE] = classifier.name
+    rows += rows_cls
+    tables.append(table_cls)
+    validation = _typed_validation(pd.DataFrame(rows, columns=list(VALIDATION_COLUMNS)))
+    predictions = _typed_predictions(pd.concat(tables, ignore_index=True))
+    return SurrogateSet(
+        input_names=tuple(input_names),
+        output_names=tuple(values),
+        cube=cube,
+        regressors=regressors,
+        classifier=classifier,
+        selected=selected,
+        validation=validation,
+        predictions=predictions,
+        data_hash=data_hash,
+        settings=settings,
+    )
+
+
+def _fit_regressors(
+    u: np.ndarray,
+    values: dict[str, np.ndarray],
+    flags: np.ndarray,
+    ids: np.ndarray,
+    held: np.ndarray,
+    settings: SurrogateSettings,
+) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
+    """CV, selection and final fit of every output's regressor (feasible samples only)."""
+    reg_train = np.flatnonzero(~held & flags)  # ascending sample order
+    reg_held = np.flatnonzero(held & flags)
+    rows: list[dict] = []
+    tables: list[pd.DataFrame] = []
+    selected: dict[str, str] = {}
+    regressors: dict[str, Regressor] = {}
+    folds = regression_folds(reg_train.size, settings.folds, settings.seed)
+    for name, y in values.items():
+        scores = [
+            evaluate_regressor(
+                candidate, u[reg_train], y[reg_train], u[reg_held], y[reg_held], folds, settings
+            )
+            for candidate in dict.fromkeys(settings.regressors)
+        ]
+        best = select_regressor(scores)
+        if best is None:
+            raise SurrogateError(
+                f"output {name!r}: no candidate could be fitted ({_failures(scores)})"
+            )
+        selected[name] = best.name
+        regressors[name] = best.model
+        rows += [dict(r, n_folds=len(folds)) for r in _regressor_rows(name, scores, best.name)]
+        tables.append(
+            _prediction_rows(
+                name,
+                ids[reg_train],
+                y[reg_train],
+                best.cv_pred,
+                ids[reg_held],
+                y[reg_held],
+                best.heldout_pred,
+            )
+        )
+    return regressors, selected, rows, tables
+
+
+def _fit_classifier(
+    u: np.ndarray,
+    flags: np.ndarray,
+    ids: np.ndarray,
+    held: np.ndarray,
+    settings: SurrogateSettings,
+) -> tuple[FeasibilityClassifier, list[dict], pd.DataFrame]:
+    """CV, selection and final fit of the feasibility classifier (all training samples)."""
+    cls_train = np.flatnonzero(~held)
+    cls_held = np.flatnonzero(held)
+    y_cls = flags[cls_train]
+    cls_folds = classification_folds(y_cls, settings.folds, settings.seed)
+    names = [ALL_FEASIBLE] if y_cls.all() else list(dict.fromkeys(settings.classifiers))
+    cls_scores = [
+        evaluate_classifier(
+            candidate, u[cls_train], y_cls, u[cls_held], flags[cls_held], cls_folds, settings
+        )
+        for candidate in names
+    ]
+    best = select_classifier(cls_scores)
+    if best is None:
+        raise SurrogateError(
+            f"feasibility: no classifier could be fitted ({_failures(cls_scores)})"
+        )
+    rows = [dict(r, n_folds=len(cls_folds)) for r in _classifier_rows(cls_scores, best.name)]
+    table = _prediction_rows(
+        FEASIBLE,
+        ids[cls_train],
+        y_cls.astype(float),
+        best.cv_pred,
+        ids[cls_held],
+        flags[cls_held].astype(float),
+        best.heldout_pred,
+    )
+    return best.model, rows, table
