@@ -70,6 +70,9 @@ class MissionRecord:
     dv_total_mps: float | None = None
     m_load_kg: float | None = None
     wall_time_s: float = 0.0
+    # Each stage's result object and the launch dict (with the insertion state), for the
+    # mission plan (ovtraj.mission.plan); not persisted, not in totals().
+    results: dict[str, Any] = field(default_factory=dict)
 
     def totals(self) -> dict[str, Any]:
         return {
@@ -153,6 +156,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         element_set="mean",
         earth=earth,
     )
+    record.results["launch"] = {**launch, "drop_time_s": t_drop, "insertion_state": parked}
     record.stages["launch"] = {
         "source": "launch fit",
         "launcher": ctx.fit.launcher,
@@ -183,7 +187,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
             **common,
         )
     )
-    _keep(record, "rendezvous", rdv.to_row(), rdv.trajectory, rdv.feasible, rdv.reason)
+    _keep(record, "rendezvous", rdv.to_row(), rdv.trajectory, rdv.feasible, rdv.reason, rdv)
     # 4. stay, separation, transfer to the preparation orbit
     t_sep = rdv.arrival_time_s + 3600.0 * (scenario.mission.stay_h + design.separation_delay_h)
     docked = ctx.propagate(rdv.final_state, rdv.arrival_time_s, t_sep, "transfer")
@@ -204,13 +208,22 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         transfer.trajectory,
         transfer.feasible,
         transfer.reason,
+        transfer,
     )
     # 5. deorbit from the end of the transfer
     t_prep = transfer.arrival_time_s
     deorbit = solve_deorbit(
         deorbit_input(scenario, state0=transfer.final_state, epoch=ctx.day.plus_seconds(t_prep))
     )
-    _keep(record, "deorbit", deorbit.to_row(), deorbit.trajectory, deorbit.feasible, deorbit.reason)
+    _keep(
+        record,
+        "deorbit",
+        deorbit.to_row(),
+        deorbit.trajectory,
+        deorbit.feasible,
+        deorbit.reason,
+        deorbit,
+    )
     # 6. reentry from the deorbit's entry state
     entry = EntryState(
         epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
@@ -222,7 +235,15 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         heading_rad=deorbit.entry_heading_rad,
     )
     reentry = solve_reentry(reentry_input(scenario, entry=entry))
-    _keep(record, "reentry", reentry.to_row(), reentry.trajectory, reentry.feasible, reentry.reason)
+    _keep(
+        record,
+        "reentry",
+        reentry.to_row(),
+        reentry.trajectory,
+        reentry.feasible,
+        reentry.reason,
+        reentry,
+    )
     # totals
     t_terminal = t_prep + deorbit.entry_t_s + reentry.flight_time_s
     record.t_total_s = t_terminal - t_drop
@@ -237,8 +258,10 @@ def _keep(
     trajectory: pd.DataFrame,
     feasible: bool,
     reason: str | None,
+    result: Any = None,
 ) -> None:
     record.stages[stage] = row
+    record.results[stage] = result
     record.trajectories[stage] = trajectory
     if not feasible:
         raise _StageFailed(stage, reason or "infeasible")

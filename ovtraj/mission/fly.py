@@ -1,0 +1,652 @@
+"""Replay of a mission plan through the dynamics, independently of the solvers (SPEC step 6).
+
+:func:`fly_plan` starts from the plan's insertion state and flies every planned
+manoeuvre open-loop, with nothing but the plan (its resolved scenario included):
+
+1. orbital arcs under point-mass + J2 gravity, integrated with scipy's DOP853 on a
+   right-hand side written here (the chain uses heyoka's Taylor integrator and the
+   shared gravity module); each planned ECI impulse is added at its epoch
+   (rendezvous 1 and 2, transfer 1 and 2, deorbit);
+2. the arrival miss at the target after the rendezvous: the target is propagated
+   the same way from the scenario's elements;
+3. after the deorbit burn, the descent to the entry interface altitude (an
+   integration event), then the conversion to the Earth-relative entry state
+   (written here too: GMST rotation, relative velocity, heading and path angle);
+4. the reentry, open-loop: the plan's bank magnitude law and its sign schedule
+   (initial sign and reversal times), through the reentry's own equations of
+   motion, aerodynamics and atmosphere (``ovtraj.reentry.dynamics``, the same
+   physical model) but integrated with adaptive DOP853 between the reversal times
+   instead of the chain's fixed-step RK4 with its heading-corridor feedback; it
+   stops at the terminal speed, as the reentry stage does.
+
+The :class:`FlightReport` holds the terminal state, the miss from the landing site
+and from the plan's predicted terminal point, the rendezvous arrival miss, the path
+maxima against their limits, the perigee and entry-angle checks and
+``landed_within_stated_miss``. A replay that cannot be flown is a report marked
+failed with the reason: nothing raises out of :func:`fly_plan`, and no value in the
+report is NaN (values not reached are ``None``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.mission.plan import MissionPlan, PlannedImpulse
+from ovtraj.reentry import EntryState, reentry_input
+from ovtraj.reentry import dynamics as dyn
+from ovtraj.reentry.model import EntryModel
+from ovtraj.targets import target_state
+from ovtraj.version import code_version
+
+INTEGRATORS = (
+    "orbit: scipy DOP853 on this module's J2 right-hand side (chain: heyoka Taylor); "
+    "entry: scipy DOP853 between the planned bank reversals, open-loop (chain: fixed-step "
+    "RK4 with the heading-corridor reversal logic)"
+)
+
+
+class ReplayFailed(Exception):
+    """Raised inside the replay to stop with a reason; never escapes :func:`fly_plan`."""
+
+
+@dataclass
+class LimitCheck:
+    """A replayed maximum (or minimum) against its limit."""
+
+    value: float | None
+    limit: float
+    unit: str
+    ok: bool
+
+
+@dataclass
+class BurnReplay:
+    """A planned impulse as the replay applied it."""
+
+    name: str
+    t_s: float
+    dv_mps: float
+    # RSW components of the planned ECI impulse at the replay's state, minus the plan's.
+    local_frame_difference_mps: float
+
+
+@dataclass
+class FlightReport:
+    """Outcome of :func:`fly_plan`; SI units in the names, angles in degrees."""
+
+    ok: bool  # the replay reached the terminal interface
+    reason: str | None
+    landed_within_stated_miss: bool
+    stated_miss_m: float | None
+    miss_distance_m: float | None = None  # from the landing site
+    predicted_miss_distance_m: float | None = None  # the plan's
+    prediction_distance_m: float | None = None  # from the plan's predicted terminal point
+    prediction_tolerance_m: float | None = None
+    matches_prediction: bool = False
+    terminal_status: str | None = None
+    terminal: dict[str, Any] | None = None
+    entry: dict[str, Any] | None = None
+    entry_time_difference_s: float | None = None  # replay minus plan
+    entry_position_difference_m: float | None = None
+    rendezvous_arrival_miss_m: float | None = None
+    planned_arrival_miss_m: float | None = None
+    arrival_miss_tolerance_m: float | None = None
+    checks: dict[str, LimitCheck] = field(default_factory=dict)
+    burns: list[BurnReplay] = field(default_factory=list)
+    flight_time_s: float | None = None
+    passed: bool = False  # landed within the stated miss, matches the prediction, checks hold
+    plan_code_version: str | None = None
+    replay_code_version: str = ""
+    integrators: str = INTEGRATORS
+    wall_time_s: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly; a non-finite number (never expected) becomes ``None``."""
+        return _finite(asdict(self))
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+# --- orbital arcs ------------------------------------------------------------------------
+
+
+def _j2_rhs(mu: float, radius: float, j2: float) -> Any:
+    """d/dt (r, v) under point mass + J2 (Vallado, 4th ed., eq. 8-30), Python floats."""
+    k = 1.5 * j2 * mu * radius * radius
+
+    def rhs(_t: float, y: np.ndarray) -> np.ndarray:
+        x, yy, z = float(y[0]), float(y[1]), float(y[2])
+        r2 = x * x + yy * yy + z * z
+        r = math.sqrt(r2)
+        central = mu / (r2 * r)
+        zonal = k / (r2 * r2 * r)
+        s = 5.0 * z * z / r2
+        return np.array(
+            [
+                y[3],
+                y[4],
+                y[5],
+                -central * x - zonal * x * (1.0 - s),
+                -central * yy - zonal * yy * (1.0 - s),
+                -central * z - zonal * z * (3.0 - s),
+            ]
+        )
+
+    return rhs
+
+
+class _Orbit:
+    """DOP853 arcs of one spacecraft with the replay's tolerances."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        earth = scenario.earth
+        self.earth = earth
+        self.rhs = _j2_rhs(earth.mu, earth.radius, earth.j2)
+        self.rtol = scenario.mission.plan.orbit_rtol
+        self.atol = scenario.mission.plan.orbit_atol
+
+    def arc(
+        self, state: np.ndarray, t0: float, t1: float, *, floor_m: float | None = None
+    ) -> tuple[np.ndarray, float, bool, float]:
+        """(state at the end, end time, stopped at ``floor_m``, lowest altitude on the way).
+
+        With ``floor_m`` the arc stops where the altitude first falls through it.
+        """
+        events = None
+        if floor_m is not None:
+            floor_r = self.earth.radius + floor_m
+
+            def crossing(_t: float, y: np.ndarray) -> float:
+                return math.sqrt(float(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)) - floor_r
+
+            crossing.terminal = True
+            crossing.direction = -1.0
+            events = [crossing]
+        if t1 <= t0:
+            if t1 < t0:
+                raise ReplayFailed(f"the plan's epochs run backwards ({t0:.3f} -> {t1:.3f} s)")
+            return state.copy(), t0, False, _altitude(state, self.earth.radius)
+        sol = solve_ivp(
+            self.rhs,
+            (t0, t1),
+            state,
+            method="DOP853",
+            rtol=self.rtol,
+            atol=self.atol,
+            events=events,
+        )
+        if sol.status < 0 or not np.all(np.isfinite(sol.y)):
+            raise ReplayFailed(f"orbit integration failed from {t0:.1f} s: {sol.message}")
+        lowest = float(np.min(np.linalg.norm(sol.y[:3], axis=0))) - self.earth.radius
+        if sol.status == 1 and floor_m is not None and len(sol.t_events[0]):
+            return sol.y_events[0][0].copy(), float(sol.t_events[0][0]), True, lowest
+        return sol.y[:, -1].copy(), float(sol.t[-1]), False, lowest
+
+
+def _altitude(state: np.ndarray, radius: float) -> float:
+    return float(np.linalg.norm(state[:3])) - radius
+
+
+def _rsw(dv: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """RSW components (radial, along-track, cross-track) of ``dv`` at ``state``."""
+    r, v = state[:3], state[3:]
+    radial = r / np.linalg.norm(r)
+    h = np.cross(r, v)
+    cross_track = h / np.linalg.norm(h)
+    along = np.cross(cross_track, radial)
+    return np.array([dv @ radial, dv @ along, dv @ cross_track])
+
+
+def _perigee_altitude(state: np.ndarray, mu: float, radius: float) -> float:
+    """Osculating two-body perigee altitude [m] of a Cartesian state."""
+    r, v = state[:3], state[3:]
+    rn = float(np.linalg.norm(r))
+    energy = 0.5 * float(v @ v) - mu / rn
+    a = -mu / (2.0 * energy)
+    e_vec = ((float(v @ v) - mu / rn) * r - float(r @ v) * v) / mu
+    return a * (1.0 - float(np.linalg.norm(e_vec))) - radius
+
+
+# --- entry state and reentry --------------------------------------------------------------
+
+
+def _relative_entry(state: np.ndarray, theta: float, omega: float, radius: float) -> dict:
+    """Geocentric position and Earth-relative velocity of an ECI state (spherical Earth)."""
+    r, v = state[:3], state[3:]
+    x, y, z = (float(c) for c in r)
+    rn = float(np.linalg.norm(r))
+    lat = math.atan2(z, math.hypot(x, y))
+    lon_inertial = math.atan2(y, x)
+    lon = (lon_inertial - theta + math.pi) % (2.0 * math.pi) - math.pi
+    v_rel = v - omega * np.array([-y, x, 0.0])
+    speed = float(np.linalg.norm(v_rel))
+    fpa = math.asin(float(r @ v_rel) / (rn * speed))
+    north = np.array(
+        [
+            -math.sin(lat) * math.cos(lon_inertial),
+            -math.sin(lat) * math.sin(lon_inertial),
+            math.cos(lat),
+        ]
+    )
+    east = np.array([-math.sin(lon_inertial), math.cos(lon_inertial), 0.0])
+    heading = math.atan2(float(v_rel @ east), float(v_rel @ north)) % (2.0 * math.pi)
+    inertial_fpa = math.asin(float(r @ v) / (rn * float(np.linalg.norm(v))))
+    return {
+        "latitude_rad": lat,
+        "longitude_rad": lon,
+        "altitude_m": rn - radius,
+        "speed_mps": speed,
+        "fpa_rad": fpa,
+        "heading_rad": heading,
+        "inertial_speed_mps": float(np.linalg.norm(v)),
+        "inertial_fpa_rad": inertial_fpa,
+    }
+
+
+def _haversine(lat1: float, lon1: float, lat2: float, lon2: float, radius: float) -> float:
+    s = (
+        math.sin(0.5 * (lat2 - lat1)) ** 2
+        + math.cos(lat1) * math.cos(lat2) * math.sin(0.5 * (lon2 - lon1)) ** 2
+    )
+    return 2.0 * radius * math.asin(math.sqrt(min(max(s, 0.0), 1.0)))
+
+
+@dataclass
+class _EntryFlight:
+    status: str
+    reached: bool
+    time_s: float
+    state: np.ndarray
+    max_heat_rate_w_m2: float
+    max_load_g: float
+    max_dynamic_pressure_pa: float
+
+
+def _fly_entry(plan: MissionPlan, scenario: Scenario, entry: EntryState) -> _EntryFlight:
+    """The open-loop reentry from ``entry`` with the plan's bank profile (DOP853)."""
+    profile = plan.reentry.bank_profile
+    settings = scenario.mission.plan
+    model = EntryModel(reentry_input(scenario, entry=entry))
+    p = model.params.copy()
+    p[dyn.P_SIGMA0] = math.radians(profile.sigma0_deg)
+    p[dyn.P_SIGMA1] = math.radians(profile.sigma1_deg)
+    p[dyn.P_V_START] = profile.speed_start_mps
+    p[dyn.P_V_END] = profile.speed_end_mps
+    p[dyn.P_SIGMA_MAX] = math.radians(profile.max_bank_deg)
+    tables = model.tables
+    radius = p[dyn.P_RADIUS]
+    out = np.empty(6)
+
+    def rhs_for(sign: float) -> Any:
+        def rhs(_t: float, x: np.ndarray) -> np.ndarray:
+            dyn._derivatives(np.ascontiguousarray(x, dtype=float), sign, p, tables, out)
+            return out.copy()
+
+        return rhs
+
+    def terminal_speed(_t: float, x: np.ndarray) -> float:
+        return float(x[3]) - p[dyn.P_V_END]
+
+    def ground(_t: float, x: np.ndarray) -> float:
+        return float(x[0]) - radius
+
+    def skip(_t: float, x: np.ndarray) -> float:
+        return float(x[0]) - p[dyn.P_SKIP_RADIUS]
+
+    for event, direction in ((terminal_speed, -1.0), (ground, -1.0), (skip, 1.0)):
+        event.terminal = True
+        event.direction = direction
+    names = ("terminal", "crashed", "skipped")
+
+    t_max = p[dyn.P_MAX_TIME]
+    times = [r.t_from_entry_s for r in profile.reversals]
+    bounds = [0.0, *(t for t in times if 0.0 < t < t_max), t_max]
+    x = model.x0.copy()
+    maxima = np.zeros(3)
+    status = "time limit reached before the terminal speed"
+    reached = False
+    t_end = 0.0
+    for t0, t1 in itertools.pairwise(bounds):
+        if t1 <= t0:
+            continue
+        sign = profile.sign_at(t0)
+        sol = solve_ivp(
+            rhs_for(sign),
+            (t0, t1),
+            x,
+            method="DOP853",
+            rtol=settings.entry_rtol,
+            atol=settings.entry_atol,
+            events=[terminal_speed, ground, skip],
+            dense_output=True,
+        )
+        if sol.status < 0 or not np.all(np.isfinite(sol.y)):
+            raise ReplayFailed(f"entry integration failed at {t0:.1f} s: {sol.message}")
+        t_end = float(sol.t[-1])
+        hit = next((k for k, times in enumerate(sol.t_events) if len(times)), None)
+        if hit is not None:
+            t_end = float(sol.t_events[hit][0])
+            x = sol.y_events[hit][0].copy()
+        else:
+            x = sol.y[:, -1].copy()
+        samples = np.unique(np.r_[np.arange(t0, t_end, settings.path_sample_step_s), t_end])
+        for t in samples:
+            state = x if t == t_end else sol.sol(t)
+            _, _, _, heat, load, qdyn = dyn._path(
+                np.ascontiguousarray(state, dtype=float), p, tables
+            )
+            maxima = np.maximum(maxima, (heat, load, qdyn))
+        if hit is not None:
+            reached = hit == 0
+            status = (
+                "reached the terminal speed"
+                if reached
+                else dyn.STATUS_TEXT[dyn.CRASHED if hit == 1 else dyn.SKIPPED]
+            )
+            if not reached:
+                status = f"{names[hit]}: {status}"
+            break
+    return _EntryFlight(
+        status=status,
+        reached=reached,
+        time_s=t_end,
+        state=x,
+        max_heat_rate_w_m2=float(maxima[0]),
+        max_load_g=float(maxima[1]),
+        max_dynamic_pressure_pa=float(maxima[2]),
+    )
+
+
+# --- the replay ----------------------------------------------------------------------------
+
+
+def fly_plan(plan: MissionPlan) -> FlightReport:
+    """Replay ``plan`` through the dynamics; see the module notes. Never raises."""
+    start = time.perf_counter()
+    report = FlightReport(
+        ok=False,
+        reason=None,
+        landed_within_stated_miss=False,
+        stated_miss_m=plan.terminal.stated_miss_m,
+        predicted_miss_distance_m=plan.terminal.miss_distance_m,
+        prediction_tolerance_m=plan.terminal.prediction_tolerance_m,
+        planned_arrival_miss_m=plan.rendezvous.arrival_miss_m,
+        arrival_miss_tolerance_m=plan.rendezvous.miss_tolerance_m,
+        plan_code_version=plan.code_version,
+        replay_code_version=code_version(),
+    )
+    try:
+        with np.errstate(all="ignore"):
+            _replay(plan, report)
+    except ReplayFailed as failure:
+        report.reason = str(failure)
+    except Exception as err:  # a replay never raises: any failure is reported
+        report.reason = f"replay failed: {type(err).__name__}: {err}"
+    report.ok = report.ok and report.reason is None
+    report.landed_within_stated_miss = bool(
+        report.ok
+        and report.miss_distance_m is not None
+        and report.miss_distance_m <= plan.terminal.stated_miss_m
+    )
+    report.passed = bool(
+        report.landed_within_stated_miss
+        and report.matches_prediction
+        and all(c.ok for c in report.checks.values())
+    )
+    report.wall_time_s = time.perf_counter() - start
+    return report
+
+
+def _replay(plan: MissionPlan, report: FlightReport) -> None:
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    earth = scenario.earth
+    day = plan.day
+    orbit = _Orbit(scenario)
+    entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
+    floor_m = scenario.limits.min_perigee_altitude_km * 1e3
+
+    # 1. orbital arcs from the insertion state, each planned impulse at its epoch
+    state = np.r_[plan.launch.insertion_r_eci_m, plan.launch.insertion_v_eci_mps].astype(float)
+    t = plan.launch.insertion_t_s
+    perigee = _perigee_altitude(state, earth.mu, earth.radius)
+    lowest = _altitude(state, earth.radius)
+    impulses = plan.impulses()
+    for k, burn in enumerate(impulses):
+        state, t_end, entered, low = orbit.arc(state, t, burn.t_s, floor_m=entry_altitude_m)
+        lowest = min(lowest, low)
+        if entered:
+            raise ReplayFailed(
+                f"the OV falls through the entry interface at {t_end:.0f} s, before the "
+                f"{burn.name} ({burn.t_s:.0f} s)"
+            )
+        if burn is plan.rendezvous.burn2:  # docking: the arrival miss at the target
+            report.rendezvous_arrival_miss_m = _arrival_miss(plan, scenario, orbit, state)
+        report.burns.append(_apply(burn, state))
+        state = state + np.r_[0.0, 0.0, 0.0, burn.eci]
+        t = burn.t_s
+        if k < len(impulses) - 1:  # every orbit before the deorbit burn
+            perigee = min(perigee, _perigee_altitude(state, earth.mu, earth.radius))
+    report.checks["min_perigee_altitude_m"] = LimitCheck(
+        perigee, floor_m, "m (osculating, before the deorbit burn)", perigee >= floor_m
+    )
+    report.checks["min_altitude_m"] = LimitCheck(
+        lowest, floor_m, "m (solver steps, before the deorbit burn)", lowest >= floor_m
+    )
+    report.checks["rendezvous_arrival_miss_m"] = LimitCheck(
+        report.rendezvous_arrival_miss_m,
+        plan.rendezvous.miss_tolerance_m,
+        "m",
+        report.rendezvous_arrival_miss_m is not None
+        and report.rendezvous_arrival_miss_m <= plan.rendezvous.miss_tolerance_m,
+    )
+
+    # 2. descent to the entry interface
+    r0 = float(np.linalg.norm(state[:3]))
+    period = 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
+    horizon = scenario.deorbit.max_descent_revolutions * period
+    state, t_entry, entered, _ = orbit.arc(state, t, t + horizon, floor_m=entry_altitude_m)
+    if not entered:
+        raise ReplayFailed(
+            f"the descent does not reach the entry interface ({entry_altitude_m / 1e3:g} km) "
+            f"within {horizon:.0f} s of the deorbit burn"
+        )
+    theta = day.gmst_rad() + earth.omega * t_entry
+    rel = _relative_entry(state, theta, earth.omega, earth.radius)
+    planned = plan.reentry.entry
+    report.entry_time_difference_s = t_entry - planned.t_s
+    report.entry_position_difference_m = float(
+        np.linalg.norm(state[:3] - np.asarray(planned.r_eci_m))
+    )
+    entry_epoch = day.plus_seconds(t_entry)
+    report.entry = {
+        "epoch_utc": entry_epoch.iso(),
+        "t_s": t_entry,
+        "latitude_deg": math.degrees(rel["latitude_rad"]),
+        "longitude_deg": math.degrees(rel["longitude_rad"]),
+        "altitude_m": rel["altitude_m"],
+        "speed_mps": rel["speed_mps"],
+        "fpa_deg": math.degrees(rel["fpa_rad"]),
+        "heading_deg": math.degrees(rel["heading_rad"]),
+        "inertial_speed_mps": rel["inertial_speed_mps"],
+        "inertial_fpa_deg": math.degrees(rel["inertial_fpa_rad"]),
+    }
+    limits = scenario.deorbit.entry
+    slack = scenario.mission.plan.entry_fpa_tolerance_deg
+    fpa = report.entry["inertial_fpa_deg"]
+    report.checks["entry_fpa_deg"] = LimitCheck(
+        fpa,
+        limits.fpa_max_deg,
+        f"deg (inertial; allowed [{limits.fpa_min_deg:g}, {limits.fpa_max_deg:g}] +- {slack:g})",
+        limits.fpa_min_deg - slack <= fpa <= limits.fpa_max_deg + slack,
+    )
+
+    # 3. the reentry, open-loop
+    entry = EntryState(
+        epoch=entry_epoch,
+        latitude_rad=rel["latitude_rad"],
+        longitude_rad=rel["longitude_rad"],
+        altitude_m=rel["altitude_m"],
+        speed_mps=rel["speed_mps"],
+        fpa_rad=rel["fpa_rad"],
+        heading_rad=rel["heading_rad"],
+    )
+    flight = _fly_entry(plan, scenario, entry)
+    reentry = scenario.reentry
+    path = reentry.limits
+    for name, value, limit, unit in (
+        ("max_heat_rate_w_m2", flight.max_heat_rate_w_m2, path.max_heat_rate_kw_m2 * 1e3, "W/m^2"),
+        ("max_load_g", flight.max_load_g, path.max_load_g, "g"),
+        (
+            "max_dynamic_pressure_pa",
+            flight.max_dynamic_pressure_pa,
+            path.max_dynamic_pressure_kpa * 1e3,
+            "Pa",
+        ),
+    ):
+        report.checks[name] = LimitCheck(value, limit, unit, value <= limit)
+    x = flight.state
+    report.flight_time_s = flight.time_s
+    report.terminal_status = flight.status
+    altitude = float(x[0]) - earth.radius
+    report.terminal = {
+        "epoch_utc": entry_epoch.plus_seconds(flight.time_s).iso(),
+        "t_s": t_entry + flight.time_s,
+        "latitude_deg": math.degrees(float(x[2])),
+        "longitude_deg": math.degrees((float(x[1]) + math.pi) % (2.0 * math.pi) - math.pi),
+        "altitude_m": altitude,
+        "speed_mps": float(x[3]),
+        "fpa_deg": math.degrees(float(x[4])),
+        "heading_deg": math.degrees(float(x[5])) % 360.0,
+    }
+    terminal = reentry.terminal
+    report.checks["terminal_altitude_m"] = LimitCheck(
+        altitude,
+        terminal.altitude_km * 1e3,
+        f"m (+- {terminal.altitude_tolerance_km * 1e3:g})",
+        abs(altitude - terminal.altitude_km * 1e3) <= terminal.altitude_tolerance_km * 1e3,
+    )
+    site = reentry.landing_site
+    lat, lon = float(x[2]), float(x[1])
+    report.miss_distance_m = _haversine(
+        lat, lon, math.radians(site.latitude_deg), math.radians(site.longitude_deg), earth.radius
+    )
+    predicted = plan.terminal
+    report.prediction_distance_m = _haversine(
+        lat,
+        lon,
+        math.radians(predicted.latitude_deg),
+        math.radians(predicted.longitude_deg),
+        earth.radius,
+    )
+    report.matches_prediction = report.prediction_distance_m <= predicted.prediction_tolerance_m
+    if not flight.reached:
+        raise ReplayFailed(
+            f"the replayed reentry did not reach the terminal speed: {flight.status}"
+        )
+    values = [report.miss_distance_m, report.prediction_distance_m, *x]
+    if not all(math.isfinite(v) for v in values):
+        raise ReplayFailed("the replay produced non-finite values")
+    report.ok = True
+
+
+def _apply(burn: PlannedImpulse, state: np.ndarray) -> BurnReplay:
+    rsw = _rsw(burn.eci, state)
+    return BurnReplay(
+        name=burn.name,
+        t_s=burn.t_s,
+        dv_mps=float(np.linalg.norm(burn.eci)),
+        local_frame_difference_mps=float(np.linalg.norm(rsw - burn.rsw)),
+    )
+
+
+def _arrival_miss(
+    plan: MissionPlan, scenario: Scenario, orbit: _Orbit, chaser: np.ndarray
+) -> float:
+    """Distance [m] from the chaser to the target at the planned arrival (docking) epoch."""
+    offset = plan.day.seconds_since(scenario.epoch)
+    target0 = target_state(scenario.target.orbit, scenario)
+    target, _, _, _ = orbit.arc(target0, 0.0, plan.rendezvous.burn2.t_s + offset)
+    return float(np.linalg.norm(chaser[:3] - target[:3]))
+
+
+# --- text ----------------------------------------------------------------------------------
+
+
+def format_flight_report(report: FlightReport) -> str:
+    """A few lines for the command line."""
+
+    def num(value: float | None, fmt: str, scale: float = 1.0) -> str:
+        return "-" if value is None else format(value * scale, fmt)
+
+    verdict = (
+        "LANDED within the stated miss"
+        if report.landed_within_stated_miss
+        else "NOT within the stated miss"
+    )
+    lines = [
+        f"replay: {'completed' if report.ok else 'FAILED'}; {verdict}"
+        + ("" if report.passed or not report.ok else " (but a check failed, see below)"),
+    ]
+    if report.reason:
+        lines.append(f"  reason: {report.reason}")
+    lines.append(
+        f"  miss from the landing site: {num(report.miss_distance_m, '.3f', 1e-3)} km "
+        f"(stated {num(report.stated_miss_m, '.3f', 1e-3)} km; plan predicted "
+        f"{num(report.predicted_miss_distance_m, '.3f', 1e-3)} km)"
+    )
+    lines.append(
+        f"  distance from the predicted terminal point: "
+        f"{num(report.prediction_distance_m, '.1f')} m "
+        f"(tolerance {num(report.prediction_tolerance_m, '.0f')} m)"
+    )
+    if report.terminal:
+        t = report.terminal
+        lines.append(
+            f"  terminal: {t['epoch_utc']}  {t['latitude_deg']:.4f} deg, "
+            f"{t['longitude_deg']:.4f} deg, {t['altitude_m'] / 1e3:.2f} km, "
+            f"{t['speed_mps']:.1f} m/s, fpa {t['fpa_deg']:.2f} deg ({report.terminal_status})"
+        )
+    if report.entry:
+        e = report.entry
+        lines.append(
+            f"  entry: {e['epoch_utc']}  {e['latitude_deg']:.4f} deg, "
+            f"{e['longitude_deg']:.4f} deg, {e['speed_mps']:.1f} m/s relative, "
+            f"inertial fpa {e['inertial_fpa_deg']:.4f} deg; vs plan "
+            f"{num(report.entry_time_difference_s, '.2e')} s, "
+            f"{num(report.entry_position_difference_m, '.2e')} m"
+        )
+    lines.append(
+        f"  rendezvous arrival miss: {num(report.rendezvous_arrival_miss_m, '.3g')} m "
+        f"(plan {num(report.planned_arrival_miss_m, '.3g')} m, "
+        f"tolerance {num(report.arrival_miss_tolerance_m, 'g')} m)"
+    )
+    for name, check in report.checks.items():
+        lines.append(
+            f"  {'ok  ' if check.ok else 'FAIL'} {name}: {num(check.value, '.6g')} "
+            f"(limit {check.limit:g} {check.unit})"
+        )
+    for burn in report.burns:
+        lines.append(
+            f"  burn {burn.name}: {burn.dv_mps:.3f} m/s at {burn.t_s:.1f} s "
+            f"(local frame vs plan {burn.local_frame_difference_mps:.1e} m/s)"
+        )
+    lines.append(f"  replay time {report.wall_time_s:.2f} s")
+    return "\n".join(lines)

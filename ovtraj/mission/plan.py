@@ -1,0 +1,707 @@
+"""The mission plan (SPEC step 6, the patent's step 106): every manoeuvre of a chosen design.
+
+:func:`build_plan` evaluates the whole-mission chain for one design and turns its
+stage results into a :class:`MissionPlan`: the launch (fit outputs, insertion
+state, the launch programme interpolated from the solved grid), each impulse with
+its epoch in ECI and in the local RSW frame, the stay, the deorbit burn, the
+reentry's entry state and bank profile (with the bank reversals, so it can be
+re-flown open-loop), the predicted terminal state, the totals, the resolved
+scenario and the code version. A plan file is self-contained: :mod:`.fly`
+replays it with nothing else.
+
+Units are SI and named in the keys (``_m``, ``_mps``, ``_s``, ``_kg``); angles are
+in degrees (``_deg``). Every epoch is given twice: as ISO 8601 UTC text
+(``*_epoch_utc``) and as seconds from the launch day's 0 h UTC (``*_t_s``), except
+where a key says otherwise (``t_from_entry_s`` of the bank reversals).
+
+:func:`write_plan` stores a plan as JSON and YAML (never replacing a different
+stored plan); :func:`read_plan` reads either back, naming the file and the field
+on bad content.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+
+from ovtraj.astro.epoch import Epoch
+from ovtraj.config.base import format_validation_error
+from ovtraj.deorbit.result import DeorbitResult
+from ovtraj.files import atomic_bytes
+from ovtraj.launch.fit import LaunchFit
+from ovtraj.mission.chain import MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.reentry import EntryState, reentry_input
+from ovtraj.reentry.dynamics import HISTORY_COLUMNS
+from ovtraj.reentry.model import EntryModel
+from ovtraj.reentry.result import ReentryResult
+from ovtraj.rendezvous.result import Impulse, RendezvousResult
+from ovtraj.version import code_version
+
+SCHEMA_VERSION = "ovtraj.mission-plan/1"
+Vector3 = tuple[float, float, float]
+_BANK = HISTORY_COLUMNS.index("bank_rad")
+_TIME = HISTORY_COLUMNS.index("time_s")
+_SPEED = HISTORY_COLUMNS.index("speed_mps")
+# The launch programme: the ten design variables of the launch (patent step 101), as the
+# solved grid stores them (``design_<name>``), plus the absolute launch azimuth.
+PROGRAMME_VARIABLES = (
+    "azimuth_offset_deg",
+    "alpha_1_deg",
+    "t_12_s",
+    "alpha_2_deg",
+    "t_23_s",
+    "coast_s",
+    "pitch_rate_2_deg_s",
+    "pitch_3_deg",
+    "pitch_rate_3_deg_s",
+    "payload_kg",
+)
+
+
+class PlanError(ValueError):
+    """A design without a plan (infeasible), or a plan file that cannot be stored or read.
+
+    ``stage`` and ``reason`` are set when the chain failed for the design.
+    """
+
+    def __init__(
+        self, message: str, *, stage: str | None = None, reason: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.stage = stage
+        self.reason = reason
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class PlannedImpulse(_Model):
+    """One impulsive manoeuvre: epoch, ECI vector and its RSW components at the burn state."""
+
+    name: str
+    epoch_utc: str
+    t_s: float
+    dv_eci_mps: Vector3
+    dv_radial_mps: float
+    dv_along_track_mps: float
+    dv_cross_track_mps: float
+    dv_mps: float
+
+    @property
+    def eci(self) -> np.ndarray:
+        return np.asarray(self.dv_eci_mps, dtype=float)
+
+    @property
+    def rsw(self) -> np.ndarray:
+        return np.array([self.dv_radial_mps, self.dv_along_track_mps, self.dv_cross_track_mps])
+
+
+class LaunchProgramme(_Model):
+    """The launch's ten programme variables at the parking altitude (not a solved launch).
+
+    The launch fit (patent 5.1) gives payload, times and argument of latitude only;
+    the programme is interpolated linearly in altitude between the two solved grid
+    launches that bracket the parking altitude (both given too).
+    """
+
+    basis: str
+    altitude_below_m: float
+    altitude_above_m: float
+    variables: dict[str, float]
+    below: dict[str, float]
+    above: dict[str, float]
+
+
+class LaunchPlan(_Model):
+    source: str
+    launcher: str
+    drop_epoch_utc: str
+    drop_t_s: float
+    insertion_epoch_utc: str
+    insertion_t_s: float
+    flight_time_s: float
+    parking_altitude_m: float
+    payload_kg: float
+    insertion_arg_latitude_deg: float
+    plane_inclination_deg: float
+    plane_raan_deg: float
+    insertion_r_eci_m: Vector3
+    insertion_v_eci_mps: Vector3
+    programme: LaunchProgramme | None
+
+
+class RendezvousPlan(_Model):
+    wait_time_s: float
+    transfer_time_s: float
+    lead_angle_deg: float
+    burn1: PlannedImpulse
+    burn2: PlannedImpulse
+    arrival_epoch_utc: str
+    arrival_t_s: float
+    arrival_miss_m: float
+    miss_tolerance_m: float
+
+
+class StayPlan(_Model):
+    docking_epoch_utc: str
+    docking_t_s: float
+    separation_epoch_utc: str
+    separation_t_s: float
+    duration_s: float
+
+
+class TransferPlan(_Model):
+    preparation_altitude_m: float
+    burn1: PlannedImpulse
+    burn2: PlannedImpulse
+    arrival_epoch_utc: str
+    arrival_t_s: float
+
+
+class DeorbitPlan(_Model):
+    burn: PlannedImpulse
+    entry_epoch_utc: str
+    entry_t_s: float
+
+
+class EntryPlan(_Model):
+    """Entry interface state: Earth-relative (what the reentry flies from) and inertial."""
+
+    epoch_utc: str
+    t_s: float
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+    speed_mps: float
+    fpa_deg: float
+    heading_deg: float
+    inertial_speed_mps: float
+    inertial_fpa_deg: float
+    r_eci_m: Vector3
+    v_eci_mps: Vector3
+
+
+class BankReversal(_Model):
+    t_from_entry_s: float
+    speed_mps: float
+    sign_after: Literal[-1, 1]
+
+
+class BankProfile(_Model):
+    """The reentry's bank programme, enough to fly it open-loop.
+
+    |sigma| runs linearly in Earth-relative speed from ``sigma0_deg`` at
+    ``speed_start_mps`` to ``sigma1_deg`` at ``speed_end_mps`` (held outside, clipped to
+    [0, ``max_bank_deg``]); its sign starts at ``initial_sign`` and flips at each reversal
+    time (s from the entry epoch). The angle of attack follows the scenario's Mach
+    schedule (copied here).
+    """
+
+    law: str
+    sigma0_deg: float
+    sigma1_deg: float
+    speed_start_mps: float
+    speed_end_mps: float
+    max_bank_deg: float
+    initial_sign: Literal[-1, 1]
+    reversals: list[BankReversal]
+    alpha_schedule_mach: list[float]
+    alpha_schedule_deg: list[float]
+
+    def sign_at(self, t_from_entry_s: float) -> float:
+        """Bank sign ``t_from_entry_s`` seconds after the entry epoch."""
+        sign = float(self.initial_sign)
+        for reversal in self.reversals:
+            if t_from_entry_s >= reversal.t_from_entry_s:
+                sign = float(reversal.sign_after)
+        return sign
+
+
+class ReentryPlan(_Model):
+    entry: EntryPlan
+    bank_profile: BankProfile
+    flight_time_s: float
+    integrator: str
+    max_heat_rate_w_m2: float
+    max_load_g: float
+    max_dynamic_pressure_pa: float
+    max_bank_deg: float
+
+
+class TerminalPlan(_Model):
+    """The predicted end of the reentry at the terminal interface, and the stated miss."""
+
+    epoch_utc: str
+    t_s: float
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+    speed_mps: float
+    fpa_deg: float
+    heading_deg: float
+    miss_distance_m: float
+    landing_site_name: str
+    landing_site_latitude_deg: float
+    landing_site_longitude_deg: float
+    stated_miss_m: float
+    stated_miss_basis: str
+    prediction_tolerance_m: float
+
+
+class PlanTotals(_Model):
+    t_total_s: float
+    dv_total_mps: float
+    m_load_kg: float
+
+
+class PlanDesign(_Model):
+    parking_altitude_km: float
+    preparation_altitude_km: float
+    separation_delay_h: float
+
+
+class MissionPlan(_Model):
+    """A flyable mission plan; see the module notes for units and epochs."""
+
+    schema_version: Literal["ovtraj.mission-plan/1"]
+    code_version: str
+    source: dict[str, Any]
+    design: PlanDesign
+    launch_day_utc: str
+    launch: LaunchPlan
+    rendezvous: RendezvousPlan
+    stay: StayPlan
+    transfer: TransferPlan
+    deorbit: DeorbitPlan
+    reentry: ReentryPlan
+    terminal: TerminalPlan
+    totals: PlanTotals
+    scenario: dict[str, Any]
+
+    @field_validator("launch_day_utc")
+    @classmethod
+    def _parses(cls, value: str) -> str:
+        Epoch.from_iso(value)
+        return value
+
+    @property
+    def day(self) -> Epoch:
+        return Epoch.from_iso(self.launch_day_utc)
+
+    def impulses(self) -> list[PlannedImpulse]:
+        """Every OV impulse in time order."""
+        return [
+            self.rendezvous.burn1,
+            self.rendezvous.burn2,
+            self.transfer.burn1,
+            self.transfer.burn2,
+            self.deorbit.burn,
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        return self.model_dump(mode="json")
+
+
+# --- building ---------------------------------------------------------------------------
+
+
+def build_plan(
+    context: MissionContext, design: MissionDesign, *, source: dict[str, Any]
+) -> MissionPlan:
+    """Evaluate the chain for ``design`` and return its plan.
+
+    ``source`` is the caller's metadata (run id, front index, objectives...), stored
+    as given; it must be JSON data. Raises :class:`PlanError` naming the failed stage
+    and its reason when the design is infeasible.
+    """
+    record = evaluate(context, design)
+    if not record.feasible:
+        raise PlanError(
+            f"design {design.as_dict()} is infeasible: the {record.failed_stage} stage "
+            f"failed: {record.reason}",
+            stage=record.failed_stage,
+            reason=record.reason,
+        )
+    return plan_from_record(context, record, source=source)
+
+
+def plan_from_record(
+    context: MissionContext, record: MissionRecord, *, source: dict[str, Any]
+) -> MissionPlan:
+    """The plan of an evaluated, feasible record (its ``results`` must be filled in)."""
+    if not record.feasible:
+        raise PlanError(
+            f"the record is infeasible: the {record.failed_stage} stage failed: {record.reason}",
+            stage=record.failed_stage,
+            reason=record.reason,
+        )
+    missing = [
+        s
+        for s in ("launch", "rendezvous", "transfer", "deorbit", "reentry")
+        if s not in record.results
+    ]
+    if missing:
+        raise PlanError(f"the record lacks the stage results of {', '.join(missing)}")
+    scenario = context.scenario
+    day = context.day
+    results = record.results
+    rdv: RendezvousResult = results["rendezvous"]
+    transfer: RendezvousResult = results["transfer"]
+    deorbit: DeorbitResult = results["deorbit"]
+    reentry: ReentryResult = results["reentry"]
+    launch = _launch_plan(context, record)
+    t_prep = transfer.arrival_time_s
+    t_entry = t_prep + deorbit.entry_t_s
+    t_terminal = t_entry + reentry.flight_time_s
+    entry_state = _entry_state(deorbit)
+    settings = scenario.reentry
+    plan_settings = scenario.mission.plan
+    site = settings.landing_site
+    stated_miss_m = settings.terminal.miss_tolerance_km * 1e3
+    data = {
+        "schema_version": SCHEMA_VERSION,
+        "code_version": code_version(),
+        "source": _json_data(source),
+        "design": record.design.as_dict(),
+        "launch_day_utc": day.iso(),
+        "launch": launch,
+        "rendezvous": {
+            "wait_time_s": rdv.wait_time_s,
+            "transfer_time_s": rdv.transfer_time_s,
+            "lead_angle_deg": math.degrees(rdv.lead_angle_rad),
+            "burn1": _impulse("rendezvous burn 1", rdv.burn1, day),
+            "burn2": _impulse("rendezvous burn 2", rdv.burn2, day),
+            "arrival_epoch_utc": _iso(day, rdv.arrival_time_s),
+            "arrival_t_s": rdv.arrival_time_s,
+            "arrival_miss_m": rdv.miss_distance_m,
+            "miss_tolerance_m": scenario.tolerances.miss_distance_m,
+        },
+        "stay": {
+            "docking_epoch_utc": _iso(day, rdv.arrival_time_s),
+            "docking_t_s": rdv.arrival_time_s,
+            "separation_epoch_utc": _iso(day, transfer.burn1.t_s),
+            "separation_t_s": transfer.burn1.t_s,
+            "duration_s": transfer.burn1.t_s - rdv.arrival_time_s,
+        },
+        "transfer": {
+            "preparation_altitude_m": record.design.preparation_altitude_km * 1e3,
+            "burn1": _impulse("transfer burn 1", transfer.burn1, day),
+            "burn2": _impulse("transfer burn 2", transfer.burn2, day),
+            "arrival_epoch_utc": _iso(day, t_prep),
+            "arrival_t_s": t_prep,
+        },
+        "deorbit": {
+            "burn": _impulse(
+                "deorbit burn",
+                Impulse(t_prep + deorbit.burn_t_s, deorbit.dv_eci_mps, deorbit.dv_rsw_mps),
+                day,
+            ),
+            "entry_epoch_utc": _iso(day, t_entry),
+            "entry_t_s": t_entry,
+        },
+        "reentry": {
+            "entry": {
+                "epoch_utc": _iso(day, t_entry),
+                "t_s": t_entry,
+                "latitude_deg": math.degrees(entry_state.latitude_rad),
+                "longitude_deg": math.degrees(entry_state.longitude_rad),
+                "altitude_m": entry_state.altitude_m,
+                "speed_mps": entry_state.speed_mps,
+                "fpa_deg": math.degrees(entry_state.fpa_rad),
+                "heading_deg": math.degrees(entry_state.heading_rad),
+                "inertial_speed_mps": deorbit.entry_speed_mps,
+                "inertial_fpa_deg": math.degrees(deorbit.entry_fpa_rad),
+                "r_eci_m": _vector(deorbit.entry_r_eci_m),
+                "v_eci_mps": _vector(deorbit.entry_v_eci_mps),
+            },
+            "bank_profile": _bank_profile(context, entry_state, reentry),
+            "flight_time_s": reentry.flight_time_s,
+            "integrator": (
+                f"fixed-step RK4, {settings.integration.step_s:g} s, reversals decided at the "
+                "step starts (ovtraj.reentry.dynamics)"
+            ),
+            "max_heat_rate_w_m2": reentry.max_heat_rate_w_m2,
+            "max_load_g": reentry.max_load_g,
+            "max_dynamic_pressure_pa": reentry.max_dynamic_pressure_pa,
+            "max_bank_deg": math.degrees(reentry.max_bank_rad),
+        },
+        "terminal": {
+            "epoch_utc": _iso(day, t_terminal),
+            "t_s": t_terminal,
+            "latitude_deg": math.degrees(reentry.terminal_latitude_rad),
+            "longitude_deg": math.degrees(reentry.terminal_longitude_rad),
+            "altitude_m": reentry.terminal_altitude_m,
+            "speed_mps": reentry.terminal_speed_mps,
+            "fpa_deg": math.degrees(reentry.terminal_fpa_rad),
+            "heading_deg": math.degrees(reentry.terminal_heading_rad),
+            "miss_distance_m": reentry.miss_distance_m,
+            "landing_site_name": site.name,
+            "landing_site_latitude_deg": site.latitude_deg,
+            "landing_site_longitude_deg": site.longitude_deg,
+            "stated_miss_m": stated_miss_m,
+            "stated_miss_basis": (
+                "reentry.terminal.miss_tolerance_km: the terminal miss the reentry stage "
+                "accepts; the replay must end this close to the landing site"
+            ),
+            "prediction_tolerance_m": plan_settings.prediction_tolerance_km * 1e3,
+        },
+        "totals": {
+            "t_total_s": record.t_total_s,
+            "dv_total_mps": record.dv_total_mps,
+            "m_load_kg": record.m_load_kg,
+        },
+        "scenario": scenario.resolved(),
+    }
+    try:
+        return MissionPlan.model_validate(_json_data(data))
+    except ValidationError as err:  # a stage left a value the plan cannot hold (a bug)
+        problems = "; ".join(format_validation_error(err, MissionPlan))
+        raise PlanError(f"the chain's results do not make a valid plan: {problems}") from None
+
+
+def _iso(day: Epoch, t_s: float) -> str:
+    return day.plus_seconds(t_s).iso()
+
+
+def _vector(values: np.ndarray) -> list[float]:
+    return [float(v) for v in np.asarray(values, dtype=float).reshape(3)]
+
+
+def _impulse(name: str, burn: Impulse, day: Epoch) -> dict[str, Any]:
+    rsw = np.asarray(burn.rsw_mps, dtype=float)
+    return {
+        "name": name,
+        "epoch_utc": _iso(day, burn.t_s),
+        "t_s": float(burn.t_s),
+        "dv_eci_mps": _vector(burn.eci_mps),
+        "dv_radial_mps": float(rsw[0]),
+        "dv_along_track_mps": float(rsw[1]),
+        "dv_cross_track_mps": float(rsw[2]),
+        "dv_mps": burn.magnitude_mps,
+    }
+
+
+def _launch_plan(context: MissionContext, record: MissionRecord) -> dict[str, Any]:
+    launch = record.results["launch"]
+    day = context.day
+    t_ins = launch["insertion_time_s"]
+    t_drop = launch["drop_time_s"]
+    state = np.asarray(launch["insertion_state"], dtype=float)
+    altitude_m = record.design.parking_altitude_km * 1e3
+    return {
+        "source": "launch fit (patent 5.1): payload, times and insertion argument of latitude",
+        "launcher": context.fit.launcher,
+        "drop_epoch_utc": _iso(day, t_drop),
+        "drop_t_s": t_drop,
+        "insertion_epoch_utc": _iso(day, t_ins),
+        "insertion_t_s": t_ins,
+        "flight_time_s": launch["flight_time_s"],
+        "parking_altitude_m": altitude_m,
+        "payload_kg": launch["payload_kg"],
+        "insertion_arg_latitude_deg": launch["insertion_u_deg"] % 360.0,
+        "plane_inclination_deg": math.degrees(context.plane.inclination_rad),
+        "plane_raan_deg": math.degrees(context.plane.raan_at(t_ins)) % 360.0,
+        "insertion_r_eci_m": _vector(state[:3]),
+        "insertion_v_eci_mps": _vector(state[3:]),
+        "programme": launch_programme(context.fit, altitude_m),
+    }
+
+
+def launch_programme(fit: LaunchFit, altitude_m: float) -> dict[str, Any] | None:
+    """The programme between the solved grid launches bracketing ``altitude_m``.
+
+    ``None`` when the grid does not hold the design variables or does not bracket the
+    altitude (the fit's range check fails first in the chain).
+    """
+    grid = fit.grid
+    columns = [f"design_{name}" for name in PROGRAMME_VARIABLES]
+    if any(c not in grid.columns for c in [*columns, "target_altitude_km", "azimuth_deg"]):
+        return None
+    grid = grid.sort_values("target_altitude_km").reset_index(drop=True)
+    h = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
+    if not h[0] <= altitude_m <= h[-1]:
+        return None
+    k = int(np.clip(np.searchsorted(h, altitude_m, side="right") - 1, 0, len(h) - 2))
+    f = (altitude_m - h[k]) / (h[k + 1] - h[k])
+
+    def row(i: int) -> dict[str, float]:
+        values = {name: float(grid.at[i, f"design_{name}"]) for name in PROGRAMME_VARIABLES}
+        values["azimuth_deg"] = float(grid.at[i, "azimuth_deg"])
+        return values
+
+    below, above = row(k), row(k + 1)
+    return {
+        "basis": (
+            "linear interpolation in altitude between the two solved grid launches of the "
+            "launch fit; not a solved launch (the fit does not give the programme)"
+        ),
+        "altitude_below_m": float(h[k]),
+        "altitude_above_m": float(h[k + 1]),
+        "variables": {n: below[n] + f * (above[n] - below[n]) for n in below},
+        "below": below,
+        "above": above,
+    }
+
+
+def _entry_state(deorbit: DeorbitResult) -> EntryState:
+    """The entry state the chain hands to the reentry (as ``chain._run`` builds it)."""
+    return EntryState(
+        epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
+        latitude_rad=deorbit.entry_latitude_rad,
+        longitude_rad=deorbit.entry_longitude_rad,
+        altitude_m=deorbit.entry_altitude_m,
+        speed_mps=deorbit.entry_relative_speed_mps,
+        fpa_rad=deorbit.entry_relative_fpa_rad,
+        heading_rad=deorbit.entry_heading_rad,
+    )
+
+
+def _bank_profile(
+    context: MissionContext, entry: EntryState, reentry: ReentryResult
+) -> dict[str, Any]:
+    """The solved bank profile and its reversal times, from a re-flight of the final shot.
+
+    The reentry result keeps a sampled table; the reversals (decided at the RK4 step
+    starts) need the full history, so the final shot is flown once more with the same
+    model and inputs and must end exactly where the stage's did.
+    """
+    scenario = context.scenario
+    settings = scenario.reentry
+    model = EntryModel(reentry_input(scenario, entry=entry))
+    flight = model.fly(reentry.sigma0_rad, reentry.sigma1_rad, record=True)
+    if flight.time_s != reentry.flight_time_s or flight.reversals != reentry.reversals:
+        raise PlanError(
+            "the re-flown reentry does not reproduce the stage's result "
+            f"(flight time {flight.time_s} vs {reentry.flight_time_s} s, reversals "
+            f"{flight.reversals} vs {reentry.reversals})"
+        )
+    history = flight.history
+    negative = np.signbit(history[:, _BANK])
+    changes = np.flatnonzero(negative[1:] != negative[:-1]) + 1
+    if len(changes) != flight.reversals:
+        raise PlanError(
+            f"found {len(changes)} bank sign changes in the reentry history, "
+            f"the flight reports {flight.reversals} reversals"
+        )
+    vehicle = settings.vehicle
+    return {
+        "law": (
+            "|sigma| linear in Earth-relative speed from sigma0 at speed_start to sigma1 at "
+            "speed_end, clipped to [0, max_bank]; sign flipped at each reversal time"
+        ),
+        "sigma0_deg": math.degrees(reentry.sigma0_rad),
+        "sigma1_deg": math.degrees(reentry.sigma1_rad),
+        "speed_start_mps": entry.speed_mps,
+        "speed_end_mps": settings.terminal.speed_mps,
+        "max_bank_deg": settings.limits.max_bank_deg,
+        "initial_sign": -1 if negative[0] else 1,
+        "reversals": [
+            {
+                "t_from_entry_s": float(history[k, _TIME]),
+                "speed_mps": float(history[k, _SPEED]),
+                "sign_after": -1 if negative[k] else 1,
+            }
+            for k in changes
+        ],
+        "alpha_schedule_mach": list(vehicle.alpha_schedule.mach),
+        "alpha_schedule_deg": list(vehicle.alpha_schedule.alpha_deg),
+    }
+
+
+def _json_data(value: Any) -> Any:
+    """Plain JSON data (numpy scalars and arrays converted); raises PlanError otherwise."""
+    try:
+        text = json.dumps(value, allow_nan=False, default=_json_default)
+    except (TypeError, ValueError) as err:
+        raise PlanError(f"plan content is not JSON data: {err}") from None
+    return json.loads(text)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON data")
+
+
+# --- storing and reading ----------------------------------------------------------------
+
+
+def plan_json(plan: MissionPlan) -> bytes:
+    """The plan as JSON text (UTF-8), keys in schema order."""
+    return (json.dumps(plan.to_dict(), indent=2, allow_nan=False) + "\n").encode("utf-8")
+
+
+def plan_yaml(plan: MissionPlan) -> bytes:
+    """The plan as YAML text (UTF-8), keys in schema order; floats round-trip exactly."""
+    return yaml.safe_dump(plan.to_dict(), sort_keys=False, allow_unicode=True, width=100).encode(
+        "utf-8"
+    )
+
+
+def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Path]:
+    """Write ``<name>.json`` and ``<name>.yaml`` in ``directory`` atomically.
+
+    An existing file with the same content is left as it is; one with different
+    content raises :class:`PlanError` and neither file is touched (a stored plan is
+    never replaced by another).
+    """
+    if not name or Path(name).name != name or name in {".", ".."}:
+        raise PlanError(f"plan name {name!r} must be a plain file name")
+    directory = Path(directory)
+    targets = (
+        (directory / f"{name}.json", plan_json(plan)),
+        (directory / f"{name}.yaml", plan_yaml(plan)),
+    )
+    for path, payload in targets:
+        if path.exists() and path.read_bytes() != payload:
+            raise PlanError(
+                f"{path}: a different plan is stored there; refusing to overwrite it "
+                "(choose another name or directory)"
+            )
+    for path, payload in targets:
+        if not path.exists():
+            atomic_bytes(path, payload)
+    return targets[0][0], targets[1][0]
+
+
+def read_plan(path: Path) -> MissionPlan:
+    """A plan from its JSON or YAML file; :class:`PlanError` names the file and the field."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise PlanError(f"{path}: cannot read the plan file ({err})") from None
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".json":
+            data = json.loads(text)
+        elif suffix in {".yaml", ".yml"}:
+            data = yaml.safe_load(text)
+        else:
+            raise PlanError(f"{path}: a plan file ends in .json, .yaml or .yml")
+    except (json.JSONDecodeError, yaml.YAMLError) as err:
+        kind = "JSON" if suffix == ".json" else "YAML"
+        raise PlanError(f"{path}: not valid {kind}: {err}") from None
+    if not isinstance(data, dict):
+        raise PlanError(f"{path}: expected a mapping at the top level, got {type(data).__name__}")
+    version = data.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise PlanError(
+            f"{path}: schema_version = {version!r}: this code reads {SCHEMA_VERSION!r} plans"
+        )
+    try:
+        return MissionPlan.model_validate(data)
+    except ValidationError as err:
+        problems = format_validation_error(err, MissionPlan)
+        raise PlanError(
+            "\n".join([f"{path}: invalid mission plan:", *(f"  - {p}" for p in problems)])
+        ) from None

@@ -1,0 +1,279 @@
+"""The mission plan (SPEC step 6): building, storing, reading and replaying it."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ovtraj.astro.epoch import Epoch
+from ovtraj.astro.propagation.reference import propagate_dop853
+from ovtraj.config import load_scenario
+from ovtraj.launch.fit import find_launch_fit
+from ovtraj.mission.chain import MissionContext, MissionDesign, evaluate
+from ovtraj.mission.fly import fly_plan, format_flight_report
+from ovtraj.mission.plan import (
+    MissionPlan,
+    PlanError,
+    build_plan,
+    plan_json,
+    read_plan,
+    write_plan,
+)
+from ovtraj.paths import config_path
+from ovtraj.plots.mission import mission_plots
+
+FEASIBLE = MissionDesign(285.06, 326.96, 0.79)
+INFEASIBLE = MissionDesign(343.17, 352.06, 1.58)  # the phasing wait exceeds its limit
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario(config_path("scenario.yaml"))
+
+
+@pytest.fixture(scope="module")
+def context(scenario):
+    fit = find_launch_fit(scenario)
+    assert fit is not None, "the reference launch fit is missing (data/reference/launch_fit)"
+    return MissionContext(scenario, fit)
+
+
+@pytest.fixture(scope="module")
+def record(context):
+    record = evaluate(context, FEASIBLE)
+    assert record.feasible, record.reason
+    return record
+
+
+@pytest.fixture(scope="module")
+def plan(context):
+    return build_plan(context, FEASIBLE, source={"run_id": "test", "front_index": 3})
+
+
+@pytest.fixture(scope="module")
+def replay(plan):
+    return fly_plan(plan)
+
+
+@pytest.fixture(scope="module")
+def burn_states(plan, scenario):
+    """The OV's state just before each planned impulse, propagated here (scipy DOP853).
+
+    Independent of the chain (heyoka) and of the replay (its own right-hand side).
+    """
+    earth = scenario.earth
+    state = np.r_[plan.launch.insertion_r_eci_m, plan.launch.insertion_v_eci_mps]
+    t = plan.launch.insertion_t_s
+    states = []
+    for burn in plan.impulses():
+        state = propagate_dop853(
+            state, t, burn.t_s, mu=earth.mu, radius=earth.radius, j2=earth.j2, rtol=1e-12, atol=1e-9
+        )
+        states.append(state.copy())
+        state = state + np.r_[0.0, 0.0, 0.0, burn.dv_eci_mps]
+        t = burn.t_s
+    return states
+
+
+def _haversine(lat1, lon1, lat2, lon2, radius):
+    lat1, lon1, lat2, lon2 = map(math.radians, (lat1, lon1, lat2, lon2))
+    h = (
+        math.sin((lat2 - lat1) / 2) ** 2
+        + math.cos(lat1) * math.cos(lat2) * math.sin((lon2 - lon1) / 2) ** 2
+    )
+    return 2 * radius * math.asin(math.sqrt(h))
+
+
+def _rsw(state):
+    r, v = state[:3], state[3:]
+    radial = r / np.linalg.norm(r)
+    normal = np.cross(r, v) / np.linalg.norm(np.cross(r, v))
+    return np.array([radial, np.cross(normal, radial), normal])
+
+
+def test_replay_lands_within_the_stated_miss_and_near_the_prediction(plan, replay, scenario):
+    assert replay.ok, replay.reason
+    stated = scenario.reentry.terminal.miss_tolerance_km * 1e3
+    assert plan.terminal.stated_miss_m == stated
+    # Distances recomputed here from the reported and planned terminal points.
+    radius = scenario.earth.radius
+    site = scenario.reentry.landing_site
+    end = replay.terminal
+    miss = _haversine(end["latitude_deg"], end["longitude_deg"], site.latitude_deg,
+                      site.longitude_deg, radius)  # fmt: skip
+    assert miss == pytest.approx(replay.miss_distance_m, abs=1e-3)
+    assert miss <= stated and replay.landed_within_stated_miss
+    predicted = plan.terminal
+    off = _haversine(end["latitude_deg"], end["longitude_deg"], predicted.latitude_deg,
+                     predicted.longitude_deg, radius)  # fmt: skip
+    assert off == pytest.approx(replay.prediction_distance_m, abs=1e-3)
+    assert off <= 50.0  # measured 2.3 m: the chain's 2 s RK4 against adaptive DOP853
+    assert abs(end["altitude_m"] - predicted.altitude_m) < 50.0
+    assert end["speed_mps"] == pytest.approx(scenario.reentry.terminal.speed_mps, abs=1e-6)
+    assert replay.matches_prediction and replay.passed
+    # The replayed entry is where the plan (the deorbit stage) put it.
+    assert abs(replay.entry_time_difference_s) < 1e-3
+    assert replay.entry_position_difference_m < 1.0
+    assert "LANDED" in format_flight_report(replay)
+
+
+def test_replay_report_is_plain_json_without_nan(replay):
+    text = json.dumps(replay.to_dict(), allow_nan=False)
+    assert '"landed_within_stated_miss": true' in text
+
+
+def test_rendezvous_arrival_miss_matches_the_chain(replay, record, scenario):
+    chain_miss = record.stages["rendezvous"]["miss_distance_m"]
+    epsilon = scenario.tolerances.miss_distance_m
+    assert chain_miss < epsilon
+    assert replay.rendezvous_arrival_miss_m < epsilon
+    # Both are integrator noise around an exact arrival (< 1 cm over 40 h of coasting).
+    assert abs(replay.rendezvous_arrival_miss_m - chain_miss) < 0.05
+
+
+def test_planned_impulses_sum_to_the_chain_total(plan, record):
+    magnitudes = [float(np.linalg.norm(b.dv_eci_mps)) for b in plan.impulses()]
+    assert len(magnitudes) == 5
+    assert sum(magnitudes) == pytest.approx(record.dv_total_mps, rel=1e-12)
+    assert [b.dv_mps for b in plan.impulses()] == pytest.approx(magnitudes, rel=1e-12)
+    assert plan.totals.dv_total_mps == pytest.approx(record.dv_total_mps, rel=1e-12)
+    assert plan.totals.t_total_s == pytest.approx(record.t_total_s, abs=1e-6)
+    assert plan.totals.m_load_kg == pytest.approx(record.m_load_kg, rel=1e-12)
+    # Epochs in time order, each ISO text agreeing with its seconds from the launch day.
+    times = [b.t_s for b in plan.impulses()]
+    assert times == sorted(times)
+    day = Epoch.from_iso(plan.launch_day_utc)
+    for burn in plan.impulses():
+        assert Epoch.from_iso(burn.epoch_utc).seconds_since(day) == pytest.approx(
+            burn.t_s, abs=1e-5
+        )
+    assert plan.stay.docking_t_s == plan.rendezvous.burn2.t_s
+    assert plan.stay.separation_t_s == plan.transfer.burn1.t_s
+
+
+def test_replayed_constraint_maxima_are_within_limits_and_match_the_chain(replay, record, scenario):
+    limits = scenario.reentry.limits
+    row = record.stages["reentry"]
+    checks = replay.checks
+    pairs = (
+        ("max_heat_rate_w_m2", limits.max_heat_rate_kw_m2 * 1e3, row["max_heat_rate_kw_m2"] * 1e3),
+        ("max_load_g", limits.max_load_g, row["max_load_g"]),
+        ("max_dynamic_pressure_pa", limits.max_dynamic_pressure_kpa * 1e3,
+         row["max_dynamic_pressure_kpa"] * 1e3),
+    )  # fmt: skip
+    for name, limit, chain_value in pairs:
+        assert checks[name].value <= limit and checks[name].ok
+        assert checks[name].value == pytest.approx(chain_value, rel=0.01), name
+    assert checks["min_perigee_altitude_m"].ok
+    assert checks["min_perigee_altitude_m"].value > scenario.limits.min_perigee_altitude_km * 1e3
+    entry = scenario.deorbit.entry
+    assert entry.fpa_min_deg - 1e-4 <= replay.entry["inertial_fpa_deg"] <= entry.fpa_max_deg + 1e-4
+
+
+def test_local_frame_impulses_agree_with_the_eci_ones(plan, burn_states):
+    for burn, state in zip(plan.impulses(), burn_states, strict=True):
+        local = _rsw(state) @ np.asarray(burn.dv_eci_mps)
+        planned = [burn.dv_radial_mps, burn.dv_along_track_mps, burn.dv_cross_track_mps]
+        assert local == pytest.approx(planned, abs=1e-6), burn.name
+    # The deorbit burn brakes along the track.
+    assert plan.deorbit.burn.dv_along_track_mps < -0.99 * plan.deorbit.burn.dv_mps
+
+
+def test_plan_holds_the_stages_results(plan, record, scenario):
+    assert plan.source == {"run_id": "test", "front_index": 3}
+    assert plan.scenario == scenario.resolved()
+    launch = record.stages["launch"]
+    assert plan.launch.insertion_t_s == launch["insertion_time_s"]
+    assert plan.launch.payload_kg == launch["payload_kg"]
+    r = np.linalg.norm(plan.launch.insertion_r_eci_m) - scenario.earth.radius
+    assert r == pytest.approx(FEASIBLE.parking_altitude_km * 1e3, abs=15e3)  # osculating
+    programme = plan.launch.programme
+    for name, value in programme.variables.items():
+        lo, hi = sorted((programme.below[name], programme.above[name]))
+        assert lo <= value <= hi
+    bank = plan.reentry.bank_profile
+    row = record.stages["reentry"]
+    assert len(bank.reversals) == row["reversals"]
+    assert bank.sigma0_deg == pytest.approx(row["sigma0_deg"], rel=1e-12)
+    step = scenario.reentry.integration.step_s
+    times = [r.t_from_entry_s / step for r in bank.reversals]
+    assert all(abs(t - round(t)) < 1e-9 for t in times)  # reversals at RK4 step starts
+    assert [r.sign_after for r in bank.reversals] == [
+        -bank.initial_sign * (-1) ** k for k in range(len(bank.reversals))
+    ]
+    assert plan.terminal.miss_distance_m == pytest.approx(row["miss_distance_km"] * 1e3)
+
+
+def test_json_and_yaml_round_trip_and_no_overwrite(plan, tmp_path):
+    json_path, yaml_path = write_plan(plan, tmp_path, "chosen")
+    assert read_plan(json_path) == plan
+    assert read_plan(yaml_path) == plan
+    assert plan_json(read_plan(yaml_path)) == json_path.read_bytes()
+    before = (json_path.read_bytes(), yaml_path.read_bytes())
+    assert write_plan(plan, tmp_path, "chosen") == (json_path, yaml_path)  # same: no-op
+    other = plan.model_copy(update={"source": {"run_id": "another"}})
+    with pytest.raises(PlanError, match="refusing to overwrite"):
+        write_plan(other, tmp_path, "chosen")
+    assert (json_path.read_bytes(), yaml_path.read_bytes()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chosen.json", "chosen.yaml"]
+
+
+def test_read_plan_names_the_file_and_the_field(plan, tmp_path):
+    data = plan.to_dict()
+    data["reentry"]["bank_profile"]["sigma0_deg"] = "steep"
+    del data["terminal"]["stated_miss_m"]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(PlanError) as err:
+        read_plan(bad)
+    text = str(err.value)
+    assert str(bad) in text
+    assert "reentry.bank_profile.sigma0_deg" in text
+    assert "terminal.stated_miss_m" in text
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("schema_version: [unclosed\n")
+    with pytest.raises(PlanError, match=r"broken\.yaml: not valid YAML"):
+        read_plan(broken)
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps({**plan.to_dict(), "schema_version": "ovtraj.mission-plan/0"}))
+    with pytest.raises(PlanError, match=r"old\.json: schema_version"):
+        read_plan(old)
+
+
+def test_infeasible_design_raises_naming_the_stage(context):
+    with pytest.raises(PlanError, match="rendezvous") as err:
+        build_plan(context, INFEASIBLE, source={})
+    assert err.value.stage == "rendezvous"
+    assert "wait" in err.value.reason
+
+
+def test_perturbed_deorbit_burn_misses_the_stated_distance(plan, burn_states):
+    along = _rsw(burn_states[-1])[1]
+    data = plan.to_dict()
+    dv = np.asarray(data["deorbit"]["burn"]["dv_eci_mps"]) + 1.0 * along  # +1 m/s along track
+    data["deorbit"]["burn"]["dv_eci_mps"] = dv.tolist()
+    report = fly_plan(MissionPlan.model_validate(data))
+    assert report.miss_distance_m > plan.terminal.stated_miss_m
+    assert not report.landed_within_stated_miss and not report.passed
+    assert "NOT within" in format_flight_report(report)
+
+
+def test_unflyable_plan_is_a_failed_report_not_an_exception(plan):
+    data = plan.to_dict()
+    data["deorbit"]["burn"]["dv_eci_mps"] = [0.0, 0.0, 0.0]  # never comes down
+    report = fly_plan(MissionPlan.model_validate(data))
+    assert not report.ok and not report.landed_within_stated_miss
+    assert "entry interface" in report.reason
+    json.dumps(report.to_dict(), allow_nan=False)
+
+
+def test_mission_plots_write_three_pngs(record, scenario, tmp_path):
+    paths = mission_plots(record.trajectories, scenario, tmp_path, prefix="m")
+    assert len(paths) == 3 and len(set(paths)) == 3
+    for path in paths:
+        data = path.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
