@@ -613,3 +613,245 @@ def replay(run_id: str, store_root: StoreOpt = None) -> None:
         ("largest difference from the stored totals", worst),
     ]
     _print_rows(f"replay of {stored.id} (no simulation)", rows)
+
+
+def _launch_fit_or_exit(scenario: Scenario) -> Any:
+    from ovtraj.launch.fit import find_launch_fit
+
+    fit = find_launch_fit(scenario)
+    if fit is None:
+        typer.echo(
+            "no launch fit for this scenario: run `python -m flows.launch_fit` or "
+            "`ovtraj launch-fit CONFIG` first",
+            err=True,
+        )
+        raise typer.Exit(code=2)
+    return fit
+
+
+def _run_scenario(stored: Any, config: Path | None) -> Scenario:
+    from ovtraj.pipeline import run_scenario
+
+    try:
+        return run_scenario(stored, config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+PickIndexOpt = Annotated[
+    int | None, typer.Option("--pick", help="front index (see the front table)")
+]
+WeightsOpt = Annotated[
+    str | None,
+    typer.Option("--weights", help="T,dV,M weights on the normalised objectives, e.g. 1,1,2"),
+]
+MaxTimeOpt = Annotated[float | None, typer.Option("--max-time-h", help="limit on T_total [h]")]
+MaxDvOpt = Annotated[float | None, typer.Option("--max-dv", help="limit on dV_total [m/s]")]
+MinLoadOpt = Annotated[float | None, typer.Option("--min-payload", help="limit on M_load [kg]")]
+
+
+def _pick(
+    index: int | None,
+    weights: str | None,
+    max_time_h: float | None,
+    max_dv: float | None,
+    min_payload: float | None,
+    default_weights: tuple[float, float, float] | None = None,
+) -> Any:
+    from ovtraj.pipeline import Pick
+
+    parsed = default_weights
+    if weights is not None:
+        try:
+            parsed = tuple(float(w) for w in weights.split(","))
+        except ValueError:
+            typer.echo(
+                f"--weights must be three numbers separated by commas, got {weights}", err=True
+            )
+            raise typer.Exit(code=2) from None
+    return Pick(index, parsed, max_time_h, max_dv, min_payload)
+
+
+def _print_front(front: Any) -> None:
+    typer.echo(
+        "  front  sample   H_P0 [km]  H_dp [km]  t_dsp [h]   T [h]  dV [m/s]  M [kg]  origin"
+    )
+    for row in front.itertuples(index=False):
+        typer.echo(
+            f"  {row.front_index:5d}  {row.sample_id:6d}  {row.parking_altitude_km:9.2f}  "
+            f"{row.preparation_altitude_km:9.2f}  {row.separation_delay_h:9.2f}  "
+            f"{row.t_total_s / 3600:6.1f}  {row.dv_total_mps:8.2f}  {row.m_load_kg:6.1f}  "
+            f"{row.origin}"
+        )
+
+
+@app.command()
+def pipeline(
+    config: ConfigArg,
+    samples: Annotated[int | None, typer.Option("--samples", help="DoE samples")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
+    from_run: Annotated[
+        str | None, typer.Option("--run", help="start from this stored DoE run (no new DoE)")
+    ] = None,
+    refit: Annotated[
+        bool, typer.Option("--refit", help="refit and re-optimise even when stored")
+    ] = False,
+    pick: PickIndexOpt = None,
+    weights: WeightsOpt = None,
+    max_time_h: MaxTimeOpt = None,
+    max_dv: MaxDvOpt = None,
+    min_payload: MinLoadOpt = None,
+    store_root: StoreOpt = None,
+) -> None:
+    """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan."""
+    from functools import partial
+
+    from ovtraj.pipeline import PipelineError, PipelineSteps, fit_step, front_step, run_pipeline
+    from ovtraj.pipeline.planning import write_mission_plan
+    from ovtraj.runs import StoreError, prepare_run, run_doe
+    from ovtraj.surrogate import SurrogateError
+    from ovtraj.version import code_version
+
+    scenario = _load(config)
+    if scenario.mission is None:
+        typer.echo(f"{config}: the scenario has no mission section", err=True)
+        raise typer.Exit(code=2)
+    fit = _launch_fit_or_exit(scenario)
+    settings = scenario.mission.doe
+    store = _store(store_root, scenario)
+    code = code_version()
+
+    def evaluate(run: Any) -> Any:
+        return run_doe(scenario, run, fit, batch_size=settings.batch_size, progress=typer.echo)
+
+    try:
+        if from_run:
+            doe_run = store.run(from_run)
+            scenario = _run_scenario(doe_run, config)
+        else:
+            doe_run = prepare_run(
+                scenario,
+                samples=samples or settings.samples,
+                seed=settings.seed if seed is None else seed,
+                code=code,
+                store=store,
+            )
+        typer.echo(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
+        evaluate(doe_run)
+        steps = PipelineSteps(
+            evaluate=evaluate,
+            fit=partial(fit_step, refit=refit),
+            front=partial(front_step, refit=refit),
+        )
+        result = run_pipeline(
+            scenario, doe_run, store=store, code=code, steps=steps, progress=typer.echo
+        )
+        chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
+        planned = write_mission_plan(scenario, fit, store, result, chosen)
+    except (StoreError, PipelineError, SurrogateError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"verified front of run {doe_run.id} (pipeline {result.pipeline_id}):")
+    _print_front(result.front)
+    typer.echo(f"front: {result.front_path}")
+    typer.echo(f"plan: {planned['json']}")
+    typer.echo(f"plan: {planned['yaml']}")
+
+
+@app.command()
+def optimize(
+    run_id: str,
+    config: Annotated[
+        Path | None, typer.Option("--config", help="surrogate/optimisation settings from here")
+    ] = None,
+    refit: Annotated[bool, typer.Option("--refit", help="refit even when stored")] = False,
+    store_root: StoreOpt = None,
+) -> None:
+    """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation)."""
+    from ovtraj.pipeline import PipelineError, fit_step, front_step, training_data
+    from ovtraj.runs import StoreError
+    from ovtraj.surrogate import SurrogateError
+    from ovtraj.version import code_version
+
+    try:
+        stored = _store(store_root).run(run_id)
+        scenario = _run_scenario(stored, config)
+        code = code_version()
+        fitted = fit_step(stored, training_data(stored), scenario, code, refit=refit)
+        front = front_step(stored, fitted, scenario, code, refit=refit)
+    except (StoreError, PipelineError, SurrogateError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    validation = fitted.surrogates.validation
+    chosen = validation[validation["selected"].astype(bool)]
+    rows = [("surrogates", str(fitted.directory)), ("loaded from the store", fitted.reused)]
+    for row in chosen.itertuples(index=False):
+        rows.append((f"{row.model} model", row.candidate))
+    rows += [
+        ("front", str(front.directory / "front.parquet")),
+        ("front points", len(front.front)),
+        ("hypervolume", front.front.hypervolume),
+    ]
+    if front.matches_stored is not None:
+        rows.append(("identical to the stored front", front.matches_stored))
+    _print_rows(f"surrogate front of run {stored.id}", rows)
+    if front.matches_stored is False:
+        raise typer.Exit(code=1)
+
+
+@app.command()
+def plan(
+    run_id: str,
+    pick: PickIndexOpt = None,
+    weights: WeightsOpt = None,
+    max_time_h: MaxTimeOpt = None,
+    max_dv: MaxDvOpt = None,
+    min_payload: MinLoadOpt = None,
+    pipeline_id: Annotated[
+        str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
+    ] = None,
+    store_root: StoreOpt = None,
+) -> None:
+    """Write the mission plan (JSON and YAML) of a point of a run's verified front."""
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.pipeline import PipelineError
+    from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
+    from ovtraj.runs import StoreError
+
+    try:
+        store = _store(store_root)
+        stored = store.run(run_id)
+        scenario = _run_scenario(stored, None)
+        result = find_pipeline(stored, pipeline_id)
+        chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
+        planned = write_mission_plan(scenario, _launch_fit_or_exit(scenario), store, result, chosen)
+    except (StoreError, PipelineError, PlanError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"plan: {planned['json']}")
+    typer.echo(f"plan: {planned['yaml']}")
+    for path in planned["plots"]:
+        typer.echo(f"plot: {path}")
+
+
+@app.command()
+def fly(
+    plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Replay a mission plan through the real dynamics: landing miss and constraint maxima."""
+    from ovtraj.mission.fly import fly_plan, format_flight_report
+    from ovtraj.mission.plan import PlanError, read_plan
+
+    try:
+        report = fly_plan(read_plan(plan_file))
+    except PlanError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    if as_json:
+        typer.echo(json.dumps(report.to_dict(), default=str))
+    else:
+        typer.echo(format_flight_report(report))
+    if not report.landed_within_stated_miss:
+        raise typer.Exit(code=1)

@@ -1,0 +1,28 @@
+"""The surrogate pipeline over a DoE run (SPEC steps 5-6; issue 7).
+
+``data``: a run's training data; ``steps``: the surrogate fit and the surrogate
+front, each stored in the run and reused by content hash; ``loop``: verification of
+front points with the real chain, infill and the verified front; ``pick``: choosing
+a point of the front for the mission plan.
+"""
+
+from ovtraj.pipeline.data import TrainingData, run_scenario, training_data
+from ovtraj.pipeline.loop import PipelineError, PipelineResult, PipelineSteps, run_pipeline
+from ovtraj.pipeline.pick import Pick, pick_front_point
+from ovtraj.pipeline.steps import FitOutcome, FrontOutcome, fit_step, front_step
+
+__all__ = [
+    "FitOutcome",
+    "FrontOutcome",
+    "Pick",
+    "PipelineError",
+    "PipelineResult",
+    "PipelineSteps",
+    "TrainingData",
+    "fit_step",
+    "front_step",
+    "pick_front_point",
+    "run_pipeline",
+    "run_scenario",
+    "training_data",
+]

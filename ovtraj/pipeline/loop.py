@@ -1,0 +1,336 @@
+"""Surrogates, NSGA-II, verification with the real chain and infill (issue 7).
+
+For a DoE run, repeat up to ``verify.max_iterations`` times:
+
+1. fit the surrogates on every evaluated sample (:func:`.steps.fit_step`);
+2. find the surrogate front with NSGA-II (:func:`.steps.front_step`);
+3. pick ``verify.points_per_iteration`` front points spread along it
+   (:func:`ovtraj.optimize.spread_picks`), skipping designs already evaluated;
+4. evaluate them with the real chain in a child run (the infill: parent batches are
+   adopted, only the new points are simulated) and compare: the error of each
+   objective as a fraction of its ideal-to-reference span;
+5. stop when every picked point is feasible and every error is below
+   ``verify.tolerance``, when ``verify.budget`` real evaluations are spent, or when
+   the front holds no design that is not already evaluated.
+
+The verified front is the non-dominated set of every feasible real evaluation (DoE
+and infill): real values only, each row saying where it comes from. Outputs go to
+``<DoE run>/pipeline/<pipeline_id>/``: ``front.parquet`` (verified front),
+``verification.parquet`` (each verified point: predicted, real, errors),
+``pipeline.json`` and ``front.png``. The pipeline id hashes the DoE run, the
+surrogate, optimisation and verification settings and the code version; every step
+is deterministic, so running it again reuses the stored child runs (no simulation)
+and must give the same front; a different result is refused, never written over.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.config import Scenario
+from ovtraj.files import atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.mission import DESIGN_NAMES
+from ovtraj.optimize import (
+    Normalisation,
+    hypervolume,
+    hypervolume_picks,
+    non_dominated,
+    spread_picks,
+)
+from ovtraj.pipeline.data import training_data
+from ovtraj.pipeline.steps import (
+    FitOutcome,
+    FrontOutcome,
+    content_id,
+    fit_step,
+    front_step,
+    unit_designs,
+)
+from ovtraj.runs import Run, RunStore
+from ovtraj.runs.execute import extend_run
+
+
+class PipelineError(ValueError):
+    """The pipeline cannot proceed (bad input, nothing to fit, a result that differs)."""
+
+
+@dataclass
+class PipelineSteps:
+    """How each step runs: the library calls by default; the flow passes tasks."""
+
+    evaluate: Callable[[Run], Run]  # evaluate a run's pending batches, return it finished
+    fit: Callable[[Run, Any, Scenario, str], FitOutcome] = fit_step
+    front: Callable[[Run, FitOutcome, Scenario, str], FrontOutcome] = front_step
+
+
+@dataclass
+class PipelineResult:
+    pipeline_id: str
+    directory: Path
+    doe_run: str
+    final_run: str
+    front: pd.DataFrame  # verified: real values
+    verification: pd.DataFrame
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def front_path(self) -> Path:
+        return self.directory / "front.parquet"
+
+
+def pipeline_id(run: Run, scenario: Scenario, code: str) -> str:
+    mission = scenario.mission
+    return content_id(
+        {
+            "run": run.id,
+            "surrogate": mission.surrogate.model_dump(mode="json"),
+            "optimize": mission.optimize.model_dump(mode="json"),
+            "verify": mission.verify.model_dump(mode="json"),
+            "code": code,
+        }
+    )
+
+
+def run_pipeline(
+    scenario: Scenario,
+    doe_run: Run,
+    *,
+    store: RunStore,
+    code: str,
+    steps: PipelineSteps,
+    progress: Callable[[str], None] | None = None,
+) -> PipelineResult:
+    """The loop of the module notes; see there."""
+    if scenario.mission is None:
+        raise PipelineError("the scenario has no mission section")
+    say = progress or (lambda _message: None)
+    verify = scenario.mission.verify
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    span = normalisation.span()
+    names = normalisation.names
+    run, spent, rows, iterations = doe_run, 0, [], []
+    stop = "max_iterations"
+    for iteration in range(1, verify.max_iterations + 1):
+        data = training_data(run)
+        fit = steps.fit(run, data, scenario, code)
+        front = steps.front(run, fit, scenario, code).front
+        record = {
+            "iteration": iteration,
+            "run_id": run.id,
+            "samples": len(data),
+            "feasible": int(data.feasible.sum()),
+            "fit_id": fit.fit_id,
+            "selected": dict(fit.surrogates.selected),
+            "surrogate_front_points": len(front),
+            "surrogate_hypervolume": front.hypervolume,
+        }
+        iterations.append(record)
+        say(
+            f"iteration {iteration}: {len(data)} samples ({record['feasible']} feasible), "
+            f"surrogate front {len(front)} points, hypervolume {front.hypervolume:.4f}"
+        )
+        if len(front) == 0:
+            stop = "empty surrogate front"
+            break
+        remaining = verify.budget - spent
+        if remaining <= 0:
+            stop = "budget"
+            break
+        picks = _picks(scenario, front, data, min(verify.points_per_iteration, remaining))
+        if not picks:
+            stop = "front already evaluated"
+            break
+        chosen = front.designs.iloc[picks].reset_index(drop=True)
+        child = extend_run(
+            scenario,
+            run,
+            chosen,
+            seed=int(run.manifest.get("seed", 0)),
+            code=code,
+            store=store,
+            origin=f"infill {iteration}",
+        )
+        child = steps.evaluate(child)
+        known = set(run.samples()["sample_id"].tolist())
+        new_ids = np.array([s for s in child.samples()["sample_id"] if s not in known])
+        spent += len(picks)
+        verified = _compare(child, new_ids, front, picks, names, span, iteration)
+        rows.append(verified)
+        worst = float(verified["max_error"].max())
+        record.update(verified_points=len(picks), max_error=worst, infill_run=child.id)
+        say(
+            f"  verified {len(picks)} front points in run {child.id}: "
+            f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.3%}"
+        )
+        run = child
+        if bool(verified["real_feasible"].all()) and worst < verify.tolerance:
+            stop = "converged"
+            break
+    return _finish(scenario, doe_run, run, code, normalisation, rows, iterations, stop, spent, say)
+
+
+def _picks(scenario: Scenario, front: Any, data: Any, count: int) -> list[int]:
+    """The front points to verify, by the configured infill criterion."""
+    verify = scenario.mission.verify
+    units = unit_designs(scenario, front.designs.to_numpy())
+    evaluated = unit_designs(scenario, data.designs)
+    if verify.selection == "spread":
+        return spread_picks(front.normalised, units, evaluated, count, verify.min_distance)
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    real = np.column_stack([data.outputs[n] for n in normalisation.names])[data.feasible]
+    return hypervolume_picks(
+        front.normalised,
+        units,
+        evaluated,
+        normalisation.normalise(real),
+        count,
+        verify.min_distance,
+    )
+
+
+def _compare(
+    run: Run,
+    sample_ids: np.ndarray,
+    front: Any,
+    picks: list[int],
+    names: tuple[str, ...],
+    span: np.ndarray,
+    iteration: int,
+) -> pd.DataFrame:
+    totals = run.totals().set_index("sample_id").loc[sample_ids].reset_index()
+    frame = totals[["sample_id", *DESIGN_NAMES, "feasible", "failed_stage"]].rename(
+        columns={"feasible": "real_feasible"}
+    )
+    frame.insert(0, "iteration", iteration)
+    frame["front_index"] = np.asarray(picks, dtype=np.int64)
+    frame["p_feasible"] = front.p_feasible[picks]
+    errors = []
+    for k, name in enumerate(names):
+        predicted = front.predicted[name].to_numpy(dtype=float)[picks]
+        real = totals[name].to_numpy(dtype=float, na_value=np.nan)
+        frame[f"predicted_{name}"] = predicted
+        frame[f"real_{name}"] = real
+        error = np.abs(predicted - real) / span[k]
+        # An infeasible point has no value to compare: its error counts as total.
+        error = np.where(np.isfinite(error), error, 1.0)
+        frame[f"error_{name}"] = error
+        errors.append(error)
+    frame["max_error"] = np.max(errors, axis=0)
+    return frame
+
+
+def _finish(
+    scenario: Scenario,
+    doe_run: Run,
+    run: Run,
+    code: str,
+    normalisation: Normalisation,
+    rows: list[pd.DataFrame],
+    iterations: list[dict[str, Any]],
+    stop: str,
+    spent: int,
+    say: Callable[[str], None],
+) -> PipelineResult:
+    pid = pipeline_id(doe_run, scenario, code)
+    directory = doe_run.directory / "pipeline" / pid
+    verification = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
+    front = verified_front(run, normalisation, verification)
+    summary = {
+        "pipeline_id": pid,
+        "doe_run": doe_run.id,
+        "final_run": run.id,
+        "scenario": scenario.name,
+        "code": code,
+        "stop_reason": stop,
+        "converged": stop in ("converged", "front already evaluated"),
+        "real_evaluations": {"doe": len(doe_run.samples()), "infill": spent},
+        "front_points": len(front),
+        "hypervolume": hypervolume(
+            normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
+        ),
+        "reference_point": normalisation.reference.tolist(),
+        "ideal_point": normalisation.ideal.tolist(),
+        "iterations": iterations,
+    }
+    _store(directory, front, verification, summary)
+    from ovtraj.plots.front import front_plot
+
+    totals = run.totals()
+    front_plot(
+        directory / "front.png",
+        normalisation,
+        samples=totals[totals["feasible"].astype(bool)],
+        verified=front,
+        title=f"verified front: pipeline {pid}, run {run.id}",
+    )
+    say(f"verified front: {len(front)} points, hypervolume {summary['hypervolume']:.4f} ({stop})")
+    return PipelineResult(pid, directory, doe_run.id, run.id, front, verification, summary)
+
+
+def verified_front(
+    run: Run, normalisation: Normalisation, verification: pd.DataFrame
+) -> pd.DataFrame:
+    """Non-dominated feasible real evaluations of the run, with their origin."""
+    totals = run.totals()
+    feasible = totals[totals["feasible"].astype(bool)].reset_index(drop=True)
+    if len(feasible) == 0:
+        raise PipelineError(f"run {run.id}: no feasible sample, so no front")
+    values = normalisation.normalise(feasible[list(normalisation.names)].to_numpy(dtype=float))
+    front = feasible.iloc[non_dominated(values)].reset_index(drop=True)
+    front = front[["sample_id", *DESIGN_NAMES, *normalisation.names]].copy()
+    infill = (
+        dict(zip(verification["sample_id"], verification["iteration"], strict=True))
+        if len(verification)
+        else {}
+    )
+    front["origin"] = [
+        f"infill {infill[s]}" if s in infill else "doe" for s in front["sample_id"].tolist()
+    ]
+    front = front.sort_values(list(normalisation.names), kind="stable").reset_index(drop=True)
+    front.insert(0, "front_index", np.arange(len(front), dtype=np.int64))
+    return front
+
+
+def _store(
+    directory: Path, front: pd.DataFrame, verification: pd.DataFrame, summary: dict[str, Any]
+) -> None:
+    """Write the outputs; an existing different result is refused, not overwritten."""
+    marker = directory / "pipeline.json"
+    if marker.is_file():
+        previous = read_json(marker)
+        stored_front = read_parquet(directory / "front.parquet")
+        if not stored_front.equals(front) or previous.get("final_run") != summary["final_run"]:
+            raise PipelineError(
+                f"{directory}: the stored pipeline result differs from this one "
+                "(same inputs, different result): not overwritten"
+            )
+        return
+    atomic_parquet(directory / "front.parquet", front)
+    if len(verification):
+        atomic_parquet(directory / "verification.parquet", verification)
+    summary = summary | {
+        "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    }
+    atomic_bytes(marker, json.dumps(summary, indent=2, default=str).encode())
+
+
+def load_pipeline(directory: Path) -> PipelineResult:
+    summary = read_json(directory / "pipeline.json")
+    path = directory / "verification.parquet"
+    return PipelineResult(
+        summary["pipeline_id"],
+        directory,
+        summary["doe_run"],
+        summary["final_run"],
+        read_parquet(directory / "front.parquet"),
+        read_parquet(path) if path.is_file() else pd.DataFrame(),
+        summary,
+    )

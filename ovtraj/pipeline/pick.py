@@ -1,0 +1,57 @@
+"""Choosing the point of the verified front that becomes the mission plan (SPEC step 6)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.optimize import Normalisation
+
+
+@dataclass(frozen=True)
+class Pick:
+    """By ``index`` on the front, or by weights on the normalised objectives among the
+    points that meet the limits (all of them when no limit is given)."""
+
+    index: int | None = None
+    weights: tuple[float, float, float] | None = None  # T_total, dV_total, M_load
+    max_t_total_h: float | None = None
+    max_dv_total_mps: float | None = None
+    min_m_load_kg: float | None = None
+
+
+def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pick) -> pd.Series:
+    """The chosen row of the front; ``ValueError`` naming the pick when none fits."""
+    from ovtraj.pipeline.loop import PipelineError
+
+    if len(front) == 0:
+        raise PipelineError("the front is empty: nothing to pick")
+    if pick.index is not None:
+        if not 0 <= pick.index < len(front):
+            raise PipelineError(
+                f"pick index {pick.index} is outside the front: allowed 0..{len(front) - 1}"
+            )
+        return front.iloc[pick.index]
+    keep = np.ones(len(front), dtype=bool)
+    limits = (
+        ("t_total_s", pick.max_t_total_h, 3600.0, np.less_equal, "max_t_total_h"),
+        ("dv_total_mps", pick.max_dv_total_mps, 1.0, np.less_equal, "max_dv_total_mps"),
+        ("m_load_kg", pick.min_m_load_kg, 1.0, np.greater_equal, "min_m_load_kg"),
+    )
+    asked = []
+    for column, limit, scale, within, label in limits:
+        if limit is not None:
+            keep &= within(front[column].to_numpy(dtype=float), limit * scale)
+            asked.append(f"{label} = {limit:g}")
+    if not keep.any():
+        raise PipelineError(f"no front point meets {', '.join(asked)}")
+    weights = np.array(pick.weights if pick.weights is not None else (1.0, 1.0, 1.0), float)
+    if weights.shape != (3,) or np.any(weights < 0) or not np.any(weights > 0):
+        raise PipelineError(
+            f"weights must be three non-negative numbers, not all zero; got {pick.weights}"
+        )
+    values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
+    score = np.where(keep, values @ (weights / weights.sum()), np.inf)
+    return front.iloc[int(np.argmin(score))]

@@ -1,0 +1,90 @@
+"""From a verified front to a mission plan on disk (SPEC step 6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ovtraj.config import Scenario
+from ovtraj.launch.fit import LaunchFit
+from ovtraj.mission import DESIGN_NAMES, STAGES, MissionContext, MissionDesign
+from ovtraj.optimize import Normalisation
+from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
+from ovtraj.pipeline.pick import Pick, pick_front_point
+from ovtraj.runs import Run, RunStore
+
+
+def pipeline_results(run: Run) -> list[PipelineResult]:
+    """The pipeline results stored in a DoE run, oldest first."""
+    folder = run.directory / "pipeline"
+    found = (
+        [load_pipeline(d) for d in sorted(folder.iterdir()) if (d / "pipeline.json").is_file()]
+        if folder.is_dir()
+        else []
+    )
+    return sorted(found, key=lambda r: r.summary.get("created_utc") or "")
+
+
+def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
+    """The run's pipeline result: the one named, else the newest."""
+    results = pipeline_results(run)
+    if not results:
+        raise PipelineError(
+            f"run {run.id} has no pipeline result: run `ovtraj pipeline` (or the mission "
+            "flow) on it first"
+        )
+    if pipeline is None:
+        return results[-1]
+    for result in results:
+        if result.pipeline_id == pipeline:
+            return result
+    known = ", ".join(r.pipeline_id for r in results)
+    raise PipelineError(f"run {run.id} has no pipeline {pipeline!r}; it has {known}")
+
+
+def write_mission_plan(
+    scenario: Scenario,
+    launch_fit: LaunchFit,
+    store: RunStore,
+    result: PipelineResult,
+    pick: Pick,
+) -> dict[str, Any]:
+    """Build the plan of the picked front point, write it (JSON, YAML) and its plots."""
+    from ovtraj.mission.plan import build_plan, write_plan
+    from ovtraj.plots.mission import mission_plots
+
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    row = pick_front_point(result.front, normalisation, pick)
+    sample_id = int(row["sample_id"])
+    design = MissionDesign(**{name: float(row[name]) for name in DESIGN_NAMES})
+    source = {
+        "doe_run": result.doe_run,
+        "run_id": result.final_run,
+        "pipeline_id": result.pipeline_id,
+        "front_index": int(row["front_index"]),
+        "sample_id": sample_id,
+        "front_objectives": {n: float(row[n]) for n in normalisation.names},
+    }
+    plan = build_plan(MissionContext(scenario, launch_fit), design, source=source)
+    directory = result.directory / "plans"
+    name = f"plan-sample-{sample_id}"
+    json_path, yaml_path = write_plan(plan, directory, name)
+    run = store.run(result.final_run)
+    trajectories = {stage: run.trajectory(stage, sample_id) for stage in STAGES}
+    plots = mission_plots(trajectories, scenario, directory, prefix=name)
+    from ovtraj.plots.front import front_plot
+
+    totals = run.totals()
+    chosen = result.front[result.front["sample_id"] == sample_id]
+    plots.append(
+        front_plot(
+            directory / f"{name}-front.png",
+            normalisation,
+            samples=totals[totals["feasible"].astype(bool)],
+            verified=result.front,
+            chosen=chosen,
+            title=f"front point {int(row['front_index'])} (sample {sample_id}), "
+            f"pipeline {result.pipeline_id}",
+        )
+    )
+    return {"plan": plan, "json": json_path, "yaml": yaml_path, "plots": [Path(p) for p in plots]}

@@ -1,0 +1,245 @@
+"""The surrogate pipeline on the real mission chain (issue 7).
+
+A 20-sample DoE of the default scenario, then surrogates, NSGA-II, verification of
+front points with the real chain and infill; the plan of a front point and its replay.
+The references are the real chain itself (run again, outside the store) and the
+stored totals; replay must simulate nothing and give the same front.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+from functools import partial
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from ovtraj.cli import app
+from ovtraj.launch.fit import find_launch_fit
+from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.optimize import Normalisation
+from ovtraj.pipeline import (
+    PipelineError,
+    PipelineSteps,
+    fit_step,
+    front_step,
+    run_pipeline,
+    training_data,
+)
+from ovtraj.runs import RunStore, StoreError, execute, prepare_run, run_doe
+from ovtraj.surrogate import SurrogateError
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+
+OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
+
+
+def _data(**verify) -> dict:
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["verify"].update(verify)
+    return data
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("pipeline")
+    data = _data(points_per_iteration=3, max_iterations=2, budget=6)
+    config = tmp / "scenario.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    scenario = build_scenario(copy.deepcopy(data))
+    store = RunStore(tmp / "runs")
+    fit = find_launch_fit(scenario)
+
+    def evaluate_run(run):
+        return run_doe(scenario, run, fit, batch_size=scenario.mission.doe.batch_size)
+
+    doe = prepare_run(scenario, samples=20, seed=2026, code="test", store=store)
+    evaluate_run(doe)
+    before = execute.EVALUATIONS["count"]
+    result = run_pipeline(
+        scenario, doe, store=store, code="test", steps=PipelineSteps(evaluate=evaluate_run)
+    )
+    return {
+        "scenario": scenario,
+        "config": config,
+        "store": store,
+        "fit": fit,
+        "doe": doe,
+        "result": result,
+        "infill_evaluations": execute.EVALUATIONS["count"] - before,
+        "evaluate_run": evaluate_run,
+    }
+
+
+def test_front_points_are_verified_with_the_real_chain(small):
+    result, store = small["result"], small["store"]
+    final = store.run(result.final_run)
+    spent = result.summary["real_evaluations"]
+    assert spent == {"doe": 20, "infill": small["infill_evaluations"]}
+    assert 1 <= spent["infill"] <= 6 and len(result.verification) == spent["infill"]
+    # Every front value is the stored real value of its sample.
+    totals = final.totals().set_index("sample_id")
+    front = result.front
+    assert len(front) >= 2 and set(front["origin"]) <= {"doe", "infill 1", "infill 2"}
+    for name in OBJECTIVES:
+        assert np.array_equal(
+            front[name].to_numpy(), totals.loc[front["sample_id"], name].to_numpy(dtype=float)
+        )
+    # The chain run again, outside the store, gives the verified points' real values.
+    context = MissionContext(small["scenario"], small["fit"])
+    for row in result.verification.head(2).itertuples(index=False):
+        record = evaluate(context, MissionDesign(*(getattr(row, n) for n in DESIGN_NAMES)))
+        assert record.feasible == row.real_feasible
+        if record.feasible:
+            assert record.t_total_s == pytest.approx(row.real_t_total_s, rel=1e-9)
+            assert record.dv_total_mps == pytest.approx(row.real_dv_total_mps, rel=1e-9)
+            assert record.m_load_kg == pytest.approx(row.real_m_load_kg, rel=1e-12)
+    # The errors are the predicted-to-real differences over the ideal-to-reference span.
+    span = Normalisation.mission(small["scenario"].mission.optimize).span()
+    feasible = result.verification[result.verification["real_feasible"]]
+    for k, name in enumerate(OBJECTIVES):
+        expected = (feasible[f"predicted_{name}"] - feasible[f"real_{name}"]).abs() / span[k]
+        assert np.allclose(feasible[f"error_{name}"], expected)
+    # Non-dominated, and it holds the best feasible value of each objective.
+    values = front[list(OBJECTIVES)].to_numpy() * np.array([1, 1, -1])
+    for i in range(len(values)):
+        dominated = np.all(values <= values[i], axis=1) & np.any(values < values[i], axis=1)
+        assert not dominated.any()
+    feasible_totals = totals[totals["feasible"].astype(bool)]
+    assert front["t_total_s"].min() == feasible_totals["t_total_s"].min()
+    assert front["dv_total_mps"].min() == feasible_totals["dv_total_mps"].min()
+    assert front["m_load_kg"].max() == feasible_totals["m_load_kg"].max()
+    stored = json.loads((result.directory / "pipeline.json").read_text())
+    assert (
+        stored["final_run"] == result.final_run and (result.directory / "front.png").stat().st_size
+    )
+
+
+def test_replay_refits_and_reoptimises_without_simulation_and_gives_the_same_front(small):
+    result = small["result"]
+    before = execute.EVALUATIONS["count"]
+    steps = PipelineSteps(
+        evaluate=small["evaluate_run"],
+        fit=partial(fit_step, refit=True),
+        front=partial(front_step, refit=True),
+    )
+    again = run_pipeline(
+        small["scenario"], small["doe"], store=small["store"], code="test", steps=steps
+    )
+    assert execute.EVALUATIONS["count"] == before
+    pd.testing.assert_frame_equal(again.front, result.front)
+    assert again.final_run == result.final_run
+    # Refitting the DoE run's surrogates reproduces its stored front exactly.
+    doe = small["doe"]
+    fitted = fit_step(doe, training_data(doe), small["scenario"], "test", refit=True)
+    assert not fitted.reused
+    assert front_step(doe, fitted, small["scenario"], "test", refit=True).matches_stored is True
+
+
+def _digest(directory) -> dict[str, str]:
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _fake_run(store, scenario, feasible: bool | None):
+    """A run whose batch holds made-up records (no simulation), or none at all."""
+    from ovtraj.runs import latin_hypercube
+
+    samples = latin_hypercube(scenario.mission.design_bounds, 12, 5)
+    run = store.create(resolved=scenario.resolved(), samples=samples, seed=5, code="fake")
+    if feasible is not None:
+        records = [
+            MissionRecord(
+                design=MissionDesign(*(getattr(r, n) for n in DESIGN_NAMES)),
+                feasible=False,
+                failed_stage="rendezvous",
+                reason="made up",
+            )
+            for r in samples.itertuples(index=False)
+        ]
+        run.write_batch(0, records, samples["sample_id"].tolist())
+    return run
+
+
+def test_empty_and_all_infeasible_runs_are_refused_and_nothing_is_written(tmp_path, scenario):
+    store = RunStore(tmp_path)
+    steps = PipelineSteps(evaluate=lambda run: run)
+    empty = _fake_run(store, scenario, None)
+    before = _digest(empty.directory)
+    with pytest.raises(StoreError, match="no evaluated samples"):
+        run_pipeline(scenario, empty, store=store, code="fake", steps=steps)
+    assert _digest(empty.directory) == before
+    infeasible = _fake_run(RunStore(tmp_path / "other"), scenario, False)
+    before = _digest(infeasible.directory)
+    with pytest.raises(SurrogateError, match="all 12 samples are infeasible"):
+        run_pipeline(scenario, infeasible, store=store, code="fake", steps=steps)
+    assert _digest(infeasible.directory) == before
+
+
+def test_cli_optimize_plan_and_fly(small, tmp_path):
+    runner = CliRunner()
+    root = str(small["store"].root)
+    doe = small["doe"].id
+    # Re-optimising the stored samples: no simulation, the stored front again.
+    before = execute.EVALUATIONS["count"]
+    done = runner.invoke(app, ["optimize", doe, "--store", root])
+    assert done.exit_code == 0, done.output
+    done = runner.invoke(app, ["optimize", doe, "--refit", "--store", root])
+    assert done.exit_code == 0, done.output
+    assert "identical to the stored front  True" in done.output
+    assert execute.EVALUATIONS["count"] == before
+    # A plan of the first front point, then its replay through the dynamics.
+    done = runner.invoke(app, ["plan", doe, "--pick", "0", "--store", root])
+    assert done.exit_code == 0, done.output
+    plan_json = next(
+        line.split(": ", 1)[1] for line in done.output.splitlines() if line.endswith(".json")
+    )
+    flown = runner.invoke(app, ["fly", plan_json, "--json"])
+    assert flown.exit_code == 0, flown.output
+    report = json.loads(flown.output)
+    assert report["landed_within_stated_miss"] is True
+    # Bad inputs: clear errors, nothing written.
+    plans = small["result"].directory / "plans"
+    before = _digest(plans)
+    done = runner.invoke(app, ["plan", doe, "--pick", "99", "--store", root])
+    assert done.exit_code == 2 and "outside the front" in done.output
+    done = runner.invoke(app, ["plan", "0123456789abcdef", "--store", root])
+    assert done.exit_code == 2 and "no such run" in done.output
+    done = runner.invoke(app, ["optimize", "0123456789abcdef", "--store", root])
+    assert done.exit_code == 2 and "no such run" in done.output
+    assert _digest(plans) == before
+
+
+def test_pipeline_refuses_a_different_result_for_the_same_inputs(small):
+    """A stored pipeline result is never overwritten by a different one."""
+    result = small["result"]
+    before = _digest(result.directory)
+    front_file = result.directory / "front.parquet"
+    from ovtraj.files import atomic_parquet
+
+    altered = result.front.copy()
+    altered.loc[0, "dv_total_mps"] += 1.0
+    atomic_parquet(front_file, altered)  # as if the stored result came from other code
+    try:
+        with pytest.raises(PipelineError, match="differs"):
+            run_pipeline(
+                small["scenario"],
+                small["doe"],
+                store=small["store"],
+                code="test",
+                steps=PipelineSteps(evaluate=small["evaluate_run"]),
+            )
+        after = _digest(result.directory)
+        assert {k: v for k, v in after.items() if k != "front.parquet"} == {
+            k: v for k, v in before.items() if k != "front.parquet"
+        }
+    finally:
+        atomic_parquet(front_file, result.front)

@@ -1,0 +1,78 @@
+"""``flows/pipeline.py:mission_flow`` under a temporary Prefect server (issue 7).
+
+A 12-sample DoE, one verification round of 3 front points, the plan: the verified
+front's values must be the real chain's, the artifacts published, and a second run
+of the flow must simulate nothing and return the same front.
+"""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+from prefect.testing.utilities import prefect_test_harness
+
+from ovtraj.files import read_parquet
+from ovtraj.launch.fit import find_launch_fit
+from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
+from ovtraj.mission.fly import fly_plan
+from ovtraj.mission.plan import read_plan
+from ovtraj.runs import RunStore, execute
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory):
+    from flows.pipeline import mission_flow
+
+    tmp = tmp_path_factory.mktemp("mission-flow")
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(samples=12, batch_size=6, store=str(tmp / "runs"))
+    data["mission"]["verify"].update(points_per_iteration=3, max_iterations=1, budget=3)
+    config = tmp / "scenario.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    with prefect_test_harness(server_startup_timeout=60):
+        before = execute.EVALUATIONS["count"]
+        first = mission_flow(config=str(config))
+        middle = execute.EVALUATIONS["count"]
+        from prefect.artifacts import Artifact
+
+        artifacts = {key: Artifact.get(key) for key in ("verified-front", "surrogate-validation")}
+        second = mission_flow(config=str(config))
+        after = execute.EVALUATIONS["count"]
+    return {
+        "first": first,
+        "second": second,
+        "evaluations": (middle - before, after - middle),
+        "artifacts": artifacts,
+        "scenario": build_scenario(data),
+        "store": RunStore(tmp / "runs"),
+    }
+
+
+def test_flow_verifies_the_front_with_the_real_chain(flown):
+    first = flown["first"]
+    assert flown["evaluations"][0] == 12 + first["real_evaluations"]["infill"]
+    assert first["real_evaluations"] == {"doe": 12, "infill": 3}
+    front = read_parquet(first["front"])
+    totals = flown["store"].run(first["final_run"]).totals().set_index("sample_id")
+    scenario = flown["scenario"]
+    context = MissionContext(scenario, find_launch_fit(scenario))
+    for row in front.head(3).itertuples(index=False):
+        assert row.t_total_s == totals.loc[row.sample_id, "t_total_s"]
+        record = evaluate(context, MissionDesign(*(getattr(row, n) for n in DESIGN_NAMES)))
+        assert record.feasible
+        assert record.dv_total_mps == pytest.approx(row.dv_total_mps, rel=1e-9)
+        assert record.t_total_s == pytest.approx(row.t_total_s, rel=1e-9)
+    assert all(artifact is not None for artifact in flown["artifacts"].values())
+
+
+def test_second_flow_run_simulates_nothing_and_returns_the_same_front(flown):
+    assert flown["evaluations"][1] == 0
+    assert flown["second"]["front"] == flown["first"]["front"]
+    assert flown["second"]["plan_json"] == flown["first"]["plan_json"]
+
+
+def test_the_flows_plan_lands_within_its_stated_miss(flown):
+    report = fly_plan(read_plan(flown["first"]["plan_json"]))
+    assert report.landed_within_stated_miss
