@@ -183,3 +183,20 @@ def test_pick_by_index_weights_and_limits(scenario):
         pick_front_point(front, norm, Pick(weights=(0, 0, 0)))
     with pytest.raises(PipelineError, match="empty"):
         pick_front_point(front.iloc[:0], norm, Pick())
+
+
+def test_hypervolume_picks_take_the_largest_predicted_gain_first():
+    from ovtraj.optimize import hypervolume_picks
+
+    real = np.array([[0.5, 0.5, 0.5]])
+    # b dominates the real point: gain 0.6^3 - 0.5^3 = 0.091; a adds a thin slab,
+    # 0.9*0.1*0.1 - 0.5*0.1*0.1 = 0.004; c is dominated: no gain.
+    normalised = np.array([[0.1, 0.9, 0.9], [0.4, 0.4, 0.4], [0.6, 0.6, 0.6]])
+    units = np.array([[0.1, 0.1, 0.1], [0.5, 0.5, 0.5], [0.9, 0.9, 0.9]])
+    none = np.zeros((0, 3))
+    assert hypervolume_picks(normalised, units, none, real, 1, 0.02) == [1]
+    assert hypervolume_picks(normalised, units, none, real, 2, 0.02) == [1, 0]
+    # No gain left: the rest is spread, so the count is still met.
+    assert hypervolume_picks(normalised, units, none, real, 3, 0.02) == [1, 0, 2]
+    # An evaluated design is never picked again.
+    assert hypervolume_picks(normalised, units, units[1:2], real, 1, 0.02) == [0]
