@@ -258,7 +258,9 @@ def test_fitted_set_tables(fitted):
     fit, (x, outputs, feasible, ids) = fitted
     assert fit.output_names == ("t_h", "dv_mps") and fit.input_names == NAMES
     v = fit.validation
-    assert len(v) == 2 * 4 + 3
+    regressors, classifiers = fit.settings.regressors, fit.settings.classifiers
+    assert len(v) == 2 * len(regressors) + len(classifiers)
+    assert set(v.loc[v["model"] == "t_h", "candidate"]) == set(regressors)
     for model, group in v.groupby("model"):
         assert group["selected"].sum() == 1
         assert fit.selected[model] == group.loc[group["selected"], "candidate"].iloc[0]
