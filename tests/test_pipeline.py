@@ -243,3 +243,68 @@ def test_pipeline_refuses_a_different_result_for_the_same_inputs(small):
         }
     finally:
         atomic_parquet(front_file, result.front)
+
+
+def test_target_draconic_period_against_the_propagated_orbit(scenario):
+    """The argument of latitude's mean rate, measured on a J2 propagation (second method)."""
+    from ovtraj.astro.propagation import OrbitPropagator
+    from ovtraj.pipeline.features import target_draconic_period
+    from ovtraj.targets import target_state
+
+    state = target_state(scenario.target.orbit, scenario)
+    propagator = OrbitPropagator(scenario.earth, tol=1e-12)
+    times = np.linspace(0.0, 86400.0, 400)
+    u = []
+    for t in times:
+        r, v = np.split(propagator.propagate(state, 0.0, t).state, 2)
+        h = np.cross(r, v)
+        node = np.cross([0.0, 0.0, 1.0], h)
+        cos_u = node @ r / (np.linalg.norm(node) * np.linalg.norm(r))
+        sin_u = (
+            np.cross(node, r) @ h / (np.linalg.norm(node) * np.linalg.norm(r) * np.linalg.norm(h))
+        )
+        u.append(np.arctan2(sin_u, cos_u))
+    rate = np.polyfit(times, np.unwrap(u), 1)[0]
+    # Short-period J2 terms average out over 15 revolutions: agreement to 0.02 %.
+    assert target_draconic_period(scenario) == pytest.approx(2 * np.pi / rate, rel=2e-4)
+
+
+def test_phase_surrogates_compose_the_parts_and_round_trip(small):
+    from ovtraj.pipeline.features import DV_PARTS, WAIT, MissionSurrogates, load_surrogates
+
+    doe, scenario = small["doe"], small["scenario"]
+    data = training_data(doe)
+    # The parts are the stage rows' values; feasible samples add up to dV_total.
+    ok = data.feasible
+    total = sum(data.components[name][ok] for name in DV_PARTS)
+    assert np.allclose(total, data.outputs["dv_total_mps"][ok], rtol=1e-12)
+    fitted = fit_step(doe, data, scenario, "test")
+    surrogates = fitted.surrogates
+    assert isinstance(surrogates, MissionSurrogates) and WAIT in surrogates.selected
+    designs = data.designs[:7]
+    features = surrogates.features(designs)
+    wait = surrogates.wait.predict(designs[:, :1])[WAIT]
+    phase = 2 * np.pi * np.mod(wait, surrogates.period_s) / surrogates.period_s
+    assert np.allclose(features[:, 3:], np.column_stack([np.sin(phase), np.cos(phase)]))
+    parts = surrogates.main.predict(features)
+    assert np.allclose(
+        surrogates.predict(designs)["dv_total_mps"], sum(parts[name] for name in DV_PARTS)
+    )
+    again = load_surrogates(fitted.directory)
+    for name, values in surrogates.predict(designs).items():
+        assert np.array_equal(again.predict(designs)[name], values)
+    assert np.array_equal(again.feasibility(designs), surrogates.feasibility(designs))
+    # Without the phase input: one plain set of the three objectives.
+    plain = scenario.model_copy(
+        update={
+            "mission": scenario.mission.model_copy(
+                update={
+                    "surrogate": scenario.mission.surrogate.model_copy(
+                        update={"phase_input": False}
+                    )
+                }
+            )
+        }
+    )
+    direct = fit_step(doe, data, plain, "test").surrogates
+    assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")

@@ -51,6 +51,9 @@ class SurrogateSettings(StrictModel):
     min_training_samples: int = bounded(ge=4, le=100000, description="feasible, after hold-out")
     kpls_components: int = bounded(ge=1, le=3)
     rbf_d0: float = bounded(gt=0, le=10, description="RBF basis scale, unit-cube inputs")
+    phase_input: bool = Field(
+        description="model dV_total by parts on the phase of the rendezvous wait (docs/optimize.md)"
+    )
     extra_trees: int = bounded(ge=1, le=10000, description="trees of the ET candidate")
     kriging_starts: int = bounded(
         ge=1, le=50, description="SMT n_start of KRG/KPLS: multistarts of the likelihood optimiser"

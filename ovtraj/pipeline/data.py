@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +21,9 @@ class TrainingData:
     designs: np.ndarray  # (n, 3) in DESIGN_NAMES order, physical units
     outputs: dict[str, np.ndarray]  # objective -> (n,), NaN where infeasible
     feasible: np.ndarray
+    # Parts of the totals from the stage rows (NaN where the stage did not get there):
+    # the rendezvous wait and the three impulses of dV_total.
+    components: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.sample_ids)
@@ -49,12 +52,34 @@ def training_data(run: Run) -> TrainingData:
     for objective in MISSION_OBJECTIVES:
         values = merged[objective.name].to_numpy(dtype=float, na_value=np.nan)
         outputs[objective.name] = np.where(feasible, values, np.nan)
+    ids = merged["sample_id"]
     return TrainingData(
-        sample_ids=merged["sample_id"].to_numpy(dtype=np.int64),
+        sample_ids=ids.to_numpy(dtype=np.int64),
         designs=merged[list(DESIGN_NAMES)].to_numpy(dtype=float),
         outputs=outputs,
         feasible=feasible,
+        components={
+            name: _stage_column(run, stage, column, ids)
+            for name, (stage, column) in COMPONENTS.items()
+        },
     )
+
+
+# Training-data name -> (stage, column of the stage's rows).
+COMPONENTS = {
+    "rendezvous_wait_s": ("rendezvous", "wait_time_s"),
+    "dv_rendezvous_mps": ("rendezvous", "dv_total_mps"),
+    "dv_transfer_mps": ("transfer", "dv_total_mps"),
+    "dv_deorbit_mps": ("deorbit", "dv_mps"),
+}
+
+
+def _stage_column(run: Run, stage: str, column: str, ids: pd.Series) -> np.ndarray:
+    rows = run.stage(stage)
+    if len(rows) == 0 or column not in rows:
+        return np.full(len(ids), np.nan)
+    values = rows.set_index("sample_id")[column].reindex(ids.to_numpy())
+    return pd.to_numeric(values, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
 
 
 def run_scenario(run: Run, config: str | Path | None = None) -> Scenario:

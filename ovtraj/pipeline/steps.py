@@ -30,6 +30,11 @@ from ovtraj.files import atomic_bytes, atomic_parquet, read_json, read_parquet
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.pipeline.data import TrainingData
+from ovtraj.pipeline.features import (
+    MissionSurrogates,
+    fit_mission_surrogates,
+    load_surrogates,
+)
 from ovtraj.runs import Run
 from ovtraj.runs.doe import bounds_arrays
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash
@@ -42,7 +47,7 @@ def content_id(content: dict[str, Any]) -> str:
 
 @dataclass
 class FitOutcome:
-    surrogates: SurrogateSet
+    surrogates: SurrogateSet | MissionSurrogates
     directory: Path
     fit_id: str
     reused: bool  # loaded from the store
@@ -63,7 +68,7 @@ def fit_step(
     """Surrogates of the run's samples: loaded when stored, else fitted and stored."""
     settings = scenario.mission.surrogate
     lower, upper = bounds_arrays(scenario.mission.design_bounds)
-    data_hash = training_data_hash(data.designs, data.outputs, data.feasible)
+    data_hash = training_data_hash(data.designs, {**data.outputs, **data.components}, data.feasible)
     fit_id = content_id(
         {
             "data": data_hash,
@@ -75,22 +80,28 @@ def fit_step(
     directory = run.directory / "surrogates" / fit_id
     stored = (directory / "meta.json").is_file()
     if stored and not refit:
-        return FitOutcome(SurrogateSet.load(directory), directory, fit_id, reused=True)
-    surrogates = fit_surrogates(
-        data.designs,
-        data.outputs,
-        data.feasible,
-        lower,
-        upper,
-        settings,
-        input_names=DESIGN_NAMES,
-        sample_ids=data.sample_ids,
-    )
+        return FitOutcome(load_surrogates(directory), directory, fit_id, reused=True)
+    if settings.phase_input:
+        surrogates = fit_mission_surrogates(data, scenario, lower, upper)
+        parts = surrogates.parts
+    else:
+        surrogates = fit_surrogates(
+            data.designs,
+            data.outputs,
+            data.feasible,
+            lower,
+            upper,
+            settings,
+            input_names=DESIGN_NAMES,
+            sample_ids=data.sample_ids,
+        )
+        parts = (surrogates,)
     if not stored:
-        surrogates.save(directory, meta={"run_id": run.id, "fit_id": fit_id, "code": code})
         from ovtraj.plots.surrogate import parity_plots
 
-        parity_plots(surrogates, directory)
+        for part in parts:
+            parity_plots(part, directory)
+        surrogates.save(directory, meta={"run_id": run.id, "fit_id": fit_id, "code": code})
     return FitOutcome(surrogates, directory, fit_id, reused=False)
 
 
