@@ -42,6 +42,12 @@ def _data(**verify) -> dict:
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["verify"].update(verify)
+    # Two regressors, one classifier, 3 folds: the candidates' mechanics are tested in
+    # test_surrogate.py; here the pipeline around them (keeps the suite in budget).
+    data["mission"]["surrogate"].update(
+        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
+    )
+    data["mission"]["optimize"].update(population=32, generations=40)
     return data
 
 

@@ -29,6 +29,10 @@ def flown(tmp_path_factory):
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"].update(samples=12, batch_size=6, store=str(tmp / "runs"))
     data["mission"]["verify"].update(points_per_iteration=3, max_iterations=1, budget=3)
+    data["mission"]["surrogate"].update(
+        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
+    )
+    data["mission"]["optimize"].update(population=32, generations=40)
     config = tmp / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     with prefect_test_harness(server_startup_timeout=60):
