@@ -55,6 +55,19 @@ DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
 
 
 @pytest.fixture(scope="session")
+def prefect_server():
+    """One temporary Prefect server for every flow test of the session.
+
+    Its start costs 6-60 s on this machine (CPU-bound, varies with the VM's speed); one
+    per module cost minutes of the suite's budget.
+    """
+    from prefect.testing.utilities import prefect_test_harness
+
+    with prefect_test_harness(server_startup_timeout=120):
+        yield
+
+
+@pytest.fixture(scope="session")
 def earth() -> EarthModel:
     return default_earth()
 

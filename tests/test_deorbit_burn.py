@@ -27,7 +27,6 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
-from prefect.testing.utilities import prefect_test_harness
 from scipy.optimize import brentq
 
 from ovtraj.astro.elements import argument_of_latitude
@@ -390,12 +389,6 @@ def test_run_id_hashes_what_changes_the_rows_and_nothing_else(problem):
         monte_carlo_run_id(resolved, 10, [1, 2], 5, "v2"),
     }
     assert len(ids) == 6
-
-
-@pytest.fixture(scope="module")
-def prefect_server():
-    with prefect_test_harness(server_startup_timeout=60):
-        yield
 
 
 def _flow_config(tmp: Path, **monte_carlo) -> str:

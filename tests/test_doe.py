@@ -8,17 +8,10 @@ import hashlib
 import pandas as pd
 import pytest
 import yaml
-from prefect.testing.utilities import prefect_test_harness
 
 from ovtraj.mission import STAGES
 from ovtraj.runs import RunStore, StoreError, execute, latin_hypercube, run_id
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
-
-
-@pytest.fixture(scope="module")
-def prefect_server():
-    with prefect_test_harness(server_startup_timeout=60):
-        yield
 
 
 def _config(tmp_path, **doe) -> str:

@@ -2,16 +2,7 @@
 
 from __future__ import annotations
 
-import pytest
-from prefect.testing.utilities import prefect_test_harness
-
 from tests.conftest import DEFAULT_SCENARIO
-
-
-@pytest.fixture(scope="module")
-def prefect_server():
-    with prefect_test_harness(server_startup_timeout=60):
-        yield
 
 
 def test_rendezvous_flow_end_to_end(prefect_server):

@@ -33,6 +33,7 @@ from ovtraj.pipeline import (
 )
 from ovtraj.runs import RunStore, StoreError, execute, prepare_run, run_doe
 from ovtraj.surrogate import SurrogateError
+from ovtraj.version import code_version
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
@@ -64,11 +65,13 @@ def small(tmp_path_factory):
     def evaluate_run(run):
         return run_doe(scenario, run, fit, batch_size=scenario.mission.doe.batch_size)
 
-    doe = prepare_run(scenario, samples=20, seed=2026, code="test", store=store)
+    # The CLI's code version, so that `ovtraj optimize --refit` finds these stored fits.
+    code = code_version()
+    doe = prepare_run(scenario, samples=20, seed=2026, code=code, store=store)
     evaluate_run(doe)
     before = execute.EVALUATIONS["count"]
     result = run_pipeline(
-        scenario, doe, store=store, code="test", steps=PipelineSteps(evaluate=evaluate_run)
+        scenario, doe, store=store, code=code, steps=PipelineSteps(evaluate=evaluate_run)
     )
     return {
         "scenario": scenario,
@@ -79,6 +82,7 @@ def small(tmp_path_factory):
         "result": result,
         "infill_evaluations": execute.EVALUATIONS["count"] - before,
         "evaluate_run": evaluate_run,
+        "code": code,
     }
 
 
@@ -135,16 +139,17 @@ def test_replay_refits_and_reoptimises_without_simulation_and_gives_the_same_fro
         front=partial(front_step, refit=True),
     )
     again = run_pipeline(
-        small["scenario"], small["doe"], store=small["store"], code="test", steps=steps
+        small["scenario"], small["doe"], store=small["store"], code=small["code"], steps=steps
     )
     assert execute.EVALUATIONS["count"] == before
     pd.testing.assert_frame_equal(again.front, result.front)
     assert again.final_run == result.final_run
     # Refitting the DoE run's surrogates reproduces its stored front exactly.
     doe = small["doe"]
-    fitted = fit_step(doe, training_data(doe), small["scenario"], "test", refit=True)
+    fitted = fit_step(doe, training_data(doe), small["scenario"], small["code"], refit=True)
     assert not fitted.reused
-    assert front_step(doe, fitted, small["scenario"], "test", refit=True).matches_stored is True
+    refront = front_step(doe, fitted, small["scenario"], small["code"], refit=True)
+    assert refront.matches_stored is True
 
 
 def _digest(directory) -> dict[str, str]:
@@ -196,8 +201,6 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     doe = small["doe"].id
     # Re-optimising the stored samples: no simulation, the stored front again.
     before = execute.EVALUATIONS["count"]
-    done = runner.invoke(app, ["optimize", doe, "--store", root])
-    assert done.exit_code == 0, done.output
     done = runner.invoke(app, ["optimize", doe, "--refit", "--store", root])
     assert done.exit_code == 0, done.output
     assert "identical to the stored front  True" in done.output
@@ -240,7 +243,7 @@ def test_pipeline_refuses_a_different_result_for_the_same_inputs(small):
                 small["scenario"],
                 small["doe"],
                 store=small["store"],
-                code="test",
+                code=small["code"],
                 steps=PipelineSteps(evaluate=small["evaluate_run"]),
             )
         after = _digest(result.directory)
@@ -284,7 +287,7 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     ok = data.feasible
     total = sum(data.components[name][ok] for name in DV_PARTS)
     assert np.allclose(total, data.outputs["dv_total_mps"][ok], rtol=1e-12)
-    fitted = fit_step(doe, data, scenario, "test")
+    fitted = fit_step(doe, data, scenario, small["code"])
     surrogates = fitted.surrogates
     assert isinstance(surrogates, MissionSurrogates) and WAIT in surrogates.selected
     designs = data.designs[:7]
@@ -312,5 +315,5 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
             )
         }
     )
-    direct = fit_step(doe, data, plain, "test").surrogates
+    direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
