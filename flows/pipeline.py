@@ -32,11 +32,11 @@ from ovtraj.pipeline import (
     PipelineSteps,
     fit_step,
     front_step,
+    pipeline_doe_run,
     run_pipeline,
-    run_scenario,
 )
 from ovtraj.pipeline.planning import write_mission_plan
-from ovtraj.runs import Run, RunStore, prepare_run
+from ovtraj.runs import Run, RunStore
 from ovtraj.version import code_version
 from tasks.pipeline import surrogate_front_task
 
@@ -92,17 +92,15 @@ def mission_flow(
     root = store_root or settings.store
     store = RunStore(root)
     code = code_version()
-    if from_run:
-        doe_run = store.run(from_run)
-        scenario = run_scenario(doe_run, config)
-    else:
-        doe_run = prepare_run(
-            scenario,
-            samples=samples or settings.samples,
-            seed=settings.seed if seed is None else seed,
-            code=code,
-            store=store,
-        )
+    doe_run, scenario = pipeline_doe_run(
+        scenario,
+        store,
+        code,
+        samples=samples,
+        seed=seed,
+        from_run=from_run,
+        config=config if from_run else None,
+    )
     logger.info("DoE run %s: %d samples", doe_run.id, len(doe_run.samples()))
     with task_runner(settings) as runner:
         steps = _steps(runner, scenario, code)

@@ -707,9 +707,16 @@ def pipeline(
     """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan."""
     from functools import partial
 
-    from ovtraj.pipeline import PipelineError, PipelineSteps, fit_step, front_step, run_pipeline
+    from ovtraj.pipeline import (
+        PipelineError,
+        PipelineSteps,
+        fit_step,
+        front_step,
+        pipeline_doe_run,
+        run_pipeline,
+    )
     from ovtraj.pipeline.planning import write_mission_plan
-    from ovtraj.runs import StoreError, prepare_run, run_doe
+    from ovtraj.runs import StoreError, run_doe
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
 
@@ -726,17 +733,15 @@ def pipeline(
         return run_doe(scenario, run, fit, batch_size=settings.batch_size, progress=typer.echo)
 
     try:
-        if from_run:
-            doe_run = store.run(from_run)
-            scenario = _run_scenario(doe_run, config)
-        else:
-            doe_run = prepare_run(
-                scenario,
-                samples=samples or settings.samples,
-                seed=settings.seed if seed is None else seed,
-                code=code,
-                store=store,
-            )
+        doe_run, scenario = pipeline_doe_run(
+            scenario,
+            store,
+            code,
+            samples=samples,
+            seed=seed,
+            from_run=from_run,
+            config=config if from_run else None,
+        )
         typer.echo(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
         evaluate(doe_run)
         steps = PipelineSteps(

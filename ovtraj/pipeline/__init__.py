@@ -6,7 +6,7 @@ front points with the real chain, infill and the verified front; ``pick``: choos
 a point of the front for the mission plan.
 """
 
-from ovtraj.pipeline.data import TrainingData, run_scenario, training_data
+from ovtraj.pipeline.data import TrainingData, pipeline_doe_run, run_scenario, training_data
 from ovtraj.pipeline.loop import PipelineError, PipelineResult, PipelineSteps, run_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.steps import FitOutcome, FrontOutcome, fit_step, front_step
@@ -22,6 +22,7 @@ __all__ = [
     "fit_step",
     "front_step",
     "pick_front_point",
+    "pipeline_doe_run",
     "run_pipeline",
     "run_scenario",
     "training_data",

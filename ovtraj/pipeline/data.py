@@ -11,7 +11,7 @@ import pandas as pd
 from ovtraj.config import Scenario, load_scenario, scenario_from_dict
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import MISSION_OBJECTIVES
-from ovtraj.runs import Run
+from ovtraj.runs import Run, RunStore, prepare_run
 from ovtraj.runs.store import StoreError, results_config
 
 
@@ -95,3 +95,33 @@ def run_scenario(run: Run, config: str | Path | None = None) -> Scenario:
             "chain's results; only mission.doe/surrogate/optimize/verify/plan may differ"
         )
     return scenario
+
+
+def pipeline_doe_run(
+    scenario: Scenario,
+    store: RunStore,
+    code: str,
+    *,
+    samples: int | None = None,
+    seed: int | None = None,
+    from_run: str | None = None,
+    config: str | Path | None = None,
+) -> tuple[Run, Scenario]:
+    """The DoE run the pipeline starts from, and the scenario to use with it.
+
+    ``from_run``: that stored run, with its own scenario (``config`` may change only
+    the post-processing settings, :func:`run_scenario`); otherwise the scenario's Latin
+    hypercube run (``samples`` and ``seed`` default to ``mission.doe``), created or reopened.
+    """
+    if from_run:
+        run = store.run(from_run)
+        return run, run_scenario(run, config)
+    settings = scenario.mission.doe
+    run = prepare_run(
+        scenario,
+        samples=samples or settings.samples,
+        seed=settings.seed if seed is None else seed,
+        code=code,
+        store=store,
+    )
+    return run, scenario
