@@ -32,6 +32,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import format_validation_error
+from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.files import atomic_bytes
 from ovtraj.launch.fit import LaunchFit
@@ -50,18 +51,7 @@ _TIME = HISTORY_COLUMNS.index("time_s")
 _SPEED = HISTORY_COLUMNS.index("speed_mps")
 # The launch programme: the ten design variables of the launch (patent step 101), as the
 # solved grid stores them (``design_<name>``), plus the absolute launch azimuth.
-PROGRAMME_VARIABLES = (
-    "azimuth_offset_deg",
-    "alpha_1_deg",
-    "t_12_s",
-    "alpha_2_deg",
-    "t_23_s",
-    "coast_s",
-    "pitch_rate_2_deg_s",
-    "pitch_3_deg",
-    "pitch_rate_3_deg_s",
-    "payload_kg",
-)
+PROGRAMME_VARIABLES = DESIGN_VARIABLES
 
 
 class PlanError(ValueError):
