@@ -3,26 +3,97 @@
 Every bounded field declares its allowed range once (``bounded``); a rejected
 value is reported as ``target.orbit.eccentricity = 1.2: out of range, allowed
 [0, 1)`` rather than as pydantic's generic text.
+
+pydantic's lax mode turns ``true`` into 1 wherever a number goes (``bool`` is a
+subclass of ``int``). Its strict mode would refuse that, but it also refuses a YAML
+list for a tuple field and the string YAML 1.1 makes of ``1e30``, so
+:class:`StrictModel` keeps lax mode and refuses booleans alone, in one validator that
+runs before every field whose type holds numbers (also inside ``| None``, lists and
+tuples) and no ``bool``: ``initial.longitude_deg = True: expected a number, not a
+boolean``.
 """
 
 from __future__ import annotations
 
+import datetime
 from pathlib import Path
-from typing import Any, TypeVar, get_args
+from typing import Annotated, Any, ClassVar, Literal, TypeVar, get_args, get_origin
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 from pydantic.fields import FieldInfo
+from pydantic_core import PydanticCustomError
 
 from ovtraj.paths import read_yaml
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
+BOOL_NOT_NUMBER = "bool_not_number"
+
+
+def _leaf_types(annotation: Any) -> set[Any]:
+    """The types a value (or an item of it) may take: ``list[float] | None`` -> {float, None}."""
+    origin = get_origin(annotation)
+    if origin is Annotated:
+        return _leaf_types(get_args(annotation)[0])
+    if origin is Literal:
+        return {type(arg) for arg in get_args(annotation)}
+    args = [a for a in get_args(annotation) if a is not Ellipsis]
+    if not args:
+        return {annotation}
+    return set().union(*(_leaf_types(a) for a in args))
+
+
+def _numbers_only(annotation: Any) -> bool:
+    """A field that holds numbers (``int``/``float``, maybe nested) and never a ``bool``."""
+    leaves = _leaf_types(annotation)
+    return bool(leaves & {int, float}) and bool not in leaves
+
+
+def _holds_bool(value: Any) -> bool:
+    if isinstance(value, bool):
+        return True
+    return isinstance(value, (list, tuple)) and any(_holds_bool(v) for v in value)
+
+
 class StrictModel(BaseModel):
-    """Unknown keys are errors; values are checked on assignment too."""
+    """Unknown keys are errors; values are checked on assignment too; a bool is not a number."""
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=True)
+
+    # Fields whose type holds numbers and no bool; and, for fields holding a plain pydantic
+    # model (not a StrictModel, e.g. the Earth model), that model's such fields.
+    _numeric_fields: ClassVar[frozenset[str]] = frozenset()
+    _plain_model_fields: ClassVar[dict[str, frozenset[str]]] = {}
+
+    @classmethod
+    def __pydantic_init_subclass__(cls, **kwargs: Any) -> None:
+        super().__pydantic_init_subclass__(**kwargs)
+        fields = cls.model_fields
+        cls._numeric_fields = frozenset(n for n, f in fields.items() if _numbers_only(f.annotation))
+        plain = {}
+        for name, info in fields.items():
+            inner = _model_in(info.annotation)
+            if isinstance(inner, type) and issubclass(inner, BaseModel):
+                if not issubclass(inner, StrictModel):
+                    numeric = inner.model_fields.items()
+                    plain[name] = frozenset(n for n, f in numeric if _numbers_only(f.annotation))
+        cls._plain_model_fields = plain
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_a_number(cls, value: Any, info: Any) -> Any:
+        name = info.field_name
+        if name in cls._numeric_fields and _holds_bool(value):
+            raise PydanticCustomError(BOOL_NOT_NUMBER, "expected a number, not a boolean")
+        if name in cls._plain_model_fields and isinstance(value, dict):
+            for key in sorted(cls._plain_model_fields[name]):
+                if _holds_bool(value.get(key)):
+                    raise PydanticCustomError(
+                        BOOL_NOT_NUMBER, "expected a number, not a boolean", {"key": key}
+                    )
+        return value
 
 
 def _interval(ge: float | None, gt: float | None, le: float | None, lt: float | None) -> str:
@@ -125,7 +196,16 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
         }:
             lines.append(f"{path} = {value!r}: out of range, allowed {allowed}")
             continue
+        if kind == BOOL_NOT_NUMBER:
+            key = (item.get("ctx") or {}).get("key")
+            if key is not None:  # inside a plain pydantic model (the Earth model)
+                path, value = f"{path}.{key}", value[key]
+            lines.append(f"{path} = {value!r}: {item['msg']}")
+            continue
         msg = item["msg"].removeprefix("Value error, ")
+        if kind == "string_type" and isinstance(value, (datetime.date, datetime.datetime)):
+            value = str(value)
+            msg = "YAML read an unquoted date/time; quote it to give the text"
         suffix = f" (allowed {allowed})" if allowed else ""
         if not loc:
             lines.append(msg)
@@ -148,6 +228,60 @@ def model_from_dict(model: type[ModelT], data: Any, source: str = "") -> ModelT:
         raise ConfigError(format_validation_error(err, model), source) from None
 
 
+def _key_path(keys: list[Any]) -> str:
+    return "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in keys).lstrip(".")
+
+
+def _unbuildable_value(text: str) -> str | None:
+    """``key.path = value (line n): why`` of the first scalar YAML cannot build, if any.
+
+    The document is composed into nodes (no values built), then every scalar is built
+    alone, so the one that fails can be named.
+    """
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:
+        return None
+    builder = yaml.SafeLoader("")
+    stack: list[tuple[Any, list[Any]]] = [(root, [])]
+    while stack:
+        node, keys = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            for key, value in reversed(node.value):
+                stack.append((value, [*keys, key.value]))
+        elif isinstance(node, yaml.SequenceNode):
+            for index, item in reversed(list(enumerate(node.value))):
+                stack.append((item, [*keys, index]))
+        elif isinstance(node, yaml.ScalarNode):
+            try:
+                builder.construct_object(node, deep=True)
+            except Exception as err:  # any constructor failure is the answer
+                kind = node.tag.rsplit(":", 1)[-1]
+                where = _key_path(keys) or "<root>"
+                return (
+                    f"{where} = {node.value} (line {node.start_mark.line + 1}): not a valid "
+                    f"YAML {kind} ({err}); quote it to give the text"
+                )
+    return None
+
+
+def parse_yaml(text: str) -> Any:
+    """The data of a YAML document; ``ValueError`` with one readable line for any failure.
+
+    Syntax errors, and values the YAML constructors cannot build (an unquoted
+    ``2026-13-45T00:00:00Z`` is read as a timestamp and fails with ``month must be in
+    1..12``), are both reported, the latter with the key and the line.
+    """
+    try:
+        return read_yaml(text)
+    except yaml.YAMLError as err:
+        raise ValueError(f"not valid YAML: {err}") from None
+    except Exception as err:  # the constructors raise ValueError, TypeError, OverflowError...
+        where = _unbuildable_value(text)
+        why = where or f"YAML cannot build a value: {type(err).__name__}: {err}"
+        raise ValueError(why) from None
+
+
 def load_model(model: type[ModelT], path: str | Path) -> ModelT:
     """Read a YAML file and validate it into ``model``; every failure is a ConfigError."""
     path = Path(path)
@@ -155,8 +289,10 @@ def load_model(model: type[ModelT], path: str | Path) -> ModelT:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
+    except UnicodeDecodeError as err:
+        raise ConfigError([f"not a UTF-8 text file: {err}"], str(path)) from None
     try:
-        data = read_yaml(text)
-    except yaml.YAMLError as err:
-        raise ConfigError([f"not valid YAML: {err}"], str(path)) from None
+        data = parse_yaml(text)
+    except ValueError as err:
+        raise ConfigError([str(err)], str(path)) from None
     return model_from_dict(model, data, str(path))

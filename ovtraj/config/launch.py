@@ -15,12 +15,11 @@ import datetime
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
 from pydantic import Field, field_validator, model_validator
 
 from ovtraj.astro.constants import default_earth
-from ovtraj.config.base import StrictModel, bounded
-from ovtraj.paths import config_dir, read_yaml
+from ovtraj.config.base import StrictModel, bounded, parse_yaml
+from ovtraj.paths import config_dir
 
 # The ten design variables of patent step 101, in the order of the design vector.
 DESIGN_VARIABLES: tuple[str, ...] = (
@@ -393,11 +392,15 @@ def _read_launcher(name: str) -> dict[str, Any]:
     if not path.is_absolute():
         path = config_dir() / path
     try:
-        data = read_yaml(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ValueError(f"cannot read launcher file {path}: {err.strerror}") from None
-    except yaml.YAMLError as err:
-        raise ValueError(f"launcher file {path} is not valid YAML: {err}") from None
+    except UnicodeDecodeError as err:
+        raise ValueError(f"launcher file {path} is not UTF-8 text: {err}") from None
+    try:
+        data = parse_yaml(text)
+    except ValueError as err:
+        raise ValueError(f"launcher file {path}: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"launcher file {path} must hold a mapping")
     return data
