@@ -48,12 +48,17 @@ def mission_batch_task(
 
     start = time.perf_counter()
     context = _context(json.dumps(resolved_scenario, sort_keys=True, default=str))
+    scenario = context.scenario
     frame = pd.DataFrame(batch)
-    records = execute.evaluate_batch(context, frame)
-    Run(Path(run_dir)).write_batch(batch_index, records, [int(i) for i in frame["sample_id"]])
+    run = Run(Path(run_dir))
+    stored = execute.store_batch(
+        run, scenario, context, batch_index, frame, wait_s=scenario.mission.doe.claim_wait_s
+    )
+    totals = run.batch_totals(batch_index)
     return {
         "batch": batch_index,
-        "samples": len(records),
-        "feasible": sum(r.feasible for r in records),
+        "samples": len(totals),
+        "feasible": int(totals["feasible"].sum()),
+        "stored_here": bool(stored),
         "wall_time_s": time.perf_counter() - start,
     }

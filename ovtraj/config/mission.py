@@ -31,6 +31,27 @@ class DoeSettings(StrictModel):
     )
     task_retries: int = bounded(ge=0, le=10)
     store: str = Field(description="run store root, relative to the working directory")
+    claim_wait_s: float = bounded(
+        unit="s",
+        gt=0,
+        le=7 * 86400,
+        description="longest wait for a batch that another process is computing",
+    )
+
+
+class StoreSettings(StrictModel):
+    """What the run store keeps of each sample and how writers share a run (issue 17)."""
+
+    orbit_trajectory_step_s: float = bounded(
+        unit="s",
+        gt=0,
+        le=86400,
+        description="stored rendezvous, transfer and deorbit tables: a row per step plus "
+        "every phase's first and last",
+    )
+    entry_trajectory_step_s: float = bounded(
+        unit="s", gt=0, le=3600, description="stored reentry table: a row per step plus the ends"
+    )
 
 
 RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET"]
@@ -127,6 +148,7 @@ class MissionSettings(StrictModel):
     stay_h: float = bounded(unit="h", ge=0, description="docked with the target after arrival")
     design_bounds: MissionBoundsConfig
     doe: DoeSettings
+    store: StoreSettings
     surrogate: SurrogateSettings
     optimize: OptimizeSettings
     verify: VerifySettings

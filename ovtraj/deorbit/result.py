@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
+from ovtraj.deorbit.correction import CONSTRAINT_NAMES
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 
 def _deg(x: float | None) -> float | None:
@@ -115,9 +117,70 @@ class DeorbitResult:
         for name, k in (("radial", 0), ("along_track", 1), ("cross_track", 2)):
             dv = self.dv_rsw_mps
             row[f"dv_{name}_mps"] = float(dv[k]) if dv is not None else None
-        for name, value in self.constraints.items():
-            row[f"constraint_{name}"] = value
-        return {k: _plain(v) for k, v in row.items()}
+        for name in CONSTRAINT_NAMES:
+            row[f"constraint_{name}"] = self.constraints.get(name)
+        return {k: plain(v) for k, v in row.items()}
+
+
+_RSW = ("radial", "along_track", "cross_track")
+
+ROW_SCHEMA = record_schema(
+    [
+        ("feasible", BOOL),
+        ("reason", TEXT),
+        ("epoch_utc", TEXT),
+        ("burn_epoch_utc", TEXT),
+        ("burn_time_s", FLOAT),
+        ("wait_time_s", FLOAT),
+        ("dv_mps", FLOAT),
+        ("descent_time_s", FLOAT),
+        ("entry_epoch_utc", TEXT),
+        ("entry_time_s", FLOAT),
+        ("entry_lat_deg", FLOAT),
+        ("entry_lon_deg", FLOAT),
+        ("entry_altitude_km", FLOAT),
+        ("entry_speed_mps", FLOAT),
+        ("entry_fpa_deg", FLOAT),
+        ("entry_relative_speed_mps", FLOAT),
+        ("entry_relative_fpa_deg", FLOAT),
+        ("entry_heading_deg", FLOAT),
+        ("entry_error_km", FLOAT),
+        ("virtual_entry_epoch_utc", TEXT),
+        ("virtual_entry_lat_deg", FLOAT),
+        ("virtual_entry_lon_deg", FLOAT),
+        ("estimate_dv_mps", FLOAT),
+        ("estimate_central_angle_deg", FLOAT),
+        ("estimate_time_of_flight_s", FLOAT),
+        ("iterations", INT),
+        ("solver_message", TEXT),
+        ("passes_in_region", INT),
+        ("passes_tried", INT),
+        ("propagations", INT),
+        ("wall_time_s", FLOAT),
+        *[
+            (f"{vector}_{axis}{unit}", FLOAT)
+            for axis in "xyz"
+            for vector, unit in (("dv_eci", "_mps"), ("entry_r_eci", "_m"), ("entry_v_eci", "_mps"))
+        ],
+        *[(f"dv_{axis}_mps", FLOAT) for axis in _RSW],
+        *[(f"constraint_{name}", FLOAT) for name in CONSTRAINT_NAMES],
+    ],
+    required=("feasible",),
+)
+"""The columns of :meth:`DeorbitResult.to_row` (``wall_time_s`` is timing, not a result)."""
+
+TRAJECTORY_SCHEMA = record_schema(
+    [
+        ("time_s", FLOAT),
+        ("phase", TEXT),
+        *[(name, FLOAT) for name in ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")],
+        *[
+            (name, FLOAT)
+            for name in ("altitude_km", "latitude_deg", "longitude_deg", "speed_mps", "fpa_deg")
+        ],
+    ],
+)
+"""The columns of :attr:`DeorbitResult.trajectory`."""
 
 
 def _km(x: float | None) -> float | None:
@@ -126,9 +189,3 @@ def _km(x: float | None) -> float | None:
 
 def _epoch(day: Epoch, t: float | None) -> str | None:
     return None if t is None else day.plus_seconds(t).iso()
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -37,6 +37,7 @@ from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
+from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
@@ -44,6 +45,38 @@ from ovtraj.targets import circular_orbit_state, target_state
 
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
 DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
+
+LAUNCH_ROW_SCHEMA = record_schema(
+    [
+        ("source", TEXT),
+        ("launcher", TEXT),
+        ("parking_altitude_km", FLOAT),
+        ("payload_kg", FLOAT),
+        ("drop_time_s", FLOAT),
+        ("insertion_time_s", FLOAT),
+        ("insertion_u_deg", FLOAT),
+        ("drop_epoch_utc", TEXT),
+        ("insertion_epoch_utc", TEXT),
+        ("feasible", BOOL),
+        ("reason", TEXT),
+    ],
+    required=("feasible",),
+)
+"""The chain's launch row (from the launch fit, not :class:`ovtraj.launch.LaunchResult`)."""
+
+TOTALS_SCHEMA = record_schema(
+    [
+        *[(name, FLOAT) for name in DESIGN_NAMES],
+        ("feasible", BOOL),
+        ("failed_stage", TEXT),
+        ("reason", TEXT),
+        ("t_total_s", FLOAT),
+        ("dv_total_mps", FLOAT),
+        ("m_load_kg", FLOAT),
+    ],
+    required=(*DESIGN_NAMES, "feasible"),
+)
+"""The columns of :meth:`MissionRecord.totals` (results only: no timing)."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +102,7 @@ class MissionRecord:
     t_total_s: float | None = None
     dv_total_mps: float | None = None
     m_load_kg: float | None = None
-    wall_time_s: float = 0.0
+    wall_time_s: float = 0.0  # timing of the evaluation, never part of the totals
     # Each stage's result object and the launch dict (with the insertion state), for the
     # mission plan (ovtraj.mission.plan); not persisted, not in totals().
     results: dict[str, Any] = field(default_factory=dict)
@@ -83,7 +116,6 @@ class MissionRecord:
             "t_total_s": self.t_total_s,
             "dv_total_mps": self.dv_total_mps,
             "m_load_kg": self.m_load_kg,
-            "wall_time_s": self.wall_time_s,
         }
 
 

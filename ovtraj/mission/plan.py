@@ -34,7 +34,7 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import format_validation_error
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
-from ovtraj.files import atomic_bytes
+from ovtraj.files import write_bytes
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission.chain import MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.reentry import EntryState, reentry_input
@@ -658,8 +658,7 @@ def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Pat
                 "(choose another name or directory)"
             )
     for path, payload in targets:
-        if not path.exists():
-            atomic_bytes(path, payload)
+        write_bytes(path, payload)
     return targets[0][0], targets[1][0]
 
 

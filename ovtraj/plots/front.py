@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ovtraj.files import atomic_bytes
+from ovtraj.files import write_bytes
 from ovtraj.optimize.objectives import Normalisation
 
 __all__ = ["front_plot"]
@@ -58,5 +58,5 @@ def front_plot(
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=100)
     path = Path(path)
-    atomic_bytes(path, buffer.getvalue())
+    write_bytes(path, buffer.getvalue(), replace=True)
     return path

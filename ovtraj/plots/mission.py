@@ -30,7 +30,7 @@ import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario
-from ovtraj.files import atomic_bytes
+from ovtraj.files import write_bytes
 
 __all__ = ["mission_plots"]
 
@@ -69,7 +69,7 @@ def _save(fig: object, path: Path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=100)
     fig.clear()
-    atomic_bytes(path, buffer.getvalue())
+    write_bytes(path, buffer.getvalue(), replace=True)
     return path
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ovtraj.files import atomic_bytes
+from ovtraj.files import write_bytes
 from ovtraj.surrogate import SurrogateSet
 
 __all__ = ["parity_plots"]
@@ -81,6 +81,6 @@ def parity_plots(surrogates: SurrogateSet, directory: Path) -> list[Path]:
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=100)
         path = directory / _file_name(output, taken)
-        atomic_bytes(path, buffer.getvalue())
+        write_bytes(path, buffer.getvalue(), replace=True)
         paths.append(path)
     return paths

@@ -6,10 +6,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 
 def _deg(x: float | None) -> float | None:
@@ -92,4 +92,68 @@ class ReentryResult:
             "trajectories": self.trajectories,
             "wall_time_s": self.wall_time_s,
         }
-        return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in row.items()}
+        return {k: plain(v) for k, v in row.items()}
+
+
+ROW_SCHEMA = record_schema(
+    [
+        ("feasible", BOOL),
+        ("reason", TEXT),
+        ("flags", TEXT),
+        ("entry_epoch_utc", TEXT),
+        ("miss_distance_km", FLOAT),
+        ("flight_time_s", FLOAT),
+        ("terminal_epoch_utc", TEXT),
+        *[
+            (f"terminal_{name}", FLOAT)
+            for name in (
+                "altitude_km",
+                "speed_mps",
+                "lat_deg",
+                "lon_deg",
+                "fpa_deg",
+                "heading_deg",
+            )
+        ],
+        ("max_heat_rate_kw_m2", FLOAT),
+        ("max_heat_rate_time_s", FLOAT),
+        ("max_load_g", FLOAT),
+        ("max_load_time_s", FLOAT),
+        ("max_dynamic_pressure_kpa", FLOAT),
+        ("max_dynamic_pressure_time_s", FLOAT),
+        ("max_bank_deg", FLOAT),
+        *[(f"{name}_margin", FLOAT) for name in ("heat_rate", "load", "dynamic_pressure", "bank")],
+        ("sigma0_deg", FLOAT),
+        ("sigma1_deg", FLOAT),
+        ("reversals", INT),
+        ("newton_iterations", INT),
+        ("golden_evaluations", INT),
+        ("trajectories", INT),
+        ("wall_time_s", FLOAT),
+    ],
+    required=("feasible",),
+)
+"""The columns of :meth:`ReentryResult.to_row` (``wall_time_s`` is timing, not a result)."""
+
+TRAJECTORY_SCHEMA = record_schema(
+    [
+        (name, FLOAT)
+        for name in (
+            "time_s",
+            "altitude_km",
+            "latitude_deg",
+            "longitude_deg",
+            "speed_mps",
+            "fpa_deg",
+            "heading_deg",
+            "alpha_deg",
+            "bank_deg",
+            "mach",
+            "heat_rate_kw_m2",
+            "load_g",
+            "dynamic_pressure_kpa",
+            "range_to_go_km",
+        )
+    ],
+)
+"""The columns of :attr:`ReentryResult.trajectory`."""

@@ -12,6 +12,7 @@ import pandas as pd
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.scenario import RendezvousSettings
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 TransferKind = Literal["rendezvous", "transfer"]
 
@@ -137,7 +138,61 @@ class RendezvousResult:
                 row[f"{name}_eci_{axis}_mps"] = float(burn.eci_mps[k]) if burn else None
             for axis, k in zip(("radial", "along_track", "cross_track"), range(3), strict=True):
                 row[f"{name}_{axis}_mps"] = float(burn.rsw_mps[k]) if burn else None
-        return {k: _plain(v) for k, v in row.items()}
+        return {k: plain(v) for k, v in row.items()}
+
+
+_RSW = ("radial", "along_track", "cross_track")
+_STATE = ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")
+
+ROW_SCHEMA = record_schema(
+    [
+        ("kind", TEXT),
+        ("feasible", BOOL),
+        ("reason", TEXT),
+        ("epoch_utc", TEXT),
+        ("t0_s", FLOAT),
+        ("wait_time_s", FLOAT),
+        ("transfer_time_s", FLOAT),
+        ("transfer_time_two_body_s", FLOAT),
+        ("dv1_mps", FLOAT),
+        ("dv2_mps", FLOAT),
+        ("dv_total_mps", FLOAT),
+        ("dv1_two_body_mps", FLOAT),
+        ("dv2_two_body_mps", FLOAT),
+        ("lead_angle_deg", FLOAT),
+        ("lead_angle_two_body_deg", FLOAT),
+        ("plane_difference_deg", FLOAT),
+        ("miss_distance_m", FLOAT),
+        ("initial_miss_distance_m", FLOAT),
+        ("iterations", INT),
+        ("evaluations", INT),
+        ("solver_message", TEXT),
+        *[
+            (f"{burn}_{what}", kind)
+            for burn in ("burn1", "burn2")
+            for what, kind in (("t_s", FLOAT), ("epoch_utc", TEXT))
+        ],
+        *[
+            (f"{dv}_{axis}_mps", FLOAT)
+            for dv in ("dv1", "dv2")
+            for axis in ("eci_x", "eci_y", "eci_z", *_RSW)
+        ],
+    ],
+    required=("kind", "feasible"),
+)
+"""The columns of :meth:`RendezvousResult.to_row` (the rendezvous and transfer stages)."""
+
+TRAJECTORY_SCHEMA = record_schema(
+    [
+        ("t_s", FLOAT),
+        ("phase", TEXT),
+        *[(f"chaser_{axis}", FLOAT) for axis in _STATE],
+        *[(f"target_{axis}", FLOAT) for axis in _STATE],
+        ("chaser_altitude_m", FLOAT),
+        ("range_m", FLOAT),
+    ],
+)
+"""The columns of :attr:`RendezvousResult.trajectory` (target columns null without a target)."""
 
 
 def _magnitude(burn: Impulse | None) -> float | None:
@@ -146,9 +201,3 @@ def _magnitude(burn: Impulse | None) -> float | None:
 
 def _deg(angle: float | None) -> float | None:
     return math.degrees(angle) if angle is not None else None
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -12,7 +12,7 @@ from ovtraj.config import Scenario
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.runs.doe import latin_hypercube
-from ovtraj.runs.store import Run, RunStore
+from ovtraj.runs.store import Run, RunStore, StoreError
 
 # Counts mission evaluations in this process (tests assert that a re-run makes none).
 EVALUATIONS = {"count": 0}
@@ -96,6 +96,45 @@ def extend_run(
     return child
 
 
+def trajectory_steps(scenario: Scenario) -> dict[str, float]:
+    """The stored sampling of each stage's trajectory (``mission.store``) [s]."""
+    store = scenario.mission.store
+    orbit = store.orbit_trajectory_step_s
+    return {
+        "rendezvous": orbit,
+        "transfer": orbit,
+        "deorbit": orbit,
+        "reentry": store.entry_trajectory_step_s,
+    }
+
+
+def store_batch(
+    run: Run,
+    scenario: Scenario,
+    context: MissionContext,
+    batch_index: int,
+    batch: pd.DataFrame,
+    *,
+    wait_s: float = 0.0,
+) -> bool | None:
+    """Evaluate and store one batch under its claim.
+
+    Returns True when this process stored it, False when it was already stored
+    (possibly by another process meanwhile), None when another process holds its
+    claim and ``wait_s`` is 0.
+    """
+    with run.claim(batch_index, wait_s=wait_s) as claimed:
+        if not claimed:
+            return None
+        if run.is_stored(batch_index):
+            return False
+        records = evaluate_batch(context, batch)
+        ids = [int(i) for i in batch["sample_id"]]
+        return run.write_batch(
+            batch_index, records, ids, trajectory_steps=trajectory_steps(scenario)
+        )
+
+
 def run_doe(
     scenario: Scenario,
     run: Run,
@@ -104,27 +143,57 @@ def run_doe(
     batch_size: int,
     progress: Callable[[str], None] | None = None,
 ) -> Run:
-    """Evaluate every batch the run does not hold yet, serially, and finish the manifest."""
+    """Evaluate every batch the run does not hold yet, serially, and finish the manifest.
+
+    Batches that another process is computing are left to it at first, then waited
+    for (``mission.doe.claim_wait_s``); one whose process died is computed here. A
+    complete run is not written to at all.
+    """
+    say = progress or (lambda _: None)
     batches = run.batches(batch_size)
-    pending = run.pending_batches(batch_size)
-    run.update_manifest(status="running", batches=len(batches))
-    context = MissionContext(scenario, launch_fit) if pending else None
-    for k, batch in pending:
-        start = time.perf_counter()
-        records = evaluate_batch(context, batch)
-        run.write_batch(k, records, [int(i) for i in batch["sample_id"]])
-        if progress:
-            progress(
-                f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
-                f"{time.perf_counter() - start:.1f} s"
-            )
+    if not [k for k, _ in batches if not run.is_stored(k)]:
+        return finish(run)
+    context = MissionContext(scenario, launch_fit)
+    with run.working() as removed:
+        if removed:
+            say(f"removed {len(removed)} temporary file(s) of an interrupted write")
+        run.update_manifest(batches=len(batches))
+        waiting = []
+        for k, batch in batches:
+            if run.is_stored(k):
+                continue
+            start = time.perf_counter()
+            stored = store_batch(run, scenario, context, k, batch)
+            if stored is None:
+                waiting.append((k, batch))
+                continue
+            if stored:
+                say(
+                    f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
+                    f"{time.perf_counter() - start:.1f} s"
+                )
+        for k, batch in waiting:
+            say(f"batch {k + 1}/{len(batches)}: computed by another process; waiting for it")
+            wait_s = scenario.mission.doe.claim_wait_s
+            if store_batch(run, scenario, context, k, batch, wait_s=wait_s):
+                say(f"batch {k + 1}/{len(batches)}: its process stopped; computed here")
     return finish(run)
 
 
 def finish(run: Run) -> Run:
+    """Set the manifest's status and counts from the stored batches (written only if changed).
+
+    ``complete`` when every sample is stored; otherwise ``running`` while another
+    process works on the run, else ``incomplete``.
+    """
     totals = run.totals()
     samples = len(run.samples())
-    status = "complete" if len(totals) == samples else "incomplete"
+    if len(totals) == samples:
+        status = "complete"
+    elif run.in_use():
+        status = "running"
+    else:
+        status = "incomplete"
     run.update_manifest(
         status=status,
         evaluated=len(totals),
@@ -140,6 +209,8 @@ def replay(run: Run) -> pd.DataFrame:
     launch payload, ``T_total`` from the drop to the terminal interface (the deorbit
     starts at the end of the transfer, its times count from there).
     """
+    if not run.done_batches():
+        raise StoreError(f"run {run.id} has no stored batch: nothing to replay")
     samples = run.samples()[["sample_id"]]
     frames = {
         stage: run.stage(stage)

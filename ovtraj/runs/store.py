@@ -2,14 +2,36 @@
 
 Layout::
 
-    config.json                      resolved scenario (every default filled in)
     manifest.json                    run id, parent, created, code and dependency
-                                     versions, seed, samples, status, counts
+                                     versions, seed, samples, status, counts, store
+                                     format, and the digests of config and samples
+    config.json                      resolved scenario (every default filled in)
     samples.parquet                  sample_id and the design variables
     stages/<stage>/part-<k>.parquet  each stage's own rows, keyed by sample_id
     totals/part-<k>.parquet          the mission totals, keyed by sample_id
-    trajectories/<stage>/part-<k>.parquet   the batch's trajectory tables, with sample_id
-    batches/<k>.json                 written last: batch k is complete
+    trajectories/<stage>/part-<k>.parquet   the batch's trajectory tables as stored
+    batches/<k>.json                 written last: batch k is complete; its sample ids,
+                                     the size and SHA-256 of every file of the batch,
+                                     and the batch's timing record
+    locks/                           advisory locks of the processes working on the run
+
+Every Parquet file has its dataset's declared schema (:mod:`ovtraj.runs.schemas`).
+
+Guarantees:
+
+- *Nothing stored is changed.* Files are written to a temporary name and linked into
+  place; a stored file is never overwritten (only the manifest, the run's index, is
+  replaced atomically, and never when nothing changed).
+- *Every read is checked.* Readers take the files a batch marker lists, check their
+  size, SHA-256 and schema, and refuse a changed file naming it (:class:`StoreError`);
+  files without a marker (an interrupted batch) are never read. :meth:`Run.verify`
+  checks a whole run.
+- *Concurrent writers.* A process working on a run holds the run lock (shared) and
+  claims each batch (exclusive lock) before computing it, so two processes never
+  compute a batch twice; a killed process's locks are released by the kernel. The
+  first writer of a run with no other writer removes the temporary files that
+  interrupted writes left. A run whose manifest says ``running`` while no process
+  holds its lock was interrupted (:meth:`Run.status`).
 
 The run id is a content hash of what changes results: the resolved config (which
 holds the design bounds) without the settings that only say how the run executes
@@ -19,13 +41,8 @@ themselves, the parent run and the code version.
 
 A child run (``parent``) starts with its parent's samples: the parent's stored
 batches are adopted as the child's first batches (hard links where the file system
-allows), so only the new samples are evaluated. Its manifest says how many batches
-were adopted (``inherited_batches``); the rest of its samples are split after them.
-
-Every file is written to a temporary name and renamed, and a batch
-counts only once its marker exists, so an interrupted run resumes at the first
-incomplete batch and a complete run is never recomputed. Stored files are never
-overwritten; a file that cannot be read raises :class:`StoreError` naming it.
+allows, their digests carried over), so only the new samples are evaluated. Its
+manifest says how many batches were adopted (``inherited_batches``).
 """
 
 from __future__ import annotations
@@ -35,7 +52,9 @@ import hashlib
 import json
 import os
 import platform
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -44,13 +63,34 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from ovtraj.files import StoreError, atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.files import (
+    TEMPORARY_SUFFIX,
+    Digest,
+    StoreError,
+    os_error_text,
+    read_bytes,
+    read_json,
+    read_table,
+    remove_orphans,
+    write_bytes,
+    write_json,
+    write_parquet,
+)
 from ovtraj.mission import STAGES, MissionRecord
+from ovtraj.records import table_from_frame, table_from_rows
+from ovtraj.runs import locks
+from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
 
-__all__ = ["DEFAULT_ROOT", "Run", "RunStore", "StoreError", "run_id"]
+__all__ = ["DEFAULT_ROOT", "Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
 
 DEFAULT_ROOT = Path("data") / "runs"
 DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
+MANIFEST = "manifest.json"
+RUN_FILES = ("config.json", "samples.parquet")
+# Waits on the manifest lock: a holder only reads and rewrites one small file.
+MANIFEST_LOCK_WAIT_S = 60.0
+# Folders of a run's pipeline products, each file listed with its digest in the marker.
+PRODUCTS = {"surrogates": "meta.json", "fronts": "meta.json", "pipeline": "pipeline.json"}
 
 
 # Settings that do not change a sample's results: how the DoE executes, and what
@@ -102,35 +142,115 @@ def dependency_versions() -> dict[str, str]:
     return versions
 
 
+def part_name(batch: int) -> str:
+    return f"part-{batch:05d}.parquet"
+
+
+def _utc_now() -> str:
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
+@dataclass
+class VerifyReport:
+    """What :meth:`Run.verify` found: every problem names its file."""
+
+    run_id: str
+    checked_files: int = 0
+    checked_bytes: int = 0
+    problems: list[str] = field(default_factory=list)
+    uncovered: list[str] = field(default_factory=list)  # files no marker lists (never read)
+
+    @property
+    def clean(self) -> bool:
+        return not self.problems
+
+
 class Run:
     """One stored run."""
 
     def __init__(self, directory: Path) -> None:
-        self.directory = directory
-        self.id = directory.name
+        self.directory = Path(directory)
+        self.id = self.directory.name
 
     # -- metadata -------------------------------------------------------------------------
     @property
     def manifest(self) -> dict[str, Any]:
-        return read_json(self.directory / "manifest.json")
+        manifest = read_json(self.directory / MANIFEST)
+        if not isinstance(manifest, dict):
+            raise StoreError(f"{self.directory / MANIFEST}: not a run manifest")
+        version = manifest.get("schema_version", 1)
+        if version != SCHEMA_VERSION:
+            raise StoreError(
+                f"{self.directory / MANIFEST}: store format {version}; this version of ovtraj "
+                f"reads format {SCHEMA_VERSION} (checksummed, declared schemas): run the DoE again"
+            )
+        return manifest
 
-    def update_manifest(self, **changes: Any) -> None:
-        manifest = self.manifest | changes
-        atomic_bytes(self.directory / "manifest.json", json.dumps(manifest, indent=2).encode())
+    def _file_digest(self, name: str) -> Digest:
+        try:
+            return Digest.from_json(self.manifest["files"][name])
+        except (KeyError, TypeError, ValueError):
+            raise StoreError(f"{self.directory / MANIFEST}: no digest of {name}") from None
 
     @property
     def config(self) -> dict[str, Any]:
-        return read_json(self.directory / "config.json")
+        return read_json(self.directory / "config.json", self._file_digest("config.json"))
 
     def samples(self) -> pd.DataFrame:
-        return read_parquet(self.directory / "samples.parquet")
+        path = self.directory / "samples.parquet"
+        return read_table(
+            path, self._file_digest("samples.parquet"), DATASETS["samples"]
+        ).to_pandas()
+
+    def update_manifest(self, **changes: Any) -> bool:
+        """Merge ``changes`` into the manifest; returns False (writes nothing) if none differ."""
+        if all(self.manifest.get(k) == v for k, v in changes.items()):
+            return False  # checked without the lock too: a read-only store is never locked
+        with locks.hold(self._lock("manifest"), wait_s=MANIFEST_LOCK_WAIT_S):
+            manifest = self.manifest
+            if all(manifest.get(k) == v for k, v in changes.items()):
+                return False
+            write_json(self.directory / MANIFEST, manifest | changes, replace=True)
+        return True
+
+    def _lock(self, name: str) -> Path:
+        return self.directory / "locks" / f"{name}.lock"
+
+    def in_use(self) -> bool:
+        """Whether a process is working on the run (holds its run lock)."""
+        return locks.held(self._lock("run"))
+
+    def status(self) -> str:
+        """The manifest's status; ``interrupted`` when it says running and nobody is."""
+        status = self.manifest.get("status")
+        if status == "running" and not self.in_use():
+            return "interrupted"
+        return status
 
     # -- batches --------------------------------------------------------------------------
+    def markers(self) -> dict[int, dict[str, Any]]:
+        """Every complete batch's marker, by batch index."""
+        folder = self.directory / "batches"
+        if not folder.is_dir():
+            return {}
+        found = {}
+        for path in folder.glob("*.json"):
+            if not path.stem.isdigit():
+                continue
+            marker = read_json(path)
+            if not isinstance(marker, dict) or not isinstance(marker.get("files"), dict):
+                raise StoreError(f"{path}: not a batch marker of store format {SCHEMA_VERSION}")
+            found[int(path.stem)] = marker
+        return dict(sorted(found.items()))
+
     def done_batches(self) -> set[int]:
         folder = self.directory / "batches"
         if not folder.is_dir():
             return set()
-        return {int(p.stem) for p in folder.glob("*.json")}
+        return {int(p.stem) for p in folder.glob("*.json") if p.stem.isdigit()}
+
+    def is_stored(self, batch: int) -> bool:
+        return (self.directory / "batches" / f"{batch}.json").is_file()
 
     def batches(self, batch_size: int) -> list[tuple[int, pd.DataFrame]]:
         """Every batch of the run as (index, samples), stored or not.
@@ -142,10 +262,13 @@ class Run:
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
         samples = self.samples()
         inherited = int(self.manifest.get("inherited_batches", 0))
+        markers = self.markers()
         out: list[tuple[int, pd.DataFrame]] = []
         adopted: set[int] = set()
         for k in range(inherited):
-            ids = read_json(self.directory / "batches" / f"{k}.json")["sample_ids"]
+            if k not in markers:
+                raise StoreError(f"{self.directory / 'batches' / f'{k}.json'}: missing")
+            ids = markers[k]["sample_ids"]
             adopted.update(ids)
             out.append((k, samples[samples["sample_id"].isin(ids)]))
         rest = samples[~samples["sample_id"].isin(adopted)]
@@ -157,101 +280,215 @@ class Run:
         done = self.done_batches()
         return [(k, batch) for k, batch in self.batches(batch_size) if k not in done]
 
+    @contextmanager
+    def working(self) -> Iterator[list[Path]]:
+        """Hold the run lock (shared) while this process writes batches.
+
+        When no other process works on the run, the temporary files of interrupted
+        writes are removed first (yielded). The manifest says ``running`` meanwhile;
+        an exception (including an interrupt) marks it ``interrupted`` with the cause.
+        """
+        path = self._lock("run")
+        removed: list[Path] = []
+        with locks.hold(path) as alone:
+            if alone:
+                removed = remove_orphans(self.directory)
+        with locks.hold(path, shared=True, wait_s=MANIFEST_LOCK_WAIT_S):
+            previous = self.manifest.get("status")
+            changes: dict[str, Any] = {"status": "running"}
+            if previous == "running" and alone:
+                changes["resumed_after_interruption"] = (
+                    int(self.manifest.get("resumed_after_interruption", 0)) + 1
+                )
+            self.update_manifest(**changes)
+            try:
+                yield removed
+            except BaseException as err:
+                try:
+                    self.update_manifest(
+                        status="interrupted",
+                        interrupted=f"{type(err).__name__}: {err}"[:500],
+                        interrupted_utc=_utc_now(),
+                    )
+                except StoreError:
+                    pass  # the cause is reported; the lock tells readers the run stopped
+                raise
+
+    @contextmanager
+    def claim(self, batch: int, *, wait_s: float = 0.0) -> Iterator[bool]:
+        """Claim batch ``batch`` for this process (see :func:`ovtraj.runs.locks.hold`).
+
+        Whoever holds the claim may compute and write the batch; it first clears what
+        an interrupted attempt left of it (files that no marker covers).
+        """
+        with locks.hold(self._lock(f"batch-{batch}"), wait_s=wait_s) as claimed:
+            if claimed and not self.is_stored(batch):
+                self._clear_unmarked(batch)
+            yield claimed
+
+    def _batch_paths(self, batch: int) -> list[Path]:
+        name = part_name(batch)
+        paths = [self.directory / "totals" / name]
+        for folder in ("stages", "trajectories"):
+            paths += [self.directory / folder / stage / name for stage in STAGES]
+        return paths
+
+    def _clear_unmarked(self, batch: int) -> None:
+        for path in self._batch_paths(batch):
+            try:
+                path.unlink()
+            except FileNotFoundError:
+                continue
+            except OSError as err:
+                raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+
     def adopt(self, parent: Run) -> int:
         """Take the parent's stored batches as this run's first ones; returns their count.
 
         Done once, when the child is created: files are hard-linked (copied where links
-        are not possible) under renumbered names, the batch markers last, then the
-        manifest records the count. Re-running it after an interruption is harmless.
+        are not possible) under renumbered names with their digests, the batch markers
+        last, then the manifest records the count. Re-running it after an interruption
+        is harmless.
         """
         if "inherited_batches" in self.manifest:
             return int(self.manifest["inherited_batches"])
-        stored = sorted(parent.done_batches())
-        for new, old in enumerate(stored):
-            for folder in ("stages", "trajectories"):
-                for stage in STAGES:
-                    _link(
-                        parent.directory / folder / stage / f"part-{old:05d}.parquet",
-                        self.directory / folder / stage / f"part-{new:05d}.parquet",
-                    )
-            _link(
-                parent.directory / "totals" / f"part-{old:05d}.parquet",
-                self.directory / "totals" / f"part-{new:05d}.parquet",
-            )
-        for new, old in enumerate(stored):
-            marker = read_json(parent.directory / "batches" / f"{old}.json")
-            marker["batch"] = new
-            atomic_bytes(self.directory / "batches" / f"{new}.json", json.dumps(marker).encode())
+        stored = parent.markers()
+        for new, (old, marker) in enumerate(stored.items()):
+            files = {}
+            for relative, digest in marker["files"].items():
+                target = relative.replace(part_name(old), part_name(new))
+                _link(
+                    parent.directory / relative, self.directory / target, Digest.from_json(digest)
+                )
+                files[target] = digest
+            adopted = {**marker, "batch": new, "files": files, "adopted_from": [parent.id, old]}
+            write_json(self.directory / "batches" / f"{new}.json", adopted)
         self.update_manifest(inherited_batches=len(stored))
         return len(stored)
 
     def write_batch(
-        self, batch: int, records: Iterable[MissionRecord], sample_ids: list[int]
+        self,
+        batch: int,
+        records: Iterable[MissionRecord],
+        sample_ids: list[int],
+        *,
+        trajectory_steps: dict[str, float],
     ) -> bool:
-        """Store a batch's records; returns False (and writes nothing) if already stored."""
+        """Store a batch's records; returns False (and writes nothing) if already stored.
+
+        The caller holds the batch's claim (:meth:`claim`). ``trajectory_steps`` gives
+        the stored sampling of each stage's trajectory (:func:`stored_trajectory`).
+        """
         marker = self.directory / "batches" / f"{batch}.json"
         if marker.exists():
             return False
         records = list(records)
-        part = f"part-{batch:05d}.parquet"
+        pairs = list(zip(sample_ids, records, strict=True))
+        part = part_name(batch)
+        files: dict[str, Digest] = {}
+        timing: dict[str, Any] = {
+            "sample_wall_time_s": {str(sid): rec.wall_time_s for sid, rec in pairs},
+            "stage_wall_time_s": {},
+        }
+
+        def store(relative: str, table: pa.Table, dataset: str) -> None:
+            files[relative] = write_parquet(self.directory / relative, table, DATASETS[dataset])
+
         for stage in STAGES:
-            rows = [
-                {"sample_id": sid, **rec.stages[stage]}
-                for sid, rec in zip(sample_ids, records, strict=True)
-                if stage in rec.stages
-            ]
+            dataset = f"stages/{stage}"
+            rows = []
+            for sid, rec in pairs:
+                if stage not in rec.stages:
+                    continue
+                row = dict(rec.stages[stage])
+                for column in TIMING_COLUMNS:
+                    if column in row:
+                        timing["stage_wall_time_s"].setdefault(stage, {})[str(sid)] = row.pop(
+                            column
+                        )
+                rows.append({"sample_id": sid, **row})
             if rows:
-                # Rows straight to Arrow: pandas' object-column conversion costs more
-                # than the write itself on a batch of a few samples.
-                path = self.directory / "stages" / stage / part
-                atomic_parquet(path, pa.Table.from_pylist(rows))
+                store(
+                    f"{dataset}/{part}", table_from_rows(rows, DATASETS[dataset], dataset), dataset
+                )
+            dataset = f"trajectories/{stage}"
+            if dataset not in DATASETS:
+                continue
             tables = [
-                (sid, rec.trajectories[stage])
-                for sid, rec in zip(sample_ids, records, strict=True)
+                (sid, stored_trajectory(rec.trajectories[stage], stage, trajectory_steps[stage]))
+                for sid, rec in pairs
                 if len(rec.trajectories.get(stage, ()))
             ]
             if tables:
-                # One concatenation, then the key column (a per-table assign copies each).
                 frame = pd.concat([table for _, table in tables], ignore_index=True)
-                frame["sample_id"] = np.repeat(
-                    [sid for sid, _ in tables], [len(table) for _, table in tables]
+                frame.insert(
+                    0,
+                    "sample_id",
+                    np.repeat([sid for sid, _ in tables], [len(t) for _, t in tables]),
                 )
-                atomic_parquet(self.directory / "trajectories" / stage / part, frame)
-        totals = [
-            {"sample_id": sid, **rec.totals()} for sid, rec in zip(sample_ids, records, strict=True)
-        ]
-        atomic_parquet(self.directory / "totals" / part, pa.Table.from_pylist(totals))
-        atomic_bytes(marker, json.dumps({"batch": batch, "sample_ids": sample_ids}).encode())
+                store(
+                    f"{dataset}/{part}",
+                    table_from_frame(frame, DATASETS[dataset], dataset),
+                    dataset,
+                )
+        totals = [{"sample_id": sid, **rec.totals()} for sid, rec in pairs]
+        store(f"totals/{part}", table_from_rows(totals, DATASETS["totals"], "totals"), "totals")
+        content = {
+            "batch": batch,
+            "sample_ids": [int(s) for s in sample_ids],
+            "files": {name: digest.to_json() for name, digest in sorted(files.items())},
+            "timing": timing,
+        }
+        write_json(marker, content)
         return True
 
     # -- reading ----------------------------------------------------------------------------
-    def _dataset(self, folder: Path) -> pd.DataFrame:
-        parts = sorted(folder.glob("part-*.parquet")) if folder.is_dir() else []
-        if not parts:
-            return pd.DataFrame()
-        frame = pd.concat([read_parquet(p) for p in parts], ignore_index=True)
+    def _dataset(self, name: str) -> pd.DataFrame:
+        """Every marked part of a dataset, checked, in sample order."""
+        schema = DATASETS[name]
+        tables = []
+        for k, marker in self.markers().items():
+            relative = f"{name}/{part_name(k)}"
+            digest = marker["files"].get(relative)
+            if digest is None:
+                continue  # no sample of the batch reached this stage
+            tables.append(read_table(self.directory / relative, Digest.from_json(digest), schema))
+        table = pa.concat_tables(tables) if tables else schema.empty_table()
+        frame = table.to_pandas()
         return frame.sort_values("sample_id", kind="stable").reset_index(drop=True)
+
+    def batch_totals(self, batch: int) -> pd.DataFrame:
+        """The totals of one stored batch (checked)."""
+        marker = self.markers().get(batch)
+        if marker is None:
+            raise StoreError(f"{self.directory / 'batches' / f'{batch}.json'}: missing")
+        relative = f"totals/{part_name(batch)}"
+        digest = Digest.from_json(marker["files"][relative])
+        return read_table(self.directory / relative, digest, DATASETS["totals"]).to_pandas()
 
     def stage(self, name: str) -> pd.DataFrame:
         if name not in STAGES:
             raise ValueError(f"stage must be one of {', '.join(STAGES)}; got {name!r}")
-        return self._dataset(self.directory / "stages" / name)
+        return self._dataset(f"stages/{name}")
 
     def totals(self) -> pd.DataFrame:
-        return self._dataset(self.directory / "totals")
+        return self._dataset("totals")
 
     def trajectory(self, stage: str, sample_id: int) -> pd.DataFrame:
-        """One sample's trajectory table of a stage (empty if the stage has none)."""
-        for marker in sorted((self.directory / "batches").glob("*.json")):
-            if sample_id in read_json(marker)["sample_ids"]:
-                path = (
-                    self.directory / "trajectories" / stage / f"part-{int(marker.stem):05d}.parquet"
-                )
-                if not path.is_file():
-                    return pd.DataFrame()
-                frame = read_parquet(path)
-                rows = frame[frame["sample_id"] == sample_id]
-                return rows.drop(columns="sample_id").reset_index(drop=True)
+        """One sample's trajectory table of a stage as stored (empty if the stage has none)."""
+        dataset = f"trajectories/{stage}"
+        for k, marker in self.markers().items():
+            if sample_id not in marker["sample_ids"]:
+                continue
+            relative = f"{dataset}/{part_name(k)}"
+            digest = marker["files"].get(relative)
+            if dataset not in DATASETS or digest is None:
+                return pd.DataFrame()
+            frame = read_table(
+                self.directory / relative, Digest.from_json(digest), DATASETS[dataset]
+            ).to_pandas()
+            rows = frame[frame["sample_id"] == sample_id]
+            return rows.drop(columns="sample_id").reset_index(drop=True)
         raise StoreError(f"{self.directory}: sample {sample_id} is not stored")
 
     def summary(self) -> dict[str, Any]:
@@ -262,9 +499,10 @@ class Run:
             "run_id": self.id,
             "parent": manifest.get("parent"),
             "created_utc": manifest.get("created_utc"),
-            "status": manifest.get("status"),
+            "status": self.status(),
             "scenario": manifest.get("scenario"),
             "samples": manifest.get("samples"),
+            "stored_batches": len(self.done_batches()),
             "evaluated": len(totals),
             "feasible": len(feasible),
         }
@@ -273,16 +511,97 @@ class Run:
             summary[f"max_{column}"] = float(feasible[column].max()) if len(feasible) else None
         return summary
 
+    # -- checking -----------------------------------------------------------------------------
+    def verify(self) -> VerifyReport:
+        """Check every file of the run against its recorded digest and schema (like fsck).
 
-def _link(source: Path, target: Path) -> None:
-    """``target`` becomes ``source``'s content: a hard link, or a copy across devices."""
-    if not source.is_file() or target.exists():
-        return
-    target.parent.mkdir(parents=True, exist_ok=True)
+        Covered files: the manifest's (config, samples), each batch marker's, and those
+        listed by the markers of the run's surrogate fits, fronts and pipeline results.
+        Files that nothing lists are reported as uncovered (readers never use them).
+        """
+        report = VerifyReport(self.id)
+        covered = {self.directory / MANIFEST}
+        expected: list[tuple[Path, Any, pa.Schema | None]] = []
+        try:
+            manifest = self.manifest
+        except StoreError as err:
+            report.problems.append(str(err))
+            return report
+        for name in RUN_FILES:
+            schema = DATASETS["samples"] if name == "samples.parquet" else None
+            expected.append((self.directory / name, manifest.get("files", {}).get(name), schema))
+        for path in sorted((self.directory / "batches").glob("*")):
+            covered.add(path)
+            try:
+                marker = read_json(path)
+                listed = marker["files"]
+                if not isinstance(listed, dict):
+                    raise TypeError
+            except StoreError as err:
+                report.problems.append(str(err))
+                continue
+            except (KeyError, TypeError):
+                report.problems.append(f"{path}: not a batch marker")
+                continue
+            for relative, digest in listed.items():
+                dataset = relative.rsplit("/", 1)[0]
+                expected.append((self.directory / relative, digest, DATASETS.get(dataset)))
+        for folder, marker_name in PRODUCTS.items():
+            for marker_path in sorted((self.directory / folder).glob(f"*/{marker_name}")):
+                covered.add(marker_path)
+                try:
+                    listed = read_json(marker_path).get("files")
+                except StoreError as err:
+                    report.problems.append(str(err))
+                    continue
+                except AttributeError:
+                    report.problems.append(f"{marker_path}: not a marker")
+                    continue
+                if not isinstance(listed, dict):
+                    report.problems.append(f"{marker_path}: lists no file digests")
+                    continue
+                for relative, digest in listed.items():
+                    expected.append((marker_path.parent / relative, digest, None))
+        for path, digest, schema in expected:
+            covered.add(path)
+            try:
+                if digest is None:
+                    raise StoreError(f"{path}: no digest recorded")
+                recorded = Digest.from_json(digest)
+                if schema is not None:
+                    read_table(path, recorded, schema)
+                else:
+                    read_bytes(path, recorded)
+            except (StoreError, ValueError) as err:
+                report.problems.append(str(err))
+                continue
+            report.checked_files += 1
+            report.checked_bytes += recorded.size
+        for path in sorted(p for p in self.directory.rglob("*") if p.is_file()):
+            if path in covered or path.parent.name == "locks":
+                continue
+            note = (
+                " (temporary file of an interrupted write)"
+                if path.name.endswith(TEMPORARY_SUFFIX)
+                else ""
+            )
+            report.uncovered.append(f"{path}{note}")
+        return report
+
+
+def _link(source: Path, target: Path, digest: Digest) -> None:
+    """``target`` becomes ``source``'s content (checked): a hard link, or a copy."""
+    payload = read_bytes(source, digest)
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
         os.link(source, target)
+        return
+    except FileExistsError:
+        read_bytes(target, digest)  # adopted by an earlier, interrupted attempt
+        return
     except OSError:
-        atomic_bytes(target, source.read_bytes())
+        pass
+    write_bytes(target, payload)
 
 
 class RunStore:
@@ -293,9 +612,11 @@ class RunStore:
 
     def run(self, run_id: str) -> Run:
         directory = self.root / run_id
-        if not (directory / "manifest.json").is_file():
-            raise StoreError(f"{directory}: no such run (no manifest.json)")
-        return Run(directory)
+        if not (directory / MANIFEST).is_file():
+            raise StoreError(f"{directory}: no such run (no {MANIFEST})")
+        run = Run(directory)
+        run.manifest  # noqa: B018 - refuses another store format, naming the file
+        return run
 
     def create(
         self,
@@ -310,33 +631,47 @@ class RunStore:
         """The run of these inputs: created, or the stored one if it exists (same id)."""
         rid = run_id(resolved, seed, samples, code, parent)
         directory = self.root / rid
-        if (directory / "manifest.json").is_file():
-            run = Run(directory)
-            stored = run.samples()
-            if not stored.equals(samples.reset_index(drop=True)):
-                raise StoreError(
-                    f"{directory / 'samples.parquet'}: differs from this run's samples"
-                )
-            return run
-        directory.mkdir(parents=True, exist_ok=True)
-        atomic_bytes(directory / "config.json", json.dumps(resolved, indent=2).encode())
-        atomic_parquet(directory / "samples.parquet", samples.reset_index(drop=True))
-        manifest = {
-            "run_id": rid,
-            "parent": parent,
-            "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "scenario": resolved.get("name"),
-            "code_version": code,
-            "dependencies": dependency_versions(),
-            "seed": seed,
-            "samples": len(samples),
-            "origin": origin,
-            "status": "created",
-            "evaluated": 0,
-            "feasible": 0,
-        }
-        atomic_bytes(directory / "manifest.json", json.dumps(manifest, indent=2).encode())
-        return Run(directory)
+        samples = samples.reset_index(drop=True)
+        if (directory / MANIFEST).is_file():
+            return self._reopen(rid, samples)
+        run = Run(directory)
+        with locks.hold(run._lock("manifest"), wait_s=MANIFEST_LOCK_WAIT_S):
+            if (directory / MANIFEST).is_file():  # created meanwhile by another process
+                return self._reopen(rid, samples)
+            files = {
+                "config.json": write_json(directory / "config.json", resolved),
+                "samples.parquet": write_parquet(
+                    directory / "samples.parquet",
+                    table_from_frame(samples, DATASETS["samples"], "samples"),
+                    DATASETS["samples"],
+                ),
+            }
+            manifest = {
+                "run_id": rid,
+                "schema_version": SCHEMA_VERSION,
+                "parent": parent,
+                "created_utc": _utc_now(),
+                "scenario": resolved.get("name"),
+                "code_version": code,
+                "dependencies": dependency_versions(),
+                "seed": seed,
+                "samples": len(samples),
+                "origin": origin,
+                "status": "created",
+                "evaluated": 0,
+                "feasible": 0,
+                "files": {name: digest.to_json() for name, digest in files.items()},
+            }
+            write_json(directory / MANIFEST, manifest, replace=True)
+        return run
+
+    def _reopen(self, rid: str, samples: pd.DataFrame) -> Run:
+        run = self.run(rid)
+        if not run.samples().equals(samples):
+            raise StoreError(
+                f"{run.directory / 'samples.parquet'}: differs from this run's samples"
+            )
+        return run
 
     def catalog(self) -> list[dict[str, Any]]:
         """Every run's summary, newest first; an unreadable run is listed with its error."""
@@ -344,7 +679,7 @@ class RunStore:
             return []
         rows = []
         for directory in sorted(self.root.iterdir()):
-            if not (directory / "manifest.json").is_file():
+            if not (directory / MANIFEST).is_file():
                 continue
             try:
                 rows.append(Run(directory).summary())

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ovtraj.files import atomic_bytes
+from ovtraj.files import write_bytes
 
 __all__ = ["plot_dispersions"]
 
@@ -74,6 +74,6 @@ def plot_dispersions(
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=100)
         plt.close(fig)
-        atomic_bytes(path, buffer.getvalue())
+        write_bytes(path, buffer.getvalue(), replace=True)
         paths.append(path)
     return paths
