@@ -195,3 +195,91 @@ def test_an_impossible_date_in_the_launcher_file_names_it(scenario_data, tmp_pat
     scenario_data["launch"]["launcher"] = str(path)
     (problem,) = _problems(build_scenario_from, scenario_data)
     assert f"launcher file {path}: released = 1990-02-30 (line " in problem
+
+
+# --------------------------------------------------------------------------- bounds
+
+
+def test_every_shipped_config_loads():
+    assert load_scenario(DEFAULT_SCENARIO).launch is not None  # with its launcher file
+    assert load_optimal_entry_config(OPTIMAL_ENTRY).vehicle.reference_area_m2 == 42.0
+    assert load_maneuver_config(MANEUVER).stage.initial_mass_kg == 30400.0
+    data = _data(DEORBIT_BURN)
+    assert deorbit_burn_config_from_dict(data).vehicle.mass_kg == 95000.0
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "allowed"),
+    [
+        ("reentry.vehicle.reference_area_m2", 1.0e30, "(0, 1000] m^2"),
+        ("reentry.vehicle.mass_kg", 1.0e9, "(0, 1e+06] kg"),
+        ("reentry.integration.step_s", 1.0e-9, "[0.001, 10] s"),
+        ("reentry.integration.max_time_s", 1.0e9, "(0, 100000] s"),
+        ("reentry.limits.max_load_g", 1.0e4, "(0, 100] g"),
+        ("vehicle.thrust_n", 1.0e12, "(0, 1e+07] N"),
+        ("rendezvous.trajectory_step_s", 1.0e-9, "[0.01, 86400] s"),
+        ("rendezvous.max_wait_time_s", 1.0e9, "[0, 2.592e+06] s"),
+        ("launch.genetic.seed", 2**40, "[0, 4.29497e+09]"),
+        ("launch.integration.powered_step_s", 1.0e-6, "[0.01, 5] s"),
+        ("deorbit.solver.dv_scale_mps", 1.0e9, "(0, 10000] m/s"),
+    ],
+)
+def test_absurd_scenario_figures_are_refused_naming_the_field(scenario_data, field, value, allowed):
+    data = _set(scenario_data, field, value)
+    assert _problems(build_scenario_from, data) == [
+        f"{field} = {value!r}: out of range, allowed {allowed}"
+    ]
+
+
+@pytest.mark.parametrize(
+    ("path", "build", "field", "value", "fragment"),
+    [
+        (OPTIMAL_ENTRY, optimal_entry_config_from_dict, "vehicle.reference_area_m2", 1e30, "1000]"),
+        (OPTIMAL_ENTRY, optimal_entry_config_from_dict, "guess.max_time_s", 1e30, "100000] s"),
+        (
+            OPTIMAL_ENTRY,
+            optimal_entry_config_from_dict,
+            "state_bounds.speed_mps",
+            [1.0, 1e400],
+            "finite",
+        ),
+        (MANEUVER, maneuver_config_from_dict, "finite_burn.position_scale_m", 1e30, "1e+08] m"),
+        (
+            MANEUVER,
+            maneuver_config_from_dict,
+            "maneuver.time_of_flight_bounds_s",
+            [1.0, 1e9],
+            "1e6",
+        ),
+        (
+            DEORBIT_BURN,
+            deorbit_burn_config_from_dict,
+            "vehicle.thrust_per_engine_n",
+            1e30,
+            "1e+07] N",
+        ),
+    ],
+)
+def test_absurd_case_figures_are_refused_naming_the_field(path, build, field, value, fragment):
+    (problem,) = _problems(build, _set(_data(path), field, value))
+    assert problem.startswith(f"{field} = ") and fragment in problem
+
+
+def test_launch_design_bounds_must_be_plausible(scenario_data):
+    scenario_data["launch"]["design_bounds"]["coast_s"] = {"lower": 5.0, "upper": 1.0e9}
+    (problem,) = _problems(build_scenario_from, scenario_data)
+    assert problem == "launch.design_bounds: coast_s [5, 1e+09] must lie in [0, 10000]"
+
+
+def test_a_huge_reference_area_is_refused_quickly_by_the_cli(tmp_path):
+    """Measured before the bound: ~290 s of integration, then 'math domain error'."""
+    text = OPTIMAL_ENTRY.read_text(encoding="utf-8").replace(
+        "reference_area_m2: 42.0", "reference_area_m2: 1e30"
+    )
+    path = tmp_path / "area.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = runner.invoke(app, ["optimal-entry", str(path), "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "vehicle.reference_area_m2 = '1e30': out of range, allowed (0, 1000] m^2" in (
+        result.output
+    )

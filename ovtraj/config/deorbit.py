@@ -71,10 +71,10 @@ class DeorbitSolverConfig(StrictModel):
 
     max_iterations: int = bounded(ge=1, le=10000)
     ftol: float = bounded(gt=0, lt=1, description="SLSQP ftol on the scaled objective")
-    time_scale_s: float = bounded(unit="s", gt=0, description="burn-epoch variable unit")
-    dv_scale_mps: float = bounded(unit="m/s", gt=0, description="impulse variable unit")
+    time_scale_s: float = bounded(unit="s", gt=0, le=86400, description="burn-epoch variable unit")
+    dv_scale_mps: float = bounded(unit="m/s", gt=0, le=10000, description="impulse variable unit")
     burn_window_s: float = bounded(
-        unit="s", gt=0, description="the correction may move the burn by up to this"
+        unit="s", gt=0, le=86400, description="the correction may move the burn by up to this"
     )
     finite_difference_step: float = bounded(gt=0, lt=0.1, description="scaled variables")
     constraint_tolerance: float = bounded(
@@ -100,4 +100,6 @@ class DeorbitSettings(StrictModel):
         gt=0, le=3, description="burn-to-entry time limit, in preparation-orbit periods"
     )
     solver: DeorbitSolverConfig
-    trajectory_step_s: float = bounded(unit="s", gt=0, description="trajectory table sampling")
+    trajectory_step_s: float = bounded(
+        unit="s", ge=0.01, le=3600, description="trajectory table sampling"
+    )

@@ -32,11 +32,11 @@ Distribution = Literal["uniform", "normal"]
 class BurnEarthConfig(StrictModel):
     """Earth model of the problem; ``null`` takes the project value (``configs/earth.yaml``)."""
 
-    mu_m3_s2: float | None = bounded(unit="m^3/s^2", gt=0, default=None)
-    radius_m: float | None = bounded(unit="m", gt=0, default=None)
+    mu_m3_s2: float | None = bounded(unit="m^3/s^2", gt=0, le=1.0e18, default=None)
+    radius_m: float | None = bounded(unit="m", gt=0, le=1.0e8, default=None)
     j2: float | None = bounded(ge=0, lt=0.01, default=None)
     g0_m_s2: float | None = bounded(
-        unit="m/s^2", gt=0, default=None, description="rocket-equation unit of Isp"
+        unit="m/s^2", gt=0, le=100, default=None, description="rocket-equation unit of Isp"
     )
     include_j2: bool = Field(description="false: two-body dynamics and two-body prediction")
 
@@ -61,9 +61,9 @@ class WaitingOrbitConfig(StrictModel):
 
 
 class BurnVehicleConfig(StrictModel):
-    mass_kg: float = bounded(unit="kg", gt=0, description="mass at ignition")
+    mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6, description="mass at ignition")
     engines: int = bounded(ge=1, le=16)
-    thrust_per_engine_n: float = bounded(unit="N", gt=0)
+    thrust_per_engine_n: float = bounded(unit="N", gt=0, le=1.0e7)
     isp_s: float = bounded(unit="s", gt=0, le=1000, description="vacuum specific impulse")
 
 
@@ -162,7 +162,7 @@ class MonteCarloConfig(StrictModel):
     """Monte Carlo of the closed-loop burn (seed sec. 4) and how the flow runs it."""
 
     runs: int = bounded(ge=1, le=100000)
-    seed: int = bounded(ge=0)
+    seed: int = bounded(ge=0, le=2**32 - 1)
     strategies: list[Strategy] = Field(min_length=1)
     replan_initial_orbit: bool = Field(
         description="true: the on-board iteration knows the dispersed initial orbit"
@@ -185,18 +185,21 @@ class MonteCarloConfig(StrictModel):
 class PublishedConfig(StrictModel):
     """The seed's published figures, printed next to ours (never used by the solver)."""
 
-    iterations: int = bounded(ge=1, description="iterations to the u tolerance")
-    dv_burn_angle_0_mps: float = bounded(unit="m/s", gt=0)
-    dv_burn_angle_27_mps: float = bounded(unit="m/s", gt=0)
+    iterations: int = bounded(ge=1, le=1000, description="iterations to the u tolerance")
+    dv_burn_angle_0_mps: float = bounded(unit="m/s", gt=0, le=3000)
+    dv_burn_angle_27_mps: float = bounded(unit="m/s", gt=0, le=3000)
     zero_speed_error_burn_angle_deg: float = bounded(unit="deg", ge=0, le=90)
     speed_error_increase_mps: float = bounded(
-        unit="m/s", ge=0, description="entry speed error at angle 0 minus at +-27 deg"
+        unit="m/s", ge=0, le=1000, description="entry speed error at angle 0 minus at +-27 deg"
     )
-    strategy1_along_track_km: float = bounded(unit="km", gt=0)
-    strategy2_fpa_deg: float = bounded(unit="deg", gt=0)
-    strategy2_along_track_km: float = bounded(unit="km", gt=0)
+    strategy1_along_track_km: float = bounded(unit="km", gt=0, le=10000)
+    strategy2_fpa_deg: float = bounded(unit="deg", gt=0, le=30)
+    strategy2_along_track_km: float = bounded(unit="km", gt=0, le=10000)
     approximate_tolerance_mps: float = bounded(
-        unit="m/s", ge=0, description="how far from a '~' delta-v figure still matches it"
+        unit="m/s",
+        ge=0,
+        le=1000,
+        description="how far from a '~' delta-v figure still matches it",
     )
 
 

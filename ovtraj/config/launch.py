@@ -40,16 +40,20 @@ class SolidStageConfig(StrictModel):
     """One solid-rocket stage: masses, vacuum performance, nozzle and separation."""
 
     name: str
-    gross_mass_kg: float = bounded(unit="kg", gt=0, description="stage mass at ignition")
-    propellant_mass_kg: float = bounded(unit="kg", gt=0)
-    vacuum_thrust_n: float = bounded(unit="N", gt=0, description="average vacuum thrust")
-    vacuum_isp_s: float = bounded(unit="s", gt=0)
-    burn_time_s: float = bounded(unit="s", gt=0, description="published action time")
+    gross_mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6, description="stage mass at ignition")
+    propellant_mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6)
+    vacuum_thrust_n: float = bounded(unit="N", gt=0, le=1.0e8, description="average vacuum thrust")
+    vacuum_isp_s: float = bounded(unit="s", gt=0, le=500, description="solid motors: ~300 s")
+    burn_time_s: float = bounded(unit="s", gt=0, le=1000, description="published action time")
     nozzle_exit_area_m2: float = bounded(
-        unit="m^2", ge=0, description="back-pressure thrust loss p_a * A_e"
+        unit="m^2", ge=0, le=50, description="back-pressure thrust loss p_a * A_e"
     )
     jettisoned_with_stage_kg: float = bounded(
-        unit="kg", ge=0, default=0.0, description="interstage/other mass dropped at burnout"
+        unit="kg",
+        ge=0,
+        le=1.0e5,
+        default=0.0,
+        description="interstage/other mass dropped at burnout",
     )
 
     @model_validator(mode="after")
@@ -77,9 +81,9 @@ class SolidStageConfig(StrictModel):
 class FairingConfig(StrictModel):
     """The payload fairing: dropped once the vehicle climbs above ``jettison_altitude_km``."""
 
-    mass_kg: float = bounded(unit="kg", ge=0)
-    jettison_altitude_km: float = bounded(unit="km", gt=0)
-    earliest_stage: int = bounded(ge=1, description="stage (1-based) from which it may go")
+    mass_kg: float = bounded(unit="kg", ge=0, le=1.0e4)
+    jettison_altitude_km: float = bounded(unit="km", gt=0, le=500)
+    earliest_stage: int = bounded(ge=1, le=3, description="stage (1-based) from which it may go")
 
 
 class AeroTableConfig(StrictModel):
@@ -91,8 +95,8 @@ class AeroTableConfig(StrictModel):
     ``C_D = C_N sin a + C_A cos a``).
     """
 
-    reference_area_m2: float = bounded(unit="m^2", gt=0)
-    wing_area_m2: float = bounded(unit="m^2", ge=0)
+    reference_area_m2: float = bounded(unit="m^2", gt=0, le=100)
+    wing_area_m2: float = bounded(unit="m^2", ge=0, le=1000)
     mach: tuple[float, ...] = Field(min_length=2)
     axial_force_coefficient: tuple[float, ...] = Field(min_length=2)
     normal_force_slope_per_rad: tuple[float, ...] = Field(min_length=2)
@@ -100,7 +104,7 @@ class AeroTableConfig(StrictModel):
     axial_force_scale_above_stage_1: float = bounded(
         ge=0, le=1, description="C_A of the upper stack relative to the full vehicle"
     )
-    mach_resolution: float = bounded(gt=0, le=0.1, description="resampling of the PCHIP curves")
+    mach_resolution: float = bounded(ge=1e-4, le=0.1, description="resampling of the PCHIP curves")
 
     @model_validator(mode="after")
     def _consistent_table(self) -> AeroTableConfig:
@@ -112,26 +116,28 @@ class AeroTableConfig(StrictModel):
         ):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"{name} has {len(getattr(self, name))} values, mach has {n}")
-            if min(getattr(self, name)) < 0:
-                raise ValueError(f"{name} must be non-negative")
+            if not all(0.0 <= c <= 100.0 for c in getattr(self, name)):
+                raise ValueError(f"{name} values must lie in [0, 100]")
         if any(b <= a for a, b in zip(self.mach, self.mach[1:], strict=False)):
             raise ValueError("mach must be strictly increasing")
+        if not self.mach[-1] <= 50.0:
+            raise ValueError(f"mach values must lie in [0, 50], got up to {self.mach[-1]:g}")
         if self.mach[0] != 0.0:
             raise ValueError("mach must start at 0")
         return self
 
 
 class LauncherLimitsConfig(StrictModel):
-    max_dynamic_pressure_kpa: float = bounded(unit="kPa", gt=0)
-    max_axial_load_g: float = bounded(unit="g0", gt=0)
+    max_dynamic_pressure_kpa: float = bounded(unit="kPa", gt=0, le=1000)
+    max_axial_load_g: float = bounded(unit="g0", gt=0, le=100)
 
 
 class PublishedPerformance(StrictModel):
     """A published payload figure, for benchmarks (not used by the solver)."""
 
-    altitude_km: float = bounded(unit="km", gt=0)
+    altitude_km: float = bounded(unit="km", gt=0, le=100000)
     inclination_deg: float = bounded(unit="deg", ge=0, le=180)
-    payload_kg: float = bounded(unit="kg", gt=0)
+    payload_kg: float = bounded(unit="kg", gt=0, le=1.0e6)
     source: str
 
 
@@ -143,10 +149,12 @@ class LauncherConfig(StrictModel):
     fairing: FairingConfig
     aero: AeroTableConfig
     limits: LauncherLimitsConfig
-    free_fall_s: float = bounded(unit="s", ge=0, description="drop to stage-1 ignition")
-    separation_coast_s: float = bounded(unit="s", ge=0, description="stage-1 burnout to 2 ignition")
+    free_fall_s: float = bounded(unit="s", ge=0, le=60, description="drop to stage-1 ignition")
+    separation_coast_s: float = bounded(
+        unit="s", ge=0, le=600, description="stage-1 burnout to 2 ignition"
+    )
     alpha_drop_deg: float = bounded(unit="deg", ge=-10, le=30, description="alpha at the drop")
-    max_alpha_rate_deg_s: float = bounded(unit="deg/s", gt=0, description="programme ramps")
+    max_alpha_rate_deg_s: float = bounded(unit="deg/s", gt=0, le=90, description="programme ramps")
     burn_time_tolerance: float = bounded(
         gt=0, le=0.5, description="allowed mismatch of burn time vs propellant/thrust/Isp"
     )
@@ -212,14 +220,33 @@ class DropConfig(StrictModel):
 
 
 class Bound(StrictModel):
-    lower: float
-    upper: float
+    """``[lower, upper]``, finite; the model holding it bounds it further (units in its name)."""
+
+    lower: float = Field(allow_inf_nan=False)
+    upper: float = Field(allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _ordered(self) -> Bound:
         if not self.lower < self.upper:
             raise ValueError(f"lower ({self.lower:g}) must be below upper ({self.upper:g})")
         return self
+
+
+# Plausible ranges of the design variables' bounds (config units): angles within a
+# quadrant or half-turn, times within a Pegasus-class flight (stages burn ~70 s, the
+# coast to stage 3 ~10 min), payloads up to the largest launchers' (~100 t).
+_DESIGN_LIMITS: dict[str, tuple[float, float]] = {
+    "azimuth_offset_deg": (-180.0, 180.0),
+    "alpha_1_deg": (-90.0, 90.0),
+    "t_12_s": (0.0, 1000.0),
+    "alpha_2_deg": (-90.0, 90.0),
+    "t_23_s": (0.0, 1000.0),
+    "coast_s": (0.0, 10000.0),
+    "pitch_rate_2_deg_s": (-10.0, 10.0),
+    "pitch_3_deg": (-180.0, 180.0),
+    "pitch_rate_3_deg_s": (-10.0, 10.0),
+    "payload_kg": (0.0, 1.0e5),
+}
 
 
 class DesignBoundsConfig(StrictModel):
@@ -243,9 +270,15 @@ class DesignBoundsConfig(StrictModel):
 
     @model_validator(mode="after")
     def _physical(self) -> DesignBoundsConfig:
-        for name in ("t_12_s", "t_23_s", "coast_s", "payload_kg"):
-            if getattr(self, name).lower < 0:
-                raise ValueError(f"{name}.lower must be >= 0")
+        problems = []
+        for name, (lo, hi) in _DESIGN_LIMITS.items():
+            bound = getattr(self, name)
+            if not lo <= bound.lower < bound.upper <= hi:
+                problems.append(
+                    f"{name} [{bound.lower:g}, {bound.upper:g}] must lie in [{lo:g}, {hi:g}]"
+                )
+        if problems:
+            raise ValueError("; ".join(problems))
         return self
 
     def as_arrays(self) -> tuple[list[float], list[float]]:
@@ -257,10 +290,10 @@ class DesignBoundsConfig(StrictModel):
 class InsertionTolerancesConfig(StrictModel):
     """How close the insertion must be to the target orbit to count as met."""
 
-    altitude_m: float = bounded(unit="m", gt=0)
-    speed_mps: float = bounded(unit="m/s", gt=0)
-    flight_path_angle_deg: float = bounded(unit="deg", gt=0)
-    inclination_deg: float = bounded(unit="deg", gt=0)
+    altitude_m: float = bounded(unit="m", gt=0, le=100000)
+    speed_mps: float = bounded(unit="m/s", gt=0, le=1000)
+    flight_path_angle_deg: float = bounded(unit="deg", gt=0, le=10)
+    inclination_deg: float = bounded(unit="deg", gt=0, le=10)
     path_limit_fraction: float = bounded(
         gt=0,
         le=0.05,
@@ -271,20 +304,24 @@ class InsertionTolerancesConfig(StrictModel):
 class IntegrationConfig(StrictModel):
     """Fixed-step RK4 of the ascent, vectorised over a population (see docs/launch.md)."""
 
-    powered_step_s: float = bounded(unit="s", gt=0, le=5)
-    coast_step_s: float = bounded(unit="s", gt=0, le=60)
-    trajectory_step_s: float = bounded(unit="s", gt=0, description="trajectory table sampling")
+    powered_step_s: float = bounded(unit="s", ge=0.01, le=5)
+    coast_step_s: float = bounded(unit="s", ge=0.01, le=60)
+    trajectory_step_s: float = bounded(
+        unit="s", ge=0.01, le=3600, description="trajectory table sampling"
+    )
     atmosphere_table_step_m: float = bounded(
-        unit="m", gt=0, le=1000, description="US76 sampled for the vectorised ascent"
+        unit="m", ge=1, le=1000, description="US76 sampled for the vectorised ascent"
     )
 
 
 class GeneticConfig(StrictModel):
     population: int = bounded(ge=4, le=10000)
     generations: int = bounded(ge=1, le=10000)
-    seed: int = bounded(ge=0)
+    seed: int = bounded(ge=0, le=2**32 - 1)
     constraint_relaxation: float = bounded(
-        ge=1, description="the GA accepts |c| up to this many tolerances; the local phases close it"
+        ge=1,
+        le=10000,
+        description="the GA accepts |c| up to this many tolerances; the local phases close it",
     )
 
 
@@ -297,7 +334,10 @@ class LocalConfig(StrictModel):
     finite_difference_step: float = bounded(gt=0, lt=0.1, description="scaled variables")
     stall_iterations: int = bounded(ge=1, le=1000)
     stall_payload_kg: float = bounded(
-        unit="kg", ge=0, description="a phase whose payload moves less over stall_iterations stops"
+        unit="kg",
+        ge=0,
+        le=1000,
+        description="a phase whose payload moves less over stall_iterations stops",
     )
     converged_residual: float = bounded(
         gt=0,
@@ -323,9 +363,9 @@ class FitGridConfig(StrictModel):
     @field_validator("ridge_candidates")
     @classmethod
     def _non_negative_ridges(cls, value: tuple[float, ...]) -> tuple[float, ...]:
-        bad = [r for r in value if not (r >= 0.0 and r < float("inf"))]
+        bad = [r for r in value if not 0.0 <= r <= 1.0e6]
         if bad:
-            raise ValueError(f"ridge weights must be finite and >= 0, got {bad}")
+            raise ValueError(f"ridge weights must lie in [0, 1e6], got {bad}")
         return value
 
     @model_validator(mode="after")

@@ -43,12 +43,16 @@ class StageConfig(StrictModel):
     """The upper stage: constant vacuum thrust and specific impulse (seed sec. 2.2)."""
 
     name: str
-    initial_mass_kg: float = bounded(unit="kg", gt=0, description="m0, stage plus payload")
-    thrust_n: float = bounded(unit="N", gt=0, description="F_e, vacuum thrust")
+    initial_mass_kg: float = bounded(
+        unit="kg", gt=0, le=1.0e7, description="m0, stage plus payload"
+    )
+    thrust_n: float = bounded(unit="N", gt=0, le=1.0e8, description="F_e, vacuum thrust")
     specific_impulse_n_s_kg: float = bounded(
         unit="N s/kg", gt=0, le=50000, description="I_sp as effective exhaust speed (= m/s)"
     )
-    max_burn_time_s: float = bounded(unit="s", gt=0, description="t_e, engine working time")
+    max_burn_time_s: float = bounded(
+        unit="s", gt=0, le=100000, description="t_e, engine working time"
+    )
 
     @model_validator(mode="after")
     def _propellant_left(self) -> StageConfig:
@@ -111,8 +115,8 @@ class ManeuverSettingsConfig(StrictModel):
     @field_validator("time_of_flight_bounds_s")
     @classmethod
     def _ordered(cls, value: tuple[float, float]) -> tuple[float, float]:
-        if not 0.0 < value[0] < value[1]:
-            raise ValueError(f"need 0 < lower < upper, got {value[0]:g}, {value[1]:g}")
+        if not 0.0 < value[0] < value[1] <= 1.0e6:
+            raise ValueError(f"need 0 < lower < upper <= 1e6, got {value[0]:g}, {value[1]:g}")
         return value
 
 
@@ -138,7 +142,7 @@ class OptimizerConfig(StrictModel):
         "of the best feasible objective (0: run all generations)",
     )
     stall_tolerance: float = bounded(
-        ge=0, description="an improvement smaller than this (objective units) is a stall"
+        ge=0, le=1.0e6, description="an improvement smaller than this (objective units) is a stall"
     )
     seed: int = bounded(ge=0, le=2**32 - 1)
 
@@ -168,16 +172,27 @@ class FiniteBurnConfig(StrictModel):
         "stall_tolerance_s over this many iterations (0: never)",
     )
     stall_tolerance_s: float = bounded(
-        unit="s", ge=0, description="objective (t_f or total burning time) change of a stall"
+        unit="s",
+        ge=0,
+        le=10000,
+        description="objective (t_f or total burning time) change of a stall",
     )
-    position_tolerance_m: float = bounded(unit="m", gt=0, description="end condition met")
-    velocity_tolerance_mps: float = bounded(unit="m/s", gt=0, description="end condition met")
-    time_scale_s: float = bounded(unit="s", gt=0, description="unit of the time variables")
+    position_tolerance_m: float = bounded(unit="m", gt=0, le=1.0e6, description="end condition met")
+    velocity_tolerance_mps: float = bounded(
+        unit="m/s", gt=0, le=10000, description="end condition met"
+    )
+    time_scale_s: float = bounded(
+        unit="s", gt=0, le=100000, description="unit of the time variables"
+    )
     angle_scale_rad: float = bounded(
         unit="rad", gt=0, le=1, description="unit of the direction variables"
     )
-    position_scale_m: float = bounded(unit="m", gt=0, description="unit of position residuals")
-    velocity_scale_mps: float = bounded(unit="m/s", gt=0, description="unit of velocity residuals")
+    position_scale_m: float = bounded(
+        unit="m", gt=0, le=1.0e8, description="unit of position residuals"
+    )
+    velocity_scale_mps: float = bounded(
+        unit="m/s", gt=0, le=10000, description="unit of velocity residuals"
+    )
     difference_step: float = bounded(
         gt=0, lt=1, description="central-difference step in scaled variables"
     )
@@ -190,16 +205,30 @@ class IntegratorConfig(StrictModel):
 class PublishedConfig(StrictModel):
     """The seed's published figures, printed next to ours (nothing is computed from them)."""
 
-    time_of_flight_s: float | None = None
+    time_of_flight_s: float | None = bounded(unit="s", ge=0, le=1.0e6, default=None)
     impulse_epochs_s: list[float] | None = None
     burn_starts_s: list[float] | None = None
     burn_durations_s: list[float] | None = None
     burn_dv_mps: list[float] | None = None
     mass_before_kg: list[float] | None = None
     mass_after_kg: list[float] | None = None
-    total_dv_mps: float | None = None
-    dv_budget_mps: float | None = None
-    final_position_error_m: float | None = None
+    total_dv_mps: float | None = bounded(unit="m/s", ge=0, le=100000, default=None)
+    dv_budget_mps: float | None = bounded(unit="m/s", ge=0, le=100000, default=None)
+    final_position_error_m: float | None = bounded(unit="m", ge=0, le=1.0e8, default=None)
+
+    @field_validator(
+        "impulse_epochs_s",
+        "burn_starts_s",
+        "burn_durations_s",
+        "burn_dv_mps",
+        "mass_before_kg",
+        "mass_after_kg",
+    )
+    @classmethod
+    def _finite_figures(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not all(0.0 <= v <= 1.0e7 for v in value):
+            raise ValueError("published figures must be finite, within [0, 1e7]")
+        return value
 
 
 class ManeuverConfig(StrictModel):

@@ -42,11 +42,15 @@ class EarthSettingsConfig(StrictModel):
     ``mu`` converted to SI.
     """
 
-    mu_m3_s2: float | None = bounded(unit="m^3/s^2", gt=0, default=None)
-    radius_m: float | None = bounded(unit="m", gt=0, default=None)
-    rotation_rate_rad_s: float | None = bounded(unit="rad/s", ge=0, default=None)
+    mu_m3_s2: float | None = bounded(unit="m^3/s^2", gt=0, le=1.0e18, default=None)
+    radius_m: float | None = bounded(unit="m", gt=0, le=1.0e8, default=None)
+    rotation_rate_rad_s: float | None = bounded(unit="rad/s", ge=0, le=1.0e-2, default=None)
     g0_m_s2: float | None = bounded(
-        unit="m/s^2", gt=0, default=None, description="load-factor unit and constant gravity"
+        unit="m/s^2",
+        gt=0,
+        le=100,
+        default=None,
+        description="load-factor unit and constant gravity",
     )
     gravity: Literal["inverse_square", "constant"]
     rotating: bool
@@ -54,8 +58,10 @@ class EarthSettingsConfig(StrictModel):
 
 class VehicleSettingsConfig(StrictModel):
     name: str
-    mass_kg: float = bounded(unit="kg", gt=0)
-    reference_area_m2: float = bounded(unit="m^2", gt=0)
+    mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6)
+    reference_area_m2: float = bounded(
+        unit="m^2", gt=0, le=1000, description="the Space Shuttle's wing: 250 m^2"
+    )
     aero: PolynomialAeroConfig
 
 
@@ -63,12 +69,12 @@ class AtmosphereSettingsConfig(StrictModel):
     """US76 (closed form below 86 km in the NLP), or ``rho0 exp(-h / H)``."""
 
     model: Literal["us76", "exponential"]
-    density0_kg_m3: float | None = bounded(unit="kg/m^3", gt=0, default=None)
-    scale_height_km: float | None = bounded(unit="km", gt=0, default=None)
-    speed_of_sound_mps: float | None = bounded(unit="m/s", gt=0, default=None)
+    density0_kg_m3: float | None = bounded(unit="kg/m^3", gt=0, le=100, default=None)
+    scale_height_km: float | None = bounded(unit="km", gt=0, le=100, default=None)
+    speed_of_sound_mps: float | None = bounded(unit="m/s", gt=0, le=2000, default=None)
     upper_sound_step_km: float = bounded(
         unit="km",
-        gt=0,
+        ge=0.01,
         le=50,
         default=1.0,
         description="US76 above 86 km: sampling of the speed of sound for the NLP",
@@ -141,6 +147,8 @@ class TerminalConfig(StrictModel):
 
 def _ordered_pair(value: tuple[float, float]) -> tuple[float, float]:
     lower, upper = value
+    if not (abs(lower) < float("inf") and abs(upper) < float("inf")):
+        raise ValueError(f"bounds must be finite numbers, got [{lower:g}, {upper:g}]")
     if lower > upper:
         raise ValueError(f"empty bounds: lower ({lower:g}) > upper ({upper:g})")
     return value
@@ -182,7 +190,7 @@ class ControlBoundConfig(StrictModel):
 
     lower_deg: float = bounded(unit="deg", ge=-180, le=180)
     upper_deg: float = bounded(unit="deg", ge=-180, le=180)
-    max_rate_deg_s: float | None = bounded(unit="deg/s", gt=0, default=None)
+    max_rate_deg_s: float | None = bounded(unit="deg/s", gt=0, le=360, default=None)
 
     @model_validator(mode="after")
     def _not_empty(self) -> ControlBoundConfig:
@@ -206,19 +214,28 @@ class HeatRateConfig(StrictModel):
     angle-of-attack unit; ``[1.0]`` (the default) is no dependence on alpha.
     """
 
-    coefficient: float = bounded(gt=0, description="k, SI (W/m^2 from kg/m^3 and m/s)")
+    coefficient: float = bounded(gt=0, le=1, description="k, SI (W/m^2 from kg/m^3 and m/s)")
     density_exponent: float = bounded(gt=0, le=2, description="m")
     speed_exponent: float = bounded(gt=0, le=5, description="n")
-    alpha_polynomial: list[float] = Field(default_factory=lambda: [1.0], min_length=1)
-    max_kw_m2: float = bounded(unit="kW/m^2", gt=0)
+    alpha_polynomial: list[float] = Field(
+        default_factory=lambda: [1.0], min_length=1, max_length=10
+    )
+    max_kw_m2: float = bounded(unit="kW/m^2", gt=0, le=1.0e5)
+
+    @field_validator("alpha_polynomial")
+    @classmethod
+    def _finite(cls, value: list[float]) -> list[float]:
+        if not all(abs(c) <= 1.0e6 for c in value):
+            raise ValueError("coefficients must be finite, within [-1e6, 1e6]")
+        return value
 
 
 class PathConfig(StrictModel):
     """Path limits; ``null`` leaves a quantity unconstrained."""
 
-    max_load_g: float | None = bounded(unit="g", gt=0, default=None)
+    max_load_g: float | None = bounded(unit="g", gt=0, le=100, default=None)
     load_definition: Literal["normal", "total"] = "normal"
-    max_dynamic_pressure_kpa: float | None = bounded(unit="kPa", gt=0, default=None)
+    max_dynamic_pressure_kpa: float | None = bounded(unit="kPa", gt=0, le=1000, default=None)
     heat_rate: HeatRateConfig | None = None
 
 
@@ -234,8 +251,8 @@ class TranscriptionConfig(StrictModel):
     @field_validator("final_time_bounds_s")
     @classmethod
     def _positive_ordered(cls, value: tuple[float, float]) -> tuple[float, float]:
-        if not 0.0 < value[0] < value[1]:
-            raise ValueError(f"need 0 < lower < upper, got {value[0]:g}, {value[1]:g}")
+        if not 0.0 < value[0] < value[1] <= 1.0e5:
+            raise ValueError(f"need 0 < lower < upper <= 1e5, got {value[0]:g}, {value[1]:g}")
         return value
 
 
@@ -265,7 +282,7 @@ class GuessConfig(StrictModel):
     alpha_deg: float | None = bounded(unit="deg", ge=-90, le=90, default=None)
     bank_deg: float = bounded(unit="deg", ge=-90, le=90)
     alpha_grid_points: int = bounded(ge=2, le=10000)
-    max_time_s: float = bounded(unit="s", gt=0)
+    max_time_s: float = bounded(unit="s", gt=0, le=100000)
     relative_tolerance: float = bounded(gt=0, lt=1)
 
 

@@ -30,6 +30,10 @@ class PolynomialAeroConfig(StrictModel):
         widths = {len(row) for row in value}
         if len(widths) != 1 or 0 in widths:
             raise ValueError("coefficient rows must be non-empty and of equal length")
+        if len(value) > 10 or widths.pop() > 10:
+            raise ValueError("at most 10 x 10 coefficients (powers 0-9 of alpha and Mach)")
+        if not all(abs(c) <= 1.0e6 for row in value for c in row):
+            raise ValueError("coefficients must be finite, within [-1e6, 1e6]")
         return value
 
 
@@ -48,6 +52,8 @@ class AlphaScheduleConfig(StrictModel):
             )
         if any(b <= a for a, b in zip(self.mach, self.mach[1:], strict=False)):
             raise ValueError(f"mach must be strictly increasing, got {self.mach}")
+        if not (0.0 <= self.mach[0] and self.mach[-1] <= 100.0):
+            raise ValueError(f"mach values must lie in [0, 100], got {self.mach}")
         if any(not -90.0 <= a <= 90.0 for a in self.alpha_deg):
             raise ValueError("alpha_deg values must lie in [-90, 90] deg")
         return self
@@ -55,20 +61,24 @@ class AlphaScheduleConfig(StrictModel):
 
 class ReentryVehicleConfig(StrictModel):
     name: str
-    mass_kg: float = bounded(unit="kg", gt=0)
-    reference_area_m2: float = bounded(unit="m^2", gt=0)
+    mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6)
+    reference_area_m2: float = bounded(
+        unit="m^2", gt=0, le=1000, description="the Space Shuttle's wing: 250 m^2"
+    )
     aero: PolynomialAeroConfig
     alpha_schedule: AlphaScheduleConfig
 
 
 class ReentryLimitsConfig(StrictModel):
     heat_rate_coefficient: float = bounded(
-        gt=0, description="k_Q of Q = k_Q sqrt(rho) V^3.15 [SI: W/m^2 with rho kg/m^3, V m/s]"
+        gt=0,
+        le=1,
+        description="k_Q of Q = k_Q sqrt(rho) V^3.15 [SI: W/m^2 with rho kg/m^3, V m/s]",
     )
     heat_rate_exponent: float = bounded(gt=0, le=5, description="the 3.15 of Q")
-    max_heat_rate_kw_m2: float = bounded(unit="kW/m^2", gt=0)
-    max_load_g: float = bounded(unit="g", gt=0)
-    max_dynamic_pressure_kpa: float = bounded(unit="kPa", gt=0)
+    max_heat_rate_kw_m2: float = bounded(unit="kW/m^2", gt=0, le=1.0e5)
+    max_load_g: float = bounded(unit="g", gt=0, le=100)
+    max_dynamic_pressure_kpa: float = bounded(unit="kPa", gt=0, le=1000)
     max_bank_deg: float = bounded(unit="deg", gt=0, le=90)
 
 
@@ -76,10 +86,10 @@ class AtmosphereChoiceConfig(StrictModel):
     """US76 (tabulated), or an exponential density with a constant speed of sound."""
 
     model: Literal["us76", "exponential"]
-    table_step_m: float = bounded(unit="m", gt=0, le=5000, default=250.0)
-    density0_kg_m3: float = bounded(unit="kg/m^3", gt=0, default=1.225)
-    scale_height_km: float = bounded(unit="km", gt=0, default=7.2)
-    speed_of_sound_mps: float = bounded(unit="m/s", gt=0, default=300.0)
+    table_step_m: float = bounded(unit="m", ge=1, le=5000, default=250.0)
+    density0_kg_m3: float = bounded(unit="kg/m^3", gt=0, le=100, default=1.225)
+    scale_height_km: float = bounded(unit="km", gt=0, le=100, default=7.2)
+    speed_of_sound_mps: float = bounded(unit="m/s", gt=0, le=2000, default=300.0)
 
 
 class EntryStateConfig(StrictModel):
@@ -103,10 +113,12 @@ class LandingSiteConfig(StrictModel):
 class TerminalInterfaceConfig(StrictModel):
     """Where the entry ends: the terminal speed, with the expected altitude around it."""
 
-    speed_mps: float = bounded(unit="m/s", gt=0)
-    altitude_km: float = bounded(unit="km", gt=0)
-    altitude_tolerance_km: float = bounded(unit="km", gt=0)
-    miss_tolerance_km: float = bounded(unit="km", gt=0, description="landing-site miss accepted")
+    speed_mps: float = bounded(unit="m/s", gt=0, le=12000)
+    altitude_km: float = bounded(unit="km", gt=0, le=300)
+    altitude_tolerance_km: float = bounded(unit="km", gt=0, le=300)
+    miss_tolerance_km: float = bounded(
+        unit="km", gt=0, le=20000, description="landing-site miss accepted"
+    )
 
 
 class GuidanceConfig(StrictModel):
@@ -122,13 +134,13 @@ class GuidanceConfig(StrictModel):
     sigma_1_bounds_deg: tuple[float, float]
     corridor_min_deg: float = bounded(unit="deg", gt=0, le=45)
     corridor_max_deg: float = bounded(unit="deg", gt=0, le=90)
-    corridor_range_km: float = bounded(unit="km", gt=0)
+    corridor_range_km: float = bounded(unit="km", gt=0, le=40000)
     newton_iterations: int = bounded(ge=1, le=100)
-    newton_tolerance_km: float = bounded(unit="km", gt=0)
+    newton_tolerance_km: float = bounded(unit="km", gt=0, le=1000)
     finite_difference_deg: float = bounded(unit="deg", gt=0, le=5)
     golden_iterations: int = bounded(ge=1, le=100)
     violation_weight_km: float = bounded(
-        unit="km", ge=0, description="penalty per unit relative path-limit violation"
+        unit="km", ge=0, le=1.0e6, description="penalty per unit relative path-limit violation"
     )
 
     @model_validator(mode="after")
@@ -142,13 +154,16 @@ class GuidanceConfig(StrictModel):
 
 
 class ReentryIntegrationConfig(StrictModel):
-    step_s: float = bounded(unit="s", gt=0, le=10)
-    max_time_s: float = bounded(unit="s", gt=0)
+    step_s: float = bounded(unit="s", ge=0.001, le=10)
+    max_time_s: float = bounded(unit="s", gt=0, le=100000)
     earth_rotation: bool = True
     skip_altitude_margin_km: float = bounded(
-        unit="km", gt=0, description="above the entry altitude plus this, the OV has skipped out"
+        unit="km",
+        gt=0,
+        le=1000,
+        description="above the entry altitude plus this, the OV has skipped out",
     )
-    trajectory_step_s: float = bounded(unit="s", gt=0)
+    trajectory_step_s: float = bounded(unit="s", ge=0.01, le=3600)
 
 
 class ReentrySettings(StrictModel):

@@ -26,7 +26,7 @@ class OrbitElementsConfig(StrictModel):
     """Classical elements at the scenario epoch; ``mean`` means first-order J2 (Brouwer) mean."""
 
     element_set: ElementSet = "osculating"
-    semi_major_axis_km: float = bounded(unit="km", gt=0)
+    semi_major_axis_km: float = bounded(unit="km", gt=0, le=1.0e6)
     eccentricity: float = bounded(ge=0, lt=1)
     inclination_deg: float = bounded(unit="deg", ge=0, le=180)
     raan_deg: float = bounded(unit="deg", ge=-360, le=360)
@@ -51,7 +51,7 @@ class ParkingOrbitConfig(StrictModel):
     """
 
     element_set: ElementSet = "mean"
-    altitude_km: float = bounded(unit="km", gt=0)
+    altitude_km: float = bounded(unit="km", gt=0, le=100000)
     arg_latitude_deg: float = bounded(unit="deg", ge=-360, le=360)
     inclination_offset_deg: float = bounded(unit="deg", ge=-180, le=180, default=0.0)
     raan_offset_deg: float = bounded(unit="deg", ge=-360, le=360, default=0.0)
@@ -61,11 +61,15 @@ class VehicleConfig(StrictModel):
     """The orbital vehicle (OV) as the orbital stages see it."""
 
     name: str
-    mass_kg: float = bounded(unit="kg", gt=0, description="wet mass at the start of the scenario")
-    dry_mass_kg: float = bounded(unit="kg", gt=0)
-    thrust_n: float = bounded(unit="N", gt=0)
-    isp_s: float = bounded(unit="s", gt=0)
-    max_impulse_mps: float = bounded(unit="m/s", gt=0, description="largest single impulse")
+    mass_kg: float = bounded(
+        unit="kg", gt=0, le=1.0e6, description="wet mass at the start of the scenario"
+    )
+    dry_mass_kg: float = bounded(unit="kg", gt=0, le=1.0e6)
+    thrust_n: float = bounded(unit="N", gt=0, le=1.0e7)
+    isp_s: float = bounded(unit="s", gt=0, le=10000, description="electric engines reach ~5000 s")
+    max_impulse_mps: float = bounded(
+        unit="m/s", gt=0, le=20000, description="largest single impulse"
+    )
 
     @model_validator(mode="after")
     def _dry_not_above_wet(self) -> VehicleConfig:
@@ -77,39 +81,43 @@ class VehicleConfig(StrictModel):
 
 
 class LimitsConfig(StrictModel):
-    min_perigee_altitude_km: float = bounded(unit="km", ge=0)
+    min_perigee_altitude_km: float = bounded(unit="km", ge=0, le=2000)
 
 
 class TolerancesConfig(StrictModel):
     integrator: float = bounded(gt=0, lt=1e-3, description="Taylor integrator tolerance")
-    miss_distance_m: float = bounded(unit="m", gt=0, description="epsilon_dis of patent step 102")
+    miss_distance_m: float = bounded(
+        unit="m", gt=0, le=100000, description="epsilon_dis of patent step 102"
+    )
 
 
 class RendezvousSettings(StrictModel):
     """Settings of the modified-Hohmann rendezvous stage (patent step 102)."""
 
-    max_wait_time_s: float = bounded(unit="s", ge=0)
+    max_wait_time_s: float = bounded(unit="s", ge=0, le=30 * 86400)
     max_plane_difference_deg: float = bounded(unit="deg", ge=0, le=90)
     max_eccentricity: float = bounded(ge=0, lt=1)
     transfer_time_bounds: tuple[float, float] = Field(
         description="bounds of the corrected transfer time as fractions of the Hohmann time"
     )
-    burn_epoch_window_s: float = bounded(unit="s", ge=0)
+    burn_epoch_window_s: float = bounded(unit="s", ge=0, le=86400)
     start_transfer_fractions: tuple[float, ...] = Field(
         min_length=1, description="transfer times (fractions of Hohmann) tried for the start"
     )
     max_iterations: int = bounded(ge=1, le=100000)
     optimality_tol: float = bounded(gt=0, lt=1, description="trust-constr gtol, scaled problem")
     initial_barrier_parameter: float = bounded(gt=0, lt=1)
-    initial_trust_radius: float = bounded(gt=0, description="trust-constr, scaled variables")
-    trajectory_step_s: float = bounded(unit="s", gt=0)
+    initial_trust_radius: float = bounded(
+        gt=0, le=1000, description="trust-constr, scaled variables"
+    )
+    trajectory_step_s: float = bounded(unit="s", ge=0.01, le=86400)
 
     @field_validator("transfer_time_bounds")
     @classmethod
     def _ordered_fractions(cls, value: tuple[float, float]) -> tuple[float, float]:
         lo, hi = value
-        if not 0.0 < lo < 1.0 < hi:
-            raise ValueError(f"needs 0 < lower < 1 < upper, got [{lo:g}, {hi:g}]")
+        if not 0.0 < lo < 1.0 < hi <= 10.0:
+            raise ValueError(f"needs 0 < lower < 1 < upper <= 10, got [{lo:g}, {hi:g}]")
         return value
 
     @model_validator(mode="after")
