@@ -69,7 +69,10 @@ class EntryRegionConfig(StrictModel):
 class DeorbitSolverConfig(StrictModel):
     """SLSQP correction under J2 and the finite-difference steps of its gradients."""
 
-    max_iterations: int = bounded(ge=1, le=10000)
+    max_iterations: int = bounded(ge=1, le=10000, description="SLSQP iterations per pass")
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of the stage: forecast and every pass"
+    )
     ftol: float = bounded(gt=0, lt=1, description="SLSQP ftol on the scaled objective")
     time_scale_s: float = bounded(unit="s", gt=0, le=86400, description="burn-epoch variable unit")
     dv_scale_mps: float = bounded(unit="m/s", gt=0, le=10000, description="impulse variable unit")

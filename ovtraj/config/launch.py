@@ -317,6 +317,7 @@ class IntegrationConfig(StrictModel):
 class GeneticConfig(StrictModel):
     population: int = bounded(ge=4, le=10000)
     generations: int = bounded(ge=1, le=10000)
+    time_limit_s: float = bounded(unit="s", gt=0, le=86400, description="wall time of the GA")
     seed: int = bounded(ge=0, le=2**32 - 1)
     constraint_relaxation: float = bounded(
         ge=1,
@@ -331,6 +332,9 @@ class LocalConfig(StrictModel):
     trust_constr_max_iterations: int = bounded(ge=0, le=10000)
     trust_constr_gtol: float = bounded(gt=0, lt=1)
     trust_constr_xtol: float = bounded(gt=0, lt=1)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of each local phase"
+    )
     finite_difference_step: float = bounded(gt=0, lt=0.1, description="scaled variables")
     stall_iterations: int = bounded(ge=1, le=1000)
     stall_payload_kg: float = bounded(

@@ -22,7 +22,7 @@ class DoeSettings(StrictModel):
     """Design of experiments over ``mission.design_bounds`` and how the flow runs it."""
 
     samples: int = bounded(ge=1, le=100000)
-    seed: int = bounded(ge=0)
+    seed: int = bounded(ge=0, le=2**32 - 1)
     batch_size: int = bounded(ge=1, le=10000, description="samples per Prefect task")
     task_runner: Literal["threads", "processes", "dask"]
     workers: int = bounded(ge=1, le=1024)
@@ -84,13 +84,13 @@ class SurrogateSettings(StrictModel):
     )
     gpc_length_scale_bounds: Bound  # of the GP classifier's length scale, unit-cube inputs
     gpc_amplitude_bounds: Bound  # variance of the GP classifier's latent function
-    seed: int = bounded(ge=0)
+    seed: int = bounded(ge=0, le=2**32 - 1)
 
 
 class ObjectivePoint(StrictModel):
-    t_total_h: float = bounded(unit="h", gt=0)
-    dv_total_mps: float = bounded(unit="m/s", ge=0)
-    m_load_kg: float = bounded(unit="kg", ge=0)
+    t_total_h: float = bounded(unit="h", gt=0, le=100000)
+    dv_total_mps: float = bounded(unit="m/s", ge=0, le=100000)
+    m_load_kg: float = bounded(unit="kg", ge=0, le=1.0e6)
 
 
 class OptimizeSettings(StrictModel):
@@ -98,7 +98,10 @@ class OptimizeSettings(StrictModel):
 
     population: int = bounded(ge=4, le=100000)
     generations: int = bounded(ge=1, le=100000)
-    seed: int = bounded(ge=0)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of NSGA-II on the surrogates"
+    )
+    seed: int = bounded(ge=0, le=2**32 - 1)
     feasibility_threshold: float = bounded(
         gt=0, lt=1, description="probability of feasibility the optimiser requires"
     )
@@ -130,22 +133,26 @@ class PlanSettings(StrictModel):
     """The mission plan and its independent replay (SPEC step 6; ``ovtraj.mission.fly``)."""
 
     orbit_rtol: float = bounded(gt=0, lt=1e-3, description="replay DOP853, orbital arcs")
-    orbit_atol: float = bounded(gt=0, description="replay DOP853, orbital arcs (m and m/s)")
+    orbit_atol: float = bounded(
+        gt=0, le=1000, description="replay DOP853, orbital arcs (m and m/s)"
+    )
     entry_rtol: float = bounded(gt=0, lt=1e-3, description="replay DOP853, atmospheric entry")
-    entry_atol: float = bounded(gt=0, description="replay DOP853, entry (m, rad, m/s)")
+    entry_atol: float = bounded(gt=0, le=1000, description="replay DOP853, entry (m, rad, m/s)")
     path_sample_step_s: float = bounded(
-        unit="s", gt=0, description="sampling of the replayed entry for the path maxima"
+        unit="s", ge=0.01, le=60, description="sampling of the replayed entry for the path maxima"
     )
     prediction_tolerance_km: float = bounded(
-        unit="km", gt=0, description="replayed terminal point vs the plan's predicted one"
+        unit="km", gt=0, le=1000, description="replayed terminal point vs the plan's predicted one"
     )
     entry_fpa_tolerance_deg: float = bounded(
-        unit="deg", ge=0, description="slack of the replayed entry angle on its limits"
+        unit="deg", ge=0, le=10, description="slack of the replayed entry angle on its limits"
     )
 
 
 class MissionSettings(StrictModel):
-    stay_h: float = bounded(unit="h", ge=0, description="docked with the target after arrival")
+    stay_h: float = bounded(
+        unit="h", ge=0, le=8760, description="docked with the target after arrival"
+    )
     design_bounds: MissionBoundsConfig
     doe: DoeSettings
     store: StoreSettings

@@ -139,6 +139,9 @@ class GuidanceConfig(StrictModel):
     newton_tolerance_km: float = bounded(unit="km", gt=0, le=1000)
     finite_difference_deg: float = bounded(unit="deg", gt=0, le=5)
     golden_iterations: int = bounded(ge=1, le=100)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of the guidance (Newton and golden)"
+    )
     violation_weight_km: float = bounded(
         unit="km", ge=0, le=1.0e6, description="penalty per unit relative path-limit violation"
     )

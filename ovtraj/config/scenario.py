@@ -104,7 +104,10 @@ class RendezvousSettings(StrictModel):
     start_transfer_fractions: tuple[float, ...] = Field(
         min_length=1, description="transfer times (fractions of Hohmann) tried for the start"
     )
-    max_iterations: int = bounded(ge=1, le=100000)
+    max_iterations: int = bounded(ge=1, le=100000, description="trust-constr iteration limit")
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of one rendezvous or transfer solve"
+    )
     optimality_tol: float = bounded(gt=0, lt=1, description="trust-constr gtol, scaled problem")
     initial_barrier_parameter: float = bounded(gt=0, lt=1)
     initial_trust_radius: float = bounded(
