@@ -246,12 +246,22 @@ def launch_fit_key(scenario: Scenario) -> str:
     """Content hash of everything a launch fit depends on (not the code version).
 
     The launch section (launcher, drop, day, bounds, settings, grid), the target's
-    orbit and epoch (they set the plane) and the Earth model.
+    orbit and epoch (they set the plane) and the Earth model. The solvers' wall-time
+    limits are left out: a fit exists only when every grid point was solved, so a
+    limit never shaped one.
     """
     resolved = scenario.resolved()
     content = {k: resolved[k] for k in ("launch", "target", "epoch_utc", "earth")}
-    text = json.dumps(content, sort_keys=True, separators=(",", ":"))
+    text = json.dumps(_without_time_limits(content), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _without_time_limits(content: Any) -> Any:
+    if isinstance(content, dict):
+        return {k: _without_time_limits(v) for k, v in content.items() if k != "time_limit_s"}
+    if isinstance(content, list):
+        return [_without_time_limits(v) for v in content]
+    return content
 
 
 def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] | None = None) -> LaunchFit | None:
