@@ -109,17 +109,24 @@ def evaluate_batches(
     batches = dict(run.batches(batch_size))
     done = run.done_batches()
     todo = [k for k in batches if k not in done]
-    run.update_manifest(status="running", batches=len(batches))
-    logger.info(
-        "run %s: %d batches, %d stored, %d to evaluate", run.id, len(batches), len(done), len(todo)
-    )
-    batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
-    failures = _run_batches(runner, batch_task, resolved, run, batches, todo, code, logger)
-    missing = [k for k in todo if k not in run.done_batches() and not _failed(k, failures)]
-    if missing:  # cached results whose files are gone: evaluate them again
-        logger.info("batches %s cached but not stored: refreshing", missing)
-        refresh = batch_task.with_options(refresh_cache=True)
-        failures += _run_batches(runner, refresh, resolved, run, batches, missing, code, logger)
+    with run.working() as removed:
+        if removed:
+            logger.info("removed %d temporary file(s) of an interrupted write", len(removed))
+        run.update_manifest(batches=len(batches))
+        logger.info(
+            "run %s: %d batches, %d stored, %d to evaluate",
+            run.id,
+            len(batches),
+            len(done),
+            len(todo),
+        )
+        batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
+        failures = _run_batches(runner, batch_task, resolved, run, batches, todo, code, logger)
+        missing = [k for k in todo if k not in run.done_batches() and not _failed(k, failures)]
+        if missing:  # cached results whose files are gone: evaluate them again
+            logger.info("batches %s cached but not stored: refreshing", missing)
+            refresh = batch_task.with_options(refresh_cache=True)
+            failures += _run_batches(runner, refresh, resolved, run, batches, missing, code, logger)
     finish(run)
     if failures:
         run.update_manifest(status="incomplete", failures=failures)

@@ -553,6 +553,7 @@ def run(
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     _print_rows(f"run {stored.id}", list(stored.summary().items()))
+    typer.echo(f"stored in {stored.directory.resolve()}")
 
 
 @app.command()
@@ -583,6 +584,34 @@ def show(run_id: str, store_root: StoreOpt = None) -> None:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     typer.echo(json.dumps({"manifest": manifest, "summary": summary}, indent=2, default=str))
+
+
+@app.command()
+def verify(run_id: str, store_root: StoreOpt = None) -> None:
+    """Check every file of a run against its recorded size, SHA-256 and schema.
+
+    Exit 0 when every covered file is intact, 1 with the list of bad files, 2 when
+    the run cannot be opened.
+    """
+    from ovtraj.runs import StoreError
+
+    try:
+        stored = _store(store_root).run(run_id)
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    report = stored.verify()
+    for problem in report.problems:
+        typer.echo(f"bad: {problem}")
+    for path in report.uncovered:
+        typer.echo(f"not covered by any marker (never read): {path}")
+    verdict = "clean" if report.clean else f"{len(report.problems)} bad file(s)"
+    typer.echo(
+        f"run {stored.id}: {report.checked_files} files, {report.checked_bytes} bytes checked: "
+        f"{verdict}"
+    )
+    if not report.clean:
+        raise typer.Exit(code=1)
 
 
 @app.command()
@@ -860,3 +889,46 @@ def fly(
         typer.echo(format_flight_report(report))
     if not report.landed_within_stated_miss:
         raise typer.Exit(code=1)
+
+
+def _terminated(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def entry_point() -> None:
+    """The ``ovtraj`` command: every fault is one line on stderr and exit 2, never a traceback.
+
+    Exit codes: 0 done, 1 infeasible or unconverged result (or a failed check), 2 bad
+    input or a fault (named), 130 interrupted (SIGINT or SIGTERM; a run being written
+    says ``interrupted`` in its manifest). ``OVTRAJ_DEBUG=1`` shows tracebacks.
+    """
+    import os
+    import signal
+    import sys
+
+    from ovtraj.files import StoreError
+
+    signal.signal(signal.SIGTERM, _terminated)
+    try:
+        code = app(standalone_mode=False)
+    except typer.Exit as done:
+        code = done.exit_code
+    except typer.Abort:
+        code = 130
+        typer.echo("interrupted", err=True)
+    except typer.exceptions.TyperException as err:  # usage errors: typer's own message
+        show = getattr(err, "show", None)
+        show() if show else typer.echo(str(err), err=True)
+        code = int(getattr(err, "exit_code", 2))
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        code = 130
+    except (StoreError, ConfigError) as err:
+        typer.echo(str(err), err=True)
+        code = 2
+    except Exception as err:
+        if os.environ.get("OVTRAJ_DEBUG"):
+            raise
+        typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
+        code = 2
+    sys.exit(code if isinstance(code, int) else 0)

@@ -168,7 +168,7 @@ def test_corrupted_parquet_is_named_and_nothing_else_is_overwritten(eight, tmp_p
     with pytest.raises(StoreError, match=r"part-00001\.parquet"):
         execute.replay(run)
     # Writing an already stored batch again is refused: nothing is overwritten.
-    assert run.write_batch(1, [], []) is False
+    assert run.write_batch(1, [], [], trajectory_steps={}) is False
     after = {k: v for k, v in _digest(copy_dir).items() if "deorbit/part-00001" not in k}
     assert after == before
     assert any("error" in (row.get("status") or "") or row["run_id"] for row in store.catalog())

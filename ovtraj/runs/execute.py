@@ -154,29 +154,25 @@ def run_doe(
     if not [k for k, _ in batches if not run.is_stored(k)]:
         return finish(run)
     context = MissionContext(scenario, launch_fit)
+
+    def evaluate(k: int, batch: pd.DataFrame, wait_s: float) -> bool:
+        start = time.perf_counter()
+        stored = store_batch(run, scenario, context, k, batch, wait_s=wait_s)
+        if stored:
+            say(
+                f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
+                f"{time.perf_counter() - start:.1f} s"
+            )
+        return stored is not None
+
     with run.working() as removed:
         if removed:
             say(f"removed {len(removed)} temporary file(s) of an interrupted write")
         run.update_manifest(batches=len(batches))
-        waiting = []
-        for k, batch in batches:
-            if run.is_stored(k):
-                continue
-            start = time.perf_counter()
-            stored = store_batch(run, scenario, context, k, batch)
-            if stored is None:
-                waiting.append((k, batch))
-                continue
-            if stored:
-                say(
-                    f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
-                    f"{time.perf_counter() - start:.1f} s"
-                )
+        waiting = [(k, b) for k, b in batches if not run.is_stored(k) and not evaluate(k, b, 0.0)]
         for k, batch in waiting:
-            say(f"batch {k + 1}/{len(batches)}: computed by another process; waiting for it")
-            wait_s = scenario.mission.doe.claim_wait_s
-            if store_batch(run, scenario, context, k, batch, wait_s=wait_s):
-                say(f"batch {k + 1}/{len(batches)}: its process stopped; computed here")
+            say(f"batch {k + 1}/{len(batches)}: another process is computing it; waiting")
+            evaluate(k, batch, scenario.mission.doe.claim_wait_s)
     return finish(run)
 
 

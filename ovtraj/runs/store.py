@@ -382,7 +382,21 @@ class Run:
         marker = self.directory / "batches" / f"{batch}.json"
         if marker.exists():
             return False
-        records = list(records)
+        try:
+            self._write_batch(marker, batch, list(records), sample_ids, trajectory_steps)
+        except BaseException:
+            self._clear_unmarked(batch)  # frees the space a full disk needs for the manifest
+            raise
+        return True
+
+    def _write_batch(
+        self,
+        marker: Path,
+        batch: int,
+        records: list[MissionRecord],
+        sample_ids: list[int],
+        trajectory_steps: dict[str, float],
+    ) -> None:
         pairs = list(zip(sample_ids, records, strict=True))
         part = part_name(batch)
         files: dict[str, Digest] = {}
@@ -440,7 +454,6 @@ class Run:
             "timing": timing,
         }
         write_json(marker, content)
-        return True
 
     # -- reading ----------------------------------------------------------------------------
     def _dataset(self, name: str) -> pd.DataFrame:
