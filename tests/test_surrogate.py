@@ -8,6 +8,8 @@ import pickle
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from scipy.optimize import minimize
 from scipy.stats import qmc
@@ -15,6 +17,7 @@ from sklearn.metrics import r2_score
 from sklearn.model_selection import KFold
 from smt.surrogate_models import QP, RBF
 
+from ovtraj.files import StoreError
 from ovtraj.plots.surrogate import parity_plots
 from ovtraj.surrogate import (
     SurrogateError,
@@ -25,6 +28,7 @@ from ovtraj.surrogate import (
 )
 from ovtraj.surrogate import candidates as candidates_module
 from ovtraj.surrogate import validation as validation_module
+from ovtraj.surrogate.fit import PREDICTIONS_SCHEMA, VALIDATION_SCHEMA
 from ovtraj.surrogate.validation import holdout_mask
 
 NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
@@ -324,10 +328,70 @@ def test_load_names_the_missing_or_corrupt_file(fitted, tmp_path):
     payload = pickle.dumps({"data_hash": "other"})
     (tmp_path / "d" / "models.pkl").write_bytes(payload)
     meta = json.loads((tmp_path / "d" / "meta.json").read_text())
-    meta["files"]["models.pkl"] = hashlib.sha256(payload).hexdigest()
+    meta["files"]["models.pkl"] = {
+        "bytes": len(payload),
+        "sha256": hashlib.sha256(payload).hexdigest(),
+    }
     (tmp_path / "d" / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(SurrogateError, match=r"models\.pkl: does not match"):
         SurrogateSet.load(tmp_path / "d")
+
+
+def test_stored_tables_have_the_declared_schemas_and_every_file_is_checked(fitted, tmp_path):
+    """meta.json lists each file's size and SHA-256; a valid Parquet file with one value
+    rewritten, a missing file or an unlisted one is refused naming the file."""
+    fit, _ = fitted
+    directory = tmp_path / "set"
+    written = fit.save(directory, meta={})
+    meta = json.loads((directory / "meta.json").read_text())
+    assert meta["format"] == 2
+    assert set(meta["files"]) == {"models.pkl", "validation.parquet", "predictions.parquet"}
+    for name, recorded in meta["files"].items():
+        payload = (directory / name).read_bytes()
+        assert recorded == {"bytes": len(payload), "sha256": hashlib.sha256(payload).hexdigest()}
+        assert written[name].to_json() == recorded
+    # The declared schemas, whatever the data: "error" is all null, the classifier
+    # metrics are null in the regressor rows.
+    assert fit.validation["error"].isna().all()
+    assert pq.read_schema(directory / "validation.parquet").equals(VALIDATION_SCHEMA)
+    assert pq.read_schema(directory / "predictions.parquet").equals(PREDICTIONS_SCHEMA)
+    # Saving the same set again is a no-op; other content is refused, nothing replaced.
+    before = {p.name: p.read_bytes() for p in directory.iterdir()}
+    fit.save(directory, meta={})
+    with pytest.raises(StoreError, match=r"meta\.json: already stored with other content"):
+        fit.save(directory, meta={"run_id": "other"})
+    assert {p.name: p.read_bytes() for p in directory.iterdir()} == before
+    # One value rewritten in a still valid Parquet file.
+    path = directory / "predictions.parquet"
+    table = pq.read_table(path)
+    column = table.column("y_pred").to_pylist()
+    column[0] += 1.0
+    pq.write_table(table.set_column(4, "y_pred", pa.array(column)), path)
+    with pytest.raises(SurrogateError, match=r"predictions\.parquet: changed since it was stored"):
+        SurrogateSet.load(directory)
+    path.write_bytes(before["predictions.parquet"])
+    SurrogateSet.load(directory)
+    # A missing file, and a marker that does not list one.
+    (directory / "validation.parquet").unlink()
+    with pytest.raises(SurrogateError, match=r"validation\.parquet: missing"):
+        SurrogateSet.load(directory)
+    (directory / "validation.parquet").write_bytes(before["validation.parquet"])
+    del meta["files"]["models.pkl"]
+    (directory / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(SurrogateError, match=r"meta\.json: lists no models\.pkl"):
+        SurrogateSet.load(directory)
+
+
+def test_an_interrupted_save_is_completed_by_the_next_one(fitted, tmp_path):
+    """Files without meta.json are what an interrupted save left: replaced, not refused."""
+    fit, _ = fitted
+    directory = tmp_path / "set"
+    directory.mkdir()
+    (directory / "models.pkl").write_bytes(b"half a pickle")
+    (directory / "validation.parquet").write_bytes(b"not parquet")
+    fit.save(directory, meta={})
+    back = SurrogateSet.load(directory)
+    pd.testing.assert_frame_equal(back.validation, fit.validation)
 
 
 def test_training_data_hash_tracks_every_value():

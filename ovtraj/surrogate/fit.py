@@ -13,16 +13,18 @@ Store layout of :meth:`SurrogateSet.save` (one directory)::
     validation.parquet    one row per (model, candidate): CV and held-out metrics, errors
     predictions.parquet   CV and held-out predictions of the selected candidates
     meta.json             data hash, selection, settings, names, bounds, library versions,
-                          SHA-256 of the three files above, plus the caller's meta
+                          the caller's meta, and ``files``: the size and SHA-256 of the
+                          three files above (and of any plots the caller lists)
 
-``meta.json`` is written last, so a directory with a ``meta.json`` whose checksums match
-is complete. Pickles execute code when loaded: load only stores this project wrote.
+The two tables have declared schemas (:data:`VALIDATION_SCHEMA`, :data:`PREDICTIONS_SCHEMA`).
+``meta.json`` is the product's marker (:mod:`ovtraj.products`), written last; :meth:`load`
+checks every file against it (size, SHA-256, schema) before parsing, and names a missing or
+changed file. Pickles execute code when loaded: load only stores this project wrote.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import pickle
 import platform
 import threading
@@ -34,13 +36,25 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import sklearn
 import smt
 from pydantic import ValidationError
 from threadpoolctl import threadpool_limits
 
 from ovtraj.config.mission import SurrogateSettings
-from ovtraj.files import StoreError, atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.files import Digest, StoreError, read_json
+from ovtraj.products import Product
+from ovtraj.records import (
+    BOOL,
+    FLOAT,
+    INT,
+    TEXT,
+    json_text,
+    record_schema,
+    table_from_frame,
+    table_from_rows,
+)
 from ovtraj.surrogate.candidates import ALL_FEASIBLE, FeasibilityClassifier, Regressor
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
@@ -55,10 +69,17 @@ from ovtraj.surrogate.validation import (
     select_regressor,
 )
 
-__all__ = ["FEASIBLE", "SurrogateSet", "fit_surrogates", "training_data_hash"]
+__all__ = [
+    "FEASIBLE",
+    "PREDICTIONS_SCHEMA",
+    "VALIDATION_SCHEMA",
+    "SurrogateSet",
+    "fit_surrogates",
+    "training_data_hash",
+]
 
 FEASIBLE = "feasible"  # model name of the feasibility classifier in the tables
-STORE_FORMAT = 1
+STORE_FORMAT = 2  # 2: file digests (size, SHA-256) in meta.json, declared table schemas
 MODELS_FILE = "models.pkl"
 VALIDATION_FILE = "validation.parquet"
 PREDICTIONS_FILE = "predictions.parquet"
@@ -77,8 +98,32 @@ _METRICS = (
     "heldout_accuracy",
     "fit_time_s",
 )
-VALIDATION_COLUMNS = ("model", "kind", "candidate", "selected", *_COUNTS, *_METRICS, "error")
-PREDICTION_COLUMNS = ("model", "sample_id", "split", "y_true", "y_pred")
+VALIDATION_SCHEMA = record_schema(
+    [
+        ("model", TEXT),
+        ("kind", TEXT),
+        ("candidate", TEXT),
+        ("selected", BOOL),
+        *[(name, INT) for name in _COUNTS],
+        *[(name, FLOAT) for name in _METRICS],
+        ("error", TEXT),
+    ],
+    required=("model", "kind", "candidate", "selected"),
+)
+"""``validation.parquet``: one row per (model, candidate); an undefined metric is null."""
+PREDICTIONS_SCHEMA = record_schema(
+    [
+        ("model", TEXT),
+        ("sample_id", INT),
+        ("split", TEXT),
+        ("y_true", FLOAT),
+        ("y_pred", FLOAT),
+    ],
+    required=("model", "sample_id", "split"),
+)
+"""``predictions.parquet``: CV and held-out predictions of the selected candidates."""
+# The validation table in memory: counts as Int64 and metrics as Float64 (<NA> when undefined).
+_NULLABLE = {pa.int64(): pd.Int64Dtype(), pa.float64(): pd.Float64Dtype()}
 
 
 def training_data_hash(
@@ -107,30 +152,22 @@ def training_data_hash(
     return digest.hexdigest()[:16]
 
 
-def _typed_validation(frame: pd.DataFrame) -> pd.DataFrame:
-    """Fixed column order and dtypes: text as objects (None when missing), Int64, Float64."""
-    frame = frame.loc[:, list(VALIDATION_COLUMNS)].copy()
+def _validation_frame(table: pa.Table) -> pd.DataFrame:
+    """The validation table (:data:`VALIDATION_SCHEMA`) in memory: text as objects (None
+    when missing), ``selected`` bool, counts Int64, metrics Float64."""
+    frame = table.to_pandas(types_mapper=_NULLABLE.get)
     for column in _TEXT:
         values = frame[column].astype(object)
         frame[column] = values.where(values.notna(), None).astype(object)
-    frame["selected"] = frame["selected"].astype(bool)
-    for column in _COUNTS:
-        frame[column] = frame[column].astype("Int64")
-    for column in _METRICS:
-        frame[column] = pd.array(
-            [None if pd.isna(v) else float(v) for v in frame[column]], dtype="Float64"
-        )
-    return frame.reset_index(drop=True)
+    return frame
 
 
-def _typed_predictions(frame: pd.DataFrame) -> pd.DataFrame:
-    frame = frame.loc[:, list(PREDICTION_COLUMNS)].copy()
-    for column in ("model", "split"):
-        frame[column] = frame[column].astype(object)
-    frame["sample_id"] = frame["sample_id"].astype(np.int64)
-    for column in ("y_true", "y_pred"):
-        frame[column] = frame[column].astype(np.float64)
-    return frame.reset_index(drop=True)
+def _validation_table(rows: list[dict[str, Any]]) -> pa.Table:
+    return table_from_rows(rows, VALIDATION_SCHEMA, "validation")
+
+
+def _predictions_table(frame: pd.DataFrame) -> pa.Table:
+    return table_from_frame(frame.reset_index(drop=True), PREDICTIONS_SCHEMA, "predictions")
 
 
 class SurrogateSet:
@@ -217,11 +254,20 @@ class SurrogateSet:
             "data_hash": self.data_hash,
         }
 
-    def save(self, directory: Path, *, meta: dict[str, Any]) -> None:
-        """Write the set to ``directory`` (layout in the module docstring), atomically per file.
+    def save(
+        self,
+        directory: Path,
+        *,
+        meta: dict[str, Any],
+        views: dict[str, Digest] | None = None,
+    ) -> dict[str, Digest]:
+        """Write the set to ``directory`` (layout in the module docstring), ``meta.json`` last.
 
         ``meta`` (e.g. the run id) is merged into ``meta.json``; its keys must not collide
-        with the set's own keys and its values must be JSON-serialisable.
+        with the set's own keys and its values must be JSON-serialisable. ``views`` are
+        files already written there (plots) to list in ``meta.json`` too. Returns the
+        digest of every file written, ``meta.json`` included. A stored set is never
+        overwritten: saving other content over it raises :class:`~ovtraj.files.StoreError`.
         """
         directory = Path(directory)
         own: dict[str, Any] = {
@@ -234,75 +280,72 @@ class SurrogateSet:
             "lower": np.asarray(self.cube.lower).tolist(),
             "upper": np.asarray(self.cube.upper).tolist(),
             "versions": _versions(),
-            "files": {},
         }
-        clash = sorted(set(own) & set(meta))
+        reserved = {*own, "files"}
+        clash = sorted(reserved & set(meta))
         if clash:
             raise SurrogateError(
                 f"save: meta keys {clash} are reserved by the surrogate store "
-                f"(reserved: {sorted(own)})"
+                f"(reserved: {sorted(reserved)})"
             )
         document = {**meta, **own}
-        payload = pickle.dumps(self._state(), protocol=pickle.HIGHEST_PROTOCOL)
-        atomic_bytes(directory / MODELS_FILE, payload)
-        atomic_parquet(directory / VALIDATION_FILE, self.validation)
-        atomic_parquet(directory / PREDICTIONS_FILE, self.predictions)
-        for name in (MODELS_FILE, VALIDATION_FILE, PREDICTIONS_FILE):
-            document["files"][name] = hashlib.sha256((directory / name).read_bytes()).hexdigest()
         try:
-            text = json.dumps(document, indent=2, sort_keys=True, allow_nan=False)
+            json_text(document)
         except (TypeError, ValueError) as err:
             raise SurrogateError(f"save: meta is not JSON-serialisable ({err})") from None
-        atomic_bytes(directory / META_FILE, (text + "\n").encode("utf-8"))
+        payload = pickle.dumps(self._state(), protocol=pickle.HIGHEST_PROTOCOL)
+        validation = table_from_frame(self.validation, VALIDATION_SCHEMA, "validation")
+        predictions = _predictions_table(self.predictions)
+        with Product(directory, META_FILE).writing() as out:
+            out.write_bytes(MODELS_FILE, payload)
+            out.write_table(VALIDATION_FILE, validation, VALIDATION_SCHEMA)
+            out.write_table(PREDICTIONS_FILE, predictions, PREDICTIONS_SCHEMA)
+            for name, digest in (views or {}).items():
+                out.add(name, digest)
+            out.finish(document)
+        return dict(out.files)
 
     @classmethod
-    def load(cls, directory: Path) -> SurrogateSet:
-        """Read a set written by :meth:`save`; SurrogateError names a missing or corrupt file."""
+    def load(cls, directory: Path, expected: Digest | None = None) -> SurrogateSet:
+        """Read a set written by :meth:`save`; SurrogateError names a missing or changed file.
+
+        ``expected`` is the digest of ``meta.json`` when a parent product lists it.
+        """
         directory = Path(directory)
-        meta_path = directory / META_FILE
+        product = Product(directory, META_FILE)
+        meta_path = product.marker_path
         if not meta_path.is_file():
             raise SurrogateError(f"{meta_path}: missing (not a saved surrogate set)")
         try:
-            meta = read_json(meta_path)
+            meta = read_json(meta_path, expected)
         except StoreError as err:
             raise SurrogateError(str(err)) from None
         found = meta.get("format") if isinstance(meta, dict) else None
         if found != STORE_FORMAT:
             raise SurrogateError(
                 f"{meta_path}: unknown store format {found!r} (this version reads format "
-                f"{STORE_FORMAT})"
+                f"{STORE_FORMAT}): fit the surrogates again"
             )
         try:
-            checksums = dict(meta["files"])
+            if not isinstance(meta["files"], dict):
+                raise TypeError("'files' is not a mapping")
             settings = SurrogateSettings.model_validate(meta["settings"])
         except (KeyError, TypeError, ValueError, ValidationError) as err:
             raise SurrogateError(f"{meta_path}: corrupt or outdated content ({err})") from None
-        blobs = {}
-        for name in (MODELS_FILE, VALIDATION_FILE, PREDICTIONS_FILE):
-            path = directory / name
-            try:
-                blob = path.read_bytes()
-            except OSError as err:
-                raise SurrogateError(f"{path}: missing or unreadable ({err.strerror})") from None
-            if hashlib.sha256(blob).hexdigest() != checksums.get(name):
-                raise SurrogateError(
-                    f"{path}: content does not match the checksum in {META_FILE} "
-                    "(corrupt, or written by another save)"
-                )
-            blobs[name] = blob
         try:
-            state = pickle.loads(blobs[MODELS_FILE])
+            blob = product.read_bytes(MODELS_FILE, meta)
+            validation = _validation_frame(
+                product.read_table(VALIDATION_FILE, VALIDATION_SCHEMA, meta)
+            )
+            predictions = product.read_frame(PREDICTIONS_FILE, PREDICTIONS_SCHEMA, meta)
+        except StoreError as err:
+            raise SurrogateError(str(err)) from None
+        try:
+            state = pickle.loads(blob)
         except Exception as err:
             raise SurrogateError(f"{directory / MODELS_FILE}: corrupt pickle ({err})") from None
         if not isinstance(state, dict) or state.get("data_hash") != meta.get("data_hash"):
             raise SurrogateError(f"{directory / MODELS_FILE}: does not match {META_FILE}")
-        try:
-            validation = _typed_validation(read_parquet(directory / VALIDATION_FILE))
-            predictions = _typed_predictions(read_parquet(directory / PREDICTIONS_FILE))
-        except StoreError as err:
-            raise SurrogateError(str(err)) from None
-        except (KeyError, ValueError, TypeError) as err:
-            raise SurrogateError(f"{directory}: table with unexpected columns ({err})") from None
         stored = meta.get("versions", {})
         current = _versions()
         changed = {k: (stored.get(k), v) for k, v in current.items() if stored.get(k) != v}
@@ -558,8 +601,8 @@ def fit_surrogates(
     selected[FEASIBLE] = classifier.name
     rows += rows_cls
     tables.append(table_cls)
-    validation = _typed_validation(pd.DataFrame(rows, columns=list(VALIDATION_COLUMNS)))
-    predictions = _typed_predictions(pd.concat(tables, ignore_index=True))
+    validation = _validation_frame(_validation_table(rows))
+    predictions = _predictions_table(pd.concat(tables, ignore_index=True)).to_pandas()
     return SurrogateSet(
         input_names=tuple(input_names),
         output_names=tuple(values),
