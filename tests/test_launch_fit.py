@@ -9,14 +9,22 @@ stored data is checked against the code rather than trusted.
 from __future__ import annotations
 
 import copy
+import hashlib
+import json
+import math
+import shutil
 
 import numpy as np
-import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
+from ovtraj.astro.epoch import Epoch
 from ovtraj.config import load_scenario
-from ovtraj.launch.fit import LaunchFit, fit_rows
+from ovtraj.files import StoreError
+from ovtraj.launch.fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.fourier import FourierRangeError
+from ovtraj.launch.result import LaunchResult
 from ovtraj.version import code_version
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
@@ -25,8 +33,7 @@ REFERENCE = REPO / "data" / "reference" / "launch_fit" / "iss-like-rendezvous"
 
 @pytest.fixture(scope="module")
 def grid_rows() -> list[dict]:
-    frame = pd.read_parquet(REFERENCE / "grid.parquet")
-    return frame.to_dict(orient="records")
+    return LaunchFit.load(REFERENCE).grid.to_dict(orient="records")  # every file checked
 
 
 @pytest.fixture(scope="module")
@@ -72,6 +79,84 @@ def test_fit_reproduces_the_grid_and_refuses_to_extrapolate(default_fit, grid_ro
         loaded.evaluate((hi + 1.0) * 1e3)
     with pytest.raises(FourierRangeError):
         loaded.evaluate((lo - 1.0) * 1e3)
+
+
+def test_reference_fit_lists_its_files_and_has_the_declared_schema(scenario):
+    """meta.json (written last) gives the key and every file's size and SHA-256; the grid
+    has the declared schema although whole columns are null (no genetic phase on it)."""
+    meta = json.loads((REFERENCE / "meta.json").read_text())
+    assert meta["key"] == json.loads((REFERENCE / "coefficients.json").read_text())["key"]
+    assert set(meta["files"]) == {"coefficients.json", "grid.parquet"}
+    for name, recorded in meta["files"].items():
+        payload = (REFERENCE / name).read_bytes()
+        assert recorded == {"bytes": len(payload), "sha256": hashlib.sha256(payload).hexdigest()}
+    grid = pq.read_table(REFERENCE / "grid.parquet")
+    assert grid.schema.equals(GRID_SCHEMA)
+    assert grid.column("genetic_payload_kg").null_count == grid.num_rows
+    assert grid.column("reason").null_count == grid.num_rows
+    found = find_launch_fit(scenario)
+    assert found is not None and found.key == meta["key"]
+
+
+def test_a_changed_or_missing_file_of_a_stored_fit_is_refused_naming_it(scenario, tmp_path):
+    root = tmp_path / "fits"
+    directory = root / "copy"
+    shutil.copytree(REFERENCE, directory)
+    # One value rewritten in a still valid Parquet file.
+    path = directory / "grid.parquet"
+    original = path.read_bytes()
+    table = pq.read_table(path)
+    payload = table.column("payload_kg").to_pylist()
+    payload[3] += 0.5
+    index = table.schema.get_field_index("payload_kg")
+    pq.write_table(table.set_column(index, "payload_kg", pa.array(payload)), path)
+    with pytest.raises(StoreError, match=r"grid\.parquet: changed since it was stored"):
+        LaunchFit.load(directory)
+    with pytest.raises(StoreError, match=r"grid\.parquet: changed"):
+        find_launch_fit(scenario, roots=(root,))  # never skipped as if it were absent
+    path.write_bytes(original)
+    (directory / "coefficients.json").unlink()
+    with pytest.raises(StoreError, match=r"coefficients\.json: missing"):
+        LaunchFit.load(directory)
+    # Without its meta.json a fit is incomplete: not found, and a save completes it.
+    shutil.copy(REFERENCE / "coefficients.json", directory)
+    (directory / "meta.json").unlink()
+    assert find_launch_fit(scenario, roots=(root,)) is None
+    reference = LaunchFit.load(REFERENCE)
+    reference.save(directory)
+    assert find_launch_fit(scenario, roots=(root,)).to_dict() == reference.to_dict()
+
+
+def test_a_stored_fit_is_never_overwritten(default_fit, tmp_path):
+    first = default_fit.save(tmp_path / "fit")
+    assert default_fit.save(tmp_path / "fit") == first  # the same fit again: nothing changes
+    other = LaunchFit(
+        series=default_fit.series,
+        grid=default_fit.grid,
+        launcher="another launcher",
+        ridges=default_fit.ridges,
+    )
+    with pytest.raises(StoreError, match=r"already stored with other content"):
+        other.save(tmp_path / "fit")
+    assert LaunchFit.load(tmp_path / "fit").launcher == default_fit.launcher
+
+
+def test_launch_row_nan_is_null():
+    """LaunchResult.to_row uses ovtraj.records.plain: NaN (also numpy's) becomes None."""
+    result = LaunchResult(
+        feasible=False,
+        reason="made up",
+        target_altitude_m=3.0e5,
+        opportunity="ascending",
+        launch_day=Epoch.from_iso("2026-03-01T00:00:00"),
+        payload_kg=np.float64(math.nan),
+        speed_gain_mps=math.inf,
+        design={"payload_kg": math.nan},
+    )
+    row = result.to_row()
+    assert row["payload_kg"] is None and row["speed_gain_mps"] is None
+    assert row["design_payload_kg"] is None and row["drop_epoch_utc"] is None
+    json.dumps(row, allow_nan=False)
 
 
 def test_stored_grid_point_is_what_the_task_computes(grid_rows, scenario):

@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,11 +32,24 @@ import pandas as pd
 
 from ovtraj.config import Scenario
 from ovtraj.config.launch import FitGridConfig
+from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
 from ovtraj.launch.inputs import LaunchInput
-from ovtraj.launch.result import LaunchResult
+from ovtraj.launch.result import ROW_SCHEMA, LaunchResult
 from ovtraj.launch.stage import solve_launch
 from ovtraj.paths import data_dir
+from ovtraj.products import Product
+from ovtraj.records import table_from_rows
+
+# Store layout of LaunchFit.save: the series, the solved grid, and meta.json (written last,
+# the files' digests).
+STORE_FORMAT = 2
+KIND = "launch-fit"
+MARKER = "meta.json"
+COEFFICIENTS_FILE = "coefficients.json"
+GRID_FILE = "grid.parquet"
+GRID_SCHEMA = ROW_SCHEMA
+"""``grid.parquet``: one :meth:`~ovtraj.launch.result.LaunchResult.to_row` per altitude."""
 
 FITTED_OUTPUTS = {
     "payload_kg": ("kg", "payload_kg"),
@@ -162,36 +173,46 @@ class LaunchFit:
             "series": {name: s.to_dict() for name, s in self.series.items()},
         }
 
-    def save(self, directory: str | Path) -> None:
-        """``coefficients.json`` and ``grid.parquet``, each written then renamed."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        _atomic_write_bytes(
-            directory / "coefficients.json", json.dumps(self.to_dict(), indent=2).encode()
-        )
-        with tempfile.NamedTemporaryFile(dir=directory, suffix=".tmp", delete=False) as tmp:
-            self.grid.to_parquet(tmp.name, index=False)
-        os.replace(tmp.name, directory / "grid.parquet")
-        for name in ("coefficients.json", "grid.parquet"):
-            (directory / name).chmod(0o644)  # temporary files are created owner-only
+    def save(self, directory: str | Path) -> dict[str, Digest]:
+        """``coefficients.json`` and ``grid.parquet`` (:data:`GRID_SCHEMA`), then ``meta.json``.
+
+        ``meta.json`` is written last and lists both files' size and SHA-256 with the fit's
+        key. A stored fit is never overwritten: saving the same fit again is a no-op, another
+        one into its directory is refused (:class:`~ovtraj.files.StoreError`). Returns the
+        digests, ``meta.json`` included.
+        """
+        grid = table_from_rows(self.grid.to_dict(orient="records"), GRID_SCHEMA, "launch grid")
+        with Product(directory, MARKER).writing() as out:
+            out.write_json(COEFFICIENTS_FILE, self.to_dict())
+            out.write_table(GRID_FILE, grid, GRID_SCHEMA)
+            out.finish(
+                {"format": STORE_FORMAT, "kind": KIND, "key": self.key, "launcher": self.launcher}
+            )
+        return dict(out.files)
 
     @classmethod
     def load(cls, directory: str | Path) -> LaunchFit:
-        directory = Path(directory)
-        data = json.loads((directory / "coefficients.json").read_text(encoding="utf-8"))
+        """A fit written by :meth:`save`; every file checked against ``meta.json`` (size,
+        SHA-256, the grid's schema): StoreError names a missing or changed file."""
+        product = Product(directory, MARKER)
+        meta = product.marker()
+        if meta.get("format") != STORE_FORMAT or meta.get("kind") != KIND:
+            raise StoreError(f"{product.marker_path}: not a launch fit of format {STORE_FORMAT}")
+        data = product.read_json(COEFFICIENTS_FILE, meta)
+        try:
+            series = {n: FourierSeries.from_dict(d) for n, d in data["series"].items()}
+            launcher = data["launcher"]
+        except (KeyError, TypeError, AttributeError, ValueError) as err:
+            raise StoreError(
+                f"{product.directory / COEFFICIENTS_FILE}: not a launch fit ({err})"
+            ) from None
         return cls(
-            series={n: FourierSeries.from_dict(d) for n, d in data["series"].items()},
-            grid=pd.read_parquet(directory / "grid.parquet"),
-            launcher=data["launcher"],
+            series=series,
+            grid=product.read_frame(GRID_FILE, GRID_SCHEMA, meta),
+            launcher=launcher,
             ridges=data.get("ridges", {}),
             key=data.get("key", ""),
         )
-
-
-def _atomic_write_bytes(path: Path, payload: bytes) -> None:
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as tmp:
-        tmp.write(payload)
-    os.replace(tmp.name, path)
 
 
 def fit_rows(
@@ -265,12 +286,20 @@ def _without_time_limits(content: Any) -> Any:
 
 
 def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] | None = None) -> LaunchFit | None:
-    """The stored fit solved for this scenario's launch (matching key), if any."""
+    """The stored fit solved for this scenario's launch (matching key), if any.
+
+    Only complete fits count (a ``meta.json`` naming the key): a directory without one
+    is an interrupted save, or a fit of an older format that is solved again. The fit
+    found is loaded with every file checked.
+    """
     key = launch_fit_key(scenario)
     for root in roots or fit_roots():
         candidates = [root / key, *sorted(root.glob("*"))] if root.is_dir() else []
         for directory in candidates:
-            path = directory / "coefficients.json"
-            if path.is_file() and json.loads(path.read_text(encoding="utf-8")).get("key") == key:
+            path = directory / MARKER
+            if not path.is_file():
+                continue
+            meta = read_json(path)
+            if isinstance(meta, dict) and meta.get("kind") == KIND and meta.get("key") == key:
                 return LaunchFit.load(directory)
     return None

@@ -13,10 +13,93 @@ from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import ClassicalElements
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.frames import ecef_to_geocentric
+from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.launch.frame import launch_to_ecef
 from ovtraj.launch.optimize import PhaseRecord
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 TWO_PI = 2.0 * math.pi
+
+# The optimisation phases a result may record (ovtraj.launch.optimize.optimise_launch),
+# each with the columns of PHASE_COLUMNS in the row (prefix: the name, "-" as "_").
+PHASES = ("genetic", "seed", "slsqp", "trust-constr")
+PHASE_COLUMNS = (
+    ("payload_kg", FLOAT),
+    ("violation", FLOAT),
+    ("residual", FLOAT),
+    ("accepted", BOOL),
+    ("iterations", INT),
+    ("trajectories", INT),
+    ("time_s", FLOAT),
+)
+LOSSES = ("gravity", "aero", "steering", "back_pressure")
+
+ROW_SCHEMA = record_schema(
+    [
+        ("feasible", BOOL),
+        ("reason", TEXT),
+        ("target_altitude_km", FLOAT),
+        ("opportunity", TEXT),
+        ("launch_date_utc", TEXT),
+        *[
+            (name, FLOAT)
+            for name in (
+                "payload_kg",
+                "azimuth_deg",
+                "drop_time_s",
+                "insertion_time_s",
+                "flight_time_s",
+            )
+        ],
+        ("drop_epoch_utc", TEXT),
+        ("insertion_epoch_utc", TEXT),
+        *[
+            (name, FLOAT)
+            for name in (
+                "insertion_u_deg",
+                "insertion_mean_u_deg",
+                "insertion_latitude_deg",
+                "insertion_longitude_deg",
+                "insertion_altitude_error_m",
+                "insertion_speed_error_mps",
+                "insertion_fpa_error_deg",
+                "inclination_error_deg",
+                "raan_error_deg",
+                "semi_major_axis_km",
+                "eccentricity",
+                "inclination_deg",
+                "raan_deg",
+                "mean_inclination_deg",
+                "mean_raan_deg",
+                "max_dynamic_pressure_pa",
+                "max_dynamic_pressure_time_s",
+                "max_axial_load_g",
+                "max_axial_load_time_s",
+                "fairing_jettison_time_s",
+                "ideal_dv_rocket_equation_mps",
+                "ideal_dv_integrated_mps",
+                "speed_gain_mps",
+                "total_loss_mps",
+            )
+        ],
+        ("trajectories", INT),
+        ("wall_time_s", FLOAT),
+        *[(f"{name}_loss_mps", FLOAT) for name in LOSSES],
+        *[(f"design_{name}", FLOAT) for name in DESIGN_VARIABLES],
+        *[
+            (f"insertion_{kind}_eci_{axis}_{unit}", FLOAT)
+            for axis in "xyz"
+            for kind, unit in (("r", "m"), ("v", "mps"))
+        ],
+        *[
+            (f"{phase.replace('-', '_')}_{column}", kind)
+            for phase in PHASES
+            for column, kind in PHASE_COLUMNS
+        ],
+    ],
+    required=("feasible", "target_altitude_km"),
+)
+"""The columns of :meth:`LaunchResult.to_row` (a phase the solve did not run is null)."""
 
 
 def _deg(x: float | None) -> float | None:
@@ -133,7 +216,7 @@ class LaunchResult:
             "trajectories": self.trajectories,
             "wall_time_s": self.wall_time_s,
         }
-        for name in ("gravity", "aero", "steering", "back_pressure"):
+        for name in LOSSES:
             row[f"{name}_loss_mps"] = self.losses_mps.get(name)
         for name, value in self.design.items():
             row[f"design_{name}"] = value
@@ -150,19 +233,11 @@ class LaunchResult:
             row[f"{key}_iterations"] = phase.iterations
             row[f"{key}_trajectories"] = phase.trajectories
             row[f"{key}_time_s"] = phase.wall_time_s
-        return {k: _plain(v) for k, v in row.items()}
+        return plain(row)
 
 
 def _epoch(day: Epoch, t: float | None) -> str | None:
     return None if t is None else day.plus_seconds(t).iso()
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def trajectory_table(
