@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -11,6 +10,7 @@ import typer
 
 from ovtraj import __version__
 from ovtraj.config import ConfigError, Scenario, load_scenario
+from ovtraj.records import json_text, plain
 
 app = typer.Typer(
     add_completion=False,
@@ -45,13 +45,6 @@ def _load(config: Path) -> Scenario:
         raise typer.Exit(code=2) from None
 
 
-def _json_safe(row: dict[str, Any]) -> dict[str, Any]:
-    bad = [k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
-    if bad:  # a stage must never hand out NaN; fail loudly rather than print invalid JSON
-        raise RuntimeError(f"non-finite values in the result: {', '.join(bad)}")
-    return row
-
-
 def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
     typer.echo(title)
     width = max(len(k) for k, _ in rows)
@@ -67,9 +60,9 @@ def rendezvous(config: ConfigArg, as_json: JsonOpt = False) -> None:
 
     scenario = _load(config)
     result = solve_rendezvous(rendezvous_input(scenario))
-    row = _json_safe(result.to_row())
+    row = plain(result.to_row())
     if as_json:
-        typer.echo(json.dumps(row))
+        typer.echo(json_text(row, indent=None))
         raise typer.Exit(code=0 if result.feasible else 1)
     keys = [
         ("feasible", "feasible"),
@@ -159,9 +152,9 @@ def launch(
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     result = solve_launch(inp)
-    row = _json_safe(result.to_row())
+    row = plain(result.to_row())
     if as_json:
-        typer.echo(json.dumps(row))
+        typer.echo(json_text(row, indent=None))
         raise typer.Exit(code=0 if result.feasible else 1)
     shown = []
     for label, key in LAUNCH_KEYS:
@@ -247,9 +240,9 @@ def _stage_input(build: Any, scenario: Scenario) -> Any:
 
 def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
     """Print a stage result (JSON or a table); exit 1 when it is infeasible."""
-    row = _json_safe(result.to_row())
+    row = plain(result.to_row())
     if as_json:
-        typer.echo(json.dumps(row, indent=2))
+        typer.echo(json_text(row))
     else:
         shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
         if row["reason"]:
@@ -365,7 +358,11 @@ def optimal_entry(
     independent: Choice = None,
     transcription: Choice = None,
     out: Annotated[
-        Path | None, typer.Option(help="where the histories go (default data/optimal_entry)")
+        Path | None,
+        typer.Option(
+            help="where the histories go, in a subfolder named by their content "
+            "(default data/optimal_entry)"
+        ),
     ] = None,
 ) -> None:
     """Optimal lifting entry by Gauss pseudospectral collocation (seed 001)."""
@@ -382,10 +379,12 @@ def optimal_entry(
     except (ConfigError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    paths = write_histories(result, out or data_dir() / "optimal_entry")
-    row = _json_safe({k: v for k, v in result.to_row().items() if v is not None})
+    # One subfolder per distinct result: stored histories are never overwritten.
+    root = (out or data_dir() / "optimal_entry").resolve()
+    paths = write_histories(result, root, content_named=True)
+    row = {k: v for k, v in plain(result.to_row()).items() if v is not None}
     if as_json:
-        typer.echo(json.dumps(row | {k: str(v) for k, v in paths.items()}, indent=2))
+        typer.echo(json_text(row | {k: str(v) for k, v in paths.items()}))
     else:
         shown: list[tuple[str, Any]] = [("converged", row["converged"])]
         for label, how in _OPTIMAL_ENTRY_ROWS:
@@ -487,7 +486,7 @@ def deorbit_burn(
     if as_json:
         # The solve's fields at the top level, the history and statistics alongside.
         flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
-        typer.echo(json.dumps(flat, default=str))
+        typer.echo(json_text(flat, indent=None))
     else:
         typer.echo(format_report(report))
     if not report["result"]["converged"]:
@@ -884,7 +883,7 @@ def fly(
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     if as_json:
-        typer.echo(json.dumps(report.to_dict(), default=str))
+        typer.echo(json_text(report.to_dict(), indent=None))
     else:
         typer.echo(format_flight_report(report))
     if not report.landed_within_stated_miss:
@@ -892,6 +891,8 @@ def fly(
 
 
 def _terminated(signum: int, frame: Any) -> None:
+    # An exception, so that a run being written marks itself interrupted on the way out
+    # (typer turns it into exit code 130).
     raise KeyboardInterrupt(f"signal {signum}")
 
 
@@ -909,8 +910,11 @@ def entry_point() -> None:
     from ovtraj.files import StoreError
 
     signal.signal(signal.SIGTERM, _terminated)
+    signal.signal(signal.SIGINT, _terminated)
     try:
         code = app(standalone_mode=False)
+        if code == 130:
+            typer.echo("interrupted", err=True)
     except typer.Exit as done:
         code = done.exit_code
     except typer.Abort:

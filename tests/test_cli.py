@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import yaml
 from typer.testing import CliRunner
@@ -130,8 +131,17 @@ def test_optimal_entry_json_has_the_issue_keys_and_writes_the_histories(tmp_path
     # The terminal conditions of the case hold at the optimum.
     assert abs(row["final_altitude_km"] - 30.0) < 1e-3
     assert abs(row["final_speed_mps"] - 860.0) < 0.1
-    for name in ("states", "controls", "plot"):
-        assert (tmp_path / row[name].split("/")[-1]).is_file()
+    # Absolute paths, in one subfolder named by the histories' content (a stored file is
+    # never overwritten): the same result again writes nothing new.
+    paths = {name: Path(row[name]) for name in ("states", "controls", "plot")}
+    for path in paths.values():
+        assert path.is_absolute() and path.is_file() and path.parent.parent == tmp_path
+    again = runner.invoke(
+        app, ["optimal-entry", str(OPTIMAL_ENTRY_CASE), "--json", "--out", str(tmp_path)]
+    )
+    assert again.exit_code == 0, again.output
+    assert {name: Path(json.loads(again.stdout)[name]) for name in paths} == paths
+    assert len(list(tmp_path.iterdir())) == 1
 
 
 def test_optimal_entry_unposable_config_exits_2_with_the_field(tmp_path):

@@ -15,6 +15,7 @@ References written here, not taken from the library:
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -22,6 +23,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 import yaml
 from numpy.polynomial import Legendre
@@ -29,6 +31,7 @@ from scipy.optimize import brentq
 
 from ovtraj.astro.atmosphere import default_atmosphere
 from ovtraj.config import ConfigError
+from ovtraj.files import StoreError
 from ovtraj.reentry.pseudospectral import (
     load_optimal_entry,
     optimal_entry_from_dict,
@@ -45,6 +48,7 @@ from ovtraj.reentry.pseudospectral.feasibility import check_feasibility
 from ovtraj.reentry.pseudospectral.geometry import GreatCircle
 from ovtraj.reentry.pseudospectral.nlp import IPOPT_SUCCESS, NlpSettings, solve_nlp
 from ovtraj.reentry.pseudospectral.ocp import Guess, OptimalControlProblem
+from ovtraj.reentry.pseudospectral.result import CONTROLS_SCHEMA, STATES_SCHEMA
 from ovtraj.reentry.pseudospectral.transcription import transcribe
 
 REPO = Path(__file__).resolve().parents[1]
@@ -327,6 +331,30 @@ def test_result_row_and_histories(energy_result, tmp_path):
     assert np.all(np.diff(states["time_s"]) > 0)
     assert states["time_s"].iloc[-1] == pytest.approx(energy_result.final_time_s)
     assert paths["plot"].stat().st_size > 10_000
+    # The declared schemas, whatever the problem: columns it lacks are null.
+    assert pq.read_schema(paths["states"]).equals(STATES_SCHEMA)
+    assert pq.read_schema(paths["controls"]).equals(CONTROLS_SCHEMA)
+    for name, schema in (("states", STATES_SCHEMA), ("controls", CONTROLS_SCHEMA)):
+        table = pq.read_table(paths[name])
+        absent = [c for c in schema.names if c not in getattr(energy_result, name)]
+        assert all(table.column(c).null_count == table.num_rows for c in absent)
+        assert table.column("time_s").null_count == 0
+    # The same histories again: nothing changes; others under the same names: refused,
+    # or, content-named, stored beside them.
+    stored = paths["states"].read_bytes()
+    assert write_histories(energy_result, tmp_path) == paths
+    shifted = energy_result.states.assign(altitude_km=energy_result.states["altitude_km"] + 1e-3)
+    other = dataclasses.replace(energy_result, states=shifted)
+    with pytest.raises(StoreError, match=r"_states\.parquet: already stored with other content"):
+        write_histories(other, tmp_path)
+    assert paths["states"].read_bytes() == stored
+    named = write_histories(other, tmp_path, content_named=True)
+    assert named["states"].parent.parent == tmp_path
+    assert named["states"].parent.name.startswith(
+        paths["states"].name.removesuffix("_states.parquet")
+    )
+    assert write_histories(other, tmp_path, content_named=True) == named
+    assert write_histories(energy_result, tmp_path, content_named=True) != named
 
 
 def test_rate_limit_is_respected(case_data, energy_result):

@@ -10,13 +10,11 @@ and ``reason`` saying why (never NaN in the rows: missing values are ``None``).
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from ovtraj.maneuver.problem import ManeuverProblem
+from ovtraj.records import plain
 
 __all__ = ["BurnReport", "ManeuverResult", "comparison_rows"]
 
@@ -108,7 +106,7 @@ class ManeuverResult:
             if name == "burns":
                 value = [b.to_dict() for b in value]
             out[name] = value
-        return _plain(out)
+        return plain(out)
 
     def json(self) -> str:
         """One JSON object (what ``ovtraj maneuver --json`` prints)."""
@@ -144,21 +142,6 @@ class ManeuverResult:
             else:
                 row[key] = value
         return row
-
-
-def _plain(value: Any) -> Any:
-    """numpy scalars to Python, non-finite floats to None, recursively."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _fmt_list(values: list[float] | None, fmt: str) -> str:

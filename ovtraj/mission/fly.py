@@ -40,6 +40,7 @@ from scipy.integrate import solve_ivp
 
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
+from ovtraj.records import plain
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.model import EntryModel
@@ -110,19 +111,7 @@ class FlightReport:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly; a non-finite number (never expected) becomes ``None``."""
-        return _finite(asdict(self))
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+        return plain(asdict(self))
 
 
 # --- orbital arcs ------------------------------------------------------------------------

@@ -6,13 +6,13 @@ as text. The CLI only loads the problem (``ConfigError`` -> exit 2) and prints o
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from ovtraj.deorbit.burn.montecarlo import MonteCarloContext, monte_carlo_summary, run_monte_carlo
 from ovtraj.deorbit.burn.problem import DeorbitBurnProblem
 from ovtraj.deorbit.burn.published import published_comparison
 from ovtraj.deorbit.burn.solve import BurnSolver
+from ovtraj.records import plain
 
 __all__ = ["REPORT_KEYS", "deorbit_burn_report", "format_report"]
 
@@ -36,14 +36,6 @@ REPORT_KEYS = (
 )
 
 
-def _plain(value: Any) -> Any:
-    if hasattr(value, "item"):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def deorbit_burn_report(
     problem: DeorbitBurnProblem,
     *,
@@ -60,9 +52,7 @@ def deorbit_burn_report(
     result = solver.solve(strategy=strategy)
     report: dict[str, Any] = {
         "result": result.to_row(),
-        "history": [
-            {k: _plain(v) for k, v in record.as_dict().items()} for record in result.history
-        ],
+        "history": [plain(record.as_dict()) for record in result.history],
         "monte_carlo": None,
     }
     summary = None
@@ -77,9 +67,7 @@ def deorbit_burn_report(
             context=MonteCarloContext(problem),
         )
         summary = monte_carlo_summary(frame)
-        report["monte_carlo"] = [
-            {k: _plain(v) for k, v in row.items()} for row in summary.to_dict(orient="records")
-        ]
+        report["monte_carlo"] = [plain(row) for row in summary.to_dict(orient="records")]
     report["published"] = [
         row.as_dict() for row in published_comparison(problem, result=result, summary=summary)
     ]

@@ -8,14 +8,13 @@ error: the only source of the fpa error under strategy 2).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from ovtraj.deorbit.burn.iteration import IterationRecord
+from ovtraj.records import plain
 
 __all__ = ["DeorbitBurnResult"]
 
@@ -59,16 +58,8 @@ class DeorbitBurnResult:
     def to_row(self) -> dict[str, Any]:
         """Flat scalars for a table, the run store or ``--json`` (NaN becomes None)."""
         row = {key: getattr(self, key) for key in self.__dataclass_fields__ if key != "history"}
-        return {k: _plain(v) for k, v in row.items()}
+        return plain(row)
 
     def history_frame(self) -> pd.DataFrame:
         """One row per iteration: u_open, dv, burn duration, entry errors."""
         return pd.DataFrame([record.as_dict() for record in self.history])
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value

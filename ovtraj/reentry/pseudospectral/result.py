@@ -7,7 +7,7 @@ for maximum cross-range, MJ/m^2 for the heat load, s for the time).
 
 from __future__ import annotations
 
-import math
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,9 +15,54 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.files import parquet_bytes, write_parquet
+from ovtraj.records import FLOAT, plain, record_schema, table_from_rows
 from ovtraj.reentry.pseudospectral.feasibility import FeasibilityReport
 
-__all__ = ["OptimalEntryResult", "write_histories"]
+__all__ = ["CONTROLS_SCHEMA", "STATES_SCHEMA", "OptimalEntryResult", "write_histories"]
+
+# The independent variable's column when it is the normalised energy (with time as the
+# independent variable, ``time_s`` is both); the rate-limited controls' columns.
+_INDEPENDENT = ("energy_normalised", FLOAT)
+
+STATES_SCHEMA = record_schema(
+    [
+        _INDEPENDENT,
+        ("time_s", FLOAT),
+        ("altitude_km", FLOAT),
+        ("longitude_deg", FLOAT),
+        ("latitude_deg", FLOAT),
+        ("speed_mps", FLOAT),
+        ("fpa_deg", FLOAT),
+        ("heading_deg", FLOAT),
+        ("downrange_km", FLOAT),
+        ("crossrange_km", FLOAT),
+        ("energy_mj_kg", FLOAT),
+        ("alpha_deg", FLOAT),  # a state when its rate is limited, else null
+        ("bank_deg", FLOAT),
+    ]
+)
+"""``<stem>_states.parquet``: the states at every state point of the transcription."""
+
+CONTROLS_SCHEMA = record_schema(
+    [
+        _INDEPENDENT,
+        ("time_s", FLOAT),
+        ("alpha_deg", FLOAT),
+        ("bank_deg", FLOAT),
+        ("mach", FLOAT),
+        ("density_kg_m3", FLOAT),
+        ("cl", FLOAT),
+        ("cd", FLOAT),
+        ("lift_to_drag", FLOAT),
+        ("dynamic_pressure_kpa", FLOAT),
+        ("load_g", FLOAT),
+        ("heat_rate_kw_m2", FLOAT),
+        ("alpha_rate_deg_s", FLOAT),  # the control when the rate is limited, else null
+        ("bank_rate_deg_s", FLOAT),
+    ]
+)
+"""``<stem>_controls.parquet``: controls and path quantities at the collocation points."""
 
 
 @dataclass(frozen=True)
@@ -107,31 +152,45 @@ class OptimalEntryResult:
             row[f"{key}_max_load_g"] = report.max_load_g
             row[f"{key}_max_dynamic_pressure_kpa"] = report.max_dynamic_pressure_kpa
             row[f"{key}_max_heat_rate_kw_m2"] = report.max_heat_rate_kw_m2
-        return {k: _plain(v) for k, v in row.items()}
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+        return plain(row)
 
 
 def write_histories(
-    result: OptimalEntryResult, directory: str | Path, stem: str | None = None
+    result: OptimalEntryResult,
+    directory: str | Path,
+    stem: str | None = None,
+    *,
+    content_named: bool = False,
 ) -> dict[str, Path]:
-    """Write ``<stem>_states.parquet``, ``<stem>_controls.parquet`` and ``<stem>.png``."""
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    """Write ``<stem>_states.parquet``, ``<stem>_controls.parquet`` and ``<stem>.png``.
+
+    The tables have the declared schemas :data:`STATES_SCHEMA` and :data:`CONTROLS_SCHEMA`
+    (a column the problem does not have is null). A stored table is never overwritten:
+    writing the same histories again is a no-op, other histories under the same names are
+    refused (:class:`~ovtraj.files.StoreError`). With ``content_named`` the files go to a
+    subfolder ``<stem>-<content hash>`` of ``directory`` instead, one per distinct result.
+    The plot is a view of the tables and is replaced.
+    """
     stem = stem or f"{result.name}_{result.independent}_{result.method}"
+    states = table_from_rows(
+        result.states.to_dict(orient="records"), STATES_SCHEMA, "optimal-entry states"
+    )
+    controls = table_from_rows(
+        result.controls.to_dict(orient="records"), CONTROLS_SCHEMA, "optimal-entry controls"
+    )
+    directory = Path(directory)
+    if content_named:
+        content = hashlib.sha256()
+        for table in (states, controls):
+            content.update(parquet_bytes(table))
+        directory = directory / f"{stem}-{content.hexdigest()[:12]}"
     paths = {
         "states": directory / f"{stem}_states.parquet",
         "controls": directory / f"{stem}_controls.parquet",
         "plot": directory / f"{stem}.png",
     }
-    result.states.to_parquet(paths["states"], index=False)
-    result.controls.to_parquet(paths["controls"], index=False)
+    write_parquet(paths["states"], states, STATES_SCHEMA)
+    write_parquet(paths["controls"], controls, CONTROLS_SCHEMA)
     plot_result(result, paths["plot"])
     return paths
 
