@@ -36,6 +36,7 @@ from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, flight_path_ang
 from ovtraj.astro.propagation import AltitudeCrossing, OrbitPropagator, PropagationResult
 from ovtraj.astro.vectors import cross
 from ovtraj.config.deorbit import DeorbitSolverConfig
+from ovtraj.deadline import Deadline
 from ovtraj.deorbit.inputs import EntryRegion
 
 CONSTRAINT_NAMES = (
@@ -156,6 +157,8 @@ class Correction:
     message: str
     constraints: dict[str, float]  # final values (>= 0 is met), degrees or scaled
     max_violation: float
+    # The limit that stopped SLSQP (iterations or wall time), naming its config key.
+    limit: str | None = None
 
 
 def constraint_values(
@@ -187,8 +190,14 @@ def correct_burn(
     t_min_s: float,
     t_max_s: float,
     settings: DeorbitSolverConfig,
+    deadline: Deadline | None = None,
 ) -> Correction:
-    """SLSQP from the two-body estimate; never raises on a numerical failure."""
+    """SLSQP from the two-body estimate; never raises on a numerical failure.
+
+    SLSQP stops at ``settings.max_iterations`` or at ``deadline``; ``limit`` then names
+    the limit (the stage does not accept such a correction).
+    """
+    deadline = deadline or Deadline.unlimited()
     ts, vs = settings.time_scale_s, settings.dv_scale_mps
     lo_t = max(-settings.burn_window_s, t_min_s - burn_t0_s) / ts
     hi_t = min(settings.burn_window_s, t_max_s - burn_t0_s) / ts
@@ -232,6 +241,7 @@ def correct_burn(
                 bounds=bounds,
                 constraints=[{"type": "ineq", "fun": values, "jac": jacobian}],
                 options={"maxiter": settings.max_iterations, "ftol": settings.ftol},
+                callback=lambda *_: deadline.stop_if_expired(),
             )
         z, success, iterations, message = (
             result.x,
@@ -239,9 +249,15 @@ def correct_burn(
             int(result.nit),
             str(result.message),
         )
+        status = int(result.status)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
-        z, success, iterations = z0, False, 0
+        z, success, iterations, status = z0, False, 0, -1
         message = f"numerical failure: {type(err).__name__}: {err}"
+    limit = None
+    if deadline.expired():
+        limit = deadline.reason(iterations, "SLSQP iterations")
+    elif status == _SLSQP_ITERATION_LIMIT:
+        limit = f"deorbit.solver.max_iterations = {settings.max_iterations} reached"
     t, dv = unscale(z)
     shot = model.shoot(t, dv, dense=True)
     final = constraint_values(shot, model.entry, radius, dv_max_mps, vs)
@@ -253,4 +269,9 @@ def correct_burn(
         message=message,
         constraints=dict(zip(CONSTRAINT_NAMES, (float(c) for c in final), strict=True)),
         max_violation=violation,
+        limit=limit,
     )
+
+
+# scipy's SLSQP status at ``maxiter``.
+_SLSQP_ITERATION_LIMIT = 9

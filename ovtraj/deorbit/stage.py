@@ -32,6 +32,7 @@ from ovtraj.astro.frames import (
 )
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.astro.vectors import cross
+from ovtraj.deadline import Deadline
 from ovtraj.deorbit.correction import Correction, DescentModel, correct_burn
 from ovtraj.deorbit.estimate import TangentialDeorbit, tangential_deorbit
 from ovtraj.deorbit.forecast import Forecast, TrackPass, forecast_passes
@@ -64,8 +65,13 @@ def first_burn_time_s(track_pass: TrackPass, estimate: TangentialDeorbit) -> flo
 
 
 def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
-    """Minimum-impulse deorbit burn to the entry region; see the module notes."""
+    """Minimum-impulse deorbit burn to the entry region; see the module notes.
+
+    The whole solve stops at ``solver.time_limit_s`` (wall time): the result is then
+    infeasible and its reason names the limit.
+    """
     start = time.perf_counter()
+    deadline = Deadline(inp.solver.time_limit_s, "deorbit.solver.time_limit_s")
     propagator = propagator_for(inp)
     forecast = forecast_passes(
         propagator,
@@ -102,6 +108,9 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     for track_pass in candidates:
         if tried >= inp.solver.max_passes:
             break
+        if deadline.expired():
+            reasons.append(deadline.reason(tried, "passes"))
+            break
         estimate = burn_estimate(inp, track_pass.state, entry.fpa_target_rad)
         burn_t0 = first_burn_time_s(track_pass, estimate)
         if burn_t0 + inp.solver.burn_window_s < 0.0:
@@ -116,12 +125,15 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
             t_min_s=0.0,
             t_max_s=inp.horizon_s,
             settings=inp.solver,
+            deadline=deadline,
         )
         if best is None or correction.max_violation < best[0].max_violation:
             best = (correction, track_pass, estimate)
         if _accepted(correction, inp):
             break
         reasons.append(f"pass at {track_pass.t_s:.0f} s: {_failure(correction, inp)}")
+        if correction.limit is not None and deadline.reached:
+            break
     if best is None:
         reason = "; ".join(reasons) or "no pass could be tried"
         return DeorbitResult(False, reason, inp.epoch, wall_time_s=_since(start))
@@ -148,7 +160,12 @@ def _since(start: float) -> float:
 
 
 def _accepted(correction: Correction, inp: DeorbitInput) -> bool:
-    return correction.shot.reached and (correction.max_violation <= inp.solver.constraint_tolerance)
+    """Entry reached, constraints met, and SLSQP not stopped by a limit."""
+    return (
+        correction.limit is None
+        and correction.shot.reached
+        and correction.max_violation <= inp.solver.constraint_tolerance
+    )
 
 
 def _failure(correction: Correction, inp: DeorbitInput) -> str:
@@ -167,6 +184,8 @@ def _failure(correction: Correction, inp: DeorbitInput) -> str:
     if c["impulse_limit"] < -tol:
         dv = float(np.linalg.norm(correction.shot.dv_rsw_mps))
         words.append(f"impulse {dv:.1f} m/s above the limit {inp.max_impulse_mps:g} m/s")
+    if correction.limit is not None:
+        words.insert(0, f"SLSQP stopped: {correction.limit}")
     detail = ", ".join(words) or "constraints not met"
     return f"{detail} (SLSQP: {correction.message}, {correction.iterations} iterations)"
 

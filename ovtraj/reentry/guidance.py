@@ -15,6 +15,10 @@ exceeding the heat-rate, load or dynamic-pressure limits (golden section: Kiefer
 When no ``sigma_0`` in ``[0, sigma_max]`` nulls the range (target outside the
 footprint), Newton stops at the bound that comes closest, and the solve returns
 that best trajectory flagged, never raising.
+
+Limits: Newton stops after ``newton_iterations`` (the shot says when that left the
+range error above the tolerance: ``newton_exhausted``), and both searches stop at the
+guidance's wall-time ``deadline``, returning the best shot so far.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.dynamics import CRASHED, P_TARGET_LAT, P_TARGET_LON, range_and_bearing
 from ovtraj.reentry.model import EntryModel, Flight
 
@@ -44,6 +49,7 @@ class Shot:
     miss_m: float
     excess: float  # largest relative path-limit excess (0 when all hold)
     newton_iterations: int = 0
+    newton_exhausted: bool = False  # Newton used all its iterations, range error still above
 
     @property
     def cost_m(self) -> float:
@@ -85,6 +91,7 @@ class BankGuidance:
         finite_difference_rad: float,
         violation_weight_m: float,
         terminal_radius_m: float,
+        deadline: Deadline | None = None,
     ) -> None:
         self.model = model
         self.terminal_radius_m = terminal_radius_m
@@ -94,6 +101,7 @@ class BankGuidance:
         self.tolerance = newton_tolerance_m
         self.step = finite_difference_rad
         self.weight = violation_weight_m
+        self.deadline = deadline or Deadline.unlimited()
 
     def shoot(self, sigma0: float, sigma1: float, *, record: bool = False) -> Shot:
         flight = self.model.fly(sigma0, sigma1, record=record)
@@ -115,7 +123,7 @@ class BankGuidance:
         if abs(previous.range_error_m) < abs(best.range_error_m):
             best = previous
         for iteration in range(1, self.newton_iterations + 1):
-            if abs(best.range_error_m) <= self.tolerance:
+            if abs(best.range_error_m) <= self.tolerance or self.deadline.expired():
                 break
             d_sigma = previous.sigma0_rad - shot.sigma0_rad
             slope = (previous.range_error_m - shot.range_error_m) / d_sigma if d_sigma else 0.0
@@ -128,6 +136,8 @@ class BankGuidance:
             shot.newton_iterations = iteration
             if abs(shot.range_error_m) < abs(best.range_error_m):
                 best = shot
+        else:
+            best.newton_exhausted = abs(best.range_error_m) > self.tolerance
         return best
 
     def objective(self, shot: Shot) -> float:
@@ -145,6 +155,8 @@ class BankGuidance:
         shot_d = self.newton(d, shot_c.sigma0_rad)
         evaluated = [shot_c, shot_d]
         for _ in range(golden_iterations):
+            if self.deadline.expired():
+                break
             if self.objective(shot_c) <= self.objective(shot_d):
                 b, d, shot_d = d, c, shot_c
                 c = b - GOLDEN * (b - a)

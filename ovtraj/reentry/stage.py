@@ -16,6 +16,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS, STATUS_TEXT
 from ovtraj.reentry.guidance import BankGuidance, Limits, Shot, unit_bounds
 from ovtraj.reentry.inputs import ReentryInput
@@ -38,11 +39,19 @@ def guidance_for(inp: ReentryInput, model: EntryModel) -> BankGuidance:
         finite_difference_rad=math.radians(s.guidance.finite_difference_deg),
         violation_weight_m=s.guidance.violation_weight_km * 1e3,
         terminal_radius_m=inp.earth.radius + s.terminal.altitude_km * 1e3,
+        deadline=Deadline(s.guidance.time_limit_s, "reentry.guidance.time_limit_s"),
     )
 
 
 def solve_reentry(inp: ReentryInput, *, model: EntryModel | None = None) -> ReentryResult:
-    """Guided entry from ``inp.entry`` to the terminal interface near the landing site."""
+    """Guided entry from ``inp.entry`` to the terminal interface near the landing site.
+
+    The guidance stops at ``guidance.time_limit_s`` (wall time, from the end of the
+    model's build): the best trajectory so far is then reported infeasible, flagged
+    ``time_limit``, with the limit in the reason; a Newton search that used all its
+    ``newton_iterations`` with the range error still above its tolerance is flagged
+    ``iteration_limit``.
+    """
     start = time.perf_counter()
     s = inp.settings
     try:
@@ -64,13 +73,19 @@ def solve_reentry(inp: ReentryInput, *, model: EntryModel | None = None) -> Reen
             wall_time_s=time.perf_counter() - start,
         )
     final.newton_iterations = best.newton_iterations
+    final.newton_exhausted = best.newton_exhausted
+    trajectories = model.flights - before
+    limit = None
+    if guidance.deadline.reached:
+        limit = guidance.deadline.reason(trajectories, "trajectories")
     return _result(
         inp,
         model,
         final,
         evaluations=evaluations,
-        trajectories=model.flights - before,
+        trajectories=trajectories,
         wall_time_s=time.perf_counter() - start,
+        time_limit=limit,
     )
 
 
@@ -82,6 +97,7 @@ def _result(
     evaluations: int,
     trajectories: int,
     wall_time_s: float,
+    time_limit: str | None = None,
 ) -> ReentryResult:
     s = inp.settings
     flight = shot.flight
@@ -96,6 +112,16 @@ def _result(
         "bank": 1.0 - flight.max_bank_rad / math.radians(limits.max_bank_deg),
     }
     flags, reasons = [], []
+    if time_limit is not None:
+        flags.append("time_limit")
+        reasons.append(f"guidance stopped: {time_limit}")
+    if shot.newton_exhausted:
+        flags.append("iteration_limit")
+        reasons.append(
+            f"reentry.guidance.newton_iterations = {s.guidance.newton_iterations} reached "
+            f"with the range error {abs(shot.range_error_m) / 1e3:.3g} km above "
+            f"newton_tolerance_km = {s.guidance.newton_tolerance_km:g}"
+        )
     if not flight.reached:
         flags.append("terminal_not_reached")
         reasons.append(STATUS_TEXT[flight.status])

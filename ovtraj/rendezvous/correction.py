@@ -30,13 +30,14 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.astro.propagation.gravity import two_body_j2_rhs_single
+from ovtraj.deadline import Deadline
 
 # Newton shots of the start: each step gains digits quadratically; a shot that
 # needs more than this is in a bad region and is dropped.
@@ -64,6 +65,10 @@ class CorrectionProblem:
     optimality_tol: float
     initial_barrier_parameter: float
     initial_trust_radius: float
+    # Wall-time limit of the whole solve (started by the stage); none by default.
+    deadline: Deadline = field(default_factory=Deadline.unlimited)
+    # Config key of max_iterations, for the reason when the limit stops the solver.
+    iterations_key: str = "max_iterations"
 
 
 @dataclass(frozen=True)
@@ -81,6 +86,8 @@ class CorrectionResult:
     iterations: int
     evaluations: int
     message: str
+    # The limit (iterations or wall time) that stopped the solve, naming its config key.
+    limit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -217,6 +224,8 @@ class _Transfer:
         """dv1 that meets the target at a fixed transfer time (J2 Lambert by Newton)."""
         x = self.x_at(self.p.dv_guess_eci, fraction)
         for _ in range(_START_NEWTON_STEPS):
+            if self.p.deadline.expired():
+                return None
             try:
                 point = self.at(x)
             except FloatingPointError:
@@ -243,6 +252,11 @@ class _Stopped:
     x: np.ndarray
     nit: int
     message: str
+    status: int = -1
+
+
+# trust-constr's status when it stops at ``maxiter``.
+_ITERATION_LIMIT = 0
 
 
 def _interior_point(
@@ -267,11 +281,16 @@ def _interior_point(
             "barrier_tol": problem.optimality_tol,
             "initial_tr_radius": problem.initial_trust_radius,
         },
+        callback=lambda *_: problem.deadline.stop_if_expired(),
     )
 
 
 def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
-    """Solve the J2 correction NLP; never raises on non-convergence (``converged`` says)."""
+    """Solve the J2 correction NLP; never raises on non-convergence (``converged`` says).
+
+    It stops at ``max_iterations`` or at ``problem.deadline``; either makes the result
+    unconverged, with ``limit`` naming the limit.
+    """
     transfer = _Transfer(problem)
     guess = transfer.at(transfer.x_at(problem.dv_guess_eci, 1.0))
     initial_miss = float(np.linalg.norm(guess.miss))
@@ -301,8 +320,14 @@ def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
     if start is not guess and not (np.linalg.norm(best.miss) <= tol and best.cost <= start.cost):
         best = start
     miss = float(np.linalg.norm(best.miss))
+    iterations = int(solution.nit)
+    limit = None
+    if problem.deadline.expired():
+        limit = problem.deadline.reason(iterations)
+    elif getattr(solution, "status", None) == _ITERATION_LIMIT:
+        limit = f"{problem.iterations_key} = {problem.max_iterations} reached"
     return CorrectionResult(
-        converged=bool(np.isfinite(miss) and miss <= tol),
+        converged=bool(np.isfinite(miss) and miss <= tol) and limit is None,
         burn_time_s=best.burn_time,
         transfer_time_s=best.transfer_time,
         dv1_eci=best.dv1,
@@ -312,7 +337,8 @@ def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
         chaser_at_burn=best.chaser,
         chaser_at_arrival=best.final,
         target_at_arrival=best.target,
-        iterations=int(solution.nit),
+        iterations=iterations,
         evaluations=transfer.evaluations,
         message=str(solution.message),
+        limit=limit,
     )

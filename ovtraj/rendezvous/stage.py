@@ -28,6 +28,7 @@ from ovtraj.astro.elements import NonsingularElements
 from ovtraj.astro.frames import eci_to_rsw
 from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
+from ovtraj.deadline import Deadline
 from ovtraj.rendezvous.correction import CorrectionProblem, CorrectionResult, correct_transfer
 from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle
 from ovtraj.rendezvous.phasing import (
@@ -238,7 +239,7 @@ def _wait_reason(wait: float, limit: float) -> str:
 
 
 def _solve(
-    inp: RendezvousInput | TransferInput, prop: OrbitPropagator
+    inp: RendezvousInput | TransferInput, prop: OrbitPropagator, deadline: Deadline
 ) -> tuple[_Plan, CorrectionResult]:
     plan = (
         _plan_rendezvous(inp, prop)
@@ -263,6 +264,8 @@ def _solve(
             optimality_tol=inp.settings.optimality_tol,
             initial_barrier_parameter=inp.settings.initial_barrier_parameter,
             initial_trust_radius=inp.settings.initial_trust_radius,
+            deadline=deadline,
+            iterations_key="rendezvous.max_iterations",
         )
     )
     return plan, correction
@@ -285,7 +288,12 @@ def _result(
         eci_to_rsw(c.dv2_eci, c.chaser_at_arrival[:3], c.chaser_at_arrival[3:]),
     )
     reasons = []
-    if not c.converged:
+    if c.limit is not None:
+        reasons.append(
+            f"J2 correction stopped: {c.limit} (miss {c.miss_distance_m:.3g} m, "
+            f"epsilon_dis {inp.miss_tolerance_m:g} m)"
+        )
+    elif not c.converged:
         reasons.append(
             f"J2 correction did not converge: miss {c.miss_distance_m:.3g} m > "
             f"epsilon_dis {inp.miss_tolerance_m:g} m after {c.iterations} iterations "
@@ -370,6 +378,7 @@ def _masked(values: np.ndarray, valid: np.ndarray) -> pd.api.extensions.Extensio
 
 
 def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> RendezvousResult:
+    deadline = Deadline(inp.settings.time_limit_s, "rendezvous.time_limit_s")
     prop = _propagator(inp)
 
     def infeasible(reason: str) -> RendezvousResult:
@@ -378,7 +387,7 @@ def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> Rendezvous
         )
 
     try:
-        plan, correction = _solve(inp, prop)
+        plan, correction = _solve(inp, prop, deadline)
     except Infeasible as why:
         return infeasible(str(why))
     except (FloatingPointError, np.linalg.LinAlgError) as err:
