@@ -263,6 +263,9 @@ class SolverConfig(StrictModel):
     tolerance: float = bounded(gt=0, lt=1, description="IPOPT tol / scipy ftol, scaled NLP")
     constraint_tolerance: float = bounded(gt=0, lt=1, description="IPOPT constr_viol_tol")
     max_iterations: int = bounded(ge=1, le=100000)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of the solve: guess, NLP, re-flights"
+    )
     linear_solver: str = "mumps"
     print_level: int = bounded(ge=0, le=12, default=0)
     expand: bool = Field(

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.flight import PointMass, fly
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
@@ -101,6 +102,7 @@ def check_feasibility(
     final_time: float,
     final_state: NDArray[np.float64],
     interpolation: str,
+    deadline: Deadline | None = None,
 ) -> FeasibilityReport:
     """Fly the controls ``alpha(t)``, ``bank(t)`` [rad] to ``final_time`` [s] and compare.
 
@@ -117,6 +119,7 @@ def check_feasibility(
         rtol=settings.relative_tolerance,
         atol=settings.absolute_tolerance,
         breaks=np.asarray(t_controls) if interpolation == "linear" else None,
+        deadline=deadline,
     )
     end = flown.y[-1]
     model = PointMass(problem)

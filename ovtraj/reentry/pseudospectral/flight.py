@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["Flown", "PointMass", "fly"]
@@ -147,6 +148,7 @@ def fly(
     atol: float,
     stop_energy: float | None = None,
     breaks: NDArray[np.float64] | None = None,
+    deadline: Deadline | None = None,
 ) -> Flown:
     """Integrate from the problem's initial state to ``t_end`` [s] with ``controls(t)``.
 
@@ -154,12 +156,19 @@ def fly(
     the states scaled to order one (altitude and speed by their initial values). The
     integration restarts at every time of ``breaks`` (e.g. the knots of piecewise-linear
     controls), so that no step straddles a kink of the controls.
+
+    At ``deadline`` the states freeze (zero rates: the integrator then runs out to
+    ``t_end`` in a few long steps) and the status is ``time limit``: what was flown
+    until then is kept.
     """
     model = PointMass(problem)
+    frozen = np.zeros(6)
     y0 = problem.initial_state.copy()
     scale = np.array([max(abs(y0[0]), 1.0), 1.0, 1.0, abs(y0[3]), 1.0, 1.0])
 
     def rhs(t: float, z: NDArray[np.float64]) -> NDArray[np.float64]:
+        if deadline is not None and deadline.expired():
+            return frozen
         alpha, bank = controls(t)
         return model.rates(z * scale, alpha, bank) / scale
 
@@ -192,6 +201,9 @@ def fly(
         times.append(sol.t[1:])
         states.append(sol.y.T[1:])
         z = sol.y[:, -1]
+        if deadline is not None and deadline.reached:
+            status = "time limit"
+            break
         if sol.status == 1:
             status = "ground" if len(sol.t_events[0]) else "terminal energy"
             break

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 from numpy.typing import NDArray
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.flight import fly
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
@@ -64,7 +65,8 @@ def best_glide_alpha(problem: EntryProblem) -> float:
     return float(grid[int(np.argmax(ratio))])
 
 
-def guess_trajectory(problem: EntryProblem) -> GuessTrajectory:
+def guess_trajectory(problem: EntryProblem, deadline: Deadline | None = None) -> GuessTrajectory:
+    """The guess flight; at ``deadline`` it stops where it is (status ``time limit``)."""
     g = problem.config.guess
     alpha = math.radians(g.alpha_deg) if g.alpha_deg is not None else best_glide_alpha(problem)
     bank = math.radians(g.bank_deg)
@@ -76,6 +78,7 @@ def guess_trajectory(problem: EntryProblem) -> GuessTrajectory:
         rtol=g.relative_tolerance,
         atol=g.relative_tolerance,
         stop_energy=target,
+        deadline=deadline,
     )
     return GuessTrajectory(
         t=flown.t,

@@ -12,11 +12,15 @@
   does not accept them.
 
 A solver failure (an infeasible problem, an evaluation error, the iteration limit) is
-returned as ``converged=False`` with the solver's own status text; nothing raises.
+returned as ``converged=False`` with the solver's own status text; nothing raises. The
+iteration limit (``solver.max_iterations``) and the wall-time limit (a
+:class:`~ovtraj.deadline.Deadline` from ``solver.time_limit_s``: IPOPT's own
+``max_wall_time``, or a callback for scipy) also set ``limit``, naming the config key.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -25,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.transcription import Transcription
 
 __all__ = ["IPOPT_SUCCESS", "NlpSettings", "NlpSolution", "solve_nlp"]
@@ -44,6 +49,15 @@ class NlpSettings:
     linear_solver: str = "mumps"
     print_level: int = 0
     expand: bool = False
+    time_limit_s: float = math.inf  # wall time of the whole solve (``solver.time_limit_s``)
+
+
+# IPOPT return statuses of its own limits.
+_IPOPT_ITERATION_LIMIT = "Maximum_Iterations_Exceeded"
+_IPOPT_TIME_LIMITS = frozenset({"Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded"})
+# scipy statuses: SLSQP / trust-constr at maxiter, and after a callback's StopIteration.
+_SCIPY_ITERATION_LIMIT = {"slsqp": 9, "trust-constr": 0}
+_SCIPY_STOPPED = {"slsqp": 99, "trust-constr": 3}
 
 
 @dataclass(frozen=True)
@@ -59,6 +73,7 @@ class NlpSolution:
     solve_time_s: float
     max_constraint_violation: float
     backend: str
+    limit: str | None = None  # the limit that stopped the solver, naming its config key
 
 
 def _violation(tr: Transcription, g: NDArray[np.float64], w: NDArray[np.float64]) -> float:
@@ -68,16 +83,40 @@ def _violation(tr: Transcription, g: NDArray[np.float64], w: NDArray[np.float64]
     return float(max(over.max(initial=0.0), under.max(initial=0.0), bounds.max(initial=0.0)))
 
 
-def solve_nlp(tr: Transcription, w0: NDArray[np.float64], settings: NlpSettings) -> NlpSolution:
-    """Solve ``tr``'s NLP from the scaled start ``w0``."""
+def solve_nlp(
+    tr: Transcription,
+    w0: NDArray[np.float64],
+    settings: NlpSettings,
+    deadline: Deadline | None = None,
+) -> NlpSolution:
+    """Solve ``tr``'s NLP from the scaled start ``w0``, stopping at ``deadline``."""
+    if deadline is None:
+        deadline = Deadline(settings.time_limit_s, "solver.time_limit_s")
+    if deadline.expired():
+        return stopped_before(w0, deadline.reason(0), settings.backend)
     if settings.backend == "ipopt":
-        return _solve_ipopt(tr, w0, settings)
+        return _solve_ipopt(tr, w0, settings, deadline)
     if settings.backend in ("slsqp", "trust-constr"):
-        return _solve_scipy(tr, w0, settings)
+        return _solve_scipy(tr, w0, settings, deadline)
     raise ValueError(f"unknown NLP backend {settings.backend!r}")
 
 
-def _solve_ipopt(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> NlpSolution:
+def stopped_before(w0: NDArray[np.float64], limit: str, backend: str) -> NlpSolution:
+    """The solution of an NLP that was not started because ``limit`` was reached."""
+    return _with_limit(_failed(w0, "not started: time limit", 0.0), limit, backend)
+
+
+def _with_limit(solution: NlpSolution, limit: str, backend: str) -> NlpSolution:
+    return NlpSolution(**(solution.__dict__ | {"limit": limit, "backend": backend}))
+
+
+def _iteration_limit(s: NlpSettings) -> str:
+    return f"solver.max_iterations = {s.max_iterations} reached"
+
+
+def _solve_ipopt(
+    tr: Transcription, w0: NDArray[np.float64], s: NlpSettings, deadline: Deadline
+) -> NlpSolution:
     options = {
         "print_time": False,
         "error_on_fail": False,
@@ -90,6 +129,9 @@ def _solve_ipopt(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> 
         "expand": s.expand,
     }
     start = time.perf_counter()
+    if math.isfinite(deadline.limit_s):
+        # IPOPT's own wall-time limit, counted from its start: what the deadline has left.
+        options["ipopt.max_wall_time"] = max(deadline.remaining_s(), 1e-6)
     try:
         solver = ca.nlpsol("optimal_entry", "ipopt", tr.nlp, options)
     except RuntimeError as err:
@@ -104,16 +146,24 @@ def _solve_ipopt(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> 
     status = str(stats.get("return_status", "unknown"))
     w = np.asarray(out["x"], dtype=float).ravel()
     g = np.asarray(out["g"], dtype=float).ravel()
+    iterations = int(stats.get("iter_count", 0))
+    limit = None
+    if status in _IPOPT_TIME_LIMITS:
+        deadline.reached = True
+        limit = deadline.reason(iterations)
+    elif status == _IPOPT_ITERATION_LIMIT:
+        limit = _iteration_limit(s)
     return NlpSolution(
         w=w,
         objective=float(out["f"]),
         converged=status in IPOPT_SUCCESS,
         status=status,
-        iterations=int(stats.get("iter_count", 0)),
+        iterations=iterations,
         build_time_s=built - start,
         solve_time_s=done - built,
         max_constraint_violation=_violation(tr, g, w),
         backend="ipopt",
+        limit=limit,
     )
 
 
@@ -133,7 +183,9 @@ def _failed(
     )
 
 
-def _solve_scipy(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> NlpSolution:
+def _solve_scipy(
+    tr: Transcription, w0: NDArray[np.float64], s: NlpSettings, deadline: Deadline
+) -> NlpSolution:
     start = time.perf_counter()
     x, f, g = tr.nlp["x"], tr.nlp["f"], tr.nlp["g"]
     fixed = tr.lbx == tr.ubx
@@ -192,6 +244,7 @@ def _solve_scipy(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> 
             bounds=bounds,
             constraints=constraints,
             options={"maxiter": s.max_iterations, "ftol": s.tolerance},
+            callback=lambda *_: deadline.stop_if_expired(),
         )
     else:
         lam = type(x).sym("lam", g.numel())
@@ -223,19 +276,27 @@ def _solve_scipy(tr: Transcription, w0: NDArray[np.float64], s: NlpSettings) -> 
             bounds=bounds,
             constraints=[nonlinear],
             options={"maxiter": s.max_iterations, "gtol": s.tolerance, "xtol": s.tolerance},
+            callback=lambda *_: deadline.stop_if_expired(),
         )
     done = time.perf_counter()
     w = full(np.asarray(res.x, dtype=float))
     gv = np.asarray(funcs(w)[2], dtype=float).ravel()
     violation = _violation(tr, gv, w)
+    iterations = int(getattr(res, "nit", 0) or 0)
+    limit = None
+    if res.status == _SCIPY_STOPPED[s.backend]:
+        limit = deadline.reason(iterations)
+    elif res.status == _SCIPY_ITERATION_LIMIT[s.backend]:
+        limit = _iteration_limit(s)
     return NlpSolution(
         w=w,
         objective=float(res.fun),
         converged=bool(res.success) and violation <= s.constraint_tolerance,
         status=str(res.message),
-        iterations=int(getattr(res, "nit", 0) or 0),
+        iterations=iterations,
         build_time_s=built - start,
         solve_time_s=done - built,
         max_constraint_violation=violation,
         backend=s.backend,
+        limit=limit,
     )

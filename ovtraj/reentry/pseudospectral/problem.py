@@ -302,6 +302,7 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
             linear_solver=s.linear_solver,
             print_level=s.print_level,
             expand=s.expand,
+            time_limit_s=s.time_limit_s,
         ),
     )
     if not problems:

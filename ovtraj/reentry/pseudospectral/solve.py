@@ -11,7 +11,10 @@
    energy formulation) and the feasibility check (:mod:`.feasibility`).
 
 It never raises for a problem that was accepted at load time: a failed optimisation is a
-result with ``converged=False`` and the solver's status.
+result with ``converged=False`` and the solver's status. The whole solve (guess, NLP,
+re-flights) runs under ``solver.time_limit_s`` of wall time: when the guess flight uses
+it up, the NLP is not started; either way the result is unconverged and its reason
+names the limit (as it does for ``solver.max_iterations``).
 """
 
 from __future__ import annotations
@@ -23,10 +26,11 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.config.base import ConfigError
+from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.feasibility import FeasibilityReport, check_feasibility
 from ovtraj.reentry.pseudospectral.formulation import AUX_NAMES, POINT_NAMES, Formulation, formulate
 from ovtraj.reentry.pseudospectral.guess import guess_trajectory
-from ovtraj.reentry.pseudospectral.nlp import NlpSolution, solve_nlp
+from ovtraj.reentry.pseudospectral.nlp import NlpSolution, solve_nlp, stopped_before
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 from ovtraj.reentry.pseudospectral.result import OptimalEntryResult
 from ovtraj.reentry.pseudospectral.transcription import DiscreteSolution, transcribe
@@ -69,14 +73,19 @@ def solve_optimal_entry(
             problem.source,
         )
     start = time.perf_counter()
-    traj = guess_trajectory(problem)
+    deadline = Deadline(problem.solver.time_limit_s, "solver.time_limit_s")
+    traj = guess_trajectory(problem, deadline)
     form = formulate(problem, independent, traj)
     tr = transcribe(form.ocp, method, problem.nodes_per_segment, problem.segments)
     w0 = tr.initial_point(form.guess(traj))
-    sol = solve_nlp(tr, w0, problem.solver)
+    if deadline.reached:
+        reason = f"{deadline.reason()} while flying the initial guess"
+        sol = stopped_before(w0, reason, problem.solver.backend)
+    else:
+        sol = solve_nlp(tr, w0, problem.solver, deadline)
     solve_time = time.perf_counter() - start
     discrete = tr.unpack(sol.w)
-    return _result(problem, form, discrete, sol, method, solve_time)
+    return _result(problem, form, discrete, sol, method, solve_time, deadline)
 
 
 def _histories(
@@ -144,7 +153,7 @@ def _histories(
 
 
 def _feasibility(
-    form: Formulation, states: pd.DataFrame, controls: pd.DataFrame
+    form: Formulation, states: pd.DataFrame, controls: pd.DataFrame, deadline: Deadline
 ) -> tuple[FeasibilityReport, ...]:
     p = form.problem
     final = states.iloc[-1]
@@ -172,7 +181,9 @@ def _feasibility(
         bank = np.interp(t, t_bank, bank)
     reports = []
     for kind in p.config.feasibility.interpolations:
-        reports.append(check_feasibility(p, t, alpha, bank, final_time, final_state, kind))
+        reports.append(
+            check_feasibility(p, t, alpha, bank, final_time, final_state, kind, deadline)
+        )
     return tuple(reports)
 
 
@@ -183,13 +194,14 @@ def _result(
     sol: NlpSolution,
     method: str,
     solve_time: float,
+    deadline: Deadline,
 ) -> OptimalEntryResult:
     states, controls, extra = _histories(form, d)
     finite = bool(np.all(np.isfinite(states.to_numpy(dtype=float))))
     reports: tuple[FeasibilityReport, ...] = ()
     # Re-flying is meaningful (and affordable) only for an optimum.
     if sol.converged and finite and states["time_s"].iloc[-1] > 0.0:
-        reports = _feasibility(form, states, controls)
+        reports = _feasibility(form, states, controls, deadline)
     final = states.iloc[-1]
     objective = problem.objective
     value = {
@@ -199,8 +211,14 @@ def _result(
         "min_time": float(final["time_s"]),
     }[objective]
     reason = None
-    if not sol.converged:
+    converged = sol.converged
+    if sol.limit is not None:
+        reason = f"{sol.limit} ({sol.backend}: {sol.status})"
+    elif not sol.converged:
         reason = f"{sol.backend}: {sol.status}"
+    elif any(r.status == "time limit" for r in reports):
+        converged = False
+        reason = f"{deadline.reason()} while re-flying the optimal controls (feasibility check)"
     return OptimalEntryResult(
         name=problem.name,
         objective=objective,
@@ -208,7 +226,7 @@ def _result(
         method=method,
         segments=problem.segments,
         nodes_per_segment=problem.nodes_per_segment,
-        converged=sol.converged,
+        converged=converged,
         status=sol.status,
         reason=reason,
         backend=sol.backend,
