@@ -100,6 +100,9 @@ class GuidanceConfig(StrictModel):
     gain_ku: float = bounded(ge=0.1, le=0.9, description="k_u of seed eq. 27")
     u_tolerance_deg: float = bounded(unit="deg", gt=0, le=1)
     max_iterations: int = bounded(ge=1, le=100)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of one solve (iteration and final flight)"
+    )
     max_dv_mps: float = bounded(unit="m/s", gt=0, le=3000, description="longest burn allowed")
     max_coast_revolutions: float = bounded(
         gt=0, le=5, description="limit on the coasts (start to burn, cut-off to entry)"

@@ -135,6 +135,9 @@ class OptimizerConfig(StrictModel):
         "false is the seed's strict <"
     )
     generations: int = bounded(ge=1, le=100000)
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of the global search"
+    )
     stall_generations: int = bounded(
         ge=0,
         le=100000,
@@ -161,6 +164,9 @@ class FiniteBurnConfig(StrictModel):
     enabled: bool
     dynamics: Dynamics = Field(description="two-body, or J2 as the perturbation a_p of eq. 12")
     max_iterations: int = bounded(ge=1, le=10000, description="SLSQP iterations")
+    time_limit_s: float = bounded(
+        unit="s", gt=0, le=86400, description="wall time of the correction (SLSQP and polish)"
+    )
     polish_iterations: int = bounded(
         ge=0, le=100, description="Gauss-Newton steps on the end conditions after SLSQP"
     )

@@ -40,6 +40,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import NonlinearConstraint, differential_evolution
 
+from ovtraj.deadline import Deadline
+
 __all__ = ["DEResult", "Evaluator", "improved_de", "scipy_de"]
 
 # Plans kept for scipy's repeated requests (a few generations' worth).
@@ -61,6 +63,7 @@ class DEResult:
     wall_time_s: float
     # (evaluations so far, best feasible objective or inf, smallest violation) per generation
     history: list[tuple[int, float, float]] = field(default_factory=list)
+    limit: str | None = None  # the wall-time limit that stopped the search, if one did
 
     @property
     def violation(self) -> float:
@@ -109,6 +112,7 @@ def improved_de(
     stall_generations: int = 0,
     stall_tolerance: float = 0.0,
     accept_equal: bool = False,
+    deadline: Deadline | None = None,
 ) -> DEResult:
     """Minimise under constraints with the seed's IDE (module notes); seeded, reproducible.
 
@@ -116,8 +120,10 @@ def improved_de(
     ``accept_equal`` accepts ties in eq. 11 (module notes). When the objective is one of
     the variables (the time of flight), a trial that changes only other components ties
     with its parent: the strict rule refuses every such move and the search stalls.
+    At ``deadline`` the search stops after the generation under way (``limit`` says so).
     """
     start = time.perf_counter()
+    deadline = deadline or Deadline.unlimited()
     lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
     d = len(lower)
     if population < 4:
@@ -134,6 +140,8 @@ def improved_de(
     rows = np.arange(population)
     generation = 0
     while generation < generations:
+        if deadline.expired():
+            break
         generation += 1
         # Three distinct partners per individual, none of them the individual itself.
         keys = rng.random((population, population))
@@ -177,6 +185,7 @@ def improved_de(
         evaluations=evaluations,
         wall_time_s=time.perf_counter() - start,
         history=history,
+        limit=deadline.reason(generation, "generations") if deadline.reached else None,
     )
 
 
@@ -240,6 +249,7 @@ def scipy_de(
     init: str = "random",
     stall_generations: int = 0,
     stall_tolerance: float = 0.0,
+    deadline: Deadline | None = None,
 ) -> DEResult:
     """scipy's ``differential_evolution`` on the same problem (Lampinen's constraints).
 
@@ -247,8 +257,10 @@ def scipy_de(
     (``scale_factor`` may be scipy's dither interval); no polishing, no convergence test
     other than the stall rule; vectorised, deferred updating (synchronous generations,
     as the IDE). scipy also redraws out-of-bounds components uniformly (eq. 10).
+    At ``deadline`` the search stops after the generation under way (``limit`` says so).
     """
     start = time.perf_counter()
+    deadline = deadline or Deadline.unlimited()
     cached = _Cached(evaluate)
     constraint = NonlinearConstraint(cached.constraints, -np.inf, np.zeros(n_constraints))
     state = {"best": np.inf, "stall": 0, "generations": 0}
@@ -256,6 +268,8 @@ def scipy_de(
     def callback(intermediate_result) -> bool:  # noqa: ANN001
         state["generations"] += 1
         cached.history.append((cached.evaluations, cached.best_f, cached.best_c))
+        if deadline.expired():
+            return True
         if stall_generations <= 0:
             return False
         improved = cached.best_f < state["best"] - stall_tolerance
@@ -292,4 +306,5 @@ def scipy_de(
         evaluations=cached.evaluations,
         wall_time_s=time.perf_counter() - start,
         history=cached.history,
+        limit=deadline.reason(state["generations"], "generations") if deadline.reached else None,
     )

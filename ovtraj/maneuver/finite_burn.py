@@ -31,6 +31,9 @@
    constraints.
 3. **Polish**: minimum-norm Gauss-Newton steps on the end-condition residuals, the
    active linear constraints held, while they reduce the residual.
+
+SLSQP stops at ``max_iterations``, and SLSQP and the polish at ``time_limit_s`` (wall
+time): either leaves the correction unconverged, with the limit in its message.
 """
 
 from __future__ import annotations
@@ -44,12 +47,16 @@ from scipy.optimize import minimize
 
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.astro.vectors import cross
+from ovtraj.deadline import Deadline
 from ovtraj.maneuver.budget import burn_durations
 from ovtraj.maneuver.endpoint import orbit_point, transfer_residuals
 from ovtraj.maneuver.problem import ManeuverProblem
 from ovtraj.maneuver.thrust import Burn, BurnFlight, Flight, fly
 
 __all__ = ["FiniteBurnResult", "FiniteBurnSolver", "convert_impulses"]
+
+# scipy's SLSQP status at ``maxiter``.
+_SLSQP_ITERATION_LIMIT = 9
 
 
 @dataclass(frozen=True)
@@ -146,6 +153,7 @@ class FiniteBurnSolver:
         self.tf_index = i
         self.n_vars = i + 1
         self.flights = 0
+        self.deadline = Deadline.unlimited()  # solve() starts finite_burn.time_limit_s
         self._cache: dict[bytes, tuple[Flight, NDArray[np.float64], NDArray[np.float64]]] = {}
 
     # ------------------------------------------------------------------ variables
@@ -317,6 +325,8 @@ class FiniteBurnSolver:
         steps = 0
         residual = self.residuals(z)
         for _ in range(self.cfg.polish_iterations):
+            if self.deadline.expired():
+                break
             slack = g_mat @ z + g_const
             # Active: within the step's own size of the boundary (scaled units).
             active = slack <= self.cfg.difference_step
@@ -333,6 +343,7 @@ class FiniteBurnSolver:
     def solve(self) -> FiniteBurnResult:
         start_time = time.perf_counter()
         cfg = self.cfg
+        self.deadline = Deadline(cfg.time_limit_s, "finite_burn.time_limit_s")
         z0 = self.pack(self.initial_burns, self.tof0)
         dr0, dv0, _ = self.errors(z0)
         g_mat, g_const = self.linear_inequalities()
@@ -353,6 +364,9 @@ class FiniteBurnSolver:
         history: list[tuple[float, float]] = []
 
         def stalled(z: NDArray[np.float64]) -> None:
+            self.deadline.stop_if_expired()
+            if cfg.stall_iterations <= 0:
+                return
             # SLSQP reaches the optimal t_f within a few iterations and then creeps along
             # the constraints for many more; once the objective has stopped moving and the
             # end condition holds to a scaled unit, the Gauss-Newton polish finishes faster.
@@ -371,7 +385,7 @@ class FiniteBurnSolver:
             bounds=self.bounds(),
             constraints=constraints,
             options={"maxiter": cfg.max_iterations, "ftol": cfg.optimality_tolerance},
-            callback=stalled if cfg.stall_iterations > 0 else None,
+            callback=stalled,
         )
         z = np.asarray(res.x, dtype=float)
         message = str(res.message)
@@ -380,10 +394,16 @@ class FiniteBurnSolver:
         iterations += polished
         flight, goal, _ = self._fly(z)
         dr, dv, rel = self.errors(z)
-        converged = self._met(z)
+        limit = None
+        if self.deadline.reached:
+            limit = self.deadline.reason(iterations)
+        elif res.status == _SLSQP_ITERATION_LIMIT:
+            limit = f"finite_burn.max_iterations = {cfg.max_iterations} reached"
+        converged = self._met(z) and limit is None
         if not converged:
             message = (
-                f"finite burns miss the end condition by {dr:.3g} m"
+                (f"finite burns stopped: {limit}; " if limit else "")
+                + f"finite burns miss the end condition by {dr:.3g} m"
                 + (f", {dv:.3g} m/s" if dv is not None else "")
                 + f" (SLSQP: {res.message})"
             )

@@ -9,7 +9,10 @@
    re-optimises them with SLSQP (when enabled and the plan is feasible).
 
 Infeasible requests (e.g. a budget too small for the end condition) return a result with
-``converged = False``, the best violation found and the reason; they never raise.
+``converged = False``, the best violation found and the reason; they never raise. So does
+a search stopped by ``optimizer.time_limit_s`` (the finite burns are then not tried) and a
+correction stopped by ``finite_burn.time_limit_s`` or ``finite_burn.max_iterations``: the
+reason names the limit.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.deadline import Deadline
 from ovtraj.maneuver.de import DEResult, improved_de, scipy_de
 from ovtraj.maneuver.endpoint import orbit_point
 from ovtraj.maneuver.finite_burn import FiniteBurnResult, FiniteBurnSolver
@@ -61,6 +65,7 @@ def search_impulses(
         "seed": seed,
         "stall_generations": opt.stall_generations,
         "stall_tolerance": opt.stall_tolerance,
+        "deadline": Deadline(opt.time_limit_s, "optimizer.time_limit_s"),
     }
     if method == "ide":
         return improved_de(
@@ -161,15 +166,17 @@ def solve_maneuver(
             imp_dv = float(np.linalg.norm(state[3:] - goal[3:]))
 
     reason = "" if feasible else _violation_reason(problem, plan)
+    if search.limit is not None:
+        reason = f"search stopped: {search.limit}" + (f"; {reason}" if reason else "")
     fin: FiniteBurnResult | None = None
-    if feasible and run_finite:
+    if feasible and run_finite and search.limit is None:
         solver = FiniteBurnSolver(
             problem, plan.epochs[0], plan.dv[0], float(plan.time_of_flight[0])
         )
         fin = solver.solve()
         if not fin.converged:
             reason = fin.message
-    converged = feasible and (fin is None or fin.converged)
+    converged = feasible and search.limit is None and (fin is None or fin.converged)
 
     tof_imp = float(plan.time_of_flight[0]) if plan.ok[0] else None
     norms = np.linalg.norm(plan.dv[0], axis=1)

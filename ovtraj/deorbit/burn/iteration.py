@@ -8,6 +8,8 @@ the only error left is the entry argument of latitude u. The burn start is then 
 
 until |u - u_E| is within the tolerance. The entry u moves with u_open at a rate close to 1
 (measured 1.008 on the published case), so the error shrinks by about |1 - k_u| per pass.
+The passes stop at ``guidance.max_iterations`` and at the solve's wall-time deadline
+(``guidance.time_limit_s``); either is an unconverged outcome whose reason names it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ovtraj.deadline import Deadline
 from ovtraj.deorbit.burn.flight import FlightOutcome, FlightSimulator
 from ovtraj.deorbit.burn.powered import ThrustSettings
 
@@ -79,17 +82,22 @@ def iterate_burn_start(
     gain: float,
     tolerance_rad: float,
     max_iterations: int,
+    deadline: Deadline | None = None,
 ) -> IterationOutcome:
     """Seed eq. 27 from ``u_open0`` [rad]; ``state0`` (6,) at t = 0 [m, m/s], mass [kg].
 
     Stops when |u - u_E| <= ``tolerance_rad`` (converged), when a flight fails (its reason
-    is returned), or after ``max_iterations`` passes.
+    is returned), after ``max_iterations`` passes, or at ``deadline`` (checked between
+    passes).
     """
+    deadline = deadline or Deadline.unlimited()
     entry_radius = simulator.problem.entry.radius_m
     history: list[IterationRecord] = []
     u_open = u_open0 % (2.0 * math.pi)
     flight: FlightOutcome | None = None
     for k in range(1, max_iterations + 1):
+        if flight is not None and deadline.expired():
+            return IterationOutcome(tuple(history), flight, False, deadline.reason(k - 1))
         flight = simulator.fly(state0, mass_kg, u_open, thrust, PLANNING_STRATEGY)
         history.append(_record(k, flight, entry_radius))
         if not flight.ok:
@@ -102,6 +110,7 @@ def iterate_burn_start(
         tuple(history),
         flight,
         False,
-        f"the entry u error {math.degrees(flight.u_error_rad):.4g} deg is still above the "
-        f"tolerance {math.degrees(tolerance_rad):g} deg after {max_iterations} iterations",
+        f"guidance.max_iterations = {max_iterations} reached: the entry u error "
+        f"{math.degrees(flight.u_error_rad):.4g} deg is still above the tolerance "
+        f"{math.degrees(tolerance_rad):g} deg (guidance.u_tolerance_deg)",
     )

@@ -36,6 +36,7 @@ import pyarrow as pa
 
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.config.deorbit_burn import DispersionsConfig
+from ovtraj.deadline import Deadline
 from ovtraj.deorbit.burn.flight import initial_state
 from ovtraj.deorbit.burn.powered import ThrustSettings
 from ovtraj.deorbit.burn.problem import DeorbitBurnProblem
@@ -190,7 +191,8 @@ class MonteCarloContext:
             guess = self.u_open_rad
             if impulse is not None and self.impulse is not None:
                 guess += impulse.u_rad - self.impulse.u_rad
-            plan = solver.plan(state0, guess, nominal_thrust, mass)
+            limit = Deadline(problem.config.guidance.time_limit_s, "guidance.time_limit_s")
+            plan = solver.plan(state0, guess, nominal_thrust, mass, limit)
             SIMULATIONS["flights"] += plan.iterations
             u_open, iterations, planned = plan.flight.u_open_rad, plan.iterations, plan.converged
             if not plan.flight.ok:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.astro.j2_elements import osculating_to_mean
+from ovtraj.deadline import Deadline
 from ovtraj.deorbit.burn.flight import FlightOutcome, FlightSimulator, initial_state
 from ovtraj.deorbit.burn.intersection import (
     ImpulsiveBurn,
@@ -127,7 +128,12 @@ class BurnSolver:
         return impulse.u_rad - 0.5 * burn_time * impulse.v0t / impulse.radius_m
 
     def plan(
-        self, state0: np.ndarray, u_open0: float, thrust: ThrustSettings, mass_kg: float
+        self,
+        state0: np.ndarray,
+        u_open0: float,
+        thrust: ThrustSettings,
+        mass_kg: float,
+        deadline: Deadline | None = None,
     ) -> IterationOutcome:
         guidance = self.problem.config.guidance
         return iterate_burn_start(
@@ -139,6 +145,7 @@ class BurnSolver:
             gain=guidance.gain_ku,
             tolerance_rad=math.radians(guidance.u_tolerance_deg),
             max_iterations=guidance.max_iterations,
+            deadline=deadline,
         )
 
     def solve(
@@ -147,6 +154,7 @@ class BurnSolver:
         """See :func:`solve_deorbit_burn`."""
         start = time.perf_counter()
         problem = self.problem
+        deadline = Deadline(problem.config.guidance.time_limit_s, "guidance.time_limit_s")
         strategy = problem.config.guidance.strategy if strategy is None else int(strategy)
         if strategy not in (1, 2):
             raise ValueError(f"strategy must be 1 or 2, got {strategy}")
@@ -164,7 +172,7 @@ class BurnSolver:
         thrust = self.nominal_thrust(theta)
         mass = problem.vehicle.mass_kg
         state0 = initial_state(problem, problem.waiting)
-        outcome = self.plan(state0, self.start_guess(impulse, thrust, mass), thrust, mass)
+        outcome = self.plan(state0, self.start_guess(impulse, thrust, mass), thrust, mass, deadline)
         flight = outcome.flight
         if outcome.converged and strategy != 2:
             flight = self.simulator.fly(state0, mass, flight.u_open_rad, thrust, strategy)
