@@ -11,6 +11,11 @@ What each phase reached is recorded either way.
 Gradients are central differences evaluated as one batch of ``2n + 1`` rows, which
 costs about as much as a single trajectory in the vectorised ascent. The objective
 ``-x_payload`` is linear in the scaled variables, so its gradient is exact.
+
+Each phase runs under its wall-time limit (``genetic.time_limit_s`` for the GA,
+``local.time_limit_s`` for each local phase) besides its iteration limit. A phase that
+reaches its time limit stops at its best design, no further phase runs, and the
+outcome's ``limit`` names the limit (the stage reports the launch infeasible).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from pymoo.optimize import minimize as pymoo_minimize
 from scipy.optimize import BFGS, Bounds, NonlinearConstraint, minimize
 
 from ovtraj.config.launch import GeneticConfig, LocalConfig
+from ovtraj.deadline import Deadline, pymoo_termination
 from ovtraj.launch.problem import Evaluation, LaunchProblem
 
 PAYLOAD_INDEX = 9
@@ -75,6 +81,7 @@ class OptimisationOutcome:
     phases: list[PhaseRecord]
     trajectories: int
     wall_time_s: float
+    limit: str | None = None  # the wall-time limit that stopped a phase, naming its key
 
     @property
     def feasible(self) -> bool:
@@ -202,10 +209,20 @@ def _evaluate_one(problem: LaunchProblem, x: NDArray) -> Standing:
 
 
 def run_genetic(
-    problem: LaunchProblem, settings: GeneticConfig, *, seed_x: NDArray | None = None
+    problem: LaunchProblem,
+    settings: GeneticConfig,
+    *,
+    seed_x: NDArray | None = None,
+    deadline: Deadline | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
-    """Global search; returns the best design under the relaxed constraints."""
+    """Global search; returns the best design under the relaxed constraints.
+
+    Stops after ``settings.generations`` or at ``deadline`` (default: the config's
+    ``time_limit_s`` from now), whichever comes first.
+    """
     start, before = time.perf_counter(), problem.trajectories
+    if deadline is None:
+        deadline = Deadline(settings.time_limit_s, "launch.genetic.time_limit_s")
     algorithm = GA(pop_size=settings.population, eliminate_duplicates=True)
     if seed_x is not None:
         from pymoo.core.population import Population
@@ -226,10 +243,12 @@ def run_genetic(
     result = pymoo_minimize(
         pymoo_problem,
         algorithm,
-        ("n_gen", settings.generations),
+        pymoo_termination(settings.generations, deadline),
         seed=settings.seed,
         verbose=False,
     )
+    # pymoo counts the generation it would start next.
+    generations = int(result.algorithm.n_gen) - 1 if deadline.reached else settings.generations
     population = result.pop
     cv = population.get("CV")[:, 0]
     f = population.get("F")[:, 0]
@@ -240,11 +259,12 @@ def run_genetic(
         "genetic",
         standing,
         accepted=True,
-        iterations=settings.generations,
+        iterations=generations,
         trajectories=problem.trajectories - before,
         wall_time_s=time.perf_counter() - start,
         message=f"pymoo GA, population {settings.population}, seed {settings.seed}; "
-        f"relaxed constraint violation {float(cv[best_index]):.3g}",
+        f"relaxed constraint violation {float(cv[best_index]):.3g}"
+        + (f"; stopped: {deadline.reason(generations, 'generations')}" if deadline.reached else ""),
     )
     return x, record
 
@@ -265,9 +285,16 @@ class _StallMonitor:
     """
 
     def __init__(
-        self, problem: LaunchProblem, oracle: _Oracle, settings: LocalConfig, x0: NDArray
+        self,
+        problem: LaunchProblem,
+        oracle: _Oracle,
+        settings: LocalConfig,
+        x0: NDArray,
+        deadline: Deadline | None = None,
     ) -> None:
         self.problem = problem
+        self.deadline = deadline or Deadline.unlimited()
+        self.iterations = 0
         self.oracle = oracle
         self.window = settings.stall_iterations
         self.threshold = settings.stall_payload_kg
@@ -288,20 +315,24 @@ class _StallMonitor:
         return float(self.problem.to_config_units(x)[PAYLOAD_INDEX])
 
     def __call__(self, intermediate_result: object) -> None:
+        self.iterations += 1
         x = np.asarray(getattr(intermediate_result, "x", intermediate_result), dtype=float)
         payload = self._admissible_payload(x)
         if payload > self.best_payload:
             self.best_payload, self.best_x = payload, x.copy()
         if payload > self.reference + self.threshold:
             self.reference, self.idle = payload, 0
-            return
-        if np.isfinite(self.best_payload):
-            self.idle += 1
-        if self.idle >= self.window:
-            self.stalled = True
-            raise StopIteration
+        else:
+            if np.isfinite(self.best_payload):
+                self.idle += 1
+            if self.idle >= self.window:
+                self.stalled = True
+                raise StopIteration
+        self.deadline.stop_if_expired()
 
     def message(self, solver_message: str) -> str:
+        if self.deadline.reached:
+            return f"stopped: {self.deadline.reason(self.iterations)}"
         if self.stalled:
             return (
                 f"stalled: {self.window} iterations without a converged design more than "
@@ -344,12 +375,16 @@ def _local_outcome(
     )
 
 
+def _local_deadline(settings: LocalConfig) -> Deadline:
+    return Deadline(settings.time_limit_s, "launch.local.time_limit_s")
+
+
 def run_slsqp(
-    problem: LaunchProblem, x0: NDArray, settings: LocalConfig
+    problem: LaunchProblem, x0: NDArray, settings: LocalConfig, deadline: Deadline | None = None
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings, x0)
+    monitor = _StallMonitor(problem, oracle, settings, x0, deadline or _local_deadline(settings))
     result = minimize(
         oracle.objective,
         x0,
@@ -369,11 +404,11 @@ def run_slsqp(
 
 
 def run_trust_constr(
-    problem: LaunchProblem, x0: NDArray, settings: LocalConfig
+    problem: LaunchProblem, x0: NDArray, settings: LocalConfig, deadline: Deadline | None = None
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings, x0)
+    monitor = _StallMonitor(problem, oracle, settings, x0, deadline or _local_deadline(settings))
     n = len(x0)
     result = minimize(
         oracle.objective,
@@ -412,8 +447,12 @@ def optimise_launch(
     """GA (unless ``global_search`` is off and a seed is given) -> SLSQP -> trust-constr."""
     start, before = time.perf_counter(), problem.trajectories
     phases: list[PhaseRecord] = []
+    limit = None
     if global_search or seed_x is None:
-        x, record = run_genetic(problem, genetic, seed_x=seed_x)
+        deadline = Deadline(genetic.time_limit_s, "launch.genetic.time_limit_s")
+        x, record = run_genetic(problem, genetic, seed_x=seed_x, deadline=deadline)
+        if deadline.reached:
+            limit = f"genetic search stopped: {deadline.reason(record.iterations, 'generations')}"
     else:
         x = np.clip(np.asarray(seed_x, dtype=float), 0.0, 1.0)
         standing = _evaluate_one(problem, x)
@@ -430,11 +469,16 @@ def optimise_launch(
     best = record.standing
     converged = local.converged_residual
     for run in (run_slsqp, run_trust_constr):
-        x_new, record = run(problem, x, local)
+        if limit is not None:
+            break
+        deadline = _local_deadline(local)
+        x_new, record = run(problem, x, local, deadline)
         accepted = is_better(record.standing, best, converged)
         phases.append(PhaseRecord(**(record.as_dict() | {"accepted": accepted})))
         if accepted:
             x, best = x_new, record.standing
+        if deadline.reached:
+            limit = f"{record.name} stopped: {deadline.reason(record.iterations)}"
     return OptimisationOutcome(
         x=x,
         payload_kg=best.payload_kg,
@@ -443,4 +487,5 @@ def optimise_launch(
         phases=phases,
         trajectories=problem.trajectories - before,
         wall_time_s=time.perf_counter() - start,
+        limit=limit,
     )

@@ -191,6 +191,8 @@ def _finish(
         fairing_burn_time_s=float(asc.fairing_burn_time_s[0]),
     )
     reasons = []
+    if outcome.limit is not None:
+        reasons.append(outcome.limit)
     if outcome.max_violation > 0.0:
         worst = _worst_constraints(ev)
         reasons.append(f"insertion or path constraints not met: {worst}")

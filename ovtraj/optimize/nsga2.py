@@ -4,6 +4,11 @@
 :func:`surrogate_front` applies it to the mission surrogates: the three normalised
 objectives (:mod:`.objectives`) and one constraint, the predicted probability of a
 feasible mission at least ``feasibility_threshold``.
+
+The search stops after its generations or at its wall-time limit
+(``mission.optimize.time_limit_s``), whichever comes first; a search stopped by the
+time limit returns no front (its result would depend on the machine's speed), with
+``info["reason"]`` naming the limit and ``info["time_limit_reached"]`` set.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from pymoo.core.problem import Problem
 from pymoo.optimize import minimize
 
 from ovtraj.config.mission import OptimizeSettings
+from ovtraj.deadline import Deadline, pymoo_termination
 from ovtraj.optimize.front import hypervolume
 from ovtraj.optimize.objectives import Normalisation
 
@@ -49,6 +55,7 @@ def nsga2_front(
     seed: int,
     n_constr: int = 0,
     initial: np.ndarray | None = None,
+    deadline: Deadline | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """The non-dominated feasible designs NSGA-II finds on ``[0, 1]^n_var``.
 
@@ -56,8 +63,10 @@ def nsga2_front(
     and the inequality constraints (n, n_constr), feasible when <= 0 (``None`` without
     constraints). Returns the designs and objectives of the final non-dominated feasible
     set, sorted by objective (a reproducible order), and what the search did; with no
-    feasible design the arrays are empty and ``info["reason"]`` says so.
+    feasible design, or when ``deadline`` stopped the search, the arrays are empty and
+    ``info["reason"]`` says why.
     """
+    deadline = deadline or Deadline.unlimited()
     problem = _UnitCubeProblem(model, n_var, n_obj, n_constr)
     algorithm = NSGA2(pop_size=population)
     if initial is not None and len(initial):
@@ -69,7 +78,7 @@ def nsga2_front(
     result = minimize(
         problem,
         algorithm,
-        ("n_gen", generations),
+        pymoo_termination(generations, deadline),
         seed=seed,
         verbose=False,
     )
@@ -78,6 +87,12 @@ def nsga2_front(
         "evaluations": int(result.algorithm.evaluator.n_eval),
         "reason": None,
     }
+    if deadline.reached:
+        # pymoo counts the generation it would start next.
+        done = int(result.algorithm.n_gen) - 1
+        info["reason"] = f"NSGA-II stopped: {deadline.reason(done, 'generations')}"
+        info["time_limit_reached"] = True
+        return np.zeros((0, n_var)), np.zeros((0, n_obj)), info
     if result.X is None or result.F is None:
         info["reason"] = "no feasible design in the final population"
         return np.zeros((0, n_var)), np.zeros((0, n_obj)), info
@@ -140,6 +155,7 @@ def surrogate_front(
         seed=settings.seed,
         n_constr=1,
         initial=None if initial is None else cube.to_unit(initial),
+        deadline=Deadline(settings.time_limit_s, "mission.optimize.time_limit_s"),
     )
     physical = cube.from_unit(units) if len(units) else np.zeros((0, len(surrogates.input_names)))
     return SurrogateFront(
