@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +26,7 @@ from ovtraj.deorbit.burn.plots import plot_dispersions
 from ovtraj.deorbit.burn.problem import load_deorbit_burn
 from ovtraj.deorbit.burn.published import published_comparison
 from ovtraj.deorbit.burn.store import MonteCarloRun
+from ovtraj.records import plain
 from ovtraj.version import code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
 
@@ -79,14 +79,6 @@ def _submit(
             summary["wall_time_s"],
         )
     return failures
-
-
-def _plain(value: Any) -> Any:
-    if hasattr(value, "item"):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 @flow(name="deorbit-monte-carlo", log_prints=True)
@@ -164,9 +156,7 @@ def deorbit_monte_carlo_flow(
         "seed": seed,
         "simulated_runs": len(todo),
         "status": "incomplete" if failures else "complete",
-        "statistics": [
-            {k: _plain(v) for k, v in row.items()} for row in summary.to_dict(orient="records")
-        ],
+        "statistics": [plain(row) for row in summary.to_dict(orient="records")],
         "published": comparison,
         "plots": [str(p) for p in plots],
     }

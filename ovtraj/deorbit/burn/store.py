@@ -4,21 +4,23 @@ Layout::
 
     config.json                 resolved problem (every default and Earth constant filled in)
     run.json                    run id, kind, created, code version, runs, strategies, seed,
-                                status, batches (not ``manifest.json``: the DoE run catalog
-                                lists only its own runs)
-    runs/part-<k>.parquet       the batch starting at run k: one row per run and strategy
-                                (``RUN_SCHEMA``)
-    batches/<k>.json            written last: that batch is complete (its run numbers)
+                                status, batches, the size and SHA-256 of config.json (not
+                                ``manifest.json``: the DoE run catalog lists only its own runs)
+    runs/part-<k>.parquet       the batch starting at run k: one row per run and strategy,
+                                exactly of ``RUN_SCHEMA`` (NaN stored as null)
+    batches/<k>.json            written last: that batch is complete; its run numbers and the
+                                size and SHA-256 of its part (``"files"``)
     summary.json                dispersion statistics per strategy and the published figures
+                                (a report, rewritten by every flow run)
     plots/*.png                 scatter and histograms of the entry errors per strategy
 
 The run id hashes what changes results: the resolved config (without the execution settings
 and the published figures, :func:`results_config`), the number of runs, the strategies, the
-seed and the code version. Every file is written to a temporary name and
-renamed (atomic on POSIX), a batch counts only once its marker exists, and a stored batch is
-never overwritten, so an interrupted run resumes at the first missing batch. A file that
-cannot be read raises :class:`StoreError` naming it. (The DoE store's conventions; both use
-:mod:`ovtraj.files`.)
+seed and the code version. Files are written with :mod:`ovtraj.files` (temporary name, then
+linked into place; a stored file is never overwritten), a batch counts only once its marker
+exists, and an interrupted run resumes at the first missing batch. Every read is checked: a
+part's size, SHA-256 and schema against its marker, ``config.json`` against ``run.json``; a
+missing or changed file raises :class:`StoreError` naming it. (The DoE store's conventions.)
 """
 
 from __future__ import annotations
@@ -34,16 +36,23 @@ import pandas as pd
 import pyarrow as pa
 
 from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA
-from ovtraj.files import StoreError, atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.files import (
+    Digest,
+    StoreError,
+    os_error_text,
+    read_json,
+    read_table,
+    write_json,
+    write_parquet,
+)
+from ovtraj.products import directory_lock
+from ovtraj.records import table_from_frame
 
 __all__ = [
     "DEFAULT_ROOT",
     "MonteCarloRun",
     "StoreError",
-    "atomic_bytes",
-    "atomic_parquet",
     "monte_carlo_run_id",
-    "read_parquet",
     "results_config",
 ]
 
@@ -86,6 +95,13 @@ def monte_carlo_run_id(
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
+STORE_FORMAT = 2  # 2: file digests in run.json and the batch markers, checked on read
+
+
+def part_name(batch: int) -> str:
+    return f"runs/part-{batch:05d}.parquet"
+
+
 class MonteCarloRun:
     """One stored Monte Carlo run."""
 
@@ -110,12 +126,33 @@ class MonteCarloRun:
         rid = monte_carlo_run_id(resolved, runs, strategies, seed, code)
         run = cls(Path(root) / rid)
         if (run.directory / cls.INFO).is_file():
+            run.info  # noqa: B018 - refuses another store format, naming the file
             return run
-        run.directory.mkdir(parents=True, exist_ok=True)
-        atomic_bytes(run.directory / "config.json", json.dumps(resolved, indent=2).encode())
+        with directory_lock(run.directory):
+            if (run.directory / cls.INFO).is_file():  # created meanwhile by another process
+                return run
+            run._create(rid, resolved, runs, strategies, seed, code)
+        return run
+
+    def _create(
+        self,
+        rid: str,
+        resolved: dict[str, Any],
+        runs: int,
+        strategies: Sequence[int],
+        seed: int,
+        code: str,
+    ) -> None:
+        path = self.directory / "config.json"
+        try:
+            path.unlink(missing_ok=True)  # left by an interrupted creation
+        except OSError as err:
+            raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+        config = write_json(path, resolved)
         info = {
             "run_id": rid,
             "kind": RUN_KIND,
+            "format": STORE_FORMAT,
             "name": resolved.get("name"),
             "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "code_version": code,
@@ -123,58 +160,97 @@ class MonteCarloRun:
             "strategies": [int(s) for s in strategies],
             "seed": int(seed),
             "status": "created",
+            "files": {"config.json": config.to_json()},
         }
-        atomic_bytes(run.directory / cls.INFO, json.dumps(info, indent=2).encode())
-        return run
+        write_json(self.directory / self.INFO, info, replace=True)
 
     @property
     def info(self) -> dict[str, Any]:
-        return read_json(self.directory / self.INFO)
+        path = self.directory / self.INFO
+        info = read_json(path)
+        if not isinstance(info, dict) or info.get("format") != STORE_FORMAT:
+            found = info.get("format", 1) if isinstance(info, dict) else None
+            raise StoreError(
+                f"{path}: store format {found}; this version of ovtraj reads format "
+                f"{STORE_FORMAT} (checksummed): run the Monte Carlo again"
+            )
+        return info
+
+    @property
+    def config(self) -> dict[str, Any]:
+        """The resolved problem (checked against ``run.json``)."""
+        try:
+            digest = Digest.from_json(self.info["files"]["config.json"])
+        except (KeyError, TypeError, ValueError):
+            raise StoreError(f"{self.directory / self.INFO}: no digest of config.json") from None
+        return read_json(self.directory / "config.json", digest)
 
     def update_info(self, **changes: Any) -> None:
-        info = self.info | changes
-        atomic_bytes(self.directory / self.INFO, json.dumps(info, indent=2).encode())
+        """Merge ``changes`` into ``run.json`` (the run's mutable index, replaced atomically)."""
+        write_json(self.directory / self.INFO, self.info | changes, replace=True)
 
-    def _markers(self) -> list[Path]:
+    def _markers(self) -> dict[int, dict[str, Any]]:
+        """Every complete batch's marker, by its first run number."""
         folder = self.directory / "batches"
-        return sorted(folder.glob("*.json")) if folder.is_dir() else []
+        found = {}
+        for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+            if not path.stem.isdigit():
+                continue
+            marker = read_json(path)
+            if not isinstance(marker, dict) or not isinstance(marker.get("files"), dict):
+                raise StoreError(
+                    f"{path}: not a batch marker of store format {STORE_FORMAT} (no file digests)"
+                )
+            found[int(path.stem)] = marker
+        return found
 
     def done_runs(self) -> set[int]:
         """Run numbers stored by complete batches."""
-        return {int(r) for marker in self._markers() for r in read_json(marker)["runs"]}
+        return {int(r) for marker in self._markers().values() for r in marker["runs"]}
 
     def write_batch(self, batch: int, frame: pd.DataFrame) -> bool:
         """Store a batch's rows (``RUN_SCHEMA``); False (nothing written) if already stored.
 
         ``batch`` is the batch's first run number, so that batches of another size never
         collide with stored ones (only runs without a complete batch are submitted again).
+        The part is written first, then its marker with the part's digest. A part without
+        a marker (an interrupted write) is replaced.
         """
         marker = self.directory / "batches" / f"{batch:05d}.json"
         if marker.exists():
             return False
-        table = pa.Table.from_pandas(frame, schema=RUN_SCHEMA, preserve_index=False)
-        atomic_parquet(self.directory / "runs" / f"part-{batch:05d}.parquet", table)
+        table = table_from_frame(frame.reset_index(drop=True), RUN_SCHEMA, "monte carlo runs")
         runs = sorted({int(r) for r in frame["run"]})
-        atomic_bytes(marker, json.dumps({"batch": batch, "runs": runs}).encode())
+        # The batches folder is the lock of batch writes: a part and its marker are
+        # written together, one writer at a time (a part takes milliseconds to write).
+        with directory_lock(marker.parent):
+            if marker.exists():  # stored meanwhile by another process
+                return False
+            part = self.directory / part_name(batch)
+            try:
+                part.unlink(missing_ok=True)  # left by an interrupted write
+            except OSError as err:
+                raise StoreError(f"cannot remove {part}: {os_error_text(err)}") from None
+            digest = write_parquet(part, table, RUN_SCHEMA)
+            content = {"batch": batch, "runs": runs, "files": {part_name(batch): digest.to_json()}}
+            write_json(marker, content)
         return True
 
     def results(self) -> pd.DataFrame:
-        """Every row of the complete batches, sorted by run and strategy."""
-        parts = [
-            self.directory / "runs" / f"part-{marker.stem}.parquet" for marker in self._markers()
-        ]
-        if not parts:
+        """Every row of the complete batches, sorted by run and strategy (every part checked)."""
+        tables = []
+        for marker in self._markers().values():
+            for relative, digest in marker["files"].items():
+                tables.append(
+                    read_table(self.directory / relative, Digest.from_json(digest), RUN_SCHEMA)
+                )
+        if not tables:
             return RUN_SCHEMA.empty_table().to_pandas()
-        frame = pd.concat([read_parquet(p) for p in parts], ignore_index=True)
+        frame = pa.concat_tables(tables).to_pandas()
         return frame.sort_values(["run", "strategy"], kind="stable").reset_index(drop=True)
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
+        """``summary.json``: the flow's report (plain JSON, NaN as null), replaced each run."""
         path = self.directory / "summary.json"
-        atomic_bytes(path, json.dumps(summary, indent=2, default=_json_default).encode())
+        write_json(path, summary, replace=True)
         return path
-
-
-def _json_default(value: Any) -> Any:
-    if hasattr(value, "item"):
-        return value.item()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
