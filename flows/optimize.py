@@ -14,8 +14,8 @@ from prefect import flow
 from prefect.artifacts import create_table_artifact
 
 from flows.surrogate import fit_run_surrogates, publish_validation
-from ovtraj.files import read_parquet
 from ovtraj.pipeline import run_scenario
+from ovtraj.pipeline.steps import front_frame
 from ovtraj.runs import RunStore
 from ovtraj.version import code_version
 from tasks.pipeline import surrogate_front_task
@@ -41,7 +41,7 @@ def optimize_flow(
     front = surrogate_front_task(scenario.resolved(), str(run.directory), fitted["fit_id"], code)
     create_table_artifact(
         key="surrogate-front",
-        table=front_table(read_parquet(Path(front["directory"]) / "front.parquet")),
+        table=front_table(front_frame(Path(front["directory"]))),
         description=f"NSGA-II front on the surrogates of run {run.id} (predicted values), "
         f"hypervolume {front['hypervolume']:.4f}",
     )

@@ -15,6 +15,8 @@ from functools import partial
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -31,6 +33,7 @@ from ovtraj.pipeline import (
     run_pipeline,
     training_data,
 )
+from ovtraj.pipeline.loop import load_pipeline
 from ovtraj.runs import RunStore, StoreError, execute, prepare_run, run_doe
 from ovtraj.surrogate import SurrogateError
 from ovtraj.version import code_version
@@ -176,7 +179,8 @@ def _fake_run(store, scenario, feasible: bool | None):
             )
             for r in samples.itertuples(index=False)
         ]
-        run.write_batch(0, records, samples["sample_id"].tolist())
+        steps = execute.trajectory_steps(scenario)
+        run.write_batch(0, records, samples["sample_id"].tolist(), trajectory_steps=steps)
     return run
 
 
@@ -227,31 +231,207 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     assert _digest(plans) == before
 
 
-def test_pipeline_refuses_a_different_result_for_the_same_inputs(small):
-    """A stored pipeline result is never overwritten by a different one."""
+def _rewrite_value(path, column: str, delta: float) -> None:
+    """One value of a stored Parquet file changed; the file stays valid Parquet."""
+    table = pq.read_table(path)
+    values = table.column(column).to_pylist()
+    values[0] += delta
+    index = table.schema.get_field_index(column)
+    pq.write_table(
+        table.set_column(index, column, pa.array(values, table.schema.field(column).type)), path
+    )
+
+
+def test_pipeline_refuses_a_changed_or_different_result_for_the_same_inputs(small):
+    """A stored pipeline result is checked on every read and never overwritten."""
     result = small["result"]
     before = _digest(result.directory)
-    front_file = result.directory / "front.parquet"
-    from ovtraj.files import atomic_parquet
+    front_file, marker = result.directory / "front.parquet", result.directory / "pipeline.json"
+    stored = {path: path.read_bytes() for path in (front_file, marker)}
 
-    altered = result.front.copy()
-    altered.loc[0, "dv_total_mps"] += 1.0
-    atomic_parquet(front_file, altered)  # as if the stored result came from other code
+    def again():
+        return run_pipeline(
+            small["scenario"],
+            small["doe"],
+            store=small["store"],
+            code=small["code"],
+            steps=PipelineSteps(evaluate=small["evaluate_run"]),
+        )
+
     try:
+        _rewrite_value(front_file, "dv_total_mps", 1.0)
+        with pytest.raises(StoreError, match=r"front\.parquet: changed since it was stored"):
+            again()
+        with pytest.raises(StoreError, match=r"front\.parquet: changed since it was stored"):
+            load_pipeline(result.directory)
+        # As if the stored result came from other code: consistent, but different.
+        summary = json.loads(stored[marker])
+        payload = front_file.read_bytes()
+        summary["files"]["front.parquet"] = {
+            "bytes": len(payload),
+            "sha256": hashlib.sha256(payload).hexdigest(),
+        }
+        marker.write_text(json.dumps(summary))
+        assert load_pipeline(result.directory).front.loc[0, "dv_total_mps"] == pytest.approx(
+            result.front.loc[0, "dv_total_mps"] + 1.0
+        )
         with pytest.raises(PipelineError, match="differs"):
-            run_pipeline(
-                small["scenario"],
-                small["doe"],
-                store=small["store"],
-                code=small["code"],
-                steps=PipelineSteps(evaluate=small["evaluate_run"]),
-            )
+            again()
         after = _digest(result.directory)
-        assert {k: v for k, v in after.items() if k != "front.parquet"} == {
-            k: v for k, v in before.items() if k != "front.parquet"
+        changed = {"front.parquet", "pipeline.json"}
+        assert {k: v for k, v in after.items() if k not in changed} == {
+            k: v for k, v in before.items() if k not in changed
         }
     finally:
-        atomic_parquet(front_file, result.front)
+        for path, payload in stored.items():
+            path.write_bytes(payload)
+    (result.directory / "verification.parquet").rename(result.directory / "moved.parquet")
+    try:
+        with pytest.raises(StoreError, match=r"verification\.parquet: missing"):
+            load_pipeline(result.directory)
+    finally:
+        (result.directory / "moved.parquet").rename(result.directory / "verification.parquet")
+    assert _digest(result.directory) == before
+
+
+def test_stored_pipeline_products_list_every_file_with_the_declared_schemas(small):
+    """pipeline.json, each fit's and each front's meta.json list every file of their
+    directory (size, SHA-256), plots included; the tables have the declared schemas."""
+    from ovtraj.pipeline.loop import FRONT_SCHEMA as VERIFIED_FRONT_SCHEMA
+    from ovtraj.pipeline.loop import VERIFICATION_SCHEMA
+    from ovtraj.pipeline.steps import FRONT_SCHEMA
+
+    result, doe = small["result"], small["doe"]
+    schemas = {
+        ("pipeline", "front.parquet"): VERIFIED_FRONT_SCHEMA,
+        ("pipeline", "verification.parquet"): VERIFICATION_SCHEMA,
+        ("fronts", "front.parquet"): FRONT_SCHEMA,
+    }
+    for folder, marker_name in (
+        ("surrogates", "meta.json"),
+        ("fronts", "meta.json"),
+        ("pipeline", "pipeline.json"),
+    ):
+        markers = sorted((doe.directory / folder).glob(f"*/{marker_name}"))
+        assert markers, folder
+        for marker in markers:
+            listed = json.loads(marker.read_text())["files"]
+            files = {
+                str(p.relative_to(marker.parent))
+                for p in marker.parent.rglob("*")
+                if p.is_file() and p != marker and "plans" not in p.parts
+            }
+            assert set(listed) == files
+            for name, recorded in listed.items():
+                payload = (marker.parent / name).read_bytes()
+                assert recorded == {
+                    "bytes": len(payload),
+                    "sha256": hashlib.sha256(payload).hexdigest(),
+                }
+                if (folder, name) in schemas:
+                    assert pq.read_schema(marker.parent / name).equals(schemas[folder, name])
+    report = doe.verify()
+    assert report.clean, report.problems
+    assert all("/plans/" in path for path in report.uncovered), report.uncovered
+    assert load_pipeline(result.directory).front.equals(result.front)
+
+
+def test_a_changed_surrogate_set_or_front_is_refused_naming_the_file(small):
+    from ovtraj.pipeline.features import load_surrogates
+
+    doe, scenario, code = small["doe"], small["scenario"], small["code"]
+    fitted = fit_step(doe, training_data(doe), scenario, code)
+    front = front_step(doe, fitted, scenario, code)
+    assert fitted.reused and front.reused
+    path = fitted.directory / "main" / "predictions.parquet"
+    original = path.read_bytes()
+    try:
+        _rewrite_value(path, "y_pred", 1.0)
+        with pytest.raises(SurrogateError, match=r"main/predictions\.parquet: changed"):
+            load_surrogates(fitted.directory)
+        with pytest.raises(SurrogateError, match=r"main/predictions\.parquet: changed"):
+            fit_step(doe, training_data(doe), scenario, code)
+        path.unlink()
+        with pytest.raises(SurrogateError, match=r"main/predictions\.parquet: missing"):
+            load_surrogates(fitted.directory)
+    finally:
+        path.write_bytes(original)
+    path = front.directory / "front.parquet"
+    original = path.read_bytes()
+    try:
+        _rewrite_value(path, "dv_total_mps", 1.0)
+        with pytest.raises(StoreError, match=r"front\.parquet: changed since it was stored"):
+            front_step(doe, fitted, scenario, code)
+        path.unlink()
+        with pytest.raises(StoreError, match=r"front\.parquet: missing"):
+            front_step(doe, fitted, scenario, code)
+    finally:
+        path.write_bytes(original)
+    assert fit_step(doe, training_data(doe), scenario, code).reused
+    assert front_step(doe, fitted, scenario, code).reused
+    # The optimize flow's artifact reads the stored front through the same check.
+    from flows.optimize import front_table
+    from ovtraj.pipeline.steps import front_frame
+
+    assert len(front_table(front_frame(front.directory))) == len(front.front)
+
+
+def test_any_verification_or_front_is_stored_with_the_declared_schema(tmp_path):
+    """NaN (a real value the chain did not reach) and all-null columns are nulls of the
+    declared type; no verified point at all is an empty table of the declared schema."""
+    from ovtraj.pipeline import loop
+    from ovtraj.records import table_from_frame
+
+    designs = {name: [300.0, 310.0] for name in DESIGN_NAMES}
+    front = pd.DataFrame(
+        {
+            "front_index": [0, 1],
+            "sample_id": [4, 9],
+            **designs,
+            **{name: [1.0, 2.0] for name in OBJECTIVES},
+            "origin": ["doe", "infill 1"],
+        }
+    )
+    verification = pd.DataFrame(
+        {
+            "iteration": [1, 1],
+            "sample_id": [20, 21],
+            **designs,
+            "real_feasible": [False, False],
+            "failed_stage": [None, None],
+            "front_index": [0, 3],
+            "p_feasible": [0.5, np.nan],
+            **{
+                f"{kind}_{name}": [np.nan, np.nan]
+                for name in OBJECTIVES
+                for kind in ("predicted", "real")
+            },
+            **{f"error_{name}": [1.0, 1.0] for name in OBJECTIVES},
+            "max_error": [1.0, 1.0],
+        }
+    )
+    summary = {"pipeline_id": "p", "doe_run": "d", "final_run": "f"}
+
+    def plot(path):
+        path.write_bytes(b"not really a plot")
+        return path
+
+    for name, rows in (("some", verification), ("none", verification.iloc[:0])):
+        directory = tmp_path / name
+        loop._store(
+            directory,
+            table_from_frame(front, loop.FRONT_SCHEMA, "front"),
+            table_from_frame(rows, loop.VERIFICATION_SCHEMA, "verification"),
+            summary,
+            plot,
+        )
+        assert pq.read_schema(directory / "front.parquet").equals(loop.FRONT_SCHEMA)
+        stored = pq.read_table(directory / "verification.parquet")
+        assert stored.schema.equals(loop.VERIFICATION_SCHEMA) and stored.num_rows == len(rows)
+        back = load_pipeline(directory)
+        assert back.verification["real_dv_total_mps"].isna().all()
+        assert back.verification["real_dv_total_mps"].dtype == np.float64
+        assert json.loads((directory / "pipeline.json").read_text())["files"]["front.png"]
 
 
 def test_target_draconic_period_against_the_propagated_orbit(scenario):

@@ -23,7 +23,6 @@ same interface (``predict``, ``feasibility``, ``cube``, names, tables).
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -33,8 +32,9 @@ import pandas as pd
 
 from ovtraj.astro.j2_elements import secular_rates, state_to_mean
 from ovtraj.config import Scenario
-from ovtraj.files import atomic_bytes, read_json
+from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.mission import DESIGN_NAMES
+from ovtraj.products import Product
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 from ovtraj.targets import target_state
 
@@ -42,6 +42,8 @@ KIND = "mission-phase-surrogates"
 WAIT = "rendezvous_wait_s"
 DV_PARTS = ("dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps")
 PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
+MARKER = "meta.json"
+PARTS = ("wait", "main")
 
 
 def target_draconic_period(scenario: Scenario) -> float:
@@ -111,11 +113,20 @@ class MissionSurrogates:
     def feasibility(self, designs: np.ndarray) -> np.ndarray:
         return self.main.feasibility(self.features(designs))
 
-    def save(self, directory: Path, *, meta: dict[str, Any]) -> None:
-        """``wait/`` and ``main/`` (each a stored set), then ``meta.json`` last."""
+    def save(
+        self,
+        directory: Path,
+        *,
+        meta: dict[str, Any],
+        views: dict[str, Digest] | None = None,
+    ) -> dict[str, Digest]:
+        """``wait/`` and ``main/`` (each a stored set), then ``meta.json`` last.
+
+        ``meta.json`` is the product's marker: it lists the digest of every file of both
+        parts (their own ``meta.json`` included) and of the ``views`` (plots already
+        written in ``directory``). Returns the digests, ``meta.json`` included.
+        """
         directory = Path(directory)
-        self.wait.save(directory / "wait", meta=meta)
-        self.main.save(directory / "main", meta=meta)
         content = {
             "kind": KIND,
             "period_s": self.period_s,
@@ -124,16 +135,31 @@ class MissionSurrogates:
             "selected": self.selected,
             **meta,
         }
-        atomic_bytes(directory / "meta.json", json.dumps(content, indent=2).encode())
+        with Product(directory, MARKER).writing() as out:
+            for name, part in (("wait", self.wait), ("main", self.main)):
+                # Until this marker is stored, a part's marker is an interrupted save's.
+                out.discard(f"{name}/{MARKER}")
+                for relative, digest in part.save(directory / name, meta=meta).items():
+                    out.add(f"{name}/{relative}", digest)
+            for name, digest in (views or {}).items():
+                out.add(name, digest)
+            out.finish(content)
+        return dict(out.files)
 
     @classmethod
     def load(cls, directory: Path) -> MissionSurrogates:
-        meta = read_json(Path(directory) / "meta.json")
+        """Read a set written by :meth:`save`, every file checked against ``meta.json``."""
+        product = Product(directory, MARKER)
+        try:
+            meta = product.marker()
+            digests = {name: product.digest(f"{name}/{MARKER}", meta) for name in PARTS}
+        except StoreError as err:
+            raise SurrogateError(str(err)) from None
         if meta.get("kind") != KIND:
-            raise SurrogateError(f"{directory / 'meta.json'}: not a {KIND} directory")
+            raise SurrogateError(f"{product.marker_path}: not a {KIND} directory")
         return cls(
-            SurrogateSet.load(Path(directory) / "wait"),
-            SurrogateSet.load(Path(directory) / "main"),
+            SurrogateSet.load(product.directory / "wait", digests["wait"]),
+            SurrogateSet.load(product.directory / "main", digests["main"]),
             meta["period_s"],
             np.asarray(meta["lower"]),
             np.asarray(meta["upper"]),
@@ -142,7 +168,11 @@ class MissionSurrogates:
 
 def load_surrogates(directory: Path) -> SurrogateSet | MissionSurrogates:
     """Whichever kind of set the directory holds."""
-    if read_json(Path(directory) / "meta.json").get("kind") == KIND:
+    try:
+        marker = read_json(Path(directory) / MARKER)
+    except StoreError as err:
+        raise SurrogateError(str(err)) from None
+    if isinstance(marker, dict) and marker.get("kind") == KIND:
         return MissionSurrogates.load(directory)
     return SurrogateSet.load(directory)
 

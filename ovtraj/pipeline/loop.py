@@ -26,7 +26,6 @@ and must give the same front; a different result is refused, never written over.
 from __future__ import annotations
 
 import datetime
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.config import Scenario
-from ovtraj.files import atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.files import file_digest
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import (
     Normalisation,
@@ -47,6 +46,7 @@ from ovtraj.optimize import (
 )
 from ovtraj.pipeline.data import training_data
 from ovtraj.pipeline.steps import (
+    OBJECTIVE_NAMES,
     FitOutcome,
     FrontOutcome,
     content_id,
@@ -54,8 +54,47 @@ from ovtraj.pipeline.steps import (
     front_step,
     unit_designs,
 )
+from ovtraj.products import Product
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
+
+MARKER = "pipeline.json"
+FRONT_FILE = "front.parquet"
+VERIFICATION_FILE = "verification.parquet"
+
+FRONT_SCHEMA = record_schema(
+    [
+        ("front_index", INT),
+        ("sample_id", INT),
+        *[(name, FLOAT) for name in DESIGN_NAMES],
+        *[(name, FLOAT) for name in OBJECTIVE_NAMES],
+        ("origin", TEXT),
+    ],
+    required=("front_index", "sample_id", *DESIGN_NAMES, "origin"),
+)
+"""``pipeline/<id>/front.parquet``: the verified front (real values) and each point's origin."""
+
+VERIFICATION_SCHEMA = record_schema(
+    [
+        ("iteration", INT),
+        ("sample_id", INT),
+        *[(name, FLOAT) for name in DESIGN_NAMES],
+        ("real_feasible", BOOL),
+        ("failed_stage", TEXT),
+        ("front_index", INT),
+        ("p_feasible", FLOAT),
+        *[
+            (f"{kind}_{name}", FLOAT)
+            for name in OBJECTIVE_NAMES
+            for kind in ("predicted", "real", "error")
+        ],
+        ("max_error", FLOAT),
+    ],
+    required=("iteration", "sample_id", *DESIGN_NAMES, "real_feasible", "front_index"),
+)
+"""``pipeline/<id>/verification.parquet``: each verified front point, predicted and real
+(null where the chain did not reach a value), and the errors."""
 
 
 class PipelineError(ValueError):
@@ -241,8 +280,14 @@ def _finish(
 ) -> PipelineResult:
     pid = pipeline_id(doe_run, scenario, code)
     directory = doe_run.directory / "pipeline" / pid
-    verification = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
-    front = verified_front(run, normalisation, verification)
+    verification = (
+        table_from_frame(pd.concat(rows, ignore_index=True), VERIFICATION_SCHEMA, "verification")
+        if rows
+        else VERIFICATION_SCHEMA.empty_table()
+    )
+    front = table_from_frame(
+        verified_front(run, normalisation, verification.to_pandas()), FRONT_SCHEMA, "front"
+    )
     summary = {
         "pipeline_id": pid,
         "doe_run": doe_run.id,
@@ -252,27 +297,35 @@ def _finish(
         "stop_reason": stop,
         "converged": stop in ("converged", "front already evaluated"),
         "real_evaluations": {"doe": len(doe_run.samples()), "infill": spent},
-        "front_points": len(front),
+        "front_points": front.num_rows,
         "hypervolume": hypervolume(
-            normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
+            normalisation.normalise(
+                front.select(list(normalisation.names)).to_pandas().to_numpy(dtype=float)
+            )
         ),
         "reference_point": normalisation.reference.tolist(),
         "ideal_point": normalisation.ideal.tolist(),
         "iterations": iterations,
     }
-    _store(directory, front, verification, summary)
-    from ovtraj.plots.front import front_plot
-
     totals = run.totals()
-    front_plot(
-        directory / "front.png",
-        normalisation,
-        samples=totals[totals["feasible"].astype(bool)],
-        verified=front,
-        title=f"verified front: pipeline {pid}, run {run.id}",
+
+    def plot(path: Path) -> Path:
+        from ovtraj.plots.front import front_plot
+
+        return front_plot(
+            path,
+            normalisation,
+            samples=totals[totals["feasible"].astype(bool)],
+            verified=front.to_pandas(),
+            title=f"verified front: pipeline {pid}, run {run.id}",
+        )
+
+    _store(directory, front, verification, summary, plot)
+    hv = summary["hypervolume"]
+    say(f"verified front: {front.num_rows} points, hypervolume {hv:.4f} ({stop})")
+    return PipelineResult(
+        pid, directory, doe_run.id, run.id, front.to_pandas(), verification.to_pandas(), summary
     )
-    say(f"verified front: {len(front)} points, hypervolume {summary['hypervolume']:.4f} ({stop})")
-    return PipelineResult(pid, directory, doe_run.id, run.id, front, verification, summary)
 
 
 def verified_front(
@@ -300,37 +353,54 @@ def verified_front(
 
 
 def _store(
-    directory: Path, front: pd.DataFrame, verification: pd.DataFrame, summary: dict[str, Any]
-) -> None:
-    """Write the outputs; an existing different result is refused, not overwritten."""
-    marker = directory / "pipeline.json"
-    if marker.is_file():
-        previous = read_json(marker)
-        stored_front = read_parquet(directory / "front.parquet")
+    directory: Path,
+    front: Any,
+    verification: Any,
+    summary: dict[str, Any],
+    plot: Callable[[Path], Path],
+) -> bool:
+    """Write the outputs, ``pipeline.json`` last; returns False when they were stored.
+
+    A stored result of the same inputs must be the same (front and final run): a
+    different one is refused (:class:`PipelineError`), never written over.
+    """
+    product = Product(directory, MARKER)
+
+    def check_stored() -> None:
+        previous = product.marker()
+        stored_front = product.read_table(FRONT_FILE, FRONT_SCHEMA, previous)
         if not stored_front.equals(front) or previous.get("final_run") != summary["final_run"]:
             raise PipelineError(
                 f"{directory}: the stored pipeline result differs from this one "
                 "(same inputs, different result): not overwritten"
             )
-        return
-    atomic_parquet(directory / "front.parquet", front)
-    if len(verification):
-        atomic_parquet(directory / "verification.parquet", verification)
-    summary = summary | {
-        "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-    }
-    atomic_bytes(marker, json.dumps(summary, indent=2, default=str).encode())
+
+    if product.exists():
+        check_stored()
+        return False
+    with product.writing() as out:
+        if out.complete:  # stored meanwhile by another process
+            check_stored()
+            return False
+        out.write_table(FRONT_FILE, front, FRONT_SCHEMA)
+        out.write_table(VERIFICATION_FILE, verification, VERIFICATION_SCHEMA)
+        path = plot(directory / "front.png")
+        out.add(path.name, file_digest(path))
+        created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+        out.finish(summary | {"created_utc": created})
+    return True
 
 
 def load_pipeline(directory: Path) -> PipelineResult:
-    summary = read_json(directory / "pipeline.json")
-    path = directory / "verification.parquet"
+    """A stored pipeline result; every file checked (StoreError names a changed one)."""
+    product = Product(directory, MARKER)
+    summary = product.marker()
     return PipelineResult(
         summary["pipeline_id"],
-        directory,
+        Path(directory),
         summary["doe_run"],
         summary["final_run"],
-        read_parquet(directory / "front.parquet"),
-        read_parquet(path) if path.is_file() else pd.DataFrame(),
+        product.read_frame(FRONT_FILE, FRONT_SCHEMA, summary),
+        product.read_frame(VERIFICATION_FILE, VERIFICATION_SCHEMA, summary),
         summary,
     )

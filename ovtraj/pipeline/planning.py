@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.config import Scenario
+from ovtraj.files import read_json
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, STAGES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
@@ -14,31 +15,38 @@ from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.runs import Run, RunStore
 
 
-def pipeline_results(run: Run) -> list[PipelineResult]:
-    """The pipeline results stored in a DoE run, oldest first."""
+def _stored_pipelines(run: Run) -> list[tuple[Path, dict[str, Any]]]:
+    """(directory, ``pipeline.json``) of every complete pipeline result, oldest first."""
     folder = run.directory / "pipeline"
-    found = (
-        [load_pipeline(d) for d in sorted(folder.iterdir()) if (d / "pipeline.json").is_file()]
-        if folder.is_dir()
-        else []
-    )
-    return sorted(found, key=lambda r: r.summary.get("created_utc") or "")
+    found = []
+    for directory in sorted(folder.iterdir()) if folder.is_dir() else []:
+        marker = directory / "pipeline.json"
+        if marker.is_file():
+            summary = read_json(marker)
+            if isinstance(summary, dict):
+                found.append((directory, summary))
+    return sorted(found, key=lambda item: item[1].get("created_utc") or "")
+
+
+def pipeline_results(run: Run) -> list[PipelineResult]:
+    """The pipeline results stored in a DoE run, oldest first (every file checked)."""
+    return [load_pipeline(directory) for directory, _ in _stored_pipelines(run)]
 
 
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
-    """The run's pipeline result: the one named, else the newest."""
-    results = pipeline_results(run)
-    if not results:
+    """The run's pipeline result: the one named, else the newest (its files checked)."""
+    stored = _stored_pipelines(run)
+    if not stored:
         raise PipelineError(
             f"run {run.id} has no pipeline result: run `ovtraj pipeline` (or the mission "
             "flow) on it first"
         )
     if pipeline is None:
-        return results[-1]
-    for result in results:
-        if result.pipeline_id == pipeline:
-            return result
-    known = ", ".join(r.pipeline_id for r in results)
+        return load_pipeline(stored[-1][0])
+    for directory, summary in stored:
+        if summary.get("pipeline_id") == pipeline:
+            return load_pipeline(directory)
+    known = ", ".join(str(summary.get("pipeline_id")) for _, summary in stored)
     raise PipelineError(f"run {run.id} has no pipeline {pipeline!r}; it has {known}")
 
 

@@ -4,8 +4,12 @@ Layout inside a run's directory::
 
     surrogates/<fit_id>/    the fitted set (ovtraj.surrogate): models, meta.json,
                             validation.parquet, predictions.parquet, parity-*.png
-    fronts/<front_id>/      front.parquet (designs, predicted objectives, p_feasible),
-                            meta.json (hypervolume, NSGA-II figures), front.png
+    fronts/<front_id>/      front.parquet (designs, predicted objectives, p_feasible;
+                            :data:`FRONT_SCHEMA`), front.png, meta.json (hypervolume,
+                            NSGA-II figures)
+
+Each ``meta.json`` is written last and lists the size and SHA-256 of every file of its
+directory (:mod:`ovtraj.products`); readers check them and the declared schemas.
 
 ``fit_id`` hashes the training data (:func:`ovtraj.surrogate.training_data_hash`),
 the design bounds, the surrogate settings and the code version; ``front_id`` the
@@ -24,20 +28,38 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 
 from ovtraj.config import Scenario
-from ovtraj.files import atomic_bytes, atomic_parquet, read_json, read_parquet
+from ovtraj.files import file_digest
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
+from ovtraj.optimize.objectives import MISSION_OBJECTIVES
 from ovtraj.pipeline.data import TrainingData
 from ovtraj.pipeline.features import (
     MissionSurrogates,
     fit_mission_surrogates,
     load_surrogates,
 )
+from ovtraj.products import Product
+from ovtraj.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.runs import Run
 from ovtraj.runs.doe import bounds_arrays
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash
+
+OBJECTIVE_NAMES = tuple(o.name for o in MISSION_OBJECTIVES)
+FRONT_SCHEMA = record_schema(
+    [
+        ("front_index", INT),
+        *[(name, FLOAT) for name in DESIGN_NAMES],
+        *[(name, FLOAT) for name in OBJECTIVE_NAMES],
+        ("p_feasible", FLOAT),
+    ],
+    required=("front_index", *DESIGN_NAMES),
+)
+"""``fronts/<front_id>/front.parquet``: the surrogate front (predicted objectives)."""
+MARKER = "meta.json"
+FRONT_FILE = "front.parquet"
 
 
 def content_id(content: dict[str, Any]) -> str:
@@ -99,9 +121,12 @@ def fit_step(
     if not stored:
         from ovtraj.plots.surrogate import parity_plots
 
-        for part in parts:
-            parity_plots(part, directory)
-        surrogates.save(directory, meta={"run_id": run.id, "fit_id": fit_id, "code": code})
+        plots = [path for part in parts for path in parity_plots(part, directory)]
+        surrogates.save(
+            directory,
+            meta={"run_id": run.id, "fit_id": fit_id, "code": code},
+            views={path.name: file_digest(path) for path in plots},
+        )
     return FitOutcome(surrogates, directory, fit_id, reused=False)
 
 
@@ -114,15 +139,15 @@ def front_step(
     front_id = content_id(
         {"fit": fit.fit_id, "settings": settings.model_dump(mode="json"), "code": code}
     )
-    directory = run.directory / "fronts" / front_id
-    stored = (directory / "meta.json").is_file()
-    if stored and not refit:
+    product = Product(run.directory / "fronts" / front_id, MARKER)
+    directory = product.directory
+    if product.exists() and not refit:
         return FrontOutcome(load_front(directory, normalisation), directory, front_id, True)
     initial = _real_front_designs(run, normalisation) if settings.seed_with_real_front else None
     front = surrogate_front(fit.surrogates, normalisation, settings, initial=initial)
-    if stored:
-        previous = read_parquet(directory / "front.parquet")
-        same = previous.equals(front.to_frame())
+    table = table_from_frame(front.to_frame(), FRONT_SCHEMA, "surrogate front")
+    if product.exists():
+        same = _front_table(product).equals(table)
         return FrontOutcome(front, directory, front_id, False, matches_stored=same)
     meta = {
         "front_id": front_id,
@@ -134,23 +159,39 @@ def front_step(
         "nsga2": front.info,
         "settings": settings.model_dump(mode="json"),
     }
-    atomic_parquet(directory / "front.parquet", front.to_frame())
     from ovtraj.plots.front import front_plot
 
-    front_plot(
-        directory / "front.png",
-        normalisation,
-        surrogate=front.predicted,
-        samples=_feasible_totals(run),
-        title=f"surrogate front {front_id} (run {run.id})",
-    )
-    atomic_bytes(directory / "meta.json", json.dumps(meta, indent=2).encode())
+    with product.writing() as out:
+        if out.complete:  # stored meanwhile by another process: compare with it
+            same = _front_table(product).equals(table)
+            return FrontOutcome(front, directory, front_id, False, matches_stored=same)
+        out.write_table(FRONT_FILE, table, FRONT_SCHEMA)
+        plot = front_plot(
+            directory / "front.png",
+            normalisation,
+            surrogate=front.predicted,
+            samples=_feasible_totals(run),
+            title=f"surrogate front {front_id} (run {run.id})",
+        )
+        out.add(plot.name, file_digest(plot))
+        out.finish(meta)
     return FrontOutcome(front, directory, front_id, reused=False)
 
 
+def _front_table(product: Product) -> pa.Table:
+    return product.read_table(FRONT_FILE, FRONT_SCHEMA, product.marker())
+
+
+def front_frame(directory: Path) -> pd.DataFrame:
+    """A stored surrogate front's table (checked against its ``meta.json``)."""
+    return _front_table(Product(directory, MARKER)).to_pandas()
+
+
 def load_front(directory: Path, normalisation: Normalisation) -> SurrogateFront:
-    frame = read_parquet(directory / "front.parquet")
-    meta = read_json(directory / "meta.json")
+    """A stored surrogate front; every file checked (StoreError names a changed one)."""
+    product = Product(directory, MARKER)
+    meta = product.marker()
+    frame = product.read_frame(FRONT_FILE, FRONT_SCHEMA, meta)
     predicted = frame[list(normalisation.names)].reset_index(drop=True)
     return SurrogateFront(
         designs=frame[list(DESIGN_NAMES)].reset_index(drop=True),
