@@ -29,7 +29,7 @@ import pytest
 from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA
 from ovtraj.deorbit.burn.store import MonteCarloRun
 from ovtraj.files import StoreError
-from ovtraj.products import Product
+from ovtraj.products import Product, directory_lock
 
 NAN = np.float64(math.nan)
 
@@ -163,6 +163,19 @@ def test_product_marker_is_written_last_and_lists_every_file(tmp_path):
         assert out.complete
         with pytest.raises(StoreError, match=r"table\.parquet: already stored"):
             out.write_table("table.parquet", table.slice(1), schema)
+
+
+def test_one_writer_at_a_time(tmp_path):
+    """The product's lock is a flock on its directory: a second writer waits, then gives
+    up naming the directory; nothing is left behind once released."""
+    product = Product(tmp_path / "p", "marker.json")
+    with directory_lock(product.directory):
+        with pytest.raises(StoreError, match=r"p: another process is still writing it"):
+            with product.writing(wait_s=0.2):
+                pass
+    with product.writing(wait_s=0.2) as out:
+        out.finish({})
+    assert sorted(p.name for p in product.directory.iterdir()) == ["marker.json"]
 
 
 def test_a_marker_without_digests_is_refused_naming_it(tmp_path):
