@@ -40,6 +40,7 @@ __all__ = [
     "StoreError",
     "file_digest",
     "os_error_text",
+    "parquet_bytes",
     "read_bytes",
     "read_json",
     "read_parquet",

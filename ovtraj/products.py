@@ -22,9 +22,6 @@ is a no-op and other content is refused, as for every stored file.
 
 from __future__ import annotations
 
-import fcntl
-import os
-import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -44,12 +41,12 @@ from ovtraj.files import (
     write_json,
     write_parquet,
 )
+from ovtraj.locks import hold_directory
 
 __all__ = ["Product", "ProductWriter", "digests_json", "directory_lock"]
 
 # How long a writer waits for another process writing the same product.
 LOCK_WAIT_S = 600.0
-_POLL_S = 0.05
 
 
 def digests_json(files: Mapping[str, Digest]) -> dict[str, dict[str, Any]]:
@@ -161,25 +158,6 @@ class ProductWriter:
 
 @contextmanager
 def directory_lock(directory: Path, wait_s: float = LOCK_WAIT_S) -> Iterator[None]:
-    """Exclusive ``flock`` on the directory itself (created if needed); StoreError naming
-    the directory when another process still holds it after ``wait_s``."""
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError as err:
-        raise StoreError(f"cannot write {directory}: {os_error_text(err)}") from None
-    try:
-        deadline = time.monotonic() + wait_s
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    raise StoreError(
-                        f"{directory}: another process is still writing it after {wait_s:g} s"
-                    ) from None
-                time.sleep(_POLL_S)
+    """Exclusive lock on the product directory itself (:func:`ovtraj.locks.hold_directory`)."""
+    with hold_directory(directory, wait_s=wait_s):
         yield
-    finally:
-        os.close(fd)  # releases the lock

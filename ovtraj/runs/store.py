@@ -63,6 +63,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from ovtraj import locks
 from ovtraj.files import (
     TEMPORARY_SUFFIX,
     Digest,
@@ -78,7 +79,6 @@ from ovtraj.files import (
 )
 from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.records import table_from_frame, table_from_rows
-from ovtraj.runs import locks
 from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
 
 __all__ = ["DEFAULT_ROOT", "Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
@@ -316,7 +316,7 @@ class Run:
 
     @contextmanager
     def claim(self, batch: int, *, wait_s: float = 0.0) -> Iterator[bool]:
-        """Claim batch ``batch`` for this process (see :func:`ovtraj.runs.locks.hold`).
+        """Claim batch ``batch`` for this process (see :func:`ovtraj.locks.hold`).
 
         Whoever holds the claim may compute and write the batch; it first clears what
         an interrupted attempt left of it (files that no marker covers).

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ovtraj.files import StoreError, os_error_text
 
-__all__ = ["held", "hold"]
+__all__ = ["held", "hold", "hold_directory"]
 
 _POLL_S = 0.05
 
@@ -39,6 +39,19 @@ def _holder(path: Path) -> str:
     return text or "another process"
 
 
+def _acquire(fd: int, mode: int, wait_s: float) -> bool:
+    """Try ``flock`` until it succeeds or ``wait_s`` has passed (0: once)."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            fcntl.flock(fd, mode | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(_POLL_S)
+
+
 @contextmanager
 def hold(path: Path, *, shared: bool = False, wait_s: float = 0.0) -> Iterator[bool]:
     """Hold the lock at ``path`` for the ``with`` block; yields whether it was acquired.
@@ -48,19 +61,9 @@ def hold(path: Path, *, shared: bool = False, wait_s: float = 0.0) -> Iterator[b
     exclusive holder records its host and process id in the file.
     """
     fd = _open(path)
-    mode = (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB
-    deadline = time.monotonic() + wait_s
     acquired = False
     try:
-        while True:
-            try:
-                fcntl.flock(fd, mode)
-                acquired = True
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    break
-                time.sleep(_POLL_S)
+        acquired = _acquire(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX, wait_s)
         if not acquired and wait_s > 0:
             raise StoreError(f"{path}: still held by {_holder(path)} after {wait_s:g} s")
         if acquired and not shared:
@@ -71,6 +74,26 @@ def hold(path: Path, *, shared: bool = False, wait_s: float = 0.0) -> Iterator[b
         if acquired:
             fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
+
+
+@contextmanager
+def hold_directory(directory: Path, *, wait_s: float) -> Iterator[None]:
+    """Hold an exclusive lock on ``directory`` itself (created if needed; no lock file).
+
+    Raises :class:`StoreError` naming the directory when another process still
+    holds it after ``wait_s``.
+    """
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError as err:
+        raise StoreError(f"cannot write {directory}: {os_error_text(err)}") from None
+    try:
+        if not _acquire(fd, fcntl.LOCK_EX, wait_s):
+            raise StoreError(f"{directory}: another process is still writing it after {wait_s:g} s")
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def held(path: Path) -> bool:
