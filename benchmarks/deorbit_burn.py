@@ -103,8 +103,9 @@ def main() -> None:
         start = time.perf_counter()
         report = deorbit_monte_carlo_flow(str(config))
         wall = time.perf_counter() - start
-    frame = MonteCarloRun(Path(report["directory"])).results()
-    per_run = frame.groupby("run")["wall_time_s"].max().to_numpy()
+    stored = MonteCarloRun(Path(report["directory"]))
+    frame, timing = stored.results(), stored.timing()
+    per_run = timing.groupby("run")["wall_time_s"].max().to_numpy()
     busy = float(per_run.sum()) / workers
     print(
         f"  Monte Carlo flow, {runs} runs x {len(report['strategies'])} strategies, {workers} "

@@ -44,7 +44,7 @@ from ovtraj.deorbit.burn import (
 )
 from ovtraj.deorbit.burn.flight import initial_state
 from ovtraj.deorbit.burn.intersection import intersection_coefficients, intersection_roots
-from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA, draw_dispersion
+from ovtraj.deorbit.burn.montecarlo import STORED_RUN_SCHEMA, draw_dispersion
 from ovtraj.deorbit.burn.prediction import perigee_radius, predict_entry
 from ovtraj.deorbit.burn.solve import BurnSolver
 from ovtraj.deorbit.burn.store import MonteCarloRun, monte_carlo_run_id
@@ -434,7 +434,7 @@ def test_monte_carlo_flow_stores_every_run_with_the_schema(ten_runs):
     parts = sorted((run.directory / "runs").glob("part-*.parquet"))
     assert len(parts) == 2
     for part in parts:
-        assert pq.read_schema(part).remove_metadata().equals(RUN_SCHEMA)
+        assert pq.read_schema(part).remove_metadata().equals(STORED_RUN_SCHEMA)
     frame = run.results()
     assert len(frame) == 20 and frame["ok"].all()
     assert sorted(set(frame["run"])) == list(range(10))

@@ -26,7 +26,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA
+from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA, STORED_RUN_SCHEMA
 from ovtraj.deorbit.burn.store import MonteCarloRun
 from ovtraj.files import StoreError
 from ovtraj.products import Product, directory_lock
@@ -234,9 +234,14 @@ def test_monte_carlo_store_markers_list_digests_and_results_are_checked(mc_run):
             "sha256": hashlib.sha256(payload).hexdigest(),
         }
     }
+    # The timing is in the marker, not in the results.
+    assert [row[:2] for row in marker["timing"]["wall_time_s"]] == [
+        [r, s] for r in (0, 1, 2) for s in (1, 2)
+    ]
+    assert len(run.timing()) == 10 and "wall_time_s" not in run.results()
     # The declared schema whatever the data: "reason" all null in batch 3, NaN as null.
     for path in (part, run.directory / "runs" / "part-00003.parquet"):
-        assert pq.read_schema(path).equals(RUN_SCHEMA)
+        assert pq.read_schema(path).equals(STORED_RUN_SCHEMA)
     stored = pq.read_table(part)
     assert stored.column("entry_u_error_deg").null_count == 2
     frame = run.results()

@@ -28,7 +28,7 @@ from ovtraj.surrogate import (
 )
 from ovtraj.surrogate import candidates as candidates_module
 from ovtraj.surrogate import validation as validation_module
-from ovtraj.surrogate.fit import PREDICTIONS_SCHEMA, VALIDATION_SCHEMA
+from ovtraj.surrogate.fit import PREDICTIONS_SCHEMA, STORED_VALIDATION_SCHEMA
 from ovtraj.surrogate.validation import holdout_mask
 
 NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
@@ -353,7 +353,7 @@ def test_stored_tables_have_the_declared_schemas_and_every_file_is_checked(fitte
     # The declared schemas, whatever the data: "error" is all null, the classifier
     # metrics are null in the regressor rows.
     assert fit.validation["error"].isna().all()
-    assert pq.read_schema(directory / "validation.parquet").equals(VALIDATION_SCHEMA)
+    assert pq.read_schema(directory / "validation.parquet").equals(STORED_VALIDATION_SCHEMA)
     assert pq.read_schema(directory / "predictions.parquet").equals(PREDICTIONS_SCHEMA)
     # Saving the same set again is a no-op; other content is refused, nothing replaced.
     before = {p.name: p.read_bytes() for p in directory.iterdir()}
@@ -427,6 +427,20 @@ def test_fit_is_deterministic(fitted, settings):
     )
     pd.testing.assert_frame_equal(again.predictions, fit.predictions)
     assert again.selected == fit.selected and again.data_hash == fit.data_hash
+
+
+def test_two_fits_of_the_same_data_store_identical_tables(fitted, settings, tmp_path):
+    """Timing is kept in meta.json, not in the tables, and comes back on load."""
+    fit, (x, outputs, feasible, ids) = fitted
+    again = fit_surrogates(
+        x, outputs, feasible, LOWER, UPPER, settings, input_names=NAMES, sample_ids=ids
+    )
+    for name, surrogates in (("a", fit), ("b", again)):
+        surrogates.save(tmp_path / name, meta={})
+    for table in ("validation.parquet", "predictions.parquet"):
+        assert (tmp_path / "a" / table).read_bytes() == (tmp_path / "b" / table).read_bytes()
+    loaded = SurrogateSet.load(tmp_path / "a")
+    pd.testing.assert_series_equal(loaded.validation["fit_time_s"], fit.validation["fit_time_s"])
 
 
 # -- errors and failing candidates --------------------------------------------------------

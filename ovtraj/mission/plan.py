@@ -37,6 +37,7 @@ from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.files import write_bytes
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission.chain import MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.records import json_text
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS
 from ovtraj.reentry.model import EntryModel
@@ -606,20 +607,12 @@ def _bank_profile(
 
 
 def _json_data(value: Any) -> Any:
-    """Plain JSON data (numpy scalars and arrays converted); raises PlanError otherwise."""
+    """Plain JSON data (:func:`ovtraj.records.json_text`); raises PlanError otherwise."""
     try:
-        text = json.dumps(value, allow_nan=False, default=_json_default)
+        text = json_text(value, indent=None)
     except (TypeError, ValueError) as err:
         raise PlanError(f"plan content is not JSON data: {err}") from None
     return json.loads(text)
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON data")
 
 
 # --- storing and reading ----------------------------------------------------------------

@@ -72,6 +72,7 @@ from ovtraj.surrogate.validation import (
 __all__ = [
     "FEASIBLE",
     "PREDICTIONS_SCHEMA",
+    "STORED_VALIDATION_SCHEMA",
     "VALIDATION_SCHEMA",
     "SurrogateSet",
     "fit_surrogates",
@@ -110,7 +111,10 @@ VALIDATION_SCHEMA = record_schema(
     ],
     required=("model", "kind", "candidate", "selected"),
 )
-"""``validation.parquet``: one row per (model, candidate); an undefined metric is null."""
+"""The validation table: one row per (model, candidate); an undefined metric is null."""
+STORED_VALIDATION_SCHEMA = pa.schema([f for f in VALIDATION_SCHEMA if f.name != "fit_time_s"])
+"""``validation.parquet``: the validation table without ``fit_time_s`` (timing, kept in
+``meta.json``), so that two fits of the same data write identical tables."""
 PREDICTIONS_SCHEMA = record_schema(
     [
         ("model", TEXT),
@@ -160,6 +164,16 @@ def _validation_frame(table: pa.Table) -> pd.DataFrame:
         values = frame[column].astype(object)
         frame[column] = values.where(values.notna(), None).astype(object)
     return frame
+
+
+def _with_fit_times(stored: pa.Table, meta: dict[str, Any]) -> pa.Table:
+    """The stored validation table with ``fit_time_s`` from the marker's timing record."""
+    times = {(m, c): t for m, c, t in meta.get("timing", {}).get("fit_time_s", [])}
+    models, candidates = stored.column("model").to_pylist(), stored.column("candidate").to_pylist()
+    keys = zip(models, candidates, strict=True)
+    column = pa.array([times.get(key) for key in keys], type=pa.float64())
+    index = VALIDATION_SCHEMA.get_field_index("fit_time_s")
+    return stored.add_column(index, VALIDATION_SCHEMA.field("fit_time_s"), column)
 
 
 def _validation_table(rows: list[dict[str, Any]]) -> pa.Table:
@@ -281,7 +295,7 @@ class SurrogateSet:
             "upper": np.asarray(self.cube.upper).tolist(),
             "versions": _versions(),
         }
-        reserved = {*own, "files"}
+        reserved = {*own, "files", "timing"}
         clash = sorted(reserved & set(meta))
         if clash:
             raise SurrogateError(
@@ -294,11 +308,19 @@ class SurrogateSet:
         except (TypeError, ValueError) as err:
             raise SurrogateError(f"save: meta is not JSON-serialisable ({err})") from None
         payload = pickle.dumps(self._state(), protocol=pickle.HIGHEST_PROTOCOL)
-        validation = table_from_frame(self.validation, VALIDATION_SCHEMA, "validation")
+        validation = table_from_frame(
+            self.validation.drop(columns="fit_time_s"), STORED_VALIDATION_SCHEMA, "validation"
+        )
+        document["timing"] = {
+            "fit_time_s": [
+                [row.model, row.candidate, None if pd.isna(row.fit_time_s) else row.fit_time_s]
+                for row in self.validation.itertuples(index=False)
+            ]
+        }
         predictions = _predictions_table(self.predictions)
         with Product(directory, META_FILE).writing() as out:
             out.write_bytes(MODELS_FILE, payload)
-            out.write_table(VALIDATION_FILE, validation, VALIDATION_SCHEMA)
+            out.write_table(VALIDATION_FILE, validation, STORED_VALIDATION_SCHEMA)
             out.write_table(PREDICTIONS_FILE, predictions, PREDICTIONS_SCHEMA)
             for name, digest in (views or {}).items():
                 out.add(name, digest)
@@ -334,9 +356,8 @@ class SurrogateSet:
             raise SurrogateError(f"{meta_path}: corrupt or outdated content ({err})") from None
         try:
             blob = product.read_bytes(MODELS_FILE, meta)
-            validation = _validation_frame(
-                product.read_table(VALIDATION_FILE, VALIDATION_SCHEMA, meta)
-            )
+            stored = product.read_table(VALIDATION_FILE, STORED_VALIDATION_SCHEMA, meta)
+            validation = _validation_frame(_with_fit_times(stored, meta))
             predictions = product.read_frame(PREDICTIONS_FILE, PREDICTIONS_SCHEMA, meta)
         except StoreError as err:
             raise SurrogateError(str(err)) from None

@@ -46,6 +46,8 @@ from ovtraj.deorbit.burn.solve import BurnSolver
 __all__ = [
     "RUN_SCHEMA",
     "SIMULATIONS",
+    "STORED_RUN_SCHEMA",
+    "TIMING_COLUMNS",
     "MonteCarloContext",
     "RunDispersion",
     "draw_dispersion",
@@ -86,6 +88,13 @@ RUN_SCHEMA = pa.schema(
         ("wall_time_s", pa.float64()),
     ]
 )
+
+TIMING_COLUMNS = ("wall_time_s",)
+"""Columns of ``RUN_SCHEMA`` that time the run rather than describe its result."""
+
+STORED_RUN_SCHEMA = pa.schema([f for f in RUN_SCHEMA if f.name not in TIMING_COLUMNS])
+"""The stored rows: ``RUN_SCHEMA`` without timing (kept in the batch markers), so that two
+Monte Carlo runs of one problem and seed write byte-identical files."""
 
 _TWO_PI = 2.0 * math.pi
 

@@ -7,7 +7,8 @@ Layout::
                                 status, batches, the size and SHA-256 of config.json (not
                                 ``manifest.json``: the DoE run catalog lists only its own runs)
     runs/part-<k>.parquet       the batch starting at run k: one row per run and strategy,
-                                exactly of ``RUN_SCHEMA`` (NaN stored as null)
+                                exactly of ``STORED_RUN_SCHEMA`` (NaN stored as null;
+                                the rows' wall times are in the batch marker)
     batches/<k>.json            written last: that batch is complete; its run numbers and the
                                 size and SHA-256 of its part (``"files"``)
     summary.json                dispersion statistics per strategy and the published figures
@@ -35,7 +36,7 @@ from typing import Any
 import pandas as pd
 import pyarrow as pa
 
-from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA
+from ovtraj.deorbit.burn.montecarlo import STORED_RUN_SCHEMA, TIMING_COLUMNS
 from ovtraj.files import (
     Digest,
     StoreError,
@@ -211,6 +212,9 @@ class MonteCarloRun:
     def write_batch(self, batch: int, frame: pd.DataFrame) -> bool:
         """Store a batch's rows (``RUN_SCHEMA``); False (nothing written) if already stored.
 
+        The results go to the part (``STORED_RUN_SCHEMA``), the timing columns to the
+        marker (:meth:`timing`).
+
         ``batch`` is the batch's first run number, so that batches of another size never
         collide with stored ones (only runs without a complete batch are submitted again).
         The part is written first, then its marker with the part's digest. A part without
@@ -219,7 +223,17 @@ class MonteCarloRun:
         marker = self.directory / "batches" / f"{batch:05d}.json"
         if marker.exists():
             return False
-        table = table_from_frame(frame.reset_index(drop=True), RUN_SCHEMA, "monte carlo runs")
+        frame = frame.reset_index(drop=True)
+        timing = {
+            column: [
+                [int(r), int(s), float(t)]
+                for r, s, t in zip(frame["run"], frame["strategy"], frame[column], strict=True)
+            ]
+            for column in TIMING_COLUMNS
+            if column in frame
+        }
+        stored = frame.drop(columns=[c for c in TIMING_COLUMNS if c in frame])
+        table = table_from_frame(stored, STORED_RUN_SCHEMA, "monte carlo runs")
         runs = sorted({int(r) for r in frame["run"]})
         # The batches folder is the lock of batch writes: a part and its marker are
         # written together, one writer at a time (a part takes milliseconds to write).
@@ -231,8 +245,13 @@ class MonteCarloRun:
                 part.unlink(missing_ok=True)  # left by an interrupted write
             except OSError as err:
                 raise StoreError(f"cannot remove {part}: {os_error_text(err)}") from None
-            digest = write_parquet(part, table, RUN_SCHEMA)
-            content = {"batch": batch, "runs": runs, "files": {part_name(batch): digest.to_json()}}
+            digest = write_parquet(part, table, STORED_RUN_SCHEMA)
+            content = {
+                "batch": batch,
+                "runs": runs,
+                "files": {part_name(batch): digest.to_json()},
+                "timing": timing,  # [run, strategy, seconds] per row
+            }
             write_json(marker, content)
         return True
 
@@ -242,11 +261,23 @@ class MonteCarloRun:
         for marker in self._markers().values():
             for relative, digest in marker["files"].items():
                 tables.append(
-                    read_table(self.directory / relative, Digest.from_json(digest), RUN_SCHEMA)
+                    read_table(
+                        self.directory / relative, Digest.from_json(digest), STORED_RUN_SCHEMA
+                    )
                 )
         if not tables:
-            return RUN_SCHEMA.empty_table().to_pandas()
+            return STORED_RUN_SCHEMA.empty_table().to_pandas()
         frame = pa.concat_tables(tables).to_pandas()
+        return frame.sort_values(["run", "strategy"], kind="stable").reset_index(drop=True)
+
+    def timing(self) -> pd.DataFrame:
+        """The stored rows' wall times (run, strategy, ``wall_time_s``) from the batch markers."""
+        rows = [
+            (run, strategy, seconds)
+            for marker in self._markers().values()
+            for run, strategy, seconds in marker.get("timing", {}).get("wall_time_s", [])
+        ]
+        frame = pd.DataFrame(rows, columns=["run", "strategy", "wall_time_s"])
         return frame.sort_values(["run", "strategy"], kind="stable").reset_index(drop=True)
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
