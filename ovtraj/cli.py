@@ -736,6 +736,7 @@ def pipeline(
     from functools import partial
 
     from ovtraj.pipeline import (
+        OptimiserStopped,
         PipelineError,
         PipelineSteps,
         fit_step,
@@ -782,6 +783,9 @@ def pipeline(
         )
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, fit, store, result, chosen)
+    except OptimiserStopped as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
     except (StoreError, PipelineError, SurrogateError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
@@ -802,7 +806,13 @@ def optimize(
     store_root: StoreOpt = None,
 ) -> None:
     """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation)."""
-    from ovtraj.pipeline import PipelineError, fit_step, front_step, training_data
+    from ovtraj.pipeline import (
+        OptimiserStopped,
+        PipelineError,
+        fit_step,
+        front_step,
+        training_data,
+    )
     from ovtraj.runs import StoreError
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
@@ -813,6 +823,9 @@ def optimize(
         code = code_version()
         fitted = fit_step(stored, training_data(stored), scenario, code, refit=refit)
         front = front_step(stored, fitted, scenario, code, refit=refit)
+    except OptimiserStopped as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
     except (StoreError, PipelineError, SurrogateError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None

@@ -283,3 +283,16 @@ def test_a_huge_reference_area_is_refused_quickly_by_the_cli(tmp_path):
     assert "vehicle.reference_area_m2 = '1e30': out of range, allowed (0, 1000] m^2" in (
         result.output
     )
+
+
+def test_the_earth_model_file_refuses_a_bool_for_a_number(tmp_path):
+    from pydantic import ValidationError
+
+    from ovtraj.astro.constants import load_earth
+
+    text = (REPO / "configs" / "earth.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "earth.yaml"
+    path.write_text(text.replace("j2: 1.08262668e-3", "j2: true"), encoding="utf-8")
+    assert "j2: true" in path.read_text(encoding="utf-8")
+    with pytest.raises(ValidationError, match="expected a number, not a boolean"):
+        load_earth(path)

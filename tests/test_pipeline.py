@@ -497,3 +497,26 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     )
     direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
+
+
+def test_nsga2_stopped_by_its_time_limit_stores_no_front_and_exits_1(small, tmp_path):
+    """A front cut short by mission.optimize.time_limit_s is unconverged: not stored."""
+    from typer.testing import CliRunner
+
+    from ovtraj.cli import app
+    from ovtraj.pipeline import OptimiserStopped, fit_step, front_step, training_data
+
+    data = _data(points_per_iteration=3, max_iterations=2, budget=6)
+    data["mission"]["optimize"].update(generations=100000, time_limit_s=1e-6)
+    scenario = build_scenario(copy.deepcopy(data))
+    doe = small["doe"]
+    fronts = {p.name for p in (doe.directory / "fronts").iterdir()}
+    fitted = fit_step(doe, training_data(doe), scenario, small["code"])
+    with pytest.raises(OptimiserStopped, match=r"mission\.optimize\.time_limit_s = 1e-06 s"):
+        front_step(doe, fitted, scenario, small["code"])
+    assert {p.name for p in (doe.directory / "fronts").iterdir()} == fronts
+    config = tmp_path / "stopped.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    store = str(small["store"].root)
+    done = CliRunner().invoke(app, ["optimize", doe.id, "--config", str(config), "--store", store])
+    assert done.exit_code == 1 and "no front stored" in done.stderr

@@ -11,7 +11,7 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ovtraj.paths import config_path, read_yaml
 
@@ -26,6 +26,15 @@ class EarthModel(BaseModel):
     j2: float = Field(ge=0, lt=0.01, description="second zonal harmonic [-]")
     rotation_rate_rad_s: float = Field(ge=0, description="sidereal rotation rate [rad/s]")
     g0_m_s2: float = Field(gt=0, description="standard gravity [m/s^2]")
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _not_a_boolean(cls, value: object) -> object:
+        # pydantic's lax mode would read YAML's `true` as 1 (configs/earth.yaml is read
+        # here, outside the config package's StrictModel).
+        if isinstance(value, bool):
+            raise ValueError("expected a number, not a boolean")
+        return value
 
     @property
     def mu(self) -> float:

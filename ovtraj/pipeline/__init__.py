@@ -7,13 +7,21 @@ a point of the front for the mission plan.
 """
 
 from ovtraj.pipeline.data import TrainingData, pipeline_doe_run, run_scenario, training_data
-from ovtraj.pipeline.loop import PipelineError, PipelineResult, PipelineSteps, run_pipeline
+from ovtraj.pipeline.loop import PipelineResult, PipelineSteps, run_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
-from ovtraj.pipeline.steps import FitOutcome, FrontOutcome, fit_step, front_step
+from ovtraj.pipeline.steps import (
+    FitOutcome,
+    FrontOutcome,
+    OptimiserStopped,
+    PipelineError,
+    fit_step,
+    front_step,
+)
 
 __all__ = [
     "FitOutcome",
     "FrontOutcome",
+    "OptimiserStopped",
     "Pick",
     "PipelineError",
     "PipelineResult",

@@ -49,6 +49,7 @@ from ovtraj.pipeline.steps import (
     OBJECTIVE_NAMES,
     FitOutcome,
     FrontOutcome,
+    PipelineError,
     content_id,
     fit_step,
     front_step,
@@ -95,10 +96,6 @@ VERIFICATION_SCHEMA = record_schema(
 )
 """``pipeline/<id>/verification.parquet``: each verified front point, predicted and real
 (null where the chain did not reach a value), and the errors."""
-
-
-class PipelineError(ValueError):
-    """The pipeline cannot proceed (bad input, nothing to fit, a result that differs)."""
 
 
 @dataclass

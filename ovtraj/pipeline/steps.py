@@ -62,6 +62,14 @@ MARKER = "meta.json"
 FRONT_FILE = "front.parquet"
 
 
+class PipelineError(ValueError):
+    """The pipeline cannot proceed (bad input, nothing to fit, a result that differs)."""
+
+
+class OptimiserStopped(PipelineError):
+    """NSGA-II reached its wall-time limit: an unconverged result, not stored."""
+
+
 def content_id(content: dict[str, Any]) -> str:
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
@@ -145,6 +153,8 @@ def front_step(
         return FrontOutcome(load_front(directory, normalisation), directory, front_id, True)
     initial = _real_front_designs(run, normalisation) if settings.seed_with_real_front else None
     front = surrogate_front(fit.surrogates, normalisation, settings, initial=initial)
+    if front.info.get("time_limit_reached"):
+        raise OptimiserStopped(f"{front.info['reason']}: no front stored")
     table = table_from_frame(front.to_frame(), FRONT_SCHEMA, "surrogate front")
     if product.exists():
         same = _front_table(product).equals(table)
