@@ -791,9 +791,9 @@ def pipeline(
         raise typer.Exit(code=2) from None
     typer.echo(f"verified front of run {doe_run.id} (pipeline {result.pipeline_id}):")
     _print_front(result.front)
-    typer.echo(f"front: {result.front_path}")
-    typer.echo(f"plan: {planned['json']}")
-    typer.echo(f"plan: {planned['yaml']}")
+    typer.echo(f"front: {Path(result.front_path).resolve()}")
+    typer.echo(f"plan: {planned['json'].resolve()}")
+    typer.echo(f"plan: {planned['yaml'].resolve()}")
 
 
 @app.command()
@@ -831,11 +831,14 @@ def optimize(
         raise typer.Exit(code=2) from None
     validation = fitted.surrogates.validation
     chosen = validation[validation["selected"].astype(bool)]
-    rows = [("surrogates", str(fitted.directory)), ("loaded from the store", fitted.reused)]
+    rows = [
+        ("surrogates", str(fitted.directory.resolve())),
+        ("loaded from the store", fitted.reused),
+    ]
     for row in chosen.itertuples(index=False):
         rows.append((f"{row.model} model", row.candidate))
     rows += [
-        ("front", str(front.directory / "front.parquet")),
+        ("front", str((front.directory / "front.parquet").resolve())),
         ("front points", len(front.front)),
         ("hypervolume", front.front.hypervolume),
     ]
@@ -875,10 +878,10 @@ def plan(
     except (StoreError, PipelineError, PlanError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    typer.echo(f"plan: {planned['json']}")
-    typer.echo(f"plan: {planned['yaml']}")
+    typer.echo(f"plan: {planned['json'].resolve()}")
+    typer.echo(f"plan: {planned['yaml'].resolve()}")
     for path in planned["plots"]:
-        typer.echo(f"plot: {path}")
+        typer.echo(f"plot: {path.resolve()}")
 
 
 @app.command()

@@ -12,6 +12,7 @@ import copy
 import hashlib
 import json
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -219,6 +220,14 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     assert flown.exit_code == 0, flown.output
     report = json.loads(flown.output)
     assert report["landed_within_stated_miss"] is True
+    # Every file of the plan is listed with its digest; the paths printed are absolute.
+    plan_path = Path(plan_json)
+    assert plan_path.is_absolute()
+    marker = json.loads(plan_path.with_name(f"{plan_path.stem}.files.json").read_text())
+    written = {Path(line.split(": ", 1)[1]).name for line in done.output.splitlines()}
+    assert set(marker["files"]) == written and len(written) >= 4
+    checked = small["doe"].verify()
+    assert checked.clean and not checked.uncovered, (checked.problems, checked.uncovered)
     # Bad inputs: clear errors, nothing written.
     plans = small["result"].directory / "plans"
     before = _digest(plans)
@@ -332,7 +341,7 @@ def test_stored_pipeline_products_list_every_file_with_the_declared_schemas(smal
                     assert pq.read_schema(marker.parent / name).equals(schemas[folder, name])
     report = doe.verify()
     assert report.clean, report.problems
-    assert all("/plans/" in path for path in report.uncovered), report.uncovered
+    assert not report.uncovered, report.uncovered
     assert load_pipeline(result.directory).front.equals(result.front)
 
 

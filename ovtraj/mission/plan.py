@@ -306,7 +306,14 @@ class MissionPlan(_Model):
 def build_plan(
     context: MissionContext, design: MissionDesign, *, source: dict[str, Any]
 ) -> MissionPlan:
-    """Evaluate the chain for ``design`` and return its plan.
+    """Evaluate the chain for ``design`` and return its plan (see :func:`plan_and_record`)."""
+    return plan_and_record(context, design, source=source)[0]
+
+
+def plan_and_record(
+    context: MissionContext, design: MissionDesign, *, source: dict[str, Any]
+) -> tuple[MissionPlan, MissionRecord]:
+    """Evaluate the chain for ``design``: its plan, and the record it comes from.
 
     ``source`` is the caller's metadata (run id, front index, objectives...), stored
     as given; it must be JSON data. Raises :class:`PlanError` naming the failed stage
@@ -320,7 +327,7 @@ def build_plan(
             stage=record.failed_stage,
             reason=record.reason,
         )
-    return plan_from_record(context, record, source=source)
+    return plan_from_record(context, record, source=source), record
 
 
 def plan_from_record(

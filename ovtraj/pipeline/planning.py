@@ -6,13 +6,16 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.config import Scenario
-from ovtraj.files import read_json
+from ovtraj.files import file_digest, read_json, write_json
 from ovtraj.launch.fit import LaunchFit
-from ovtraj.mission import DESIGN_NAMES, STAGES, MissionContext, MissionDesign
+from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
+from ovtraj.products import digests_json
 from ovtraj.runs import Run, RunStore
+
+PLAN_MARKER_SUFFIX = ".files.json"
 
 
 def _stored_pipelines(run: Run) -> list[tuple[Path, dict[str, Any]]]:
@@ -57,8 +60,13 @@ def write_mission_plan(
     result: PipelineResult,
     pick: Pick,
 ) -> dict[str, Any]:
-    """Build the plan of the picked front point, write it (JSON, YAML) and its plots."""
-    from ovtraj.mission.plan import build_plan, write_plan
+    """Build the plan of the picked front point, write it (JSON, YAML) and its plots.
+
+    The plots show the chain evaluated again for the plan, at the stages' own sampling
+    (the store keeps its trajectories coarser). ``<name>.files.json``, written last,
+    lists the size and SHA-256 of every file of the plan (``ovtraj verify``).
+    """
+    from ovtraj.mission.plan import plan_and_record, write_plan
     from ovtraj.plots.mission import mission_plots
 
     normalisation = Normalisation.mission(scenario.mission.optimize)
@@ -73,13 +81,13 @@ def write_mission_plan(
         "sample_id": sample_id,
         "front_objectives": {n: float(row[n]) for n in normalisation.names},
     }
-    plan = build_plan(MissionContext(scenario, launch_fit), design, source=source)
+    context = MissionContext(scenario, launch_fit)
+    plan, record = plan_and_record(context, design, source=source)
     directory = result.directory / "plans"
     name = f"plan-sample-{sample_id}"
     json_path, yaml_path = write_plan(plan, directory, name)
     run = store.run(result.final_run)
-    trajectories = {stage: run.trajectory(stage, sample_id) for stage in STAGES}
-    plots = mission_plots(trajectories, scenario, directory, prefix=name)
+    plots = mission_plots(record.trajectories, scenario, directory, prefix=name)
     from ovtraj.plots.front import front_plot
 
     totals = run.totals()
@@ -94,5 +102,12 @@ def write_mission_plan(
             title=f"front point {int(row['front_index'])} (sample {sample_id}), "
             f"pipeline {result.pipeline_id}",
         )
+    )
+    paths = [json_path, yaml_path, *(Path(p) for p in plots)]
+    files = {path.name: file_digest(path) for path in paths}
+    write_json(
+        directory / f"{name}{PLAN_MARKER_SUFFIX}",
+        {"plan": name, "files": digests_json(files)},
+        replace=True,  # the plots are views, drawn again with the plan
     )
     return {"plan": plan, "json": json_path, "yaml": yaml_path, "plots": [Path(p) for p in plots]}

@@ -89,8 +89,14 @@ MANIFEST = "manifest.json"
 RUN_FILES = ("config.json", "samples.parquet")
 # Waits on the manifest lock: a holder only reads and rewrites one small file.
 MANIFEST_LOCK_WAIT_S = 60.0
-# Folders of a run's pipeline products, each file listed with its digest in the marker.
-PRODUCTS = {"surrogates": "meta.json", "fronts": "meta.json", "pipeline": "pipeline.json"}
+# Markers of a run's pipeline products (glob patterns under the run); each lists its
+# files, relative to its own folder, with their digests.
+PRODUCT_MARKERS = (
+    "surrogates/*/meta.json",
+    "fronts/*/meta.json",
+    "pipeline/*/pipeline.json",
+    "pipeline/*/plans/*.files.json",
+)
 
 
 # Settings that do not change a sample's results: how the DoE executes, and what
@@ -559,8 +565,8 @@ class Run:
             for relative, digest in listed.items():
                 dataset = relative.rsplit("/", 1)[0]
                 expected.append((self.directory / relative, digest, DATASETS.get(dataset)))
-        for folder, marker_name in PRODUCTS.items():
-            for marker_path in sorted((self.directory / folder).glob(f"*/{marker_name}")):
+        for pattern in PRODUCT_MARKERS:
+            for marker_path in sorted(self.directory.glob(pattern)):
                 covered.add(marker_path)
                 try:
                     listed = read_json(marker_path).get("files")
