@@ -45,6 +45,7 @@ __all__ = [
     "read_json",
     "read_parquet",
     "read_table",
+    "remove_file",
     "remove_orphans",
     "write_bytes",
     "write_json",
@@ -244,13 +245,15 @@ def remove_orphans(directory: Path) -> list[Path]:
 
     Call it only when no other process writes there (the caller holds the lock).
     """
-    removed = []
-    for path in sorted(Path(directory).rglob(f".*{TEMPORARY_SUFFIX}")):
-        try:
-            path.unlink()
-        except FileNotFoundError:
-            continue
-        except OSError as err:
-            raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
-        removed.append(path)
-    return removed
+    return [p for p in sorted(Path(directory).rglob(f".*{TEMPORARY_SUFFIX}")) if remove_file(p)]
+
+
+def remove_file(path: Path) -> bool:
+    """Remove a file that is not (or no longer) stored; False if it was not there."""
+    try:
+        Path(path).unlink()
+    except FileNotFoundError:
+        return False
+    except OSError as err:
+        raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+    return True

@@ -33,10 +33,10 @@ import pyarrow as pa
 from ovtraj.files import (
     Digest,
     StoreError,
-    os_error_text,
     read_bytes,
     read_json,
     read_table,
+    remove_file,
     write_bytes,
     write_json,
     write_parquet,
@@ -120,13 +120,7 @@ class ProductWriter:
         """Remove what an interrupted write left at ``name`` (only while incomplete)."""
         if self.complete:
             return
-        path = self.product.directory / name
-        try:
-            path.unlink()
-        except FileNotFoundError:
-            pass
-        except OSError as err:
-            raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+        remove_file(self.product.directory / name)
 
     def write_bytes(self, name: str, payload: bytes) -> Digest:
         self.discard(name)

@@ -68,10 +68,10 @@ from ovtraj.files import (
     TEMPORARY_SUFFIX,
     Digest,
     StoreError,
-    os_error_text,
     read_bytes,
     read_json,
     read_table,
+    remove_file,
     remove_orphans,
     write_bytes,
     write_json,
@@ -341,12 +341,7 @@ class Run:
 
     def _clear_unmarked(self, batch: int) -> None:
         for path in self._batch_paths(batch):
-            try:
-                path.unlink()
-            except FileNotFoundError:
-                continue
-            except OSError as err:
-                raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+            remove_file(path)
 
     def adopt(self, parent: Run) -> int:
         """Take the parent's stored batches as this run's first ones; returns their count.

@@ -40,9 +40,9 @@ from ovtraj.deorbit.burn.montecarlo import STORED_RUN_SCHEMA, TIMING_COLUMNS
 from ovtraj.files import (
     Digest,
     StoreError,
-    os_error_text,
     read_json,
     read_table,
+    remove_file,
     write_json,
     write_parquet,
 )
@@ -145,10 +145,7 @@ class MonteCarloRun:
         code: str,
     ) -> None:
         path = self.directory / "config.json"
-        try:
-            path.unlink(missing_ok=True)  # left by an interrupted creation
-        except OSError as err:
-            raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+        remove_file(path)  # left by an interrupted creation
         config = write_json(path, resolved)
         info = {
             "run_id": rid,
@@ -241,10 +238,7 @@ class MonteCarloRun:
             if marker.exists():  # stored meanwhile by another process
                 return False
             part = self.directory / part_name(batch)
-            try:
-                part.unlink(missing_ok=True)  # left by an interrupted write
-            except OSError as err:
-                raise StoreError(f"cannot remove {part}: {os_error_text(err)}") from None
+            remove_file(part)  # left by an interrupted write
             digest = write_parquet(part, table, STORED_RUN_SCHEMA)
             content = {
                 "batch": batch,
