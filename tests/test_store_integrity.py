@@ -418,4 +418,8 @@ def test_sigterm_marks_the_run_interrupted_in_its_manifest(tmp_path):
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     manifest = json.loads((run_dir / "manifest.json").read_text())
     assert manifest["status"] == "interrupted" and "signal 15" in manifest["interrupted"]
-    assert RunStore(tmp_path).run(run_dir.name).verify().clean
+    run = RunStore(tmp_path).run(run_dir.name)
+    assert run.verify().clean
+    resumed = subprocess.run(args, capture_output=True, text=True, timeout=600, check=False)
+    assert resumed.returncode == 0, resumed.stderr
+    assert run.status() == "complete" and run.manifest["resumed_after_interruption"] == 1

@@ -302,7 +302,7 @@ class Run:
         with locks.hold(path, shared=True, wait_s=MANIFEST_LOCK_WAIT_S):
             previous = self.manifest.get("status")
             changes: dict[str, Any] = {"status": "running"}
-            if previous == "running" and alone:
+            if previous in ("running", "interrupted") and alone:
                 changes["resumed_after_interruption"] = (
                     int(self.manifest.get("resumed_after_interruption", 0)) + 1
                 )
