@@ -349,11 +349,23 @@ def _batches_stored(stdout: str) -> list[int]:
     ]
 
 
-def test_two_processes_on_one_run_compute_each_batch_once(tmp_path):
+def _batches_of_one(directory: Path) -> Path:
+    """The default scenario, one sample per batch (many batch boundaries to stop at)."""
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"]["batch_size"] = 1
-    config = _write_config(tmp_path, data)
+    return _write_config(directory, data)
+
+
+def _wait_for_the_first_batch(proc: subprocess.Popen, store: Path) -> None:
+    deadline = time.monotonic() + 300
+    while not list(store.glob("*/batches/0.json")):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+
+
+def test_two_processes_on_one_run_compute_each_batch_once(tmp_path):
+    config = _batches_of_one(tmp_path)
     args = [OVTRAJ, "run", str(config), "--samples", "6", "--seed", "8", "--store", str(tmp_path)]
     procs = [subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)]
     procs.append(subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
@@ -368,17 +380,11 @@ def test_two_processes_on_one_run_compute_each_batch_once(tmp_path):
 
 
 def test_a_killed_run_is_reported_interrupted_and_resumes_cleanly(tmp_path):
-    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    data["mission"]["doe"]["batch_size"] = 1
-    config = _write_config(tmp_path, data)
+    config = _batches_of_one(tmp_path)
     store = tmp_path / "runs"
     args = ["run", str(config), "--samples", "5", "--seed", "9", "--store", str(store)]
     proc = subprocess.Popen([OVTRAJ, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 300
-    while not list(store.glob("*/batches/0.json")):
-        assert proc.poll() is None and time.monotonic() < deadline
-        time.sleep(0.05)
+    _wait_for_the_first_batch(proc, store)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=60)
     (run_dir,) = store.iterdir()
@@ -402,16 +408,10 @@ def test_a_killed_run_is_reported_interrupted_and_resumes_cleanly(tmp_path):
 
 
 def test_sigterm_marks_the_run_interrupted_in_its_manifest(tmp_path):
-    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    data["mission"]["doe"]["batch_size"] = 1
-    config = _write_config(tmp_path, data)
+    config = _batches_of_one(tmp_path)
     args = [OVTRAJ, "run", str(config), "--samples", "5", "--seed", "9", "--store", str(tmp_path)]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 300
-    while not list(tmp_path.glob("*/batches/0.json")):
-        assert proc.poll() is None and time.monotonic() < deadline
-        time.sleep(0.05)
+    _wait_for_the_first_batch(proc, tmp_path)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130 and err.strip() == "interrupted"
