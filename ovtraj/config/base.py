@@ -131,13 +131,17 @@ def bounded(
 
 
 class ConfigError(ValueError):
-    """A configuration that cannot be used, with one line per offending field."""
+    """A configuration that cannot be used: one line naming the file and the field, or
+    a heading and one line per offending field when there are several."""
 
     def __init__(self, problems: list[str], source: str = "") -> None:
         self.problems = problems
         self.source = source
         head = f"invalid configuration{f' in {source}' if source else ''}:"
-        super().__init__("\n".join([head, *(f"  - {p}" for p in problems)]))
+        if len(problems) == 1:
+            super().__init__(f"{head} {problems[0]}")
+        else:
+            super().__init__("\n".join([head, *(f"  - {p}" for p in problems)]))
 
 
 def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[FieldInfo | None, list]:
