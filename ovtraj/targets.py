@@ -17,8 +17,18 @@ from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.config.scenario import OrbitElementsConfig, Scenario
 
 
-def target_state(orbit: OrbitElementsConfig, scenario: Scenario) -> np.ndarray:
-    """ECI state (m, m/s) of an orbit given by classical elements at the scenario epoch."""
+def target_state(orbit: OrbitElementsConfig | None, scenario: Scenario) -> np.ndarray:
+    """ECI state (m, m/s) of the target at the scenario epoch.
+
+    ``orbit`` given (the hand-typed ``scenario.target.orbit``): the state of those
+    classical elements, osculating or first-order J2 mean. ``orbit`` None, for a
+    target given by a TLE / OMM / URL: the initial state of the project's J2 orbit
+    fitted to the element set's SGP4 ephemeris (``docs/targets.md``), computed once
+    per process. Raises :class:`~ovtraj.config.ConfigError` when SGP4 cannot reach
+    the fit span or the fit stopped at a limit.
+    """
+    if orbit is None:
+        return _fitted_state(scenario)
     earth = scenario.earth
     coe = ClassicalElements(
         a=orbit.semi_major_axis_km * 1e3,
@@ -35,6 +45,18 @@ def target_state(orbit: OrbitElementsConfig, scenario: Scenario) -> np.ndarray:
     else:
         r, v = coe_to_rv(coe.a, coe.e, coe.i, coe.raan, coe.argp, coe.nu, mu=earth.mu)
     return np.r_[r, v]
+
+
+def _fitted_state(scenario: Scenario) -> np.ndarray:
+    from ovtraj.config.base import ConfigError
+    from ovtraj.target_sources import fitted_target
+
+    if not scenario.target.has_source:
+        raise ConfigError(["target.orbit: required (the target has no TLE / OMM / URL source)"])
+    fit = fitted_target(scenario)
+    if not fit.converged:
+        raise ConfigError([f"target: the fit of the mean elements to SGP4 stopped: {fit.reason}"])
+    return fit.state.copy()
 
 
 def circular_orbit_state(

@@ -7,7 +7,7 @@ conversion to SI happens once, in the properties and helpers of these models.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 
@@ -19,27 +19,10 @@ from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
 from ovtraj.config.reentry import ReentrySettings
 
-ElementSet = Literal["osculating", "mean"]
-
-
-class OrbitElementsConfig(StrictModel):
-    """Classical elements at the scenario epoch; ``mean`` means first-order J2 (Brouwer) mean."""
-
-    element_set: ElementSet = "osculating"
-    semi_major_axis_km: float = bounded(unit="km", gt=0, le=1.0e6)
-    eccentricity: float = bounded(ge=0, lt=1)
-    inclination_deg: float = bounded(unit="deg", ge=0, le=180)
-    raan_deg: float = bounded(unit="deg", ge=-360, le=360)
-    arg_perigee_deg: float = bounded(unit="deg", ge=-360, le=360)
-    true_anomaly_deg: float = bounded(unit="deg", ge=-360, le=360)
-
-    def perigee_altitude_km(self, radius_m: float) -> float:
-        return self.semi_major_axis_km * (1.0 - self.eccentricity) - radius_m / 1e3
-
-
-class TargetConfig(StrictModel):
-    name: str
-    orbit: OrbitElementsConfig
+# The target's models live in ovtraj.config.target; importable from here as before.
+from ovtraj.config.target import ElementSet, TargetConfig
+from ovtraj.config.target import OrbitElementsConfig as OrbitElementsConfig
+from ovtraj.config.target import TargetSourceSettings as TargetSourceSettings
 
 
 class ParkingOrbitConfig(StrictModel):
@@ -163,9 +146,9 @@ class Scenario(StrictModel):
         floor = self.limits.min_perigee_altitude_km
         radius = self.earth.equatorial_radius_m
         problems = []
-        perigee = self.target.orbit.perigee_altitude_km(radius)
+        perigee = self.target.perigee_altitude_km(radius)
         if perigee < floor:
-            problems.append(f"target.orbit: perigee altitude {perigee:.1f} km")
+            problems.append(f"target.{self.target.source_key}: perigee altitude {perigee:.1f} km")
         if self.parking_orbit.altitude_km < floor:
             problems.append(f"parking_orbit.altitude_km: {self.parking_orbit.altitude_km:g} km")
         if self.deorbit is not None and self.deorbit.preparation_orbit.altitude_km < floor:

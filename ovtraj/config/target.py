@@ -1,0 +1,190 @@
+"""The scenario's space target: hand-typed elements, or a real element set (TLE, OMM, URL).
+
+A target is given by exactly one of
+
+* ``orbit``: classical elements typed by hand (``element_set: osculating | mean``);
+* ``tle_file`` / ``tle``: a two- or three-line element set, in a file or inline;
+* ``omm_file`` / ``omm``: a CCSDS OMM (XML, KVN, or CelesTrak's JSON / CSV), in a
+  file or inline as a mapping of its fields;
+* ``url``: an http(s) address serving a TLE or an OMM.
+
+A file or URL is read when the scenario is validated and replaced by its inline
+form (``tle:`` lines or ``omm:`` fields), so the resolved scenario (what a run
+stores and what its id hashes) carries the element set itself: a replay needs
+neither the file nor the network, and a changed element set is a changed
+scenario. Relative files are relative to the scenario file's folder. How SGP4's
+ephemeris becomes the project's mean elements is in ``docs/targets.md``.
+
+The fit and fetch settings (``source_settings``) default to the shipped
+``configs/target_sources.yaml``, as the Earth model defaults to
+``configs/earth.yaml``; a target with a source always carries them in the resolved
+scenario, a hand-typed one does not need them (and dumps as before: ``name`` and
+``orbit``).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any, Literal
+
+from pydantic import Field, ValidationInfo, model_serializer, model_validator
+
+from ovtraj.config.base import ConfigError, StrictModel, bounded, load_model
+
+ElementSet = Literal["osculating", "mean"]
+
+# The keys that name where the target's orbit comes from; exactly one is given.
+SOURCE_KEYS = ("orbit", "tle_file", "tle", "omm_file", "omm", "url")
+# The ones read at validation and replaced by their inline form.
+READ_KEYS = ("tle_file", "omm_file", "url")
+# Samples of the SGP4 ephemeris one fit may use: one fit evaluation stays well under
+# 0.1 s (a day at one sample per minute is 1441).
+_MAX_FIT_SAMPLES = 100_000
+
+
+class OrbitElementsConfig(StrictModel):
+    """Classical elements at the scenario epoch; ``mean`` means first-order J2 (Brouwer) mean."""
+
+    element_set: ElementSet = "osculating"
+    semi_major_axis_km: float = bounded(unit="km", gt=0, le=1.0e6)
+    eccentricity: float = bounded(ge=0, lt=1)
+    inclination_deg: float = bounded(unit="deg", ge=0, le=180)
+    raan_deg: float = bounded(unit="deg", ge=-360, le=360)
+    arg_perigee_deg: float = bounded(unit="deg", ge=-360, le=360)
+    true_anomaly_deg: float = bounded(unit="deg", ge=-360, le=360)
+
+    def perigee_altitude_km(self, radius_m: float) -> float:
+        return self.semi_major_axis_km * (1.0 - self.eccentricity) - radius_m / 1e3
+
+
+class TargetSourceSettings(StrictModel):
+    """How a TLE / OMM / URL target is read and fitted (``docs/targets.md``)."""
+
+    fit_span_h: float = bounded(
+        unit="h", gt=0, le=240, description="SGP4 span the mean elements are fitted over"
+    )
+    fit_step_s: float = bounded(unit="s", ge=1, le=3600, description="SGP4 sample spacing")
+    fit_max_iterations: int = bounded(
+        ge=1, le=10000, description="least-squares function evaluations"
+    )
+    fit_time_limit_s: float = bounded(unit="s", gt=0, le=3600, description="fit wall time")
+    fit_warning_km: float = bounded(
+        unit="km", gt=0, le=10000, description="a larger max. fit error warns"
+    )
+    max_age_days: float = bounded(
+        unit="day", gt=0, le=3650, description="an element set this far from the epoch warns"
+    )
+    url_timeout_s: float = bounded(unit="s", gt=0, le=600, description="URL fetch time-out")
+    url_cache_max_age_h: float = bounded(
+        unit="h", ge=0, le=8760, description="a URL fetched this recently is read from the cache"
+    )
+    url_max_mib: float = bounded(unit="MiB", gt=0, le=1024, description="largest URL download")
+
+    @model_validator(mode="after")
+    def _samples_in_reach(self) -> TargetSourceSettings:
+        span_s = self.fit_span_h * 3600.0
+        if self.fit_step_s > span_s:
+            raise ValueError(
+                f"fit_step_s = {self.fit_step_s:g} s is longer than fit_span_h = "
+                f"{self.fit_span_h:g} h"
+            )
+        if span_s / self.fit_step_s > _MAX_FIT_SAMPLES:
+            raise ValueError(
+                f"fit_span_h / fit_step_s gives {span_s / self.fit_step_s:.0f} samples "
+                f"(allowed <= {_MAX_FIT_SAMPLES})"
+            )
+        return self
+
+
+@lru_cache(maxsize=1)
+def default_source_settings() -> TargetSourceSettings:
+    """The shipped ``configs/target_sources.yaml``."""
+    from ovtraj.paths import config_path
+
+    return load_model(TargetSourceSettings, config_path("target_sources.yaml"))
+
+
+class TargetConfig(StrictModel):
+    """The space target: exactly one of ``orbit``, ``tle_file``, ``tle``, ``omm_file``,
+    ``omm``, ``url`` (the module notes), plus the settings a real source needs."""
+
+    name: str
+    orbit: OrbitElementsConfig | None = None
+    tle: list[str] | None = Field(
+        default=None, min_length=2, max_length=3, description="TLE lines (name line optional)"
+    )
+    omm: dict[str, str | int | float] | None = Field(
+        default=None, description="the fields of one OMM element set"
+    )
+    tle_file: str | None = Field(default=None, description="read and replaced by tle")
+    omm_file: str | None = Field(default=None, description="read and replaced by omm")
+    url: str | None = Field(default=None, description="fetched and replaced by tle or omm")
+    catalog_number: int | None = bounded(
+        ge=0, le=999_999_999, default=None, description="picks one element set of several"
+    )
+    source_settings: TargetSourceSettings | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _read_the_source(cls, data: Any, info: ValidationInfo) -> Any:
+        """Exactly one source; a file or URL is read now and inlined (``tle`` / ``omm``)."""
+        if not isinstance(data, dict):
+            return data
+        given = [key for key in SOURCE_KEYS if data.get(key) is not None]
+        if len(given) != 1:
+            found = ", ".join(given) if given else "none"
+            raise ValueError(f"needs exactly one of {', '.join(SOURCE_KEYS)} (found: {found})")
+        if given[0] == "orbit":
+            return data
+        if data.get("source_settings") is None:
+            try:
+                settings = default_source_settings()
+            except (ConfigError, FileNotFoundError) as err:
+                raise ValueError(f"source_settings: no default ({err})") from None
+            data = {**data, "source_settings": settings.model_dump()}
+        if given[0] not in READ_KEYS:
+            return data
+        from ovtraj.target_sources.resolve import inline_target  # reads files and URLs
+
+        source_dir = (info.context or {}).get("source_dir") if info is not None else None
+        try:
+            return inline_target(data, source_dir)
+        except ConfigError as err:
+            raise ValueError("; ".join(err.problems)) from None
+
+    @model_validator(mode="after")
+    def _source_is_readable(self) -> TargetConfig:
+        if self.orbit is not None:
+            return self
+        from ovtraj.target_sources.resolve import target_elements
+
+        try:
+            target_elements(self)  # the inline element set parses (checksums, fields)
+        except ConfigError as err:
+            raise ValueError("; ".join(err.problems)) from None
+        return self
+
+    @model_serializer(mode="wrap")
+    def _only_what_is_given(self, handler: Any) -> dict[str, Any]:
+        """Keys left empty are left out: a hand-typed target dumps as ``name`` and ``orbit``
+        alone, as before sources existed, so its run ids and launch-fit keys are unchanged."""
+        return {k: v for k, v in handler(self).items() if v is not None}
+
+    @property
+    def has_source(self) -> bool:
+        """Whether the orbit comes from a TLE or OMM (fitted), not from typed elements."""
+        return self.orbit is None
+
+    def perigee_altitude_km(self, radius_m: float) -> float:
+        """Perigee altitude [km] above a sphere of ``radius_m``: of the typed elements, or
+        of the element set's SGP4 mean elements (a plausibility check, no fit)."""
+        if self.orbit is not None:
+            return self.orbit.perigee_altitude_km(radius_m)
+        from ovtraj.target_sources.resolve import target_elements
+
+        return target_elements(self).perigee_radius_km() - radius_m / 1e3
+
+    @property
+    def source_key(self) -> str:
+        """The key the orbit was given by after resolution: ``orbit``, ``tle`` or ``omm``."""
+        return "orbit" if self.orbit is not None else ("tle" if self.tle is not None else "omm")
