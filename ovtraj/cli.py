@@ -906,6 +906,46 @@ def fly(
         raise typer.Exit(code=1)
 
 
+@app.command()
+def target(
+    source: Annotated[
+        str, typer.Argument(help="TLE or OMM file, http(s) URL, or scenario YAML with a source")
+    ],
+    epoch: Annotated[
+        str | None,
+        typer.Option("--epoch", help="fit epoch, ISO 8601 UTC (default: the scenario's, or now)"),
+    ] = None,
+    span_h: Annotated[
+        float | None, typer.Option("--span-h", help="fit span [h] (default: source_settings)")
+    ] = None,
+    catalog_number: Annotated[
+        int | None, typer.Option("--catalog-number", help="pick one set of several")
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The project's mean elements of a TLE / OMM, fitted to its SGP4 ephemeris."""
+    import warnings
+
+    from ovtraj.target_sources import fit_source
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            fit = fit_source(source, epoch_utc=epoch, span_h=span_h, catalog_number=catalog_number)
+        except ConfigError as err:
+            typer.echo(str(err), err=True)
+            raise typer.Exit(code=2) from None
+    for warning in caught:
+        typer.echo(f"warning: {warning.message}", err=True)
+    row = plain(fit.to_row())
+    if as_json:
+        typer.echo(json_text(row, indent=None))
+    else:
+        _print_rows(f"target: {fit.source.label()}", list(row.items()))
+    if not fit.converged:
+        raise typer.Exit(code=1)
+
+
 def _terminated(signum: int, frame: Any) -> None:
     # An exception, so that a run being written marks itself interrupted on the way out
     # (typer turns it into exit code 130).
