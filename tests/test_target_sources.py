@@ -24,8 +24,10 @@ from sgp4 import io as sgp4_io
 from typer.testing import CliRunner
 
 from ovtraj.astro.constants import default_earth
+from ovtraj.astro.elements import ClassicalElements, classical_to_nonsingular, mean_to_true_anomaly
 from ovtraj.astro.epoch import Epoch, gmst_rad
 from ovtraj.astro.frames import eci_to_ecef_state
+from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.astro.teme import teme_to_eci
 from ovtraj.cli import app
@@ -140,6 +142,27 @@ def test_fitted_mean_elements_follow_sgp4_over_a_day(
         np.linalg.norm(fitted - r_ref, axis=1).max()
         < np.linalg.norm(unfitted - r_ref, axis=1).max()
     )
+
+
+def test_tle_elements_typed_as_mean_elements_are_another_orbit(settings):
+    """Why the fit exists (issue 18): the ISS TLE's elements typed as the project's mean
+    elements (a from the Kozai mean motion) start 5.9 km from SGP4 and are 83 km off
+    after a day; the fitted mean elements stay within 0.49 km."""
+    elements = _element_set(ISS_TLE)
+    sat, earth = elements.satrec, default_earth()
+    a = (earth.mu / (sat.no_kozai / 60.0) ** 2) ** (1.0 / 3.0)  # no_kozai in rad/min
+    nu = float(mean_to_true_anomaly(sat.mo, sat.ecco))
+    typed = classical_to_nonsingular(
+        ClassicalElements(a, sat.ecco, sat.inclo, sat.nodeo, sat.argpo, nu)
+    )
+    r0, v0 = mean_to_state(typed, mu=earth.mu, radius=earth.radius, j2=earth.j2)
+    t = np.linspace(0.0, 86400.0, 1441)
+    from ovtraj.target_sources.ephemeris import sgp4_eci
+
+    r_ref, _ = sgp4_eci(elements, elements.epoch, t, omega=earth.omega)
+    flown = OrbitPropagator(earth, tol=1e-12).propagate_grid(np.r_[r0, v0], 0.0, t)[:, :3]
+    assert np.linalg.norm(flown - r_ref, axis=1).max() > 50e3
+    assert _fit(elements, settings).max_error_m < 0.75e3
 
 
 def test_decaying_object_fits_poorly_and_warns(settings):
