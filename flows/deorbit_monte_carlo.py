@@ -26,6 +26,7 @@ from ovtraj.deorbit.burn.plots import plot_dispersions
 from ovtraj.deorbit.burn.problem import load_deorbit_burn
 from ovtraj.deorbit.burn.published import published_comparison
 from ovtraj.deorbit.burn.store import MonteCarloRun
+from ovtraj.paths import store_root as store_root_of
 from ovtraj.records import plain
 from ovtraj.version import code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
@@ -107,7 +108,7 @@ def deorbit_monte_carlo_flow(
     resolved = problem.resolved()
     code = code_version()
     run = MonteCarloRun.create(
-        store_root or settings.store,
+        store_root_of(settings.store, Path(config).resolve().parent, store_root),
         resolved=resolved,
         runs=n,
         strategies=chosen,

@@ -198,7 +198,7 @@ def _doe(
         raise ValueError(f"{config}: the scenario has no mission section")
     settings = scenario.mission.doe
     ensure_launch_fit(config, scenario)
-    store = RunStore(store_root or settings.store)
+    store = RunStore.for_scenario(scenario, config, store_root)
     parent = store.run(append_to) if append_to else None
     code = code_version()
     run = prepare_run(

@@ -30,7 +30,7 @@ def front_table(frame: Any) -> list[dict[str, Any]]:
 
 @flow(name="optimize", log_prints=True)
 def optimize_flow(
-    run_id: str, config: str | None = None, store_root: str = "data/runs"
+    run_id: str, config: str | None = None, store_root: str | None = None
 ) -> dict[str, Any]:
     """Surrogate front of a stored run (no simulation); returns its summary."""
     run = RunStore(store_root).run(run_id)

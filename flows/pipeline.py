@@ -89,8 +89,8 @@ def mission_flow(
         raise ValueError(f"{config}: the scenario has no mission section")
     ensure_launch_fit(config, scenario)
     settings = scenario.mission.doe
-    root = store_root or settings.store
-    store = RunStore(root)
+    store = RunStore.for_scenario(scenario, config, store_root)
+    root = str(store.root)
     code = code_version()
     doe_run, scenario = pipeline_doe_run(
         scenario,

@@ -44,7 +44,7 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
 
 @flow(name="surrogate", log_prints=True)
 def surrogate_flow(
-    run_id: str, config: str | None = None, store_root: str = "data/runs"
+    run_id: str, config: str | None = None, store_root: str | None = None
 ) -> dict[str, Any]:
     """Fit and validate the surrogates of a stored run; returns the fit's summary."""
     run = RunStore(store_root).run(run_id)

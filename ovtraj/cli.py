@@ -18,7 +18,13 @@ app = typer.Typer(
     help="Whole-mission trajectory planning of a small reusable orbital vehicle.",
 )
 
-ConfigArg = Annotated[Path, typer.Argument(help="scenario YAML file", show_default=False)]
+ConfigArg = Annotated[
+    Path | None,
+    typer.Argument(
+        help="scenario YAML file (default: the shipped scenario, `ovtraj paths`)",
+        show_default=False,
+    ),
+]
 JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
 
 
@@ -37,9 +43,11 @@ def main(
     """ovtraj command line."""
 
 
-def _load(config: Path) -> Scenario:
+def _load(config: Path | None) -> Scenario:
+    from ovtraj.paths import config_path
+
     try:
-        return load_scenario(config)
+        return load_scenario(config if config is not None else config_path("scenario.yaml"))
     except ConfigError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
@@ -54,7 +62,7 @@ def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
 
 
 @app.command()
-def rendezvous(config: ConfigArg, as_json: JsonOpt = False) -> None:
+def rendezvous(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     """Rendezvous of the OV with the space target: modified Hohmann transfer under J2."""
     from ovtraj.rendezvous import rendezvous_input, solve_rendezvous
 
@@ -135,7 +143,7 @@ LAUNCH_KEYS = [
 
 @app.command()
 def launch(
-    config: ConfigArg,
+    config: ConfigArg = None,
     altitude_km: Annotated[
         float | None,
         typer.Option("--altitude-km", help="target altitude [km], default the config's"),
@@ -180,7 +188,7 @@ def launch(
 
 @app.command("launch-fit")
 def launch_fit_command(
-    config: ConfigArg,
+    config: ConfigArg = None,
     output: Annotated[
         Path | None,
         typer.Option("--output", help="directory for coefficients.json and grid.parquet"),
@@ -204,7 +212,10 @@ def launch_fit_command(
     directory = output or fit_roots()[0] / launch_fit_key(scenario)
     fit.save(directory)
     lo, hi = fit.altitude_range_km
-    rows = [("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"), ("saved to", str(directory))]
+    rows = [
+        ("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"),
+        ("saved to", str(Path(directory).resolve())),
+    ]
     for name, series in fit.series.items():
         rows.append(
             (
@@ -279,7 +290,7 @@ _DEORBIT_ROWS = [
 
 
 @app.command()
-def deorbit(config: ConfigArg, as_json: JsonOpt = False) -> None:
+def deorbit(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     """Deorbit: ground-track forecast, two-body estimate, SQP correction under J2."""
     from ovtraj.deorbit import deorbit_input, solve_deorbit
 
@@ -312,7 +323,7 @@ _REENTRY_ROWS = [
 
 
 @app.command()
-def reentry(config: ConfigArg, as_json: JsonOpt = False) -> None:
+def reentry(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     """Reentry: guided lifting entry to the terminal interface near the landing site."""
     from ovtraj.reentry import reentry_input, solve_reentry
 
@@ -366,7 +377,7 @@ def optimal_entry(
     ] = None,
 ) -> None:
     """Optimal lifting entry by Gauss pseudospectral collocation (seed 001)."""
-    from ovtraj.paths import data_dir
+    from ovtraj.paths import workspace
     from ovtraj.reentry.pseudospectral import (
         load_optimal_entry,
         solve_optimal_entry,
@@ -380,7 +391,7 @@ def optimal_entry(
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     # One subfolder per distinct result: stored histories are never overwritten.
-    root = (out or data_dir() / "optimal_entry").resolve()
+    root = (out or workspace() / "optimal_entry").resolve()
     paths = write_histories(result, root, content_named=True)
     row = {k: v for k, v in plain(result.to_row()).items() if v is not None}
     if as_json:
@@ -493,24 +504,47 @@ def deorbit_burn(
         raise typer.Exit(code=1)
 
 
-def _store(root: Path | None, scenario: Scenario | None = None) -> Any:
+def _store(root: Path | None, scenario: Scenario | None = None, config: Path | None = None) -> Any:
+    """``--store``, else the scenario's store (relative to its file ``config``), else the
+    workspace's (ovtraj.paths)."""
     from ovtraj.runs import RunStore
 
-    if root is not None:
-        return RunStore(root)
-    if scenario is not None and scenario.mission is not None:
-        return RunStore(scenario.mission.doe.store)
-    return RunStore()
+    if scenario is not None:
+        return RunStore.for_scenario(scenario, config, root)
+    return RunStore(root)
 
 
 StoreOpt = Annotated[
-    Path | None, typer.Option("--store", help="run store root (default: the config's, data/runs)")
+    Path | None,
+    typer.Option("--store", help="run store root (default: the config's, else $OVTRAJ_HOME/runs)"),
 ]
 
 
 @app.command()
+def paths(as_json: JsonOpt = False) -> None:
+    """Where ovtraj reads its shipped files and writes its results (the workspace)."""
+    from ovtraj import paths as where
+
+    found = {
+        "configs": str(where.config_dir()),
+        "reference": str(where.reference_dir()),
+        "default_scenario": str(where.config_dir() / "scenario.yaml"),
+        "workspace": str(where.workspace()),
+        "run_store": str(where.store_root(None, None, None)),
+        "launch_fits": str(where.workspace() / "launch_fit"),
+        "source_checkout": where.source_checkout(),
+    }
+    if as_json:
+        typer.echo(json.dumps(found))
+    else:
+        labels = {"workspace": "workspace (OVTRAJ_HOME)"}
+        rows = [(labels.get(k, k.replace("_", " ")), v) for k, v in found.items()]
+        _print_rows("ovtraj paths", rows)
+
+
+@app.command()
 def run(
-    config: ConfigArg,
+    config: ConfigArg = None,
     samples: Annotated[int | None, typer.Option("--samples", help="number of samples")] = None,
     seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
     append: Annotated[
@@ -536,7 +570,7 @@ def run(
         )
         raise typer.Exit(code=2)
     settings = scenario.mission.doe
-    store = _store(store_root, scenario)
+    store = _store(store_root, scenario, config)
     try:
         parent = store.run(append) if append else None
         stored = prepare_run(
@@ -716,7 +750,7 @@ def _print_front(front: Any) -> None:
 
 @app.command()
 def pipeline(
-    config: ConfigArg,
+    config: ConfigArg = None,
     samples: Annotated[int | None, typer.Option("--samples", help="DoE samples")] = None,
     seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
     from_run: Annotated[
@@ -755,7 +789,7 @@ def pipeline(
         raise typer.Exit(code=2)
     fit = _launch_fit_or_exit(scenario)
     settings = scenario.mission.doe
-    store = _store(store_root, scenario)
+    store = _store(store_root, scenario, config)
     code = code_version()
 
     def evaluate(run: Any) -> Any:

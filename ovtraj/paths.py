@@ -1,11 +1,23 @@
-"""Where the project's configuration files live.
+"""Where ovtraj reads its shipped files and where it writes the user's results.
 
-The library reads its figures (Earth model, atmosphere tables, vehicle data) from
-``configs/`` at the repository root. ``OVTRAJ_CONFIG_DIR`` overrides the location.
+Shipped files (read only): the configuration files (Earth model, atmosphere,
+scenarios, launchers, published cases) and the small reference data (the default
+scenario's launch fit). In a source checkout they are the repository's
+``configs/`` and ``data/reference/``; an installed package carries the same files
+as package data (``ovtraj/configs``, ``ovtraj/reference``; see ``setup.py``).
+``OVTRAJ_CONFIG_DIR`` points the configuration files elsewhere.
+
+The workspace (written): ``OVTRAJ_HOME`` if set, else ``<repository>/data`` in a
+source checkout, else ``$XDG_DATA_HOME/ovtraj`` (``~/.local/share/ovtraj``). It
+holds the run store (``runs/``), solved launch fits (``launch_fit/``) and other
+command outputs. Nothing is ever written inside the installed package, and where
+results go never depends on the current directory: a relative path in a config
+file is relative to that file's folder.
 """
 
 from __future__ import annotations
 
+import importlib.resources
 import os
 from pathlib import Path
 from typing import IO, Any
@@ -15,12 +27,20 @@ import yaml
 # libyaml's parser when the wheel has it: the scenario file parses ~10x faster.
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+PACKAGE_DIR = Path(str(importlib.resources.files("ovtraj")))
+REPO_ROOT = PACKAGE_DIR.parent
+
+
+def source_checkout() -> bool:
+    """Whether this ``ovtraj`` runs from a repository checkout (editable or not installed)."""
+    return (REPO_ROOT / "pyproject.toml").is_file() and (REPO_ROOT / "configs").is_dir()
 
 
 def config_dir() -> Path:
     """Directory holding the YAML configuration files."""
-    return Path(os.environ.get("OVTRAJ_CONFIG_DIR", REPO_ROOT / "configs"))
+    if "OVTRAJ_CONFIG_DIR" in os.environ:
+        return Path(os.environ["OVTRAJ_CONFIG_DIR"]).resolve()
+    return REPO_ROOT / "configs" if source_checkout() else PACKAGE_DIR / "configs"
 
 
 def config_path(name: str) -> Path:
@@ -31,9 +51,37 @@ def config_path(name: str) -> Path:
     return path
 
 
-def data_dir() -> Path:
-    """Directory of stored results and tracked reference data (``OVTRAJ_DATA_DIR``)."""
-    return Path(os.environ.get("OVTRAJ_DATA_DIR", REPO_ROOT / "data"))
+def reference_dir() -> Path:
+    """Directory of the shipped reference data (read only)."""
+    return REPO_ROOT / "data" / "reference" if source_checkout() else PACKAGE_DIR / "reference"
+
+
+def workspace() -> Path:
+    """The user's workspace (absolute): ``OVTRAJ_HOME``, see the module notes."""
+    if os.environ.get("OVTRAJ_HOME"):
+        return Path(os.environ["OVTRAJ_HOME"]).expanduser().resolve()
+    if source_checkout():
+        return REPO_ROOT / "data"
+    base = os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share"
+    return Path(base).expanduser().resolve() / "ovtraj"
+
+
+def resolve(path: str | Path, base_dir: Path | None) -> Path:
+    """``path`` made absolute: relative to ``base_dir`` (a config file's folder) if given."""
+    path = Path(path).expanduser()
+    if not path.is_absolute():
+        path = (base_dir or Path.cwd()) / path
+    return path.resolve()
+
+
+def store_root(configured: str | None, base_dir: Path | None, override: str | Path | None) -> Path:
+    """The run store's root: ``override`` (``--store``), else the configured one
+    (relative to the config file's folder), else the workspace's ``runs/``."""
+    if override is not None:
+        return resolve(override, None)
+    if configured:
+        return resolve(configured, base_dir)
+    return workspace() / "runs"
 
 
 def read_yaml(source: str | IO[str]) -> Any:

@@ -20,7 +20,13 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, TypeVar, get_args, get_origin
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+)
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
@@ -220,14 +226,20 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
     return lines
 
 
-def model_from_dict(model: type[ModelT], data: Any, source: str = "") -> ModelT:
-    """Validate a mapping into ``model``, raising :class:`ConfigError` (one line per field)."""
+def model_from_dict(
+    model: type[ModelT], data: Any, source: str = "", *, source_dir: Path | None = None
+) -> ModelT:
+    """Validate a mapping into ``model``, raising :class:`ConfigError` (one line per field).
+
+    ``source_dir`` is the folder relative paths in the data are relative to (the config
+    file's); validators find it in the validation context.
+    """
     if not isinstance(data, dict):
         raise ConfigError(
             [f"expected a mapping at the top level, got {type(data).__name__}"], source
         )
     try:
-        return model.model_validate(data)
+        return model.model_validate(data, context={"source_dir": source_dir})
     except ValidationError as err:
         raise ConfigError(format_validation_error(err, model), source) from None
 
@@ -299,4 +311,4 @@ def load_model(model: type[ModelT], path: str | Path) -> ModelT:
         data = parse_yaml(text)
     except ValueError as err:
         raise ConfigError([str(err)], str(path)) from None
-    return model_from_dict(model, data, str(path))
+    return model_from_dict(model, data, str(path), source_dir=path.resolve().parent)

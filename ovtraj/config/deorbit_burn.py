@@ -175,7 +175,10 @@ class MonteCarloConfig(StrictModel):
     workers: int = bounded(ge=1, le=64)
     task_runner: Literal["threads", "processes"]
     task_retries: int = bounded(ge=0, le=10)
-    store: str = Field(description="run-store root directory")
+    store: str | None = Field(
+        description="run-store root, relative to the config file's folder; null: the "
+        "workspace's runs/ (OVTRAJ_HOME)"
+    )
 
     @field_validator("strategies")
     @classmethod

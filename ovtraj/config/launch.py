@@ -15,7 +15,7 @@ import datetime
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from ovtraj.astro.constants import default_earth
 from ovtraj.config.base import StrictModel, bounded, parse_yaml
@@ -403,11 +403,13 @@ class LaunchSettings(StrictModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _load_launcher_file(cls, data: Any) -> Any:
-        """``launcher: launchers/x.yaml`` reads that file (relative to ``configs/``)."""
+    def _load_launcher_file(cls, data: Any, info: ValidationInfo) -> Any:
+        """``launcher: launchers/x.yaml`` reads that file: relative to the config file's
+        folder, else to the shipped ``configs/``."""
         if isinstance(data, dict) and isinstance(data.get("launcher"), str):
             data = dict(data)
-            data["launcher"] = _read_launcher(data["launcher"])
+            source_dir = (info.context or {}).get("source_dir")
+            data["launcher"] = _read_launcher(data["launcher"], source_dir)
         return data
 
     @field_validator("launch_date_utc")
@@ -431,10 +433,11 @@ class LaunchSettings(StrictModel):
         return self
 
 
-def _read_launcher(name: str) -> dict[str, Any]:
-    path = Path(name)
+def _read_launcher(name: str, source_dir: Path | None) -> dict[str, Any]:
+    path = Path(name).expanduser()
     if not path.is_absolute():
-        path = config_dir() / path
+        beside = source_dir / path if source_dir is not None else None
+        path = beside if beside is not None and beside.is_file() else config_dir() / path
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as err:

@@ -30,7 +30,10 @@ class DoeSettings(StrictModel):
         default=None, description="scheduler of an existing Dask cluster; none: a local one"
     )
     task_retries: int = bounded(ge=0, le=10)
-    store: str = Field(description="run store root, relative to the working directory")
+    store: str | None = Field(
+        description="run store root, relative to the scenario file's folder; null: the "
+        "workspace's runs/ (OVTRAJ_HOME, docs/mission.md)"
+    )
     claim_wait_s: float = bounded(
         unit="s",
         gt=0,

@@ -37,7 +37,7 @@ from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.launch.result import ROW_SCHEMA, LaunchResult
 from ovtraj.launch.stage import solve_launch
-from ovtraj.paths import data_dir
+from ovtraj.paths import reference_dir, workspace
 from ovtraj.products import Product
 from ovtraj.records import table_from_rows
 
@@ -60,8 +60,9 @@ FITTED_OUTPUTS = {
 
 
 def fit_roots() -> tuple[Path, Path]:
-    """Where solved fits live: the flow's store, then the tracked reference data."""
-    return data_dir() / "launch_fit", data_dir() / "reference" / "launch_fit"
+    """Where solved fits live: the workspace (written by the launch-fit flow and
+    ``ovtraj launch-fit``), then the shipped reference data (read only)."""
+    return workspace() / "launch_fit", reference_dir() / "launch_fit"
 
 
 def grid_altitudes_m(fit: FitGridConfig) -> list[float]:

@@ -45,18 +45,26 @@ def prepare_run(
 ) -> Run:
     """The run of a scenario's DoE; with ``parent``, its samples plus ``samples`` more.
 
-    A child run adopts the parent's stored batches (:meth:`Run.adopt`).
+    A child run adopts the parent's stored batches (:meth:`Run.adopt`). Without
+    ``parent``, a stored Latin-hypercube run of the same scenario, seed and code with
+    fewer samples is extended by a further hypercube rather than a second, unrelated
+    one drawn (:meth:`RunStore.latin_hypercube_run`): DoEs of different sizes share
+    their samples (the nightly DoE and the re-plan), and a run of the same size is
+    reopened.
     """
     if scenario.mission is None:
         raise ValueError("the scenario has no mission section")
     bounds = scenario.mission.design_bounds
     if parent is None:
-        return store.create(
-            resolved=scenario.resolved(),
-            samples=latin_hypercube(bounds, samples, seed),
-            seed=seed,
-            code=code,
-        )
+        resolved = scenario.resolved()
+        base = store.latin_hypercube_run(resolved, seed, code, at_most=samples)
+        if base is None:
+            samples_table = latin_hypercube(bounds, samples, seed)
+            return store.create(resolved=resolved, samples=samples_table, seed=seed, code=code)
+        have = int(base.manifest["samples"])
+        if have == samples:
+            return base
+        parent, samples = base, samples - have
     previous = parent.samples()
     more = latin_hypercube(bounds, samples, seed, first_id=int(previous["sample_id"].max()) + 1)
     return extend_run(scenario, parent, more, seed=seed, code=code, store=store)

@@ -63,7 +63,8 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from ovtraj import locks
+from ovtraj import locks, paths
+from ovtraj.config import Scenario
 from ovtraj.files import (
     TEMPORARY_SUFFIX,
     Digest,
@@ -81,9 +82,8 @@ from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.records import table_from_frame, table_from_rows
 from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
 
-__all__ = ["DEFAULT_ROOT", "Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
+__all__ = ["Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
 
-DEFAULT_ROOT = Path("data") / "runs"
 DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
 MANIFEST = "manifest.json"
 RUN_FILES = ("config.json", "samples.parquet")
@@ -121,6 +121,12 @@ def samples_hash(samples: pd.DataFrame) -> str:
         digest.update(column.encode("utf-8"))
         digest.update(np.ascontiguousarray(table[column].to_numpy(dtype=float)).tobytes())
     return digest.hexdigest()[:16]
+
+
+def results_hash(resolved: dict[str, Any]) -> str:
+    """Hash of :func:`results_config` (the runs of one scenario share it)."""
+    text = json.dumps(results_config(resolved), sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
 def run_id(
@@ -619,10 +625,21 @@ def _link(source: Path, target: Path, digest: Digest) -> None:
 
 
 class RunStore:
-    """All runs under a root directory (``data/runs`` by default)."""
+    """All runs under a root directory (default: the workspace's ``runs/``, ovtraj.paths)."""
 
-    def __init__(self, root: str | Path = DEFAULT_ROOT) -> None:
-        self.root = Path(root)
+    def __init__(self, root: str | Path | None = None) -> None:
+        self.root = paths.store_root(None, None, root)
+
+    @classmethod
+    def for_scenario(
+        cls, scenario: Scenario, config: str | Path | None, override: str | Path | None = None
+    ) -> RunStore:
+        """The scenario's store: ``override`` (``--store``), else ``mission.doe.store``
+        relative to the folder of the scenario file ``config``, else the workspace's
+        ``runs/``."""
+        configured = scenario.mission.doe.store if scenario.mission is not None else None
+        base = paths.resolve(config, None).parent if config is not None else None
+        return cls(paths.store_root(configured, base, override))
 
     def run(self, run_id: str) -> Run:
         directory = self.root / run_id
@@ -666,6 +683,7 @@ class RunStore:
                 "parent": parent,
                 "created_utc": _utc_now(),
                 "scenario": resolved.get("name"),
+                "results_hash": results_hash(resolved),
                 "code_version": code,
                 "dependencies": dependency_versions(),
                 "seed": seed,
@@ -678,6 +696,27 @@ class RunStore:
             }
             write_json(directory / MANIFEST, manifest, replace=True)
         return run
+
+    def latin_hypercube_run(
+        self, resolved: dict[str, Any], seed: int, code: str, *, at_most: int
+    ) -> Run | None:
+        """The stored run with the most Latin-hypercube samples (at most ``at_most``) of this
+        scenario, seed and code: a hypercube run or one extended by further hypercubes."""
+        wanted = {"results_hash": results_hash(resolved), "seed": seed, "code_version": code}
+        best: tuple[int, str, Run] | None = None
+        for directory in sorted(self.root.iterdir()) if self.root.is_dir() else []:
+            try:
+                manifest = Run(directory).manifest
+            except StoreError:
+                continue  # not a run of this format: never extended
+            if any(manifest.get(k) != v for k, v in wanted.items()):
+                continue
+            if manifest.get("origin") != "latin hypercube" or manifest["samples"] > at_most:
+                continue
+            key = (int(manifest["samples"]), manifest.get("created_utc") or "")
+            if best is None or key > best[:2]:
+                best = (*key, Run(directory))
+        return best[2] if best is not None else None
 
     def _reopen(self, rid: str, samples: pd.DataFrame) -> Run:
         run = self.run(rid)

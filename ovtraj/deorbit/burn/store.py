@@ -50,14 +50,12 @@ from ovtraj.products import directory_lock
 from ovtraj.records import table_from_frame
 
 __all__ = [
-    "DEFAULT_ROOT",
     "MonteCarloRun",
     "StoreError",
     "monte_carlo_run_id",
     "results_config",
 ]
 
-DEFAULT_ROOT = Path("data") / "runs"
 RUN_KIND = "deorbit_monte_carlo"
 
 
