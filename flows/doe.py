@@ -21,11 +21,12 @@ from prefect import flow, get_run_logger
 from prefect.artifacts import acreate_table_artifact
 from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
 
-from ovtraj.config import Scenario, load_scenario
+from ovtraj.config import Scenario
 from ovtraj.config.mission import DoeSettings
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
+from ovtraj.target_sources import load_scenario_with_target
 from ovtraj.version import code_version
 from tasks.doe import mission_batch_task
 
@@ -141,8 +142,11 @@ async def doe_flow(
     seed: int | None = None,
     append_to: str | None = None,
     store_root: str | None = None,
+    target: str | None = None,
 ) -> dict[str, Any]:
     """DoE of the mission chain; returns the run's summary (run id, counts, ranges).
+
+    ``target``: a TLE/OMM file or URL that replaces the scenario's target.
 
     Async although every step blocks: Prefect joins a synchronous flow run's heartbeat
     thread at exit, and that thread sleeps in 1 s steps (0.5-1 s per run measured here,
@@ -150,7 +154,7 @@ async def doe_flow(
     The steps run in a worker thread (the flow run's context goes with them). From
     synchronous code call :func:`run_doe_flow`.
     """
-    summary = await asyncio.to_thread(_doe, config, samples, seed, append_to, store_root)
+    summary = await asyncio.to_thread(_doe, config, samples, seed, append_to, store_root, target)
     await acreate_table_artifact(
         key="doe-run",
         table=[dict(summary)],
@@ -164,13 +168,13 @@ def run_doe_flow(**parameters: Any) -> dict[str, Any]:
     return asyncio.run(doe_flow(**parameters))
 
 
-def ensure_launch_fit(config: str, scenario: Scenario) -> None:
+def ensure_launch_fit(config: str, scenario: Scenario, target: str | None = None) -> None:
     """Run the launch-fit flow when no stored fit matches the scenario."""
     if find_launch_fit(scenario) is None:
         from flows.launch_fit import launch_fit_flow
 
         get_run_logger().info("no launch fit for this scenario yet: running the launch-fit flow")
-        launch_fit_flow(config)
+        launch_fit_flow(config, target=target)
 
 
 def evaluate_run(runner: Any, scenario: Scenario, run: Any, code: str) -> Any:
@@ -191,13 +195,14 @@ def _doe(
     seed: int | None,
     append_to: str | None,
     store_root: str | None,
+    target: str | None,
 ) -> dict[str, Any]:
     logger = get_run_logger()
-    scenario: Scenario = load_scenario(Path(config))
+    scenario: Scenario = load_scenario_with_target(Path(config), target)
     if scenario.mission is None:
         raise ValueError(f"{config}: the scenario has no mission section")
     settings = scenario.mission.doe
-    ensure_launch_fit(config, scenario)
+    ensure_launch_fit(config, scenario, target)
     store = RunStore.for_scenario(scenario, config, store_root)
     parent = store.run(append_to) if append_to else None
     code = code_version()

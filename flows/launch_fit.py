@@ -18,19 +18,24 @@ from typing import Any
 from prefect import flow, get_run_logger
 from prefect.task_runners import ProcessPoolTaskRunner
 
-from ovtraj.config import load_scenario
 from ovtraj.launch.fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
+from ovtraj.target_sources import load_scenario_with_target
 from ovtraj.version import code_version
 from tasks.launch import launch_point_task
 
 
 @flow(name="launch-fit", task_runner=ProcessPoolTaskRunner(max_workers=2))
 def launch_fit_flow(
-    config: str = "configs/scenario.yaml", output_dir: str | None = None
+    config: str = "configs/scenario.yaml",
+    output_dir: str | None = None,
+    target: str | None = None,
 ) -> dict[str, Any]:
-    """Solve the altitude grid, fit payload, insertion time and u; save and summarise."""
+    """Solve the altitude grid, fit payload, insertion time and u; save and summarise.
+
+    ``target``: a TLE/OMM file or URL that replaces the scenario's target (its plane).
+    """
     logger = get_run_logger()
-    scenario = load_scenario(Path(config))
+    scenario = load_scenario_with_target(Path(config), target)
     if scenario.launch is None:
         raise ValueError(f"{config}: the scenario has no launch section")
     settings = scenario.launch

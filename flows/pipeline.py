@@ -24,7 +24,7 @@ from prefect.cache_policies import NO_CACHE
 from flows.doe import ensure_launch_fit, evaluate_run, task_runner
 from flows.optimize import front_table
 from flows.surrogate import fit_run_surrogates, publish_validation
-from ovtraj.config import Scenario, load_scenario
+from ovtraj.config import Scenario
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.pipeline import (
     Pick,
@@ -37,6 +37,7 @@ from ovtraj.pipeline import (
 )
 from ovtraj.pipeline.planning import write_mission_plan
 from ovtraj.runs import Run, RunStore
+from ovtraj.target_sources import load_scenario_with_target
 from ovtraj.version import code_version
 from tasks.pipeline import surrogate_front_task
 
@@ -81,13 +82,19 @@ def mission_flow(
     store_root: str | None = None,
     pick_index: int | None = None,
     weights: list[float] | None = None,
+    target: str | None = None,
 ) -> dict[str, Any]:
-    """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths."""
+    """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths.
+
+    ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
+    from an updated element set (a changed one gives a new run and launch fit, the same
+    one reuses every stored result).
+    """
     logger = get_run_logger()
-    scenario = load_scenario(Path(config))
+    scenario = load_scenario_with_target(Path(config), target)
     if scenario.mission is None:
         raise ValueError(f"{config}: the scenario has no mission section")
-    ensure_launch_fit(config, scenario)
+    ensure_launch_fit(config, scenario, target)
     settings = scenario.mission.doe
     store = RunStore.for_scenario(scenario, config, store_root)
     root = str(store.root)

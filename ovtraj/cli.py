@@ -26,6 +26,10 @@ ConfigArg = Annotated[
     ),
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
+TargetOpt = Annotated[
+    str | None,
+    typer.Option("--target", help="TLE/OMM file or URL replacing the scenario's target"),
+]
 
 
 def _version(value: bool) -> None:
@@ -43,11 +47,15 @@ def main(
     """ovtraj command line."""
 
 
-def _load(config: Path | None) -> Scenario:
+def _load(config: Path | None, target: str | None = None) -> Scenario:
+    """The scenario (the shipped one when ``config`` is None), its target replaced by the
+    TLE/OMM file or URL ``target`` when given."""
     from ovtraj.paths import config_path
+    from ovtraj.target_sources import load_scenario_with_target
 
     try:
-        return load_scenario(config if config is not None else config_path("scenario.yaml"))
+        path = config if config is not None else config_path("scenario.yaml")
+        return load_scenario(path) if target is None else load_scenario_with_target(path, target)
     except ConfigError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
@@ -193,12 +201,13 @@ def launch_fit_command(
         Path | None,
         typer.Option("--output", help="directory for coefficients.json and grid.parquet"),
     ] = None,
+    target: TargetOpt = None,
 ) -> None:
     """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series."""
     from ovtraj.launch import launch_input
     from ovtraj.launch.fit import fit_roots, launch_fit, launch_fit_key
 
-    scenario = _load(config)
+    scenario = _load(config, target)
     try:
         inp = launch_input(scenario)
     except (ConfigError, ValueError) as err:
@@ -551,24 +560,17 @@ def run(
         str | None, typer.Option("--append", help="add the samples to this run (a child run)")
     ] = None,
     store_root: StoreOpt = None,
+    target: TargetOpt = None,
 ) -> None:
     """DoE of the whole mission into the run store (serial; flows/doe.py runs it in parallel)."""
-    from ovtraj.launch.fit import find_launch_fit
     from ovtraj.runs import StoreError, prepare_run, run_doe
     from ovtraj.version import code_version
 
-    scenario = _load(config)
+    scenario = _load(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        typer.echo(
-            "no launch fit for this scenario: run `python -m flows.launch_fit` or "
-            "`ovtraj launch-fit CONFIG` first",
-            err=True,
-        )
-        raise typer.Exit(code=2)
+    fit = _launch_fit_or_exit(scenario, target)
     settings = scenario.mission.doe
     store = _store(store_root, scenario, config)
     try:
@@ -677,14 +679,15 @@ def replay(run_id: str, store_root: StoreOpt = None) -> None:
     _print_rows(f"replay of {stored.id} (no simulation)", rows)
 
 
-def _launch_fit_or_exit(scenario: Scenario) -> Any:
+def _launch_fit_or_exit(scenario: Scenario, target: str | None = None) -> Any:
     from ovtraj.launch.fit import find_launch_fit
 
     fit = find_launch_fit(scenario)
     if fit is None:
+        also = f" --target {target}" if target else ""
         typer.echo(
-            "no launch fit for this scenario: run `python -m flows.launch_fit` or "
-            "`ovtraj launch-fit CONFIG` first",
+            "no launch fit for this scenario (its target and launch settings): run "
+            f"`ovtraj launch-fit CONFIG{also}` (~4 min) or the launch-fit flow first",
             err=True,
         )
         raise typer.Exit(code=2)
@@ -765,6 +768,7 @@ def pipeline(
     max_dv: MaxDvOpt = None,
     min_payload: MinLoadOpt = None,
     store_root: StoreOpt = None,
+    target: TargetOpt = None,
 ) -> None:
     """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan."""
     from functools import partial
@@ -783,11 +787,11 @@ def pipeline(
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
 
-    scenario = _load(config)
+    scenario = _load(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    fit = _launch_fit_or_exit(scenario)
+    fit = _launch_fit_or_exit(scenario, target)
     settings = scenario.mission.doe
     store = _store(store_root, scenario, config)
     code = code_version()

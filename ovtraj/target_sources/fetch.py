@@ -51,9 +51,7 @@ def default_cache_dir() -> Path:
     """``<workspace>/target_sources``: beside the run store (``<workspace>/runs``)."""
     from ovtraj import paths
 
-    # paths.workspace() (OVTRAJ_HOME) replaces paths.data_dir() (issue 18, point 2).
-    root = paths.workspace() if hasattr(paths, "workspace") else paths.data_dir()
-    return root / "target_sources"
+    return paths.workspace() / "target_sources"
 
 
 def _url_key(url: str) -> str:

@@ -45,6 +45,7 @@ __all__ = [
     "fit_source",
     "fitted_target",
     "inline_target",
+    "load_scenario_with_target",
     "read_source",
     "scenario_with_target_source",
     "target_elements",
@@ -191,10 +192,9 @@ def scenario_with_target_source(
 
     ``scenario`` is a :class:`~ovtraj.config.Scenario` or a scenario mapping (the
     YAML's data); its ``target.source_settings`` are used when it has them, else
-    ``configs/target_sources.yaml``. ``source`` is a TLE / OMM file
-    (relative to ``base_dir``, else the scenario file's folder, else the current
-    directory), an http(s) URL (fetched through the cache of
-    :mod:`ovtraj.target_sources.fetch`), or a mapping ``{"tle": [...]}`` /
+    ``configs/target_sources.yaml``. ``source`` is a TLE / OMM file (relative to
+    ``base_dir``, else the current directory), an http(s) URL (fetched through the
+    cache of :mod:`ovtraj.target_sources.fetch`), or a mapping ``{"tle": [...]}`` /
     ``{"omm": {...}}``. The target's name and settings are kept; a flow then runs
     ``scenario_from_dict(scenario_with_target_source(scenario, url))``, and a changed
     element set gives a changed scenario, so a new run id.
@@ -203,8 +203,6 @@ def scenario_with_target_source(
 
     if isinstance(scenario, Scenario):
         data = scenario.resolved()
-        if base_dir is None:
-            base_dir = getattr(scenario, "source_dir", None)
     else:
         data = copy.deepcopy(dict(scenario))
     target = {
@@ -333,3 +331,20 @@ def fit_source(
         tol=scenario.tolerances.integrator,
         settings=settings,
     )
+
+
+def load_scenario_with_target(config: str | Path, target: str | None = None) -> Scenario:
+    """The scenario file ``config``, its target replaced by ``target`` when given.
+
+    ``target``: a TLE or OMM file (relative to the current directory) or an http(s)
+    URL, as :func:`scenario_with_target_source` reads it. The flows' ``target``
+    parameter: a scheduled re-plan from an updated element set with no edit of the
+    scenario file.
+    """
+    from ovtraj.config.scenario import load_scenario, scenario_from_dict
+
+    scenario = load_scenario(config)
+    if target is None:
+        return scenario
+    data = scenario_with_target_source(scenario, target, base_dir=Path.cwd())
+    return scenario_from_dict(data, f"{config} (target {target})")

@@ -1,0 +1,91 @@
+"""Write the example TLE of the default scenario's ISS-like target (configs/targets/).
+
+The default scenario types its target's osculating elements by hand. The example
+TLE states the same orbit as a two-line element set, as a catalogue would publish
+it, for the worked re-plan of the README: SGP4 mean elements (WGS-72, Kozai mean
+motion) at the scenario epoch, fitted by least squares so that SGP4 reproduces the
+hand-typed osculating state at the epoch (position and velocity), with B* = 0
+(no drag term: the project's chain has none). It is synthetic, not a published set.
+
+Run: ``python tools/example_tle.py`` (prints the path it wrote).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+from sgp4.api import WGS72, Satrec
+from sgp4.exporter import export_tle
+
+from ovtraj.astro.epoch import Epoch
+from ovtraj.config import load_scenario
+from ovtraj.targets import target_state
+
+ROOT = Path(__file__).resolve().parents[1]
+OUTPUT = ROOT / "configs" / "targets" / "iss-like-2026-12-01.tle"
+# SGP4 epochs count days from 1949-12-31 00:00 UT.
+SGP4_EPOCH0 = Epoch.from_iso("1949-12-31T00:00:00Z")
+
+
+def _satrec(x: np.ndarray, epoch_days: float) -> Satrec:
+    """SGP4 of nonsingular mean elements ``(n [rad/min], ex, ey, i, raan, u) [rad]``."""
+    n, ex, ey, i, raan, u = x
+    argp = math.atan2(ey, ex) % (2.0 * math.pi)
+    sat = Satrec()
+    sat.sgp4init(
+        WGS72,
+        "i",
+        99999,
+        epoch_days,
+        0.0,
+        0.0,
+        0.0,
+        math.hypot(ex, ey),
+        argp,
+        i,
+        (u - argp) % (2.0 * math.pi),
+        n,
+        raan % (2.0 * math.pi),
+    )
+    return sat
+
+
+def main() -> None:
+    scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
+    state = target_state(scenario.target.orbit, scenario)  # ECI = TEME (docs/targets.md)
+    epoch = scenario.epoch
+    days = epoch.seconds_since(SGP4_EPOCH0) / 86400.0
+    orbit = scenario.target.orbit
+    a = orbit.semi_major_axis_km
+    u = math.radians(orbit.arg_perigee_deg + orbit.true_anomaly_deg)
+    argp = math.radians(orbit.arg_perigee_deg)
+    guess = np.array(
+        [
+            math.sqrt(398600.8 / a**3) * 60.0,  # rad/min
+            orbit.eccentricity * math.cos(argp),
+            orbit.eccentricity * math.sin(argp),
+            math.radians(orbit.inclination_deg),
+            math.radians(orbit.raan_deg),
+            u,
+        ]
+    )
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        error, r, v = _satrec(x, days).sgp4(epoch.jd1, epoch.jd2)
+        if error:
+            return np.full(6, 1e6)
+        return np.r_[np.subtract(r, state[:3] / 1e3), np.subtract(v, state[3:] / 1e3) * 1e3]
+
+    fit = least_squares(residual, guess, x_scale=[1e-3, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3])
+    elements = fit.x
+    line1, line2 = export_tle(_satrec(elements, days))
+    OUTPUT.parent.mkdir(parents=True, exist_ok=True)
+    OUTPUT.write_text(f"ISS-LIKE (SYNTHETIC, tools/example_tle.py)\n{line1}\n{line2}\n")
+    print(f"{OUTPUT} (epoch residual {np.linalg.norm(fit.fun[:3]) * 1e3:.1f} m)")
+
+
+if __name__ == "__main__":
+    main()
