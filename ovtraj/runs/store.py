@@ -184,6 +184,18 @@ class Run:
         self.directory = Path(directory)
         self.id = self.directory.name
 
+    @property
+    def url(self) -> str:
+        """The run's absolute location (a path, or an object-store URL): what a worker
+        on another machine opens with :meth:`open`."""
+        return str(self.directory.resolve())
+
+    @classmethod
+    def open(cls, url: str) -> Run:
+        """The stored run at ``url`` (from :attr:`url`), checked like :meth:`RunStore.run`."""
+        location = Path(url)
+        return RunStore(location.parent).run(location.name)
+
     # -- metadata -------------------------------------------------------------------------
     @property
     def manifest(self) -> dict[str, Any]:
