@@ -513,7 +513,7 @@ def deorbit_burn(
         raise typer.Exit(code=1)
 
 
-def _store(root: Path | None, scenario: Scenario | None = None, config: Path | None = None) -> Any:
+def _store(root: str | None, scenario: Scenario | None = None, config: Path | None = None) -> Any:
     """``--store``, else the scenario's store (relative to its file ``config``), else the
     workspace's (ovtraj.paths)."""
     from ovtraj.runs import RunStore
@@ -524,8 +524,12 @@ def _store(root: Path | None, scenario: Scenario | None = None, config: Path | N
 
 
 StoreOpt = Annotated[
-    Path | None,
-    typer.Option("--store", help="run store root (default: the config's, else $OVTRAJ_HOME/runs)"),
+    str | None,
+    typer.Option(
+        "--store",
+        help="run store root, a folder or s3://bucket/prefix (default: the config's, else "
+        "$OVTRAJ_HOME/runs)",
+    ),
 ]
 
 

@@ -34,6 +34,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ovtraj.records import json_text
+from ovtraj.storage import PreconditionFailed, S3Path, StorageError, location
 
 __all__ = [
     "Digest",
@@ -114,8 +115,10 @@ def write_bytes(path: Path, payload: bytes, *, replace: bool = False) -> Digest:
     Without ``replace`` an existing file is never changed: the same content is
     accepted as already stored, other content is refused (:class:`StoreError`).
     """
-    path = Path(path)
+    path = location(path)
     digest = Digest.of(payload)
+    if isinstance(path, S3Path):
+        return _put_object(path, payload, digest, replace)
     temporary = _temporary_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -137,6 +140,25 @@ def write_bytes(path: Path, payload: bytes, *, replace: bool = False) -> Digest:
             pass
         except OSError:
             pass  # a read-only or vanished folder: nothing was left behind to remove
+    return digest
+
+
+def _put_object(path: S3Path, payload: bytes, digest: Digest, replace: bool) -> Digest:
+    """An object store's write: one request, so atomic; never over another object
+    unless ``replace`` (S3's ``If-None-Match``, no rename needed)."""
+    try:
+        if replace:
+            path.put(payload)
+            return digest
+        try:
+            path.put(payload, if_absent=True)
+        except PreconditionFailed:
+            if Digest.of(path.read_bytes()) != digest:
+                raise StoreError(
+                    f"{path}: already stored with other content; not overwritten"
+                ) from None
+    except (StorageError, FileNotFoundError) as err:
+        raise StoreError(f"cannot write {path}: {err}") from None
     return digest
 
 
@@ -193,7 +215,7 @@ def write_parquet(path: Path, table: pa.Table, schema: pa.Schema) -> Digest:
 
 def read_bytes(path: Path, expected: Digest | None = None) -> bytes:
     """A stored file's content, checked against ``expected`` when given."""
-    path = Path(path)
+    path = location(path)
     try:
         payload = path.read_bytes()
     except FileNotFoundError:
@@ -245,13 +267,16 @@ def remove_orphans(directory: Path) -> list[Path]:
 
     Call it only when no other process writes there (the caller holds the lock).
     """
-    return [p for p in sorted(Path(directory).rglob(f".*{TEMPORARY_SUFFIX}")) if remove_file(p)]
+    directory = location(directory)
+    if isinstance(directory, S3Path):
+        return []  # an object store's writes leave no temporary object
+    return [p for p in sorted(directory.rglob(f".*{TEMPORARY_SUFFIX}")) if remove_file(p)]
 
 
 def remove_file(path: Path) -> bool:
     """Remove a file that is not (or no longer) stored; False if it was not there."""
     try:
-        Path(path).unlink()
+        location(path).unlink()
     except FileNotFoundError:
         return False
     except OSError as err:

@@ -24,6 +24,8 @@ from typing import IO, Any
 
 import yaml
 
+from ovtraj.storage import S3Path, location
+
 # libyaml's parser when the wheel has it: the scenario file parses ~10x faster.
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -66,17 +68,26 @@ def workspace() -> Path:
     return Path(base).expanduser().resolve() / "ovtraj"
 
 
-def resolve(path: str | Path, base_dir: Path | None) -> Path:
-    """``path`` made absolute: relative to ``base_dir`` (a config file's folder) if given."""
-    path = Path(path).expanduser()
+def resolve(path: str | Path | S3Path, base_dir: Path | None) -> Path | S3Path:
+    """``path`` made absolute: relative to ``base_dir`` (a config file's folder) if given.
+
+    An object-store URL (``s3://bucket/prefix``) is absolute already.
+    """
+    path = location(path)
+    if isinstance(path, S3Path):
+        return path
+    path = path.expanduser()
     if not path.is_absolute():
         path = (base_dir or Path.cwd()) / path
     return path.resolve()
 
 
-def store_root(configured: str | None, base_dir: Path | None, override: str | Path | None) -> Path:
+def store_root(
+    configured: str | None, base_dir: Path | None, override: str | Path | S3Path | None
+) -> Path | S3Path:
     """The run store's root: ``override`` (``--store``), else the configured one
-    (relative to the config file's folder), else the workspace's ``runs/``."""
+    (relative to the config file's folder), else the workspace's ``runs/``. Either may
+    be an object store (``s3://bucket/prefix``, :mod:`ovtraj.storage`)."""
     if override is not None:
         return resolve(override, None)
     if configured:

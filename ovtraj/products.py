@@ -42,6 +42,7 @@ from ovtraj.files import (
     write_parquet,
 )
 from ovtraj.locks import hold_directory
+from ovtraj.storage import location
 
 __all__ = ["Product", "ProductWriter", "digests_json", "directory_lock"]
 
@@ -58,7 +59,7 @@ class Product:
     """A product directory and the name of its marker."""
 
     def __init__(self, directory: str | Path, marker: str) -> None:
-        self.directory = Path(directory)
+        self.directory = location(directory)
         self.marker_name = marker
 
     @property

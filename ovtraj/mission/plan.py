@@ -43,6 +43,7 @@ from ovtraj.reentry.dynamics import HISTORY_COLUMNS
 from ovtraj.reentry.model import EntryModel
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import Impulse, RendezvousResult
+from ovtraj.storage import location
 from ovtraj.version import code_version
 
 SCHEMA_VERSION = "ovtraj.mission-plan/1"
@@ -646,7 +647,7 @@ def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Pat
     """
     if not name or Path(name).name != name or name in {".", ".."}:
         raise PlanError(f"plan name {name!r} must be a plain file name")
-    directory = Path(directory)
+    directory = location(directory)
     targets = (
         (directory / f"{name}.json", plan_json(plan)),
         (directory / f"{name}.yaml", plan_yaml(plan)),

@@ -35,6 +35,7 @@ from ovtraj.config import Scenario
 from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.products import Product
+from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 from ovtraj.targets import target_state
 
@@ -126,7 +127,7 @@ class MissionSurrogates:
         parts (their own ``meta.json`` included) and of the ``views`` (plots already
         written in ``directory``). Returns the digests, ``meta.json`` included.
         """
-        directory = Path(directory)
+        directory = location(directory)
         content = {
             "kind": KIND,
             "period_s": self.period_s,
@@ -169,7 +170,7 @@ class MissionSurrogates:
 def load_surrogates(directory: Path) -> SurrogateSet | MissionSurrogates:
     """Whichever kind of set the directory holds."""
     try:
-        marker = read_json(Path(directory) / MARKER)
+        marker = read_json(location(directory) / MARKER)
     except StoreError as err:
         raise SurrogateError(str(err)) from None
     if isinstance(marker, dict) and marker.get("kind") == KIND:

@@ -59,6 +59,7 @@ from ovtraj.products import Product
 from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
+from ovtraj.storage import location
 
 MARKER = "pipeline.json"
 FRONT_FILE = "front.parquet"
@@ -394,7 +395,7 @@ def load_pipeline(directory: Path) -> PipelineResult:
     summary = product.marker()
     return PipelineResult(
         summary["pipeline_id"],
-        Path(directory),
+        location(directory),
         summary["doe_run"],
         summary["final_run"],
         product.read_frame(FRONT_FILE, FRONT_SCHEMA, summary),

@@ -14,6 +14,7 @@ from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.products import digests_json
 from ovtraj.runs import Run, RunStore
+from ovtraj.storage import location
 
 PLAN_MARKER_SUFFIX = ".files.json"
 
@@ -103,11 +104,16 @@ def write_mission_plan(
             f"pipeline {result.pipeline_id}",
         )
     )
-    paths = [json_path, yaml_path, *(Path(p) for p in plots)]
+    paths = [json_path, yaml_path, *(location(p) for p in plots)]
     files = {path.name: file_digest(path) for path in paths}
     write_json(
         directory / f"{name}{PLAN_MARKER_SUFFIX}",
         {"plan": name, "files": digests_json(files)},
         replace=True,  # the plots are views, drawn again with the plan
     )
-    return {"plan": plan, "json": json_path, "yaml": yaml_path, "plots": [Path(p) for p in plots]}
+    return {
+        "plan": plan,
+        "json": json_path,
+        "yaml": yaml_path,
+        "plots": [location(p) for p in plots],
+    }

@@ -10,6 +10,7 @@ import pandas as pd
 
 from ovtraj.files import write_bytes
 from ovtraj.optimize.objectives import Normalisation
+from ovtraj.storage import location
 
 __all__ = ["front_plot"]
 
@@ -57,6 +58,6 @@ def front_plot(
         fig.suptitle(title)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=100)
-    path = Path(path)
+    path = location(path)
     write_bytes(path, buffer.getvalue(), replace=True)
     return path

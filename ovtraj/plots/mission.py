@@ -31,6 +31,7 @@ import pandas as pd
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario
 from ovtraj.files import write_bytes
+from ovtraj.storage import location
 
 __all__ = ["mission_plots"]
 
@@ -50,7 +51,7 @@ def mission_plots(
     prefix: str = "mission",
 ) -> list[Path]:
     """Write the three mission plots into ``directory``; returns their paths."""
-    directory = Path(directory)
+    directory = location(directory)
     tracks = _tracks(trajectories, scenario)
     return [
         _save(_profile(tracks), directory / f"{prefix}_profile.png"),

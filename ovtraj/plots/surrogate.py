@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.files import write_bytes
+from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateSet
 
 __all__ = ["parity_plots"]
@@ -42,7 +43,7 @@ def parity_plots(surrogates: SurrogateSet, directory: Path) -> list[Path]:
     """
     from matplotlib.figure import Figure  # no pyplot: no global state, nothing to close
 
-    directory = Path(directory)
+    directory = location(directory)
     directory.mkdir(parents=True, exist_ok=True)
     table = surrogates.predictions
     validation = surrogates.validation

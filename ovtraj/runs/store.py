@@ -81,6 +81,7 @@ from ovtraj.files import (
 from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.records import table_from_frame, table_from_rows
 from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
+from ovtraj.storage import S3Path, location
 
 __all__ = ["Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
 
@@ -180,8 +181,8 @@ class VerifyReport:
 class Run:
     """One stored run."""
 
-    def __init__(self, directory: Path) -> None:
-        self.directory = Path(directory)
+    def __init__(self, directory: Path | S3Path | str) -> None:
+        self.directory = location(directory)
         self.id = self.directory.name
 
     @property
@@ -193,8 +194,8 @@ class Run:
     @classmethod
     def open(cls, url: str) -> Run:
         """The stored run at ``url`` (from :attr:`url`), checked like :meth:`RunStore.run`."""
-        location = Path(url)
-        return RunStore(location.parent).run(location.name)
+        where = location(url)
+        return RunStore(where.parent).run(where.name)
 
     # -- metadata -------------------------------------------------------------------------
     @property
@@ -610,7 +611,7 @@ class Run:
             report.checked_files += 1
             report.checked_bytes += recorded.size
         for path in sorted(p for p in self.directory.rglob("*") if p.is_file()):
-            if path in covered or path.parent.name == "locks":
+            if path in covered or _is_lock(path.relative_to(self.directory).parts):
                 continue
             note = (
                 " (temporary file of an interrupted write)"
@@ -621,9 +622,17 @@ class Run:
         return report
 
 
-def _link(source: Path, target: Path, digest: Digest) -> None:
+def _is_lock(parts: tuple[str, ...]) -> bool:
+    """A lock file or lease of the run (``locks/``) or of a product (``.lock``)."""
+    return parts[0] == "locks" or parts[-1] == ".lock"
+
+
+def _link(source: Path | S3Path, target: Path | S3Path, digest: Digest) -> None:
     """``target`` becomes ``source``'s content (checked): a hard link, or a copy."""
     payload = read_bytes(source, digest)
+    if isinstance(source, S3Path) or isinstance(target, S3Path):
+        write_bytes(target, payload)  # an object store has no links
+        return
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         os.link(source, target)

@@ -55,6 +55,7 @@ from ovtraj.records import (
     table_from_frame,
     table_from_rows,
 )
+from ovtraj.storage import location
 from ovtraj.surrogate.candidates import ALL_FEASIBLE, FeasibilityClassifier, Regressor
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
@@ -283,7 +284,7 @@ class SurrogateSet:
         digest of every file written, ``meta.json`` included. A stored set is never
         overwritten: saving other content over it raises :class:`~ovtraj.files.StoreError`.
         """
-        directory = Path(directory)
+        directory = location(directory)
         own: dict[str, Any] = {
             "format": STORE_FORMAT,
             "data_hash": self.data_hash,
@@ -333,7 +334,7 @@ class SurrogateSet:
 
         ``expected`` is the digest of ``meta.json`` when a parent product lists it.
         """
-        directory = Path(directory)
+        directory = location(directory)
         product = Product(directory, META_FILE)
         meta_path = product.marker_path
         if not meta_path.is_file():
