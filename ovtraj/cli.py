@@ -555,6 +555,26 @@ def paths(as_json: JsonOpt = False) -> None:
         _print_rows("ovtraj paths", rows)
 
 
+RunnerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--runner",
+        help="serial | threads | processes | dask: where the batches run (default: the "
+        "config's mission.doe.task_runner)",
+        show_default=False,
+    ),
+]
+DaskAddressOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--dask-address",
+        help="scheduler of an existing Dask cluster, e.g. tcp://host:8786 (--runner dask; "
+        "default: the config's mission.doe.dask_address, else a local cluster)",
+        show_default=False,
+    ),
+]
+
+
 @app.command()
 def run(
     config: ConfigArg = None,
@@ -565,17 +585,28 @@ def run(
     ] = None,
     store_root: StoreOpt = None,
     target: TargetOpt = None,
+    runner: RunnerOpt = None,
+    dask_address: DaskAddressOpt = None,
 ) -> None:
-    """DoE of the whole mission into the run store (serial; flows/doe.py runs it in parallel)."""
-    from ovtraj.runs import StoreError, prepare_run, run_doe
-    from ovtraj.version import code_version
+    """DoE of the whole mission into the run store.
 
+    ``--runner`` says where the batches run (``serial`` here; a pool of ``threads`` or
+    ``processes``; ``dask``: the cluster at ``--dask-address`` or a local one); each
+    batch is stored where the run is by the process that computed it. No Prefect: the
+    flows (``flows/doe.py``) run the same batches as Prefect tasks.
+    """
     scenario = _load(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    fit = _launch_fit_or_exit(scenario, target)
     settings = scenario.mission.doe
+    execution = _doe_execution(settings, runner, dask_address)
+    from ovtraj.runs import StoreError, prepare_run, run_doe
+    from ovtraj.runs.execute import BatchesFailed
+    from ovtraj.runs.runners import ClusterError
+    from ovtraj.version import code_version
+
+    fit = _launch_fit_or_exit(scenario, target)
     store = _store(store_root, scenario, config)
     try:
         parent = store.run(append) if append else None
@@ -587,12 +618,36 @@ def run(
             store=store,
             parent=parent,
         )
-        run_doe(scenario, stored, fit, batch_size=settings.batch_size, progress=typer.echo)
-    except (StoreError, ValueError) as err:
+        run_doe(scenario, stored, fit, progress=typer.echo, **execution)
+    except (StoreError, ValueError, ClusterError, BatchesFailed) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     _print_rows(f"run {stored.id}", list(stored.summary().items()))
-    typer.echo(f"stored in {stored.directory.resolve()}")
+    typer.echo(f"stored in {stored.url}")
+
+
+def _doe_execution(settings: Any, runner: str | None, dask_address: str | None) -> dict[str, Any]:
+    """The keyword arguments of ``run_doe`` for the runner chosen: the option, else the
+    config's ``mission.doe``; a bad choice is one line, exit 2."""
+    from ovtraj.config.mission import RUNNERS
+    from ovtraj.config.orchestration import load_orchestration
+
+    chosen = runner or settings.task_runner
+    if chosen not in RUNNERS:
+        typer.echo(f"--runner {chosen}: must be one of {', '.join(RUNNERS)}", err=True)
+        raise typer.Exit(code=2)
+    if dask_address and chosen != "dask":
+        typer.echo(f"--dask-address needs --runner dask (the runner is {chosen})", err=True)
+        raise typer.Exit(code=2)
+    orchestration = load_orchestration()
+    return {
+        "batch_size": settings.batch_size,
+        "runner": chosen,
+        "workers": settings.workers,
+        "dask_address": (dask_address or settings.dask_address) if chosen == "dask" else None,
+        "dask": orchestration.dask,
+        "time_limit_s": orchestration.flows.doe_s,
+    }
 
 
 @app.command()
@@ -773,6 +828,8 @@ def pipeline(
     min_payload: MinLoadOpt = None,
     store_root: StoreOpt = None,
     target: TargetOpt = None,
+    runner: RunnerOpt = None,
+    dask_address: DaskAddressOpt = None,
 ) -> None:
     """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan."""
     from functools import partial
@@ -788,6 +845,8 @@ def pipeline(
     )
     from ovtraj.pipeline.planning import write_mission_plan
     from ovtraj.runs import StoreError, run_doe
+    from ovtraj.runs.execute import BatchesFailed
+    from ovtraj.runs.runners import ClusterError
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
 
@@ -796,12 +855,12 @@ def pipeline(
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
     fit = _launch_fit_or_exit(scenario, target)
-    settings = scenario.mission.doe
+    execution = _doe_execution(scenario.mission.doe, runner, dask_address)
     store = _store(store_root, scenario, config)
     code = code_version()
 
     def evaluate(run: Any) -> Any:
-        return run_doe(scenario, run, fit, batch_size=settings.batch_size, progress=typer.echo)
+        return run_doe(scenario, run, fit, progress=typer.echo, **execution)
 
     try:
         doe_run, scenario = pipeline_doe_run(
@@ -828,7 +887,14 @@ def pipeline(
     except OptimiserStopped as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=1) from None
-    except (StoreError, PipelineError, SurrogateError, ValueError) as err:
+    except (
+        StoreError,
+        PipelineError,
+        SurrogateError,
+        ValueError,
+        ClusterError,
+        BatchesFailed,
+    ) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     typer.echo(f"verified front of run {doe_run.id} (pipeline {result.pipeline_id}):")

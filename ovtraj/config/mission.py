@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 from pydantic import Field
 
 from ovtraj.config.base import StrictModel, bounded
 from ovtraj.config.launch import Bound
+
+# How a DoE's batches run: the one definition behind `ovtraj run --runner`, the config's
+# `mission.doe.task_runner` and the flows' `runner` parameter (docs/mission.md, issue 19).
+# serial: one batch after another in this process (the library path of `ovtraj run`, no
+# Prefect); threads / processes: Prefect task runners of this machine; dask: a Dask
+# cluster (`dask_address`, or a local one of `workers` processes).
+Runner = Literal["serial", "threads", "processes", "dask"]
+RUNNERS: tuple[str, ...] = get_args(Runner)
 
 
 class MissionBoundsConfig(StrictModel):
@@ -24,7 +32,7 @@ class DoeSettings(StrictModel):
     samples: int = bounded(ge=1, le=100000)
     seed: int = bounded(ge=0, le=2**32 - 1)
     batch_size: int = bounded(ge=1, le=10000, description="samples per Prefect task")
-    task_runner: Literal["threads", "processes", "dask"]
+    task_runner: Runner = Field(description="serial | threads | processes | dask (RUNNERS)")
     workers: int = bounded(ge=1, le=1024)
     dask_address: str | None = Field(
         default=None, description="scheduler of an existing Dask cluster; none: a local one"

@@ -174,6 +174,28 @@ class LaunchFit:
             "series": {name: s.to_dict() for name, s in self.series.items()},
         }
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> LaunchFit:
+        """The fit of :meth:`to_dict` (the coefficients; the solved grid is not carried,
+        so :attr:`grid` is empty): what a DoE task carries to a worker that has no fit on
+        its disk. A malformed mapping raises ``ValueError`` naming the key."""
+        try:
+            series = {n: FourierSeries.from_dict(d) for n, d in data["series"].items()}
+            launcher = data["launcher"]
+        except (KeyError, TypeError, AttributeError) as err:
+            raise ValueError(
+                f"not a launch fit's coefficients ({type(err).__name__}: {err})"
+            ) from None
+        if not series:
+            raise ValueError("not a launch fit's coefficients: no series")
+        return cls(
+            series=series,
+            grid=pd.DataFrame(),
+            launcher=str(launcher),
+            ridges=dict(data.get("ridges", {})),
+            key=str(data.get("key", "")),
+        )
+
     def save(self, directory: str | Path) -> dict[str, Digest]:
         """``coefficients.json`` and ``grid.parquet`` (:data:`GRID_SCHEMA`), then ``meta.json``.
 

@@ -1,17 +1,25 @@
-"""Running a DoE into the store (serial library path; the Prefect flow parallelises it)."""
+"""Running a DoE into the store: the library path of ``ovtraj run`` (every runner), and the
+batch job the Prefect DoE task wraps."""
 
 from __future__ import annotations
 
+import concurrent.futures
+import hashlib
+import json
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 
-from ovtraj.config import Scenario
+from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.config.orchestration import DaskSettings, load_orchestration
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.runs.doe import latin_hypercube
+from ovtraj.runs.runners import BatchPool, ClusterError, batch_pool
 from ovtraj.runs.store import Run, RunStore, StoreError
 
 # Counts mission evaluations in this process (tests assert that a re-run makes none).
@@ -24,13 +32,21 @@ def split_batches(samples: pd.DataFrame, batch_size: int) -> list[pd.DataFrame]:
     return [samples.iloc[i : i + batch_size] for i in range(0, len(samples), batch_size)]
 
 
+# BLAS threads of every stored evaluation. Not a setting: a multi-threaded BLAS splits its
+# sums differently, so the same sample evaluated in a Dask worker (limited to one thread)
+# and in this process differed in the 12th digit; with one thread everywhere, every
+# runner stores byte-identical files (tests/test_runners.py).
+EVALUATION_BLAS_THREADS = 1
+
+
 def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
     """Every sample of a batch; a failing sample is recorded, never raised."""
     records = []
-    for row in batch.itertuples(index=False):
-        EVALUATIONS["count"] += 1
-        design = MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
-        records.append(evaluate(context, design))
+    with threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"):
+        for row in batch.itertuples(index=False):
+            EVALUATIONS["count"] += 1
+            design = MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
+            records.append(evaluate(context, design))
     return records
 
 
@@ -143,6 +159,58 @@ def store_batch(
         )
 
 
+def mission_context(resolved: dict[str, Any], launch_fit: dict[str, Any]) -> MissionContext:
+    """The context of a resolved scenario and a launch fit's coefficients, built once per
+    process (a worker keeps it between batches) and rebuilt when either changes."""
+    key = hashlib.sha256(
+        json.dumps([resolved, launch_fit], sort_keys=True, default=str).encode()
+    ).hexdigest()
+    context = _CONTEXTS.get(key)
+    if context is None:
+        scenario = scenario_from_dict(json.loads(json.dumps(resolved)), "the batch's scenario")
+        context = MissionContext(scenario, LaunchFit.from_dict(launch_fit))
+        _CONTEXTS.clear()  # one scenario at a time: a worker's memory stays flat
+        _CONTEXTS[key] = context
+    return context
+
+
+_CONTEXTS: dict[str, MissionContext] = {}
+
+
+def store_batch_job(
+    run_url: str,
+    resolved: dict[str, Any],
+    launch_fit: dict[str, Any],
+    batch_index: int,
+    batch: list[dict[str, float]],
+    wait_s: float | None = None,
+) -> dict[str, Any]:
+    """One batch, evaluated and stored where the run is (:func:`store_batch`), by whatever
+    process runs it: everything it needs travels with it (the run's absolute URL, the
+    resolved scenario, the launch fit's coefficients, the samples as records), so a Dask
+    worker needs the installed package only. Returns a small summary (the records never
+    travel back); ``stored`` is None when another process holds the batch's claim for
+    longer than ``wait_s`` (default: the scenario's ``mission.doe.claim_wait_s``).
+    """
+    start = time.perf_counter()
+    context = mission_context(resolved, launch_fit)
+    run = Run.open(run_url)
+    scenario = context.scenario
+    if wait_s is None:
+        wait_s = scenario.mission.doe.claim_wait_s
+    stored = store_batch(run, scenario, context, batch_index, pd.DataFrame(batch), wait_s=wait_s)
+    summary: dict[str, Any] = {"batch": batch_index, "stored": stored}
+    if stored is not None:
+        totals = run.batch_totals(batch_index)
+        summary.update(samples=len(totals), feasible=int(totals["feasible"].sum()))
+    return summary | {"wall_time_s": time.perf_counter() - start}
+
+
+class BatchesFailed(RuntimeError):
+    """Batches raised (a lost process pool, a worker that died too often); the run's
+    manifest says ``incomplete`` with their errors."""
+
+
 def run_doe(
     scenario: Scenario,
     run: Run,
@@ -150,38 +218,139 @@ def run_doe(
     *,
     batch_size: int,
     progress: Callable[[str], None] | None = None,
+    runner: str = "serial",
+    workers: int = 1,
+    dask_address: str | None = None,
+    dask: DaskSettings | None = None,
+    time_limit_s: float | None = None,
 ) -> Run:
-    """Evaluate every batch the run does not hold yet, serially, and finish the manifest.
+    """Evaluate every batch the run does not hold yet and finish the manifest.
 
-    Batches that another process is computing are left to it at first, then waited
-    for (``mission.doe.claim_wait_s``); one whose process died is computed here. A
-    complete run is not written to at all.
+    ``runner`` (``serial | threads | processes | dask``, :mod:`ovtraj.runs.runners`) says
+    where the batches run; each stores its own batch in the run. Batches that another
+    process is computing are left to it at first, then waited for
+    (``mission.doe.claim_wait_s``); one whose process died is computed again. A complete
+    run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches.
+
+    Raises :class:`ClusterError` (the manifest ends ``failed``) when the Dask cluster is
+    unusable or loses every worker for ``dask.no_worker_timeout_s``, and
+    :class:`BatchesFailed` (``incomplete``, the errors in ``failures``) when batches raised.
     """
     say = progress or (lambda _: None)
     batches = run.batches(batch_size)
     if not [k for k, _ in batches if not run.is_stored(k)]:
         return finish(run)
-    context = MissionContext(scenario, launch_fit)
+    settings = dask or load_orchestration().dask
+    failures: dict[int, str] = {}
+    try:
+        with run.working() as removed:
+            if removed:
+                say(f"removed {len(removed)} temporary file(s) of an interrupted write")
+            run.update_manifest(batches=len(batches))
+            with batch_pool(runner, workers, dask_address, settings) as pool:
+                jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings)
+                todo = [k for k, _ in batches if not run.is_stored(k)]
+                waiting = jobs.evaluate(todo, 0.0, time_limit_s)
+                for k in waiting:
+                    say(f"batch {k + 1}/{len(batches)}: another process is computing it; waiting")
+                jobs.evaluate(waiting, scenario.mission.doe.claim_wait_s, time_limit_s)
+                failures = jobs.failures
+    except ClusterError as err:  # after `working` has said `interrupted`: the cause wins
+        finish(run)
+        if run.manifest.get("status") != "complete":
+            run.update_manifest(status="failed", failure=f"ClusterError: {err}"[:1000])
+        raise
+    finish(run)
+    if failures and run.manifest.get("status") != "complete":
+        texts = [f"batch {k}: {why}" for k, why in sorted(failures.items())]
+        run.update_manifest(failures=texts)
+        raise BatchesFailed(
+            f"run {run.id} incomplete: {len(failures)} batch(es) failed: {'; '.join(texts)}"
+        )
+    return run
 
-    def evaluate(k: int, batch: pd.DataFrame, wait_s: float) -> bool:
-        start = time.perf_counter()
-        stored = store_batch(run, scenario, context, k, batch, wait_s=wait_s)
-        if stored:
-            say(
-                f"batch {k + 1}/{len(batches)}: {len(batch)} samples in "
-                f"{time.perf_counter() - start:.1f} s"
+
+class _BatchJobs:
+    """Submits batch jobs to a pool and collects their summaries as they end."""
+
+    def __init__(
+        self,
+        run: Run,
+        scenario: Scenario,
+        launch_fit: LaunchFit,
+        batches: list[tuple[int, pd.DataFrame]],
+        pool: BatchPool,
+        say: Callable[[str], None],
+        settings: DaskSettings,
+    ) -> None:
+        self.run, self.pool, self.say, self.settings = run, pool, say, settings
+        self.batches = dict(batches)
+        self.resolved, self.coefficients = scenario.resolved(), launch_fit.to_dict()
+        self.failures: dict[int, str] = {}
+
+    def _job(self, k: int, wait_s: float) -> tuple[Any, ...]:
+        records = self.batches[k].to_dict(orient="records")
+        return (store_batch_job, self.run.url, self.resolved, self.coefficients, k, records, wait_s)
+
+    def _done(self, k: int, summary: dict[str, Any]) -> bool:
+        """Report a finished job; False when another process holds the batch's claim."""
+        if summary["stored"] is None:
+            return False
+        self.say(
+            f"batch {k + 1}/{len(self.batches)}: {summary['samples']} samples, "
+            f"{summary['feasible']} feasible, {summary['wall_time_s']:.1f} s"
+            + ("" if summary["stored"] else " (already stored)")
+        )
+        return True
+
+    def evaluate(self, todo: list[int], wait_s: float, time_limit_s: float | None) -> list[int]:
+        """Evaluate ``todo``; returns the batches another process holds."""
+        held: list[int] = []
+        if self.pool.executor is None:
+            for k in todo:
+                function, *args = self._job(k, wait_s)
+                if not self._done(k, function(*args)):
+                    held.append(k)
+            return held
+        futures = {self.pool.executor.submit(*self._job(k, wait_s)): k for k in todo}
+        deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
+        no_worker = self.settings.no_worker_timeout_s
+        workers_gone_since: float | None = None
+        while futures:
+            timeout = no_worker / 10
+            if deadline is not None:
+                timeout = min(timeout, max(deadline - time.monotonic(), 0.0))
+            finished, _ = concurrent.futures.wait(
+                futures, timeout=timeout, return_when=concurrent.futures.FIRST_COMPLETED
             )
-        return stored is not None
-
-    with run.working() as removed:
-        if removed:
-            say(f"removed {len(removed)} temporary file(s) of an interrupted write")
-        run.update_manifest(batches=len(batches))
-        waiting = [(k, b) for k, b in batches if not run.is_stored(k) and not evaluate(k, b, 0.0)]
-        for k, batch in waiting:
-            say(f"batch {k + 1}/{len(batches)}: another process is computing it; waiting")
-            evaluate(k, batch, scenario.mission.doe.claim_wait_s)
-    return finish(run)
+            for future in finished:
+                k = futures.pop(future)
+                try:
+                    if not self._done(k, future.result()):
+                        held.append(k)
+                except Exception as err:
+                    self.failures[k] = f"{type(err).__name__}: {err}"
+                    self.say(f"batch {k + 1}/{len(self.batches)} failed: {self.failures[k]}")
+            if not futures:
+                break
+            if deadline is not None and time.monotonic() >= deadline:
+                for future, k in futures.items():
+                    future.cancel()
+                    self.failures[k] = f"not done within the DoE's limit ({time_limit_s:g} s)"
+                break
+            if self.pool.workers_alive():
+                workers_gone_since = None
+            elif workers_gone_since is None:
+                workers_gone_since = time.monotonic()
+            elif time.monotonic() - workers_gone_since >= no_worker:
+                for future in futures:
+                    future.cancel()
+                raise ClusterError(
+                    f"the Dask cluster has had no worker for {no_worker:g} s "
+                    "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
+                    f"{len(futures)} batch(es) waiting: its workers died or left; see their logs"
+                )
+        return held
 
 
 def finish(run: Run) -> Run:

@@ -362,6 +362,18 @@ class Run:
         for path in self._batch_paths(batch):
             remove_file(path)
 
+    def _clear_interrupted(self, batch: int) -> list[Path]:
+        """Remove the temporary files an earlier holder of the batch's claim left (a
+        worker killed mid-write); the caller holds the claim, so no live writer owns them."""
+        removed = []
+        for path in self._batch_paths(batch):
+            if isinstance(path, S3Path) or not path.parent.is_dir():
+                continue  # an object store's writes leave no temporary object
+            for temporary in path.parent.glob(f".{path.name}.*{TEMPORARY_SUFFIX}"):
+                if remove_file(temporary):
+                    removed.append(temporary)
+        return removed
+
     def adopt(self, parent: Run) -> int:
         """Take the parent's stored batches as this run's first ones; returns their count.
 
@@ -402,6 +414,7 @@ class Run:
         marker = self.directory / "batches" / f"{batch}.json"
         if marker.exists():
             return False
+        self._clear_interrupted(batch)
         try:
             self._write_batch(marker, batch, list(records), sample_ids, trajectory_steps)
         except BaseException:

@@ -1,0 +1,114 @@
+"""How the Prefect flows run: timeouts, Dask checks, task results, concurrency (issue 19).
+
+``configs/orchestration.yaml`` (shipped; ``OVTRAJ_CONFIG_DIR`` moves it). These settings
+belong to no scenario: they never change a result or a run id, and a stored run's
+``config.json`` does not carry them. The flows (``flows/``) read them when imported; the
+library never does.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from pydantic import Field
+
+from ovtraj.config.base import StrictModel, bounded, load_model
+from ovtraj.paths import config_path, workspace
+
+FILE = "orchestration.yaml"
+# Overrides results.storage (a folder or an fsspec URL): the tests' own result storage.
+RESULTS_ENV = "OVTRAJ_PREFECT_RESULTS"
+
+
+class TaskTimeouts(StrictModel):
+    """Prefect ``timeout_seconds`` of every task."""
+
+    mission_batch_per_sample_s: float = bounded(
+        unit="s", gt=0, le=86400, description="a DoE batch task: this times its samples"
+    )
+    rendezvous_s: float = bounded(unit="s", gt=0, le=86400)
+    launch_point_s: float = bounded(unit="s", gt=0, le=86400)
+    deorbit_mc_batch_per_run_s: float = bounded(
+        unit="s", gt=0, le=86400, description="a Monte Carlo batch task: this times its runs"
+    )
+    fit_surrogates_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    surrogate_front_s: float = bounded(unit="s", gt=0, le=86400)
+    mission_plan_s: float = bounded(unit="s", gt=0, le=86400)
+
+
+class FlowTimeouts(StrictModel):
+    """Wall-time limit of each flow run."""
+
+    rendezvous_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    launch_fit_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    doe_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    deorbit_monte_carlo_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    surrogate_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    optimize_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    mission_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+
+
+class DaskSettings(StrictModel):
+    """The ``dask`` runner: checks of the cluster, and a local cluster's shape."""
+
+    connect_timeout_s: float = bounded(
+        unit="s",
+        gt=0,
+        le=3600,
+        description="reach the scheduler, wait for a worker, check every worker imports ovtraj",
+    )
+    no_worker_timeout_s: float = bounded(
+        unit="s", gt=0, le=86400, description="batches waiting on a cluster with no worker"
+    )
+    threads_per_worker: int = bounded(ge=1, le=256, description="of a local cluster")
+    worker_threads: int | None = bounded(
+        ge=1,
+        le=256,
+        description="thread pools (BLAS/OpenMP, heyoka's TBB) of each worker, set when the "
+        "flow connects; null: the libraries' own (one per core)",
+    )
+    worker_profiler: bool = Field(
+        description="leave Dask's statistical profiler running in the workers (false: stopped "
+        "when the flow connects)"
+    )
+
+
+class ResultSettings(StrictModel):
+    """Prefect's task results: where they are stored and how long they are served."""
+
+    storage: str | None = Field(
+        description="a folder (relative: to the workspace) or an fsspec URL; null: "
+        "<workspace>/prefect-results"
+    )
+    expiration_h: float = bounded(unit="h", gt=0, le=10 * 8760)
+
+    def location(self) -> str:
+        """The storage as an absolute folder or a URL (``OVTRAJ_PREFECT_RESULTS`` first)."""
+        chosen = os.environ.get(RESULTS_ENV) or self.storage
+        if chosen is None:
+            return str(workspace() / "prefect-results")
+        if "://" in chosen:
+            return chosen
+        path = Path(chosen).expanduser()
+        return str(path if path.is_absolute() else (workspace() / path).resolve())
+
+
+class ConcurrencySettings(StrictModel):
+    """The global concurrency limit per run id (one flow run evaluates a run at a time)."""
+
+    run_slot_wait_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    lease_s: float = bounded(unit="s", ge=60, le=86400, description="renewed while held")
+
+
+class OrchestrationConfig(StrictModel):
+    tasks: TaskTimeouts
+    flows: FlowTimeouts
+    dask: DaskSettings
+    results: ResultSettings
+    concurrency: ConcurrencySettings
+
+
+def load_orchestration(path: str | Path | None = None) -> OrchestrationConfig:
+    """``configs/orchestration.yaml`` (or ``path``); errors name the file and the field."""
+    return load_model(OrchestrationConfig, path or config_path(FILE))

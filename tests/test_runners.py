@@ -1,0 +1,139 @@
+"""The one runner option of ``ovtraj run`` (issue 19): the library's pools, no Prefect.
+
+1. ``serial``, ``threads``, ``processes`` and ``dask`` (a local cluster) store
+   byte-identical files for the same config and seed: each batch is evaluated with one
+   BLAS thread wherever it runs (``ovtraj.runs.execute.EVALUATION_BLAS_THREADS``);
+2. a process of the ``processes`` pool killed (SIGKILL) mid-batch: the command fails with
+   one line naming the batches, exit 2, the manifest says ``incomplete`` with their
+   errors, nothing stored is lost, and the same command completes the run computing only
+   the missing batches.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ovtraj import locks
+from ovtraj.runs import RunStore
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+
+OVTRAJ = Path(sys.executable).with_name("ovtraj")
+
+
+def _config(folder: Path, **doe) -> Path:
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(store="runs", **doe)
+    build_scenario(copy.deepcopy(data))
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def _ovtraj(*args: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
+    return subprocess.run(
+        [str(OVTRAJ), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
+
+
+def _stored_in(output: str) -> Path:
+    match = re.search(r"^stored in (.+)$", output, flags=re.MULTILINE)
+    assert match, output
+    return Path(match.group(1))
+
+
+def _digest(directory: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob("*.parquet"))
+    }
+
+
+@pytest.mark.parametrize("runner", ["threads", "processes", "dask"])
+def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
+    serial = _config(tmp_path / "serial", samples=4, batch_size=2, workers=2)
+    other = _config(tmp_path / runner, samples=4, batch_size=2, workers=2)
+    reference = _ovtraj("run", str(serial), "--runner", "serial", cwd=tmp_path)
+    assert reference.returncode == 0, reference.stderr
+    done = _ovtraj("run", str(other), "--runner", runner, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    first, second = _stored_in(reference.stdout), _stored_in(done.stdout)
+    assert first.name == second.name  # the runner is not part of the run
+    assert second.parent == tmp_path / runner / "runs"  # the config's relative store
+    digests = _digest(second)
+    assert len(digests) >= 8 and digests == _digest(first)
+    run = RunStore(second.parent).run(second.name)
+    assert run.manifest["status"] == "complete" and run.verify().clean
+
+
+def _held_claim(run_dir: Path) -> tuple[int, int] | None:
+    """(batch, pid) of a claim held now on a batch not stored yet."""
+    for lock in sorted((run_dir / "locks").glob("batch-*.lock")):
+        batch = int(lock.stem.split("-")[1])
+        if (run_dir / "batches" / f"{batch}.json").exists() or not locks.held(lock):
+            continue
+        found = re.search(r"pid (\d+)", lock.read_text(encoding="utf-8"))
+        if found:
+            return batch, int(found.group(1))
+    return None
+
+
+def test_a_killed_pool_process_fails_the_command_and_the_run_resumes(tmp_path):
+    config = _config(tmp_path / "project", samples=8, batch_size=2, workers=2)
+    store = tmp_path / "project" / "runs"
+    killed: dict[str, int] = {}
+    finished = threading.Event()
+
+    def kill_a_busy_process() -> None:
+        while not finished.is_set():
+            for run_dir in store.glob("*"):
+                held = _held_claim(run_dir) if (run_dir / "locks").is_dir() else None
+                if held is not None and held[1] != os.getpid():
+                    os.kill(held[1], signal.SIGKILL)
+                    killed.update(batch=held[0], pid=held[1])
+                    return
+            time.sleep(0.005)
+
+    killer = threading.Thread(target=kill_a_busy_process, daemon=True)
+    killer.start()
+    try:
+        broken = _ovtraj("run", str(config), "--runner", "processes", cwd=tmp_path)
+    finally:
+        finished.set()
+        killer.join(timeout=60)
+    assert killed, broken.stdout + broken.stderr
+    assert broken.returncode == 2, broken.stdout + broken.stderr
+    (line,) = broken.stderr.strip().splitlines()
+    assert "incomplete" in line and f"batch {killed['batch']}:" in line, line
+    (run_dir,) = store.iterdir()
+    run = RunStore(store).run(run_dir.name)
+    assert run.manifest["status"] == "incomplete" and run.manifest["failures"]
+    kept = run.markers()
+    assert killed["batch"] not in kept and run.verify().clean
+    digests = {k: m["files"] for k, m in kept.items()}
+
+    resumed = _ovtraj("run", str(config), "--runner", "processes", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert _stored_in(resumed.stdout) == run_dir
+    run = RunStore(store).run(run_dir.name)
+    assert run.manifest["status"] == "complete" and run.manifest["evaluated"] == 8
+    assert run.verify().clean and not run.verify().uncovered
+    markers = run.markers()
+    assert sorted(markers) == [0, 1, 2, 3]
+    assert all(markers[k]["files"] == files for k, files in digests.items())  # kept as stored
+    computed = len(re.findall(r"^batch \d+/4: ", resumed.stdout, flags=re.MULTILINE))
+    assert computed == 4 - len(kept)  # only the missing batches
