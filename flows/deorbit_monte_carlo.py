@@ -13,14 +13,24 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
 from prefect.artifacts import create_table_artifact
-from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
 
-from ovtraj.config.deorbit_burn import MonteCarloConfig
+from flows.common import (
+    FLOW_TIMEOUTS,
+    config_label,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_batches,
+    run_tags,
+)
+from flows.runners import check_runner, task_runner
 from ovtraj.deorbit.burn.montecarlo import monte_carlo_summary
 from ovtraj.deorbit.burn.plots import plot_dispersions
 from ovtraj.deorbit.burn.problem import load_deorbit_burn
@@ -28,16 +38,10 @@ from ovtraj.deorbit.burn.published import published_comparison
 from ovtraj.deorbit.burn.store import MonteCarloRun
 from ovtraj.paths import store_root as store_root_of
 from ovtraj.records import plain
-from ovtraj.version import code_version
+from tasks.common import TIMEOUTS, code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
 
-
-def task_runner(settings: MonteCarloConfig, workers: int | None = None) -> Any:
-    """The configured task runner: local threads or processes."""
-    count = workers or settings.workers
-    if settings.task_runner == "threads":
-        return ThreadPoolTaskRunner(max_workers=count)
-    return ProcessPoolTaskRunner(max_workers=count)
+LIMIT = "flows.deorbit_monte_carlo_s of configs/orchestration.yaml"
 
 
 def _batches(todo: list[int], size: int) -> list[list[int]]:
@@ -51,38 +55,23 @@ def _batches(todo: list[int], size: int) -> list[list[int]]:
     return groups
 
 
-def _submit(
-    runner: Any,
-    batch_task: Any,
-    batches: list[list[int]],
-    common: dict[str, Any],
-    logger: Any,
-) -> dict[int, str]:
-    """Submit the batches, wait for them, log each; returns {first run: error} of failures."""
-    futures = [
-        (runs, runner.submit(batch_task, {**common, "batch": runs[0], "runs": runs}))
-        for runs in batches
-    ]
-    failures = {}
-    for runs, future in futures:
-        try:
-            summary = future.result()
-        except Exception as err:
-            failures[runs[0]] = f"runs {runs[0]}-{runs[-1]}: {type(err).__name__}: {err}"
-            logger.error("runs %d-%d failed: %s", runs[0], runs[-1], err)
-            continue
-        logger.info(
-            "runs %d-%d stored: %d rows, %d failed, %.1f s",
-            runs[0],
-            runs[-1],
-            summary["rows"],
-            summary["failed"],
-            summary["wall_time_s"],
-        )
-    return failures
+def _describe(k: int, summary: dict[str, Any]) -> str:
+    return (
+        f"runs {k}-{k + summary['runs'] - 1} stored: {summary['rows']} rows, "
+        f"{summary['failed']} failed, {summary['wall_time_s']:.1f} s"
+    )
 
 
-@flow(name="deorbit-monte-carlo", log_prints=True)
+def _flow_run_name() -> str:
+    return f"deorbit-monte-carlo {config_label(flow_parameter('config'))}"
+
+
+@flow(
+    name="deorbit-monte-carlo",
+    flow_run_name=_flow_run_name,
+    timeout_seconds=FLOW_TIMEOUTS.deorbit_monte_carlo_s,
+    log_prints=True,
+)
 def deorbit_monte_carlo_flow(
     config: str = "configs/cases/shuttle_deorbit.yaml",
     runs: int | None = None,
@@ -91,54 +80,80 @@ def deorbit_monte_carlo_flow(
     store_root: str | None = None,
     batch_size: int | None = None,
     workers: int | None = None,
+    runner: str | None = None,
+    dask_address: str | None = None,
 ) -> dict[str, Any]:
     """Monte Carlo of the deorbit burn; returns the run's summary (id, statistics, figures).
 
-    Arguments left ``None`` take the config's ``monte_carlo`` values. Raises
-    ``RuntimeError`` naming the failed batches if a task fails (after its retries); the
-    stored batches are kept and a re-run simulates only the missing runs.
+    Arguments left ``None`` take the config's ``monte_carlo`` values (``runner``: its
+    ``task_runner``; ``serial | threads | processes | dask``). Raises ``RuntimeError``
+    naming the failed batches if a task fails (after its retries); the stored batches
+    are kept and a re-run simulates only the missing runs.
     """
+    deadline = time.monotonic() + FLOW_TIMEOUTS.deorbit_monte_carlo_s
     logger = get_run_logger()
+    prune_expired_results()
     problem = load_deorbit_burn(Path(config))
     settings = problem.config.monte_carlo
+    chosen_runner = runner or settings.task_runner
+    check_runner(chosen_runner, dask_address)
     n = runs or settings.runs
     chosen = [int(s) for s in (strategies or settings.strategies)]
     seed = settings.seed if seed is None else int(seed)
     size = batch_size or settings.batch_size
     resolved = problem.resolved()
-    code = code_version()
     run = MonteCarloRun.create(
         store_root_of(settings.store, Path(config).resolve().parent, store_root),
         resolved=resolved,
         runs=n,
         strategies=chosen,
         seed=seed,
-        code=code,
+        code=code_version(),
     )
+    labels = run_tags("deorbit-monte-carlo", problem.name, run.id)
+    label_flow_run(f"deorbit-monte-carlo {problem.name} {run.id}", labels)
     todo = sorted(set(range(n)) - run.done_runs())
     logger.info("run %s (%s): %d runs, %d to simulate", run.id, problem.name, n, len(todo))
     failures: dict[int, str] = {}
     if todo:
         run.update_info(status="running")
-        common = {
-            "resolved_problem": resolved,
-            "run_dir": str(run.directory),
-            "strategies": chosen,
-            "seed": seed,
-            "code": code,
-        }
-        batch_task = deorbit_mc_batch_task.with_options(
-            retries=settings.task_retries, retry_delay_seconds=1
+        url = str(run.directory.resolve())
+        batch_task = prepared(
+            deorbit_mc_batch_task,
+            timeout_s=TIMEOUTS.deorbit_mc_batch_per_run_s * size,
+            retries=settings.task_retries,
         )
-        batches = _batches(todo, size)
-        with task_runner(settings, workers) as runner:
-            failures = _submit(runner, batch_task, batches, common, logger)
-            failed_runs = {r for runs in batches if runs[0] in failures for r in runs}
-            missing = sorted(set(range(n)) - run.done_runs() - failed_runs)
-            if missing:  # cached task results whose files are gone: simulate them again
-                logger.info("runs %s cached but not stored: refreshing", missing)
-                refresh = batch_task.with_options(refresh_cache=True)
-                failures |= _submit(runner, refresh, _batches(missing, size), common, logger)
+        groups = {runs_[0]: runs_ for runs_ in _batches(todo, size)}
+        parameters = {
+            first: {
+                "resolved_problem": resolved,
+                "run_url": url,
+                "batch": first,
+                "runs": group,
+                "strategies": chosen,
+                "seed": seed,
+            }
+            for first, group in groups.items()
+        }
+
+        def stored(first: int) -> bool:
+            return set(groups[first]) <= run.done_runs()
+
+        try:
+            count = workers or settings.workers
+            with task_runner(chosen_runner, count, dask_address) as started:
+                failures, _ = run_batches(
+                    started,
+                    batch_task,
+                    parameters,
+                    stored,
+                    deadline=deadline,
+                    limit=LIMIT,
+                    describe=_describe,
+                )
+        except Exception as err:
+            run.update_info(status="failed", failures=[f"{type(err).__name__}: {err}"[:1000]])
+            raise
     frame = run.results()
     summary = monte_carlo_summary(frame)
     plots = plot_dispersions(frame, run.directory / "plots", problem.entry.radius_m)
@@ -162,7 +177,9 @@ def deorbit_monte_carlo_flow(
         "plots": [str(p) for p in plots],
     }
     run.write_summary(report)
-    run.update_info(status=report["status"], failures=list(failures.values()))
+    run.update_info(
+        status=report["status"], failures=[f"runs from {k}: {why}" for k, why in failures.items()]
+    )
     create_table_artifact(
         key="deorbit-monte-carlo",
         table=[
@@ -182,7 +199,7 @@ def deorbit_monte_carlo_flow(
         description=f"Deorbit-burn Monte Carlo {run.id} of {problem.name} ({n} runs)",
     )
     if failures:
-        text = "; ".join(failures.values())
+        text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())
         raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {text}")
     return report
 

@@ -3,113 +3,123 @@
 1. read the scenario and its DoE settings; make sure the launch fit exists (the
    launch-fit flow runs as a subflow when it does not);
 2. create (or reopen) the run: its id hashes the resolved config, seed, sample
-   count, parent run and code version;
-3. evaluate the batches the store does not hold yet as parallel tasks on the
-   configured task runner (threads, processes, or Dask; started only when there
-   is something to evaluate), each cached on its inputs and storing its own
-   batch (the records never travel back);
-4. finish the manifest and publish a table artifact of the run.
+   count, parent run and code version; the flow run is renamed ``doe <scenario>
+   <run id>`` and tagged ``scenario:<name>``, ``run:<id>`` (its task runs too);
+3. take the run's concurrency slot (one flow run evaluates a run at a time), then
+   evaluate the batches the store does not hold yet as tasks on the runner
+   (``serial | threads | processes | dask``: the ``runner`` parameter, else
+   ``mission.doe.task_runner``); each task carries the run's absolute URL and the
+   launch fit's coefficients and stores its own batch (the records never travel back);
+4. finish the manifest: ``complete``; ``incomplete`` (batches failed or missing: the
+   flow fails, naming them); ``failed`` (the cluster, a timeout: the flow fails with
+   the cause); never left ``running``. A table artifact of the run.
 """
 
 from __future__ import annotations
 
 import asyncio
+import time
 from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
 from prefect.artifacts import acreate_table_artifact
-from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
 
+from flows.common import (
+    FLOW_TIMEOUTS,
+    config_label,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_batches,
+    run_slot,
+    run_tags,
+    run_to_completion,
+)
+from flows.runners import check_runner, task_runner
 from ovtraj.config import Scenario
 from ovtraj.config.mission import DoeSettings
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.fit import LaunchFit, find_launch_fit
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
+from ovtraj.runs.store import Run
 from ovtraj.target_sources import load_scenario_with_target
-from ovtraj.version import code_version
+from tasks.common import TIMEOUTS, code_version
 from tasks.doe import mission_batch_task
 
 
-def task_runner(settings: DoeSettings) -> Any:
-    """The configured task runner: local threads or processes, or a Dask cluster."""
-    if settings.task_runner == "threads":
-        return ThreadPoolTaskRunner(max_workers=settings.workers)
-    if settings.task_runner == "processes":
-        return ProcessPoolTaskRunner(max_workers=settings.workers)
-    from prefect_dask import DaskTaskRunner
-
-    if settings.dask_address:
-        return DaskTaskRunner(address=settings.dask_address)
-    return DaskTaskRunner(
-        cluster_kwargs={"n_workers": settings.workers, "processes": False, "threads_per_worker": 1}
-    )
+def execution(
+    settings: DoeSettings, runner: str | None = None, dask_address: str | None = None
+) -> tuple[str, int, str | None]:
+    """(runner, workers, Dask address): the parameters first, else ``mission.doe``."""
+    chosen = runner or settings.task_runner
+    if chosen != "dask":
+        address = dask_address
+    else:
+        address = dask_address or settings.dask_address
+    check_runner(chosen, address)
+    return chosen, settings.workers, address
 
 
-def _failed(k: int, failures: list[str]) -> bool:
-    return any(f.startswith(f"batch {k}:") for f in failures)
+class RunIncomplete(RuntimeError):
+    """Batches failed or are missing at the end: the manifest says ``incomplete``."""
 
 
-def _run_batches(
-    runner: Any,
-    batch_task: Any,
-    resolved: dict[str, Any],
-    run: Any,
-    batches: dict[int, Any],
-    todo: list[int],
-    code: str,
-    logger: Any,
-) -> list[str]:
-    """Submit the batches to the runner, wait for them, log each; returns the failures."""
-    futures = {
-        k: runner.submit(
-            batch_task,
-            {
-                "resolved_scenario": resolved,
-                "run_dir": str(run.directory),
-                "batch_index": k,
-                "batch": batches[k].to_dict(orient="records"),
-                "code": code,
-            },
+def fail_run(run: Run, err: BaseException) -> None:
+    """End the run's manifest after ``err`` stopped its evaluation: ``complete`` if every
+    batch is stored after all, else ``failed`` with the cause (``running`` only while
+    another process still works on it)."""
+    try:
+        finish(run)
+        if run.manifest.get("status") == "incomplete":
+            run.update_manifest(status="failed", failure=f"{type(err).__name__}: {err}"[:1000])
+    except Exception as store_err:  # the cause is reported; never hide it behind this
+        get_run_logger().error("run %s: manifest not updated: %s", run.id, store_err)
+
+
+def _describe(batches: int) -> Any:
+    def describe(k: int, summary: dict[str, Any]) -> str:
+        return (
+            f"batch {k + 1}/{batches} stored: {summary['samples']} samples, "
+            f"{summary['feasible']} feasible, {summary['wall_time_s']:.1f} s"
+            + ("" if summary["stored_here"] else " (already stored)")
         )
-        for k in todo
-    }
-    failures = []
-    for k, future in futures.items():
-        try:
-            summary = future.result()
-        except Exception as err:
-            failures.append(f"batch {k}: {type(err).__name__}: {err}")
-            logger.error("batch %d failed: %s", k, err)
-            continue
-        logger.info(
-            "batch %d/%d stored: %d samples, %d feasible, %.1f s",
-            k + 1,
-            len(batches),
-            summary["samples"],
-            summary["feasible"],
-            summary["wall_time_s"],
-        )
-    return failures
+
+    return describe
 
 
 def evaluate_batches(
-    runner: Any,
-    resolved: dict[str, Any],
-    run: Any,
-    batch_size: int,
-    retries: int,
-    code: str,
+    runner: Any, scenario: Scenario, run: Run, fit: LaunchFit, deadline: float, limit: str
 ) -> dict[str, Any]:
     """Submit every batch the run does not hold; each task stores its own batch.
 
-    The runner is the configured one, used as a context manager inside the flow run
-    (a subflow with the runner as an option would cost a second flow run per DoE).
+    The runner is started by the caller, inside the flow run (a subflow with the runner
+    as an option would cost a second flow run per DoE). Raises :class:`RunIncomplete`
+    naming the batches when some are not stored at the end (the manifest says
+    ``incomplete``).
     """
     logger = get_run_logger()
-    batches = dict(run.batches(batch_size))
+    settings = scenario.mission.doe
+    batches = dict(run.batches(settings.batch_size))
     done = run.done_batches()
     todo = [k for k in batches if k not in done]
+    resolved, coefficients = scenario.resolved(), fit.to_dict()
+    batch_task = prepared(
+        mission_batch_task,
+        timeout_s=TIMEOUTS.mission_batch_per_sample_s * settings.batch_size,
+        retries=settings.task_retries,
+    )
+    parameters = {
+        k: {
+            "resolved_scenario": resolved,
+            "run_url": run.url,
+            "batch_index": k,
+            "batch": batches[k].to_dict(orient="records"),
+            "launch_fit": coefficients,
+        }
+        for k in todo
+    }
     with run.working() as removed:
         if removed:
             logger.info("removed %d temporary file(s) of an interrupted write", len(removed))
@@ -121,21 +131,78 @@ def evaluate_batches(
             len(done),
             len(todo),
         )
-        batch_task = mission_batch_task.with_options(retries=retries, retry_delay_seconds=1)
-        failures = _run_batches(runner, batch_task, resolved, run, batches, todo, code, logger)
-        missing = [k for k in todo if k not in run.done_batches() and not _failed(k, failures)]
-        if missing:  # cached results whose files are gone: evaluate them again
-            logger.info("batches %s cached but not stored: refreshing", missing)
-            refresh = batch_task.with_options(refresh_cache=True)
-            failures += _run_batches(runner, refresh, resolved, run, batches, missing, code, logger)
+        failures, summaries = run_batches(
+            runner,
+            batch_task,
+            parameters,
+            run.is_stored,
+            deadline=deadline,
+            limit=limit,
+            describe=_describe(len(batches)),
+        )
     finish(run)
-    if failures:
-        run.update_manifest(status="incomplete", failures=failures)
-        raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {'; '.join(failures)}")
-    return {"evaluated_batches": len(todo), "stored_batches": len(done)}
+    missing = sorted(k for k in batches if not run.is_stored(k))
+    if missing:
+        texts = [f"batch {k}: {failures.get(k, 'not stored')}" for k in missing]
+        run.update_manifest(status="incomplete", failures=texts)
+        raise RunIncomplete(
+            f"run {run.id} incomplete: {len(missing)} of {len(batches)} batch(es) not "
+            f"stored: {'; '.join(texts)}"
+        )
+    return {
+        "evaluated_batches": len(todo),
+        "task_time_s": sum(summary["wall_time_s"] for summary in summaries.values()),
+    }
 
 
-@flow(name="doe", log_prints=True)
+def evaluate_run(
+    scenario: Scenario,
+    run: Run,
+    fit: LaunchFit,
+    *,
+    deadline: float,
+    limit: str,
+    runner: Any = None,
+    choice: tuple[str, int, str | None] | None = None,
+    stats: dict[str, Any] | None = None,
+) -> Run:
+    """Evaluate the run's pending batches under its concurrency slot; finish it.
+
+    ``runner``: a started task runner (the pipeline's), else one of ``choice`` is started
+    here, only when there is something to evaluate. Any failure ends the manifest
+    (:func:`fail_run`) and is raised. ``stats`` receives what :func:`evaluate_batches`
+    reports (batches evaluated here, their tasks' summed time).
+    """
+    stats = {} if stats is None else stats
+    stats.update(evaluated_batches=0, task_time_s=0.0)
+    batch_size = scenario.mission.doe.batch_size
+    if not run.pending_batches(batch_size):
+        return finish(run)
+    try:
+        with run_slot(run.id):
+            if not run.pending_batches(batch_size):  # another flow run evaluated it meanwhile
+                return finish(run)
+            if runner is not None:
+                stats.update(evaluate_batches(runner, scenario, run, fit, deadline, limit))
+            else:
+                with task_runner(*choice) as started:
+                    stats.update(evaluate_batches(started, scenario, run, fit, deadline, limit))
+    except RunIncomplete:
+        raise
+    except Exception as err:  # an interrupt leaves the store's own `interrupted`
+        fail_run(run, err)
+        raise
+    return run
+
+
+LIMIT = "flows.doe_s of configs/orchestration.yaml"
+
+
+def _flow_run_name() -> str:
+    return f"doe {config_label(flow_parameter('config'))}"
+
+
+@flow(name="doe", flow_run_name=_flow_run_name, log_prints=True)
 async def doe_flow(
     config: str = "configs/scenario.yaml",
     samples: int | None = None,
@@ -143,10 +210,18 @@ async def doe_flow(
     append_to: str | None = None,
     store_root: str | None = None,
     target: str | None = None,
+    runner: str | None = None,
+    dask_address: str | None = None,
 ) -> dict[str, Any]:
     """DoE of the mission chain; returns the run's summary (run id, counts, ranges).
 
-    ``target``: a TLE/OMM file or URL that replaces the scenario's target.
+    ``target``: a TLE/OMM file or URL that replaces the scenario's target. ``runner``
+    (``serial | threads | processes | dask``) and ``dask_address`` override
+    ``mission.doe.task_runner`` and ``mission.doe.dask_address``.
+
+    The flow's wall-time limit is ``flows.doe_s`` of ``configs/orchestration.yaml``,
+    enforced inside (the batches not started are cancelled and the manifest ends
+    ``failed``) rather than by Prefect, which would leave the work thread running.
 
     Async although every step blocks: Prefect joins a synchronous flow run's heartbeat
     thread at exit, and that thread sleeps in 1 s steps (0.5-1 s per run measured here,
@@ -154,7 +229,10 @@ async def doe_flow(
     The steps run in a worker thread (the flow run's context goes with them). From
     synchronous code call :func:`run_doe_flow`.
     """
-    summary = await asyncio.to_thread(_doe, config, samples, seed, append_to, store_root, target)
+    deadline = time.monotonic() + FLOW_TIMEOUTS.doe_s
+    summary = await asyncio.to_thread(
+        _doe, config, samples, seed, append_to, store_root, target, runner, dask_address, deadline
+    )
     await acreate_table_artifact(
         key="doe-run",
         table=[dict(summary)],
@@ -164,29 +242,23 @@ async def doe_flow(
 
 
 def run_doe_flow(**parameters: Any) -> dict[str, Any]:
-    """Run :func:`doe_flow` to completion from synchronous code (scripts, tests)."""
-    return asyncio.run(doe_flow(**parameters))
+    """Run :func:`doe_flow` to completion from synchronous code (scripts, tests), also
+    inside a running event loop (a notebook): then in a thread of its own."""
+    return run_to_completion(lambda: doe_flow(**parameters))
 
 
-def ensure_launch_fit(config: str, scenario: Scenario, target: str | None = None) -> None:
-    """Run the launch-fit flow when no stored fit matches the scenario."""
-    if find_launch_fit(scenario) is None:
+def ensure_launch_fit(config: str, scenario: Scenario, target: str | None = None) -> LaunchFit:
+    """The scenario's stored launch fit; the launch-fit flow runs first when there is none."""
+    fit = find_launch_fit(scenario)
+    if fit is None:
         from flows.launch_fit import launch_fit_flow
 
         get_run_logger().info("no launch fit for this scenario yet: running the launch-fit flow")
         launch_fit_flow(config, target=target)
-
-
-def evaluate_run(runner: Any, scenario: Scenario, run: Any, code: str) -> Any:
-    """Evaluate the run's pending batches on the runner (nothing to do: just finish)."""
-    settings = scenario.mission.doe
-    if run.pending_batches(settings.batch_size):
-        evaluate_batches(
-            runner, scenario.resolved(), run, settings.batch_size, settings.task_retries, code
-        )
-    else:
-        finish(run)
-    return run
+        fit = find_launch_fit(scenario)
+    if fit is None:
+        raise RuntimeError(f"{config}: the launch-fit flow stored no fit for this scenario")
+    return fit
 
 
 def _doe(
@@ -196,31 +268,45 @@ def _doe(
     append_to: str | None,
     store_root: str | None,
     target: str | None,
+    runner: str | None,
+    dask_address: str | None,
+    deadline: float,
 ) -> dict[str, Any]:
     logger = get_run_logger()
+    pruned = prune_expired_results()
+    if pruned:
+        logger.info("removed %d expired task result(s)", pruned)
     scenario: Scenario = load_scenario_with_target(Path(config), target)
     if scenario.mission is None:
         raise ValueError(f"{config}: the scenario has no mission section")
     settings = scenario.mission.doe
-    ensure_launch_fit(config, scenario, target)
+    choice = execution(settings, runner, dask_address)
+    fit = ensure_launch_fit(config, scenario, target)
     store = RunStore.for_scenario(scenario, config, store_root)
     parent = store.run(append_to) if append_to else None
-    code = code_version()
     run = prepare_run(
         scenario,
         samples=samples or settings.samples,
         seed=settings.seed if seed is None else seed,
-        code=code,
+        code=code_version(),
         store=store,
         parent=parent,
     )
-    logger.info("run %s (%s), %d samples", run.id, scenario.name, len(run.samples()))
-    if run.pending_batches(settings.batch_size):
-        with task_runner(settings) as runner:
-            evaluate_run(runner, scenario, run, code)
-    else:
-        finish(run)
-    return run.summary()
+    labels = run_tags("doe", scenario.name, run.id)
+    label_flow_run(f"doe {scenario.name} {run.id}", labels)
+    logger.info(
+        "run %s (%s), %d samples, runner %s%s, store %s",
+        run.id,
+        scenario.name,
+        len(run.samples()),
+        choice[0],
+        f" at {choice[2]}" if choice[2] else "",
+        run.url,
+    )
+    # The flow run carries the tags, the batches' task runs none (tasks.common.BATCH_TAGS).
+    stats: dict[str, Any] = {}
+    evaluate_run(scenario, run, fit, deadline=deadline, limit=LIMIT, choice=choice, stats=stats)
+    return run.summary() | stats
 
 
 if __name__ == "__main__":

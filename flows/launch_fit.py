@@ -6,8 +6,10 @@
    last two optima;
 3. fit the Fourier series (patent 5.1) and save coefficients and grid.
 
-Every point is a task cached on its inputs (scenario, altitude, seed rows, code
-version), so a re-run recomputes nothing; the summary counts the cached points.
+Every point is a task cached on its inputs (scenario, altitude, seed rows) and the code
+version, so a re-run recomputes nothing and a code change recomputes everything; the
+summary counts the cached points. The points run on ``runner`` (default: two processes,
+one per chain; ``serial | threads | processes | dask``).
 """
 
 from __future__ import annotations
@@ -16,46 +18,73 @@ from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
-from prefect.task_runners import ProcessPoolTaskRunner
 
+from flows.common import (
+    FLOW_TIMEOUTS,
+    config_label,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_tags,
+)
+from flows.runners import task_runner
 from ovtraj.launch.fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
 from ovtraj.target_sources import load_scenario_with_target
-from ovtraj.version import code_version
 from tasks.launch import launch_point_task
 
+# The upward and the downward chain of grid points run side by side.
+CHAINS = 2
 
-@flow(name="launch-fit", task_runner=ProcessPoolTaskRunner(max_workers=2))
+
+def _flow_run_name() -> str:
+    return f"launch-fit {config_label(flow_parameter('config'))}"
+
+
+@flow(name="launch-fit", flow_run_name=_flow_run_name, timeout_seconds=FLOW_TIMEOUTS.launch_fit_s)
 def launch_fit_flow(
     config: str = "configs/scenario.yaml",
     output_dir: str | None = None,
     target: str | None = None,
+    runner: str = "processes",
+    dask_address: str | None = None,
 ) -> dict[str, Any]:
     """Solve the altitude grid, fit payload, insertion time and u; save and summarise.
 
     ``target``: a TLE/OMM file or URL that replaces the scenario's target (its plane).
+    ``runner``/``dask_address``: where the points run (two workers: one per chain).
     """
     logger = get_run_logger()
+    prune_expired_results()
     scenario = load_scenario_with_target(Path(config), target)
     if scenario.launch is None:
         raise ValueError(f"{config}: the scenario has no launch section")
     settings = scenario.launch
+    key = launch_fit_key(scenario)
+    labels = run_tags("launch-fit", scenario.name, key)
+    label_flow_run(f"launch-fit {scenario.name} {key}", labels)
     resolved = scenario.resolved()
     reference_km = settings.target_altitude_km
     grid_km = settings.fit.altitudes_km()
-
-    code = code_version()
-    reference = launch_point_task.submit(resolved, reference_km, code=code)
-    futures = {reference_km: reference}
-    up, down = continuation_chains(grid_km, reference_km)
-    for chain in (up, down):
-        previous, seed = None, reference
-        for altitude_km in chain:
-            previous, seed = (
-                seed,
-                launch_point_task.submit(resolved, altitude_km, seed, previous, code=code),
-            )
-            futures[altitude_km] = seed
-    rows = {h: future.result() for h, future in futures.items()}
+    point = prepared(launch_point_task)
+    with task_runner(runner, CHAINS, dask_address) as started:
+        reference = started.submit(
+            point, {"resolved_scenario": resolved, "altitude_km": reference_km}
+        )
+        futures = {reference_km: reference}
+        up, down = continuation_chains(grid_km, reference_km)
+        for chain in (up, down):
+            previous, seed = None, reference
+            for altitude_km in chain:
+                parameters = {
+                    "resolved_scenario": resolved,
+                    "altitude_km": altitude_km,
+                    "seed_row": seed,
+                    "previous_row": previous,
+                }
+                previous, seed = seed, started.submit(point, parameters)
+                futures[altitude_km] = seed
+        rows = {h: future.result() for h, future in futures.items()}
     cached = sum(1 for future in futures.values() if future.state.name == "Cached")
     on_grid = [rows[h] for h in grid_km if h in rows]
     for row in on_grid:
@@ -66,7 +95,6 @@ def launch_fit_flow(
             row["feasible"],
             row["wall_time_s"],
         )
-    key = launch_fit_key(scenario)
     fit = fit_rows(on_grid, settings.fit, settings.launcher.name, key=key)
     directory = Path(output_dir) if output_dir else fit_roots()[0] / key
     fit.save(directory)

@@ -14,20 +14,29 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
-from prefect import flow, get_run_logger, task
+from prefect import flow, get_run_logger
 from prefect.artifacts import create_markdown_artifact, create_table_artifact
-from prefect.cache_policies import NO_CACHE
 
-from flows.doe import ensure_launch_fit, evaluate_run, task_runner
-from flows.optimize import front_table
+from flows.common import (
+    FLOW_TIMEOUTS,
+    config_label,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_tags,
+)
+from flows.doe import ensure_launch_fit, evaluate_run, execution
+from flows.optimize import front_table, surrogate_front
+from flows.runners import task_runner
 from flows.surrogate import fit_run_surrogates, publish_validation
 from ovtraj.config import Scenario
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.fit import LaunchFit
 from ovtraj.pipeline import (
-    Pick,
     PipelineResult,
     PipelineSteps,
     fit_step,
@@ -35,45 +44,64 @@ from ovtraj.pipeline import (
     pipeline_doe_run,
     run_pipeline,
 )
-from ovtraj.pipeline.planning import write_mission_plan
 from ovtraj.runs import Run, RunStore
+from ovtraj.storage import location
 from ovtraj.target_sources import load_scenario_with_target
-from ovtraj.version import code_version
-from tasks.pipeline import surrogate_front_task
+from tasks.common import code_version
+from tasks.pipeline import plan_task
+
+LIMIT = "flows.mission_s of configs/orchestration.yaml"
 
 
-@task(name="mission-plan", retries=1, cache_policy=NO_CACHE)
-def plan_task(
-    scenario: Scenario, store_root: str, result: PipelineResult, pick: Pick
-) -> dict[str, Any]:
-    """The mission plan of the picked front point (one chain evaluation)."""
-    fit = find_launch_fit(scenario)
-    planned = write_mission_plan(scenario, fit, RunStore(store_root), result, pick)
-    return {
-        "json": str(planned["json"]),
-        "yaml": str(planned["yaml"]),
-        "plots": [str(p) for p in planned["plots"]],
-    }
-
-
-def _steps(runner: Any, scenario: Scenario, code: str) -> PipelineSteps:
+def _steps(runner: Any, scenario: Scenario, fit: LaunchFit, deadline: float) -> PipelineSteps:
     """The pipeline's steps as tasks: batches on the runner, fit and front cached."""
 
-    def fit(run: Run, data: Any, scenario: Scenario, code: str) -> Any:
-        publish_validation(fit_run_surrogates(scenario, run, code), run)
+    def fit_surrogates(run: Run, data: Any, scenario: Scenario, code: str) -> Any:
+        publish_validation(fit_run_surrogates(scenario, run), run)
         return fit_step(run, data, scenario, code)  # loads what the task stored
 
     def front(run: Run, fitted: Any, scenario: Scenario, code: str) -> Any:
-        surrogate_front_task(scenario.resolved(), str(run.directory), fitted.fit_id, code)
+        surrogate_front(scenario, run, fitted.fit_id)
         return front_step(run, fitted, scenario, code)
 
     def evaluate(run: Run) -> Run:
-        return evaluate_run(runner, scenario, run, code)
+        return evaluate_run(scenario, run, fit, deadline=deadline, limit=LIMIT, runner=runner)
 
-    return PipelineSteps(evaluate=evaluate, fit=fit, front=front)
+    return PipelineSteps(evaluate=evaluate, fit=fit_surrogates, front=front)
 
 
-@flow(name="mission", log_prints=True)
+def mission_plan(
+    scenario: Scenario,
+    store: RunStore,
+    result: PipelineResult,
+    pick_index: int | None,
+    weights: list[float] | None,
+) -> dict[str, Any]:
+    """The plan task; run again when its cached plan is no longer on disk."""
+    task = prepared(plan_task)
+    parameters = {
+        "resolved_scenario": scenario.resolved(),
+        "store_url": str(store.root),
+        "pipeline_dir": str(result.directory),
+        "pick_index": pick_index,
+        "weights": None if weights is None else [float(w) for w in weights],
+    }
+    planned = task(**parameters)
+    if not location(planned["json"]).is_file():
+        planned = task.with_options(refresh_cache=True)(**parameters)
+    return planned
+
+
+def _flow_run_name() -> str:
+    return f"mission {config_label(flow_parameter('config'))}"
+
+
+@flow(
+    name="mission",
+    flow_run_name=_flow_run_name,
+    timeout_seconds=FLOW_TIMEOUTS.mission_s,
+    log_prints=True,
+)
 def mission_flow(
     config: str = "configs/scenario.yaml",
     samples: int | None = None,
@@ -83,21 +111,25 @@ def mission_flow(
     pick_index: int | None = None,
     weights: list[float] | None = None,
     target: str | None = None,
+    runner: str | None = None,
+    dask_address: str | None = None,
 ) -> dict[str, Any]:
     """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths.
 
     ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
     from an updated element set (a changed one gives a new run and launch fit, the same
-    one reuses every stored result).
+    one reuses every stored result). ``runner`` (``serial | threads | processes |
+    dask``) and ``dask_address`` override ``mission.doe``'s for the DoE and infill batches.
     """
+    deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
     logger = get_run_logger()
+    prune_expired_results()
     scenario = load_scenario_with_target(Path(config), target)
     if scenario.mission is None:
         raise ValueError(f"{config}: the scenario has no mission section")
-    ensure_launch_fit(config, scenario, target)
-    settings = scenario.mission.doe
+    choice = execution(scenario.mission.doe, runner, dask_address)
+    fit = ensure_launch_fit(config, scenario, target)
     store = RunStore.for_scenario(scenario, config, store_root)
-    root = str(store.root)
     code = code_version()
     doe_run, scenario = pipeline_doe_run(
         scenario,
@@ -108,15 +140,18 @@ def mission_flow(
         from_run=from_run,
         config=config if from_run else None,
     )
-    logger.info("DoE run %s: %d samples", doe_run.id, len(doe_run.samples()))
-    with task_runner(settings) as runner:
-        steps = _steps(runner, scenario, code)
+    labels = run_tags("mission", scenario.name, doe_run.id)
+    label_flow_run(f"mission {scenario.name} {doe_run.id}", labels)
+    logger.info("DoE run %s: %d samples, runner %s", doe_run.id, len(doe_run.samples()), choice[0])
+    # The flow run carries the tags; its task runs their own (none on the batches: see
+    # tasks.common.BATCH_TAGS).
+    with task_runner(*choice) as runner_:
+        steps = _steps(runner_, scenario, fit, deadline)
         steps.evaluate(doe_run)
         result = run_pipeline(
             scenario, doe_run, store=store, code=code, steps=steps, progress=logger.info
         )
-    pick = Pick(index=pick_index, weights=None if weights is None else tuple(weights))
-    planned = plan_task(scenario, root, result, pick)
+    planned = mission_plan(scenario, store, result, pick_index, weights)
     _publish(result, planned)
     return {
         "doe_run": result.doe_run,

@@ -4,17 +4,39 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prefect import flow, get_run_logger
+from prefect import flow, get_run_logger, tags
 
+from flows.common import (
+    FLOW_TIMEOUTS,
+    config_label,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_tags,
+)
 from ovtraj.config import load_scenario
 from tasks.rendezvous import rendezvous_task
 
 
-@flow(name="rendezvous", log_prints=False)
+def _flow_run_name() -> str:
+    return f"rendezvous {config_label(flow_parameter('config'))}"
+
+
+@flow(
+    name="rendezvous",
+    flow_run_name=_flow_run_name,
+    timeout_seconds=FLOW_TIMEOUTS.rendezvous_s,
+    log_prints=False,
+)
 def rendezvous_flow(config: str = "configs/scenario.yaml") -> dict:
-    """Load the scenario, solve the rendezvous, log the key figures."""
+    """Load the scenario, solve the rendezvous (a cached task), log the key figures."""
+    prune_expired_results()
     scenario = load_scenario(Path(config))
-    row = rendezvous_task(scenario.resolved())
+    labels = run_tags("rendezvous", scenario.name)
+    label_flow_run(f"rendezvous {scenario.name}", labels)
+    with tags(*labels):
+        row = prepared(rendezvous_task)(scenario.resolved())
     get_run_logger().info(
         "rendezvous %s: feasible=%s dv1=%s m/s dv2=%s m/s wait=%s s miss=%s m",
         scenario.name,

@@ -2,7 +2,8 @@
 
 1. open the run and read its evaluated samples (no simulation);
 2. fit and validate the surrogates: a task cached on the training data's hash, the
-   settings and the code version (the run store keeps the fitted set too);
+   settings and the code version (the run store keeps the fitted set too, and a cached
+   result whose fit is gone from the run is fitted again);
 3. publish the validation table and the parity plots' paths as artifacts.
 """
 
@@ -10,21 +11,50 @@ from __future__ import annotations
 
 from typing import Any
 
-from prefect import flow
+from prefect import flow, tags
 from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
+from flows.common import (
+    FLOW_TIMEOUTS,
+    flow_parameter,
+    label_flow_run,
+    prepared,
+    prune_expired_results,
+    run_tags,
+)
 from ovtraj.config import Scenario
 from ovtraj.pipeline import run_scenario, training_data
+from ovtraj.pipeline.steps import MARKER
 from ovtraj.runs import Run, RunStore
+from ovtraj.storage import location
 from ovtraj.surrogate import training_data_hash
-from ovtraj.version import code_version
 from tasks.pipeline import fit_surrogates_task
 
 
-def fit_run_surrogates(scenario: Scenario, run: Run, code: str) -> dict[str, Any]:
+def stored_product(summary: dict[str, Any]) -> bool:
+    """Whether the product a cached task result points at is still in the run (its
+    ``meta.json``, written last, is there)."""
+    return (location(summary["directory"]) / MARKER).is_file()
+
+
+def call_stored(task: Any, **parameters: Any) -> dict[str, Any]:
+    """Call a task that stores a product in the run; when its cached result points at a
+    product no longer stored, call it again with a refreshed cache (the store decides)."""
+    summary = task(**parameters)
+    if not stored_product(summary):
+        summary = task.with_options(refresh_cache=True)(**parameters)
+    return summary
+
+
+def fit_run_surrogates(scenario: Scenario, run: Run) -> dict[str, Any]:
     data = training_data(run)
     data_hash = training_data_hash(data.designs, data.outputs, data.feasible)
-    return fit_surrogates_task(scenario.resolved(), str(run.directory), data_hash, code)
+    return call_stored(
+        prepared(fit_surrogates_task),
+        resolved_scenario=scenario.resolved(),
+        run_url=run.url,
+        data_hash=data_hash,
+    )
 
 
 def publish_validation(summary: dict[str, Any], run: Run) -> None:
@@ -34,7 +64,7 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
         description=f"surrogate candidates of run {run.id} (fit {summary['fit_id']}): k-fold CV "
         "and held-out metrics; `selected` marks the model used",
     )
-    plots = sorted(p for p in __import__("pathlib").Path(summary["directory"]).glob("*.png"))
+    plots = sorted(str(p) for p in location(summary["directory"]).glob("*.png"))
     create_markdown_artifact(
         key="surrogate-parity-plots",
         markdown="\n".join(f"- `{p}`" for p in plots) or "no plots",
@@ -42,14 +72,27 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
     )
 
 
-@flow(name="surrogate", log_prints=True)
+def _flow_run_name() -> str:
+    return f"surrogate {flow_parameter('run_id')}"
+
+
+@flow(
+    name="surrogate",
+    flow_run_name=_flow_run_name,
+    timeout_seconds=FLOW_TIMEOUTS.surrogate_s,
+    log_prints=True,
+)
 def surrogate_flow(
     run_id: str, config: str | None = None, store_root: str | None = None
 ) -> dict[str, Any]:
     """Fit and validate the surrogates of a stored run; returns the fit's summary."""
+    prune_expired_results()
     run = RunStore(store_root).run(run_id)
     scenario = run_scenario(run, config)
-    summary = fit_run_surrogates(scenario, run, code_version())
+    labels = run_tags("surrogate", scenario.name, run.id)
+    label_flow_run(f"surrogate {scenario.name} {run.id}", labels)
+    with tags(*labels):
+        summary = fit_run_surrogates(scenario, run)
     publish_validation(summary, run)
     return summary
 

@@ -1,64 +1,53 @@
-"""Prefect task: one batch of mission evaluations, stored, cached on its inputs and code."""
+"""Prefect task: one batch of mission evaluations, stored by the worker in the run.
+
+The task carries everything a worker needs, so a Dask worker anywhere needs only the
+installed package: the run's absolute URL (``Run.url``, reopened by ``Run.open``), the
+resolved scenario, the launch fit's coefficients (``LaunchFit.to_dict()``) and the batch's
+samples. Nothing is looked up in the worker's folder or on its disk.
+"""
 
 from __future__ import annotations
 
-import functools
-import json
-import time
-from pathlib import Path
 from typing import Any
 
 from prefect import task
-from prefect.cache_policies import INPUTS
 
-from ovtraj.config import scenario_from_dict
-from ovtraj.launch.fit import find_launch_fit
-from ovtraj.mission import MissionContext
 from ovtraj.runs import execute
-from ovtraj.runs.store import Run
+from tasks.common import TIMEOUTS, cached, parameter, run_label
 
 
-@functools.lru_cache(maxsize=4)
-def _context(resolved_json: str) -> MissionContext:
-    """The scenario's shared context, built once per worker process and scenario."""
-    scenario = scenario_from_dict(json.loads(resolved_json))
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        raise RuntimeError("no launch fit for this scenario: run flows/launch_fit.py first")
-    return MissionContext(scenario, fit)
+def _name() -> str:
+    batch = parameter("batch")
+    size = len(batch) if isinstance(batch, list) else "?"
+    scenario = (parameter("resolved_scenario") or {}).get("name", "?")
+    return f"{scenario}/{run_label(parameter('run_url'))}/batch-{parameter('batch_index')}x{size}"
 
 
-@task(name="mission-batch", cache_policy=INPUTS, persist_result=True)
+@task(
+    name="mission-batch",
+    task_run_name=_name,  # no tags: see tasks.common.BATCH_TAGS
+    timeout_seconds=TIMEOUTS.mission_batch_per_sample_s,  # the flows scale it by the batch
+    **cached(),
+)
 def mission_batch_task(
     resolved_scenario: dict[str, Any],
-    run_dir: str,
+    run_url: str,
     batch_index: int,
     batch: list[dict[str, float]],
-    code: str,
+    launch_fit: dict[str, Any],
 ) -> dict[str, Any]:
-    """Evaluate the mission chain for each sample row and store the batch in the run.
+    """Evaluate the mission chain for each sample row and store the batch in the run
+    (``ovtraj.runs.execute.store_batch_job``, the job of every runner).
 
-    The worker writes the batch itself (atomic parts, marker last), so the records
-    never travel back through Prefect; the task returns a small summary. The cache
-    key is the hash of the inputs (scenario, run, batch, samples, code version):
-    the flow submits only batches the run does not hold, and resubmits with a
-    refreshed cache a batch whose files went missing after a cached run.
+    The worker writes the batch itself under its claim (atomic parts, marker last), so
+    the records never travel back through Prefect; the task returns a small summary. A
+    batch the store already holds is not evaluated again (``stored_here`` false).
     """
-    import pandas as pd
-
-    start = time.perf_counter()
-    context = _context(json.dumps(resolved_scenario, sort_keys=True, default=str))
-    scenario = context.scenario
-    frame = pd.DataFrame(batch)
-    run = Run(Path(run_dir))
-    stored = execute.store_batch(
-        run, scenario, context, batch_index, frame, wait_s=scenario.mission.doe.claim_wait_s
-    )
-    totals = run.batch_totals(batch_index)
+    summary = execute.store_batch_job(run_url, resolved_scenario, launch_fit, batch_index, batch)
     return {
         "batch": batch_index,
-        "samples": len(totals),
-        "feasible": int(totals["feasible"].sum()),
-        "stored_here": bool(stored),
-        "wall_time_s": time.perf_counter() - start,
+        "samples": summary.get("samples", 0),
+        "feasible": summary.get("feasible", 0),
+        "stored_here": bool(summary["stored"]),
+        "wall_time_s": summary["wall_time_s"],
     }

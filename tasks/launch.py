@@ -5,12 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from prefect import task
-from prefect.cache_policies import INPUTS
 
 from ovtraj.config import scenario_from_dict
 from ovtraj.launch import launch_input, solve_launch
 from ovtraj.launch.fit import design_of, predicted_design
-from ovtraj.version import code_version
+from tasks.common import TIMEOUTS, cached, parameter
 
 
 def _solved(row: dict[str, Any] | None) -> tuple[float, dict[str, float]] | None:
@@ -19,26 +18,32 @@ def _solved(row: dict[str, Any] | None) -> tuple[float, dict[str, float]] | None
     return row["target_altitude_km"] * 1e3, design_of(row)
 
 
+def _name() -> str:
+    scenario = (parameter("resolved_scenario") or {}).get("name", "?")
+    return f"{scenario}/launch-{parameter('altitude_km')}km"
+
+
 @task(
     name="launch-point",
-    cache_policy=INPUTS,
+    task_run_name=_name,
+    tags=["ovtraj", "launch-fit"],
     retries=1,
     retry_delay_seconds=1,
-    persist_result=True,
+    timeout_seconds=TIMEOUTS.launch_point_s,
+    **cached(),
 )
 def launch_point_task(
     resolved_scenario: dict[str, Any],
     altitude_km: float,
     seed_row: dict[str, Any] | None = None,
     previous_row: dict[str, Any] | None = None,
-    code: str = code_version(),
 ) -> dict[str, Any]:
     """Maximum-payload launch to ``altitude_km``; returns the flat result row.
 
     Without a feasible ``seed_row`` the full genetic + local search runs; with one
     (the chain's last solved grid point, ``previous_row`` the one before it) only
     the local phases, from the secant prediction through them. The scenario, the
-    altitude, the seed rows and the code version form the cache key.
+    altitude, the seed rows and the code version (the cache policy's) form the cache key.
     """
     inp = launch_input(scenario_from_dict(resolved_scenario), altitude_km=altitude_km)
     seed = _solved(seed_row)

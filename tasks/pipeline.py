@@ -1,22 +1,22 @@
-"""Prefect tasks of the surrogate pipeline: fit, front, plan (thin wrappers).
+"""Prefect tasks of the surrogate pipeline: fit, front (thin wrappers).
 
 Each task stores its outputs in the run (``ovtraj.pipeline.steps``) and returns a
 small summary. The fit is cached on the training data's hash with the settings and
 the code version; the front on the fit id; both steps also reuse what the run store
-holds, so a cache miss costs a load, not a refit.
+holds, so a cache miss costs a load, not a refit. The run is given by its absolute URL
+(``Run.url``).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from prefect import task
-from prefect.cache_policies import INPUTS
 
 from ovtraj.config import scenario_from_dict
 from ovtraj.pipeline import fit_step, front_step, training_data
 from ovtraj.runs.store import Run
+from tasks.common import TIMEOUTS, cached, code_version, parameter, run_label
 
 
 def _validation_rows(outcome: Any) -> list[dict[str, Any]]:
@@ -25,14 +25,33 @@ def _validation_rows(outcome: Any) -> list[dict[str, Any]]:
     return [{k: (round(v, 6) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
 
 
-@task(name="fit-surrogates", cache_policy=INPUTS, persist_result=True, retries=1)
+def _plan_name() -> str:
+    return f"{run_label(parameter('pipeline_dir'))}/plan"
+
+
+def _fit_name() -> str:
+    return f"{run_label(parameter('run_url'))}/surrogates"
+
+
+def _front_name() -> str:
+    return f"{run_label(parameter('run_url'))}/front-of-{parameter('fit_id')}"
+
+
+@task(
+    name="fit-surrogates",
+    task_run_name=_fit_name,
+    tags=["ovtraj", "surrogate"],
+    retries=1,
+    timeout_seconds=TIMEOUTS.fit_surrogates_s,
+    **cached(),
+)
 def fit_surrogates_task(
-    resolved_scenario: dict[str, Any], run_dir: str, data_hash: str, code: str
+    resolved_scenario: dict[str, Any], run_url: str, data_hash: str
 ) -> dict[str, Any]:
     """Fit (or load) the run's surrogates; ``data_hash`` keys the cache on the samples."""
-    run = Run(Path(run_dir))
+    run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
-    outcome = fit_step(run, training_data(run), scenario, code)
+    outcome = fit_step(run, training_data(run), scenario, code_version())
     return {
         "fit_id": outcome.fit_id,
         "directory": str(outcome.directory),
@@ -42,13 +61,21 @@ def fit_surrogates_task(
     }
 
 
-@task(name="surrogate-front", cache_policy=INPUTS, persist_result=True, retries=1)
+@task(
+    name="surrogate-front",
+    task_run_name=_front_name,
+    tags=["ovtraj", "optimize"],
+    retries=1,
+    timeout_seconds=TIMEOUTS.surrogate_front_s,
+    **cached(),
+)
 def surrogate_front_task(
-    resolved_scenario: dict[str, Any], run_dir: str, fit_id: str, code: str
+    resolved_scenario: dict[str, Any], run_url: str, fit_id: str
 ) -> dict[str, Any]:
     """NSGA-II on the fitted surrogates (loaded from the run)."""
-    run = Run(Path(run_dir))
+    run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
+    code = code_version()
     fit = fit_step(run, training_data(run), scenario, code)
     if fit.fit_id != fit_id:
         raise RuntimeError(f"run {run.id}: surrogates {fit_id} expected, found {fit.fit_id}")
@@ -58,4 +85,42 @@ def surrogate_front_task(
         "directory": str(outcome.directory),
         "points": len(outcome.front),
         "hypervolume": outcome.front.hypervolume,
+    }
+
+
+@task(
+    name="mission-plan",
+    task_run_name=_plan_name,
+    tags=["ovtraj", "plan"],
+    retries=1,
+    timeout_seconds=TIMEOUTS.mission_plan_s,
+    **cached(),
+)
+def plan_task(
+    resolved_scenario: dict[str, Any],
+    store_url: str,
+    pipeline_dir: str,
+    pick_index: int | None = None,
+    weights: list[float] | None = None,
+) -> dict[str, Any]:
+    """The mission plan of the picked point of a stored pipeline's verified front (one
+    chain evaluation; the plan, its plots and its ``.files.json`` written beside it)."""
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.pipeline import Pick
+    from ovtraj.pipeline.loop import load_pipeline
+    from ovtraj.pipeline.planning import write_mission_plan
+    from ovtraj.runs import RunStore
+    from ovtraj.storage import location
+
+    scenario = scenario_from_dict(resolved_scenario)
+    fit = find_launch_fit(scenario)
+    if fit is None:
+        raise RuntimeError(f"no launch fit for scenario {scenario.name}: run the launch-fit flow")
+    result = load_pipeline(location(pipeline_dir))
+    pick = Pick(index=pick_index, weights=None if weights is None else tuple(weights))
+    planned = write_mission_plan(scenario, fit, RunStore(store_url), result, pick)
+    return {
+        "json": str(planned["json"]),
+        "yaml": str(planned["yaml"]),
+        "plots": [str(p) for p in planned["plots"]],
     }

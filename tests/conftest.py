@@ -55,16 +55,40 @@ DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
 
 
 @pytest.fixture(scope="session")
-def prefect_server():
+def prefect_server(tmp_path_factory):
     """One temporary Prefect server for every flow test of the session.
 
     Its start costs 6-60 s on this machine (CPU-bound, varies with the VM's speed); one
-    per module cost minutes of the suite's budget.
+    per module cost minutes of the suite's budget. Prefect's home (``PREFECT_HOME``, its
+    default result storage) and the flows' task results (``OVTRAJ_PREFECT_RESULTS``,
+    configs/orchestration.yaml ``results``) are folders of the session, never the
+    user's ``~/.prefect`` or workspace. Yields them.
     """
+    from prefect.settings import (
+        PREFECT_HOME,
+        PREFECT_RESULTS_LOCAL_STORAGE_PATH,
+        temporary_settings,
+    )
     from prefect.testing.utilities import prefect_test_harness
 
-    with prefect_test_harness(server_startup_timeout=120):
-        yield
+    from ovtraj.config.orchestration import RESULTS_ENV
+
+    home = tmp_path_factory.mktemp("prefect-home")
+    results = home / "task-results"
+    before = os.environ.get(RESULTS_ENV)
+    os.environ[RESULTS_ENV] = str(results)
+    updates = {PREFECT_HOME: home, PREFECT_RESULTS_LOCAL_STORAGE_PATH: home / "storage"}
+    try:
+        with (
+            temporary_settings(updates=updates),
+            prefect_test_harness(server_startup_timeout=120),
+        ):
+            yield {"home": home, "results": results}
+    finally:
+        if before is None:
+            os.environ.pop(RESULTS_ENV, None)
+        else:
+            os.environ[RESULTS_ENV] = before
 
 
 @pytest.fixture(scope="session")

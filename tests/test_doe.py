@@ -301,3 +301,22 @@ def test_a_deleted_run_is_recomputed_although_its_tasks_are_cached(prefect_serve
     assert second["run_id"] == first["run_id"]
     assert execute.EVALUATIONS["count"] - before == 4
     assert second["evaluated"] == 4 and second["status"] == "complete"
+
+
+def test_cli_run_names_the_runners_and_refuses_a_stray_address(tmp_path):
+    from typer.testing import CliRunner
+
+    from ovtraj.cli import app
+    from ovtraj.config.mission import RUNNERS
+
+    assert RUNNERS == ("serial", "threads", "processes", "dask")
+    runner = CliRunner()
+    store = str(tmp_path / "runs")
+    bogus = runner.invoke(app, ["run", str(DEFAULT_SCENARIO), "--runner", "gpu", "--store", store])
+    assert bogus.exit_code == 2 and "serial, threads, processes, dask" in bogus.stderr
+    stray = runner.invoke(
+        app,
+        ["run", str(DEFAULT_SCENARIO), "--runner", "threads", "--dask-address", "tcp://x:1"],
+    )
+    assert stray.exit_code == 2 and "--dask-address needs --runner dask" in stray.stderr
+    assert not (tmp_path / "runs").exists()

@@ -36,3 +36,146 @@ def test_every_deployment_entrypoint_is_a_flow_taking_its_parameters():
         for value in deployment.get("parameters", {}).values():
             if isinstance(value, str) and value.startswith("configs/"):
                 assert (REPO / value).is_file(), value
+
+
+# -- operability (issue 19): names and tags, one flow run per run, event loops, limits ----------
+def _doe_config(tmp_path, **doe) -> str:
+    import copy
+
+    import yaml
+
+    from tests.conftest import REPO, build_scenario
+
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(store=str(tmp_path / "runs"), task_runner="serial", **doe)
+    build_scenario(copy.deepcopy(data))
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return str(path)
+
+
+def _doe_state(**parameters):
+    """The DoE flow run's final state (its id and result), from synchronous code."""
+    from flows.common import run_to_completion
+    from flows.doe import doe_flow
+
+    return run_to_completion(lambda: doe_flow(**parameters, return_state=True))
+
+
+def _task_runs(flow_run_id, at_least: int = 0, wait_s: float = 30.0) -> list:
+    """The flow run's task runs (the server records them from events: wait for them)."""
+    import time
+
+    from prefect.client.orchestration import get_client
+    from prefect.client.schemas.filters import FlowRunFilter, FlowRunFilterId
+
+    deadline = time.monotonic() + wait_s
+    with get_client(sync_client=True) as client:
+        while True:
+            found = client.read_task_runs(
+                flow_run_filter=FlowRunFilter(id=FlowRunFilterId(any_=[flow_run_id]))
+            )
+            if len(found) >= at_least or time.monotonic() > deadline:
+                return found
+            time.sleep(0.2)
+
+
+def test_flow_runs_are_named_and_tagged_and_task_runs_named_by_scenario_run_and_batch(
+    prefect_server, tmp_path
+):
+    from prefect.client.orchestration import get_client
+
+    state = _doe_state(config=_doe_config(tmp_path, samples=2, batch_size=2))
+    summary = state.result()
+    flow_run_id = state.state_details.flow_run_id
+    with get_client(sync_client=True) as client:
+        flow_run = client.read_flow_run(flow_run_id)
+    run_id, scenario = summary["run_id"], summary["scenario"]
+    assert flow_run.name == f"doe {scenario} {run_id}"
+    assert {"ovtraj", "doe", f"scenario:{scenario}", f"run:{run_id}"} <= set(flow_run.tags)
+    (task_run,) = _task_runs(flow_run_id, at_least=1)
+    assert task_run.name == f"{scenario}/{run_id}/batch-0x2"
+    # No tags on batch task runs: each tagged task run asks the server for tag concurrency
+    # slots (tasks.common.BATCH_TAGS); their names say what tags would.
+    assert task_run.tags == []
+
+
+def test_two_flow_runs_of_one_run_never_evaluate_it_at_once(prefect_server, tmp_path):
+    """The run's concurrency slot: the second flow run waits, then finds the run complete
+    and submits nothing (the store's claims alone would let it submit every batch)."""
+    import contextvars
+    import threading
+
+    from prefect.client.orchestration import get_client
+
+    from ovtraj.runs import execute
+
+    config = _doe_config(tmp_path, samples=4, batch_size=1)
+    states = []
+
+    def one() -> None:
+        states.append(_doe_state(config=config))
+
+    threads = [threading.Thread(target=contextvars.copy_context().run, args=(one,)) for _ in "ab"]
+    before = execute.EVALUATIONS["count"]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=300)
+    assert execute.EVALUATIONS["count"] - before == 4
+    summaries = [state.result() for state in states]
+    assert {s["run_id"] for s in summaries} == {summaries[0]["run_id"]}
+    assert all(s["status"] == "complete" for s in summaries)
+    ids = [state.state_details.flow_run_id for state in states]
+    first = len(_task_runs(ids[0], at_least=1, wait_s=5))
+    evaluated_by, waited = (ids[0], ids[1]) if first else (ids[1], ids[0])
+    assert len(_task_runs(evaluated_by, at_least=4)) == 4
+    assert len(_task_runs(waited)) == 0
+    with get_client(sync_client=True) as client:
+        limit = client.read_global_concurrency_limit_by_name(f"ovtraj-run-{summaries[0]['run_id']}")
+    assert limit.limit == 1 and limit.active_slots == 0
+
+
+def test_run_doe_flow_works_inside_a_running_event_loop(prefect_server, tmp_path):
+    import asyncio
+
+    from flows.common import call_flow
+    from flows.doe import run_doe_flow
+    from flows.rendezvous import rendezvous_flow
+
+    config = _doe_config(tmp_path, samples=1, batch_size=1)
+
+    async def notebook() -> tuple:  # a cell of a notebook: its loop is running
+        return run_doe_flow(config=config), call_flow(rendezvous_flow, config=config)
+
+    summary, row = asyncio.run(notebook())
+    assert summary["status"] == "complete" and summary["evaluated"] == 1
+    assert row["feasible"] is True
+
+
+def test_a_doe_past_its_time_limit_fails_and_its_manifest_says_so(
+    prefect_server, tmp_path, monkeypatch
+):
+    """The flow's wall-time limit (configs/orchestration.yaml flows.doe_s, made 1 s here):
+    the batches not started are cancelled, the flow fails naming the limit and the
+    manifest ends ``failed``, never ``running``; a later flow run completes the run."""
+    import pytest
+
+    import flows.doe
+    from flows.common import FlowDeadline
+    from flows.doe import run_doe_flow
+    from ovtraj.runs import RunStore
+
+    config = _doe_config(tmp_path, samples=6, batch_size=1)
+    short = flows.doe.FLOW_TIMEOUTS.model_copy(update={"doe_s": 1.0})
+    monkeypatch.setattr(flows.doe, "FLOW_TIMEOUTS", short)
+    with pytest.raises(FlowDeadline, match=r"flows\.doe_s"):
+        run_doe_flow(config=config)
+    store = RunStore(tmp_path / "runs")
+    (row,) = store.catalog()
+    run = store.run(row["run_id"])
+    assert run.manifest["status"] == "failed" and "FlowDeadline" in run.manifest["failure"]
+    assert run.status() == "failed" and len(run.done_batches()) < 6
+    monkeypatch.undo()
+    assert run_doe_flow(config=config)["status"] == "complete"

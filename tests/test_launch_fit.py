@@ -25,7 +25,6 @@ from ovtraj.files import StoreError
 from ovtraj.launch.fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.result import LaunchResult
-from ovtraj.version import code_version
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 REFERENCE = REPO / "data" / "reference" / "launch_fit" / "iss-like-rendezvous"
@@ -167,9 +166,7 @@ def test_stored_grid_point_is_what_the_task_computes(grid_rows, scenario):
     reference_km = scenario.launch.target_altitude_km
     upward = sorted(h for h in by_altitude if h > reference_km)
     seed, point = upward[0], upward[1]
-    row = launch_point_task.fn(
-        scenario.resolved(), point, by_altitude[seed], None, code=code_version()
-    )
+    row = launch_point_task.fn(scenario.resolved(), point, by_altitude[seed], None)
     # The stored chain had the reference optimum (not on the grid) before `seed`, so
     # the start differs slightly; the converged optimum must not.
     assert row["feasible"]
@@ -191,12 +188,13 @@ def _small_grid_scenario_data() -> dict:
     return data
 
 
-def test_launch_fit_flow_runs_the_grid_in_parallel_and_caches_every_point(tmp_path):
+def test_launch_fit_flow_runs_the_grid_in_parallel_and_caches_every_point(tmp_path, monkeypatch):
     import yaml
     from prefect.settings import PREFECT_LOCAL_STORAGE_PATH, temporary_settings
     from prefect.testing.utilities import prefect_test_harness
 
     from flows.launch_fit import launch_fit_flow
+    from ovtraj.config.orchestration import RESULTS_ENV
 
     data = _small_grid_scenario_data()
     # The launcher file is relative to configs/: point at the repository's copy.
@@ -205,6 +203,7 @@ def test_launch_fit_flow_runs_the_grid_in_parallel_and_caches_every_point(tmp_pa
     config = tmp_path / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     storage = tmp_path / "results"
+    monkeypatch.setenv(RESULTS_ENV, str(storage))  # the flows' task results (not the workspace)
     with (
         temporary_settings(updates={PREFECT_LOCAL_STORAGE_PATH: storage}),
         prefect_test_harness(server_startup_timeout=60),
@@ -221,3 +220,15 @@ def test_launch_fit_flow_runs_the_grid_in_parallel_and_caches_every_point(tmp_pa
     assert fit.altitude_range_km == pytest.approx((285.0, 315.0))
     scenario = load_scenario(config)
     assert fit.launcher == scenario.launch.launcher.name
+
+
+def test_a_fit_travels_as_its_coefficients_and_predicts_the_same():
+    """What a DoE batch carries to a worker with no fit on its disk (issue 19)."""
+    reference = LaunchFit.load(REFERENCE)
+    carried = LaunchFit.from_dict(json.loads(json.dumps(reference.to_dict())))
+    low, high = reference.altitude_range_km
+    for altitude_km in np.linspace(low, high, 7):
+        assert carried.evaluate(altitude_km * 1e3) == reference.evaluate(altitude_km * 1e3)
+    assert carried.key == reference.key and carried.launcher == reference.launcher
+    with pytest.raises(ValueError, match="series"):
+        LaunchFit.from_dict({"launcher": "x"})

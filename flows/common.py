@@ -1,0 +1,262 @@
+"""What the flows share: task results, names and tags, the run slot, batches under a
+deadline, and running a flow from code that already has an event loop.
+
+Figures come from ``configs/orchestration.yaml`` (``tasks.common.ORCHESTRATION``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import contextvars
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from prefect import get_run_logger
+
+from flows.runners import ClusterError, count_workers
+from tasks.common import ORCHESTRATION
+
+FLOW_TIMEOUTS = ORCHESTRATION.flows
+
+
+# -- task results -------------------------------------------------------------------------
+def result_storage() -> Any:
+    """Where task results go: a local folder (a ``Path``) or an fsspec URL's file system
+    (``configs/orchestration.yaml`` ``results.storage``; ``OVTRAJ_PREFECT_RESULTS``)."""
+    location = ORCHESTRATION.results.location()
+    if "://" in location:
+        from prefect.filesystems import RemoteFileSystem
+
+        return RemoteFileSystem(basepath=location)
+    return Path(location)
+
+
+def prune_expired_results() -> int:
+    """Delete the local result files older than ``results.expiration_h`` (Prefect no longer
+    serves them); returns how many. An object-store location is left to its own rules."""
+    location = ORCHESTRATION.results.location()
+    folder = Path(location)
+    if "://" in location or not folder.is_dir():
+        return 0
+    cutoff = time.time() - ORCHESTRATION.results.expiration_h * 3600.0
+    removed = 0
+    for path in folder.iterdir():
+        try:
+            if path.is_file() and path.stat().st_mtime < cutoff:
+                path.unlink()
+                removed += 1
+        except OSError:
+            continue  # another flow removed it, or it is not ours to remove
+    return removed
+
+
+def prepared(task: Any, *, timeout_s: float | None = None, **options: Any) -> Any:
+    """``task`` with the configured result storage (and a timeout or other options)."""
+    if timeout_s is not None:
+        options["timeout_seconds"] = timeout_s
+    return task.with_options(result_storage=result_storage(), **options)
+
+
+def task_states(futures: list[Any]) -> dict[str, int]:
+    """How many task runs ended in each state (``Completed``, ``Cached``...)."""
+    counts: dict[str, int] = {}
+    for future in futures:
+        name = future.state.name
+        counts[name] = counts.get(name, 0) + 1
+    return counts
+
+
+# -- names and tags -------------------------------------------------------------------------
+def config_label(config: str | None) -> str:
+    """A config parameter as a short label (the file's stem)."""
+    return Path(str(config)).stem if config else "default"
+
+
+def flow_parameter(name: str) -> Any:
+    from prefect.runtime import flow_run
+
+    return flow_run.parameters.get(name)
+
+
+def label_flow_run(name: str, tags: list[str]) -> None:
+    """Rename the running flow run and add tags, once the scenario and run are known."""
+    from prefect.client.orchestration import get_client
+    from prefect.runtime import flow_run
+
+    flow_run_id = flow_run.id
+    if not flow_run_id:
+        return
+    with get_client(sync_client=True) as client:
+        current = client.read_flow_run(flow_run_id)
+        client.update_flow_run(flow_run_id, name=name, tags=sorted({*current.tags, *tags}))
+
+
+def run_tags(kind: str, scenario: str | None, run_id: str | None = None) -> list[str]:
+    """``ovtraj``, the flow's kind, ``scenario:<name>`` and ``run:<id>``."""
+    tags = ["ovtraj", kind]
+    if scenario:
+        tags.append(f"scenario:{scenario}")
+    if run_id:
+        tags.append(f"run:{run_id}")
+    return tags
+
+
+# -- one flow run per run id --------------------------------------------------------------
+@contextmanager
+def run_slot(run_id: str) -> Iterator[None]:
+    """Hold the run's global concurrency slot (limit 1, created when missing): a second
+    flow run evaluating the same run waits here (``concurrency.run_slot_wait_s``)."""
+    from prefect.client.orchestration import get_client
+    from prefect.client.schemas.actions import GlobalConcurrencyLimitCreate
+    from prefect.concurrency.sync import concurrency
+    from prefect.exceptions import ObjectAlreadyExists, ObjectNotFound
+
+    name = f"ovtraj-run-{run_id}"
+    with get_client(sync_client=True) as client:
+        try:
+            client.read_global_concurrency_limit_by_name(name)
+        except ObjectNotFound:
+            try:
+                limit = GlobalConcurrencyLimitCreate(name=name, limit=1)
+                client.create_global_concurrency_limit(limit)
+            except ObjectAlreadyExists:
+                pass  # another flow run created it meanwhile
+    settings = ORCHESTRATION.concurrency
+    with concurrency(
+        name,
+        occupy=1,
+        timeout_seconds=settings.run_slot_wait_s,
+        lease_duration=settings.lease_s,
+        strict=True,
+    ):
+        yield
+
+
+# -- batches that store their own results ----------------------------------------------------
+class FlowDeadline(TimeoutError):
+    """The flow's wall-time limit passed with batches still running."""
+
+
+def _dask_client(runner: Any) -> Any:
+    return runner.client if type(runner).__name__ == "DaskTaskRunner" else None
+
+
+def run_batches(
+    runner: Any,
+    task: Any,
+    parameters: dict[int, dict[str, Any]],
+    stored: Callable[[int], bool],
+    *,
+    deadline: float,
+    limit: str,
+    describe: Callable[[int, dict[str, Any]], str],
+) -> tuple[dict[int, str], dict[int, dict[str, Any]]]:
+    """Submit one task per batch and wait for them as they end; returns ({batch: error},
+    {batch: the task's summary}).
+
+    Each task stores its own batch. A task served from the cache whose batch is not in
+    the store (deleted since) runs again at once with a refreshed cache, so the store,
+    not the cache, decides: a missing batch is computed once, a stored one never.
+
+    ``deadline`` (``time.monotonic()``) is the flow's limit (``limit`` names it): past it
+    the batches not started are cancelled and :class:`FlowDeadline` is raised. On a Dask
+    cluster left with no worker for ``dask.no_worker_timeout_s``, :class:`ClusterError`.
+    """
+    logger = get_run_logger()
+    client = _dask_client(runner)
+    no_worker = ORCHESTRATION.dask.no_worker_timeout_s
+    finished = threading.Event()
+    pending: dict[Any, int] = {}
+    refreshed: set[int] = set()
+    failures: dict[int, str] = {}
+    summaries: dict[int, dict[str, Any]] = {}
+
+    def submit(k: int, refresh: bool) -> None:
+        chosen = task.with_options(refresh_cache=True) if refresh else task
+        future = runner.submit(chosen, parameters[k])
+        future.wrapped_future.add_done_callback(lambda _: finished.set())
+        pending[future] = k
+
+    for k in parameters:
+        submit(k, False)
+    workers_gone_since: float | None = None
+    while pending:
+        now = time.monotonic()
+        if now >= deadline:
+            for future in pending:
+                future.wrapped_future.cancel()
+            raise FlowDeadline(
+                f"{len(pending)} batch(es) still running when the flow's limit passed "
+                f"({limit}); the stored batches are kept, a new flow run resumes"
+            )
+        wait = deadline - now if client is None else min(deadline - now, no_worker / 10)
+        finished.wait(timeout=wait)
+        finished.clear()
+        if client is not None:
+            if count_workers(client) > 0:
+                workers_gone_since = None
+            elif workers_gone_since is None:
+                workers_gone_since = time.monotonic()
+            elif time.monotonic() - workers_gone_since >= no_worker:
+                for future in pending:
+                    future.wrapped_future.cancel()
+                raise ClusterError(
+                    f"the Dask cluster has had no worker for {no_worker:g} s "
+                    "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
+                    f"{len(pending)} batch(es) waiting: its workers died or left (a worker "
+                    "that cannot import ovtraj exits on its first task); see their logs"
+                )
+        for future in [f for f in pending if f.wrapped_future.done()]:
+            k = pending.pop(future)
+            try:
+                summary = future.result()
+            except Exception as err:
+                failures[k] = f"{type(err).__name__}: {err}"
+                logger.error("batch %d failed: %s", k, failures[k])
+                continue
+            if not stored(k):
+                if k in refreshed:
+                    failures[k] = "its task completed but the batch is not in the store"
+                    logger.error("batch %d: %s", k, failures[k])
+                    continue
+                logger.info("batch %d: cached result, but not in the store: computing it", k)
+                refreshed.add(k)
+                submit(k, True)
+                continue
+            summaries[k] = summary
+            logger.info(describe(k, summary))
+    return failures, summaries
+
+
+# -- sync wrappers ------------------------------------------------------------------------
+def run_to_completion(make: Callable[[], Any]) -> Any:
+    """Run the coroutine ``make()`` returns to completion from synchronous code.
+
+    With no event loop running here, ``asyncio.run``; inside a running loop (a notebook,
+    an async application) the coroutine runs on a loop of its own in another thread,
+    with this context (Prefect's settings and run context) copied, and this call waits.
+    """
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return asyncio.run(make())
+    context = contextvars.copy_context()
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(context.run, lambda: asyncio.run(make())).result()
+
+
+def call_flow(flow_function: Callable[..., Any], **parameters: Any) -> Any:
+    """Call a synchronous flow; inside a running event loop, from another thread (with
+    this context), so that the flow never meets the caller's loop."""
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return flow_function(**parameters)
+    context = contextvars.copy_context()
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(context.run, lambda: flow_function(**parameters)).result()
