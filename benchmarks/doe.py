@@ -1,35 +1,40 @@
-"""DoE of the whole mission: wall time, time per evaluation, orchestration overhead.
+"""DoE scaling on a Dask cluster of real worker processes: one worker against two (issue 19).
 
-A 64-sample DoE of the default scenario with 2 workers, run by
-``flows/doe.py:doe_flow`` (through ``run_doe_flow``) under a temporary Prefect
-server, into a fresh store.
-Printed for each of ``repeats`` timed runs (fresh stores, nothing cached): the
-flow's wall time, the median and total time of one mission evaluation (measured
-inside the tasks), and the overhead = wall time minus the summed evaluation time
-over the workers, as a fraction of the wall time; then the medians over the runs.
-Goals (issue 6): one evaluation under 0.5 s median, overhead under 15 %.
+A ``samples``-sample DoE of the default scenario runs through ``flows/doe.py:doe_flow``
+(``runner="dask"``) on two warm clusters started here, side by side: a ``dask
+scheduler`` with one ``dask worker``, and one with two (``--nthreads 1`` each; every
+process in a folder of its own, without the checkout on its path), against a temporary
+Prefect server. Each repetition runs the DoE once on each cluster into fresh stores
+(nothing cached), alternating which goes first. Measured per run: the wall time of the
+flow call, every sample's evaluation time (inside the tasks, from the batch markers) and
+the CPU time each process used (the Prefect server, the Dask schedulers and workers, this
+process, and the rest of the machine). The medians over the repetitions are reported;
+the VM is shared and noisy.
 
-Run: ``python benchmarks/doe.py [samples] [dask-cluster|threads|processes] [batch] [repeats]``
-(default: 64 samples on a Dask cluster of 2 worker processes, batches of 32).
+- ``speedup_2_workers`` = median wall on one worker / median wall on two;
+- ``overhead`` (two workers) = (workers x wall - summed evaluation time) / summed
+  evaluation time: the time the workers were not evaluating, against the evaluation;
+- the evaluation medians on one and on two workers, and serially in this process (the
+  library path, ``--serial-samples``), show whether a sample gets slower in parallel.
 
-- ``dask-cluster``: a local Dask cluster of worker processes is started and warmed
-  by a small run, then the DoE is timed on it (the set-up of
-  ``mission.doe.dask_address``: a cluster that outlives the flow runs keeps its
-  imports and compiled integrators). Prefect re-creates its settings and API client
-  for every task run in a worker process (~0.5 s measured here), so on 2 workers a
-  64-sample DoE runs best as one batch per worker (batches of 16: 4 tasks, the
-  per-task cost and the idle tail of the unequal batches add ~7 points of overhead).
-- ``threads``: the tasks share the compiled integrators of the flow's process but
-  hold the GIL for most of an evaluation (scipy's optimisers), so 2 threads run at
-  about the speed of one and each evaluation takes about twice as long.
-- ``processes``: Prefect's process pool is created per flow run; each process
-  imports and compiles on its own (~3-5 s), which a 64-sample DoE does not amortise.
+Goals (issue 19): speed-up >= 1.7 on two workers, overhead < 10 %.
+
+Run: ``python benchmarks/doe.py [--samples 256] [--batch 32] [--repeats 3] [--json]
+[--worker-threads N|default] [--serial-samples 32]``. ``--worker-threads`` sets the thread
+pools of the workers (OMP/OpenBLAS/MKL/numba/heyoka's TBB) through their environment;
+``default`` leaves the libraries' own choice (one thread per core). ``--json`` prints
+only the JSON object (otherwise the table, then that object as the last line).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import signal
+import socket
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -40,97 +45,344 @@ import yaml
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 
 ROOT = Path(__file__).resolve().parents[1]
-SAMPLES = 64
-WORKERS = 2
-RUNNER = sys.argv[2] if len(sys.argv) > 2 else "dask-cluster"
-BATCH = int(sys.argv[3]) if len(sys.argv) > 3 else 32
-EVALUATION_GOAL_S = 0.5
-OVERHEAD_GOAL = 0.15
-# Two-worker timings on this VM vary by several points from run to run: report the median.
-REPEATS = int(sys.argv[4]) if len(sys.argv) > 4 else 5
+sys.path.insert(0, str(ROOT))
+DASK = Path(sys.executable).with_name("dask")
+SPEEDUP_GOAL = 1.7  # issue 19: two workers at least 1.7x one
+OVERHEAD_GOAL = 0.10  # issue 19: orchestration under 10 % of the evaluation time
+START_TIMEOUT_S = 120.0
 
 
-def main() -> None:
-    from prefect.testing.utilities import prefect_test_harness
+def _arguments() -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--samples", type=int, default=256)
+    parser.add_argument("--batch", type=int, default=32, help="samples per task")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--worker-setup",
+        choices=("config", "default"),
+        default="config",
+        help="config: the workers set up by the flow (configs/orchestration.yaml dask."
+        "worker_threads, worker_profiler); default: as `dask worker` starts them",
+    )
+    parser.add_argument(
+        "--task-tags",
+        action="store_true",
+        help="tag the batch task runs (as before issue 19's measurement: each asks the "
+        "server for tag concurrency slots)",
+    )
+    parser.add_argument("--serial-samples", type=int, default=32)
+    parser.add_argument("--json", action="store_true", help="print only the JSON object")
+    return parser.parse_args()
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+class Cluster:
+    """``dask scheduler`` and ``workers`` ``dask worker`` processes, each a process group
+    in its own folder; stopped by their PIDs."""
+
+    def __init__(self, root: Path, name: str, workers: int) -> None:
+        self.name, self.workers = name, workers
+        self.port = _free_port()
+        self.address = f"tcp://127.0.0.1:{self.port}"
+        self.processes: list[subprocess.Popen] = []
+        env = {
+            k: v
+            for k, v in os.environ.items()
+            if not k.startswith(("PYTHONPATH", "PREFECT_", "OVTRAJ_"))
+        }
+        env["PREFECT_SERVER_ANALYTICS_ENABLED"] = "false"
+        self.env = env
+        scheduler = [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", str(self.port)]
+        self._start(root / f"{name}-scheduler", [*scheduler, "--no-dashboard"])
+        for k in range(workers):
+            worker = [str(DASK), "worker", self.address, "--nthreads", "1", "--no-dashboard"]
+            self._start(root / f"{name}-worker-{k}", [*worker, "--name", f"{name}-{k}"])
+
+    def _start(self, folder: Path, command: list[str]) -> None:
+        folder.mkdir(parents=True)
+        with open(folder / "process.log", "wb") as log:
+            self.processes.append(
+                subprocess.Popen(
+                    command,
+                    cwd=folder,
+                    env=self.env,
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                    start_new_session=True,
+                )
+            )
+
+    def wait(self) -> None:
+        from distributed import Client
+
+        started = time.monotonic()
+        while True:
+            try:
+                with Client(self.address, timeout=10) as client:
+                    client.wait_for_workers(self.workers, timeout=START_TIMEOUT_S)
+                    return
+            except OSError:
+                if time.monotonic() - started > START_TIMEOUT_S:
+                    raise
+                time.sleep(0.5)
+
+    def pids(self) -> dict[str, list[int]]:
+        """The scheduler's and each worker's processes (a worker: nanny and child)."""
+        import psutil
+
+        out = {}
+        for k, process in enumerate(self.processes):
+            role = "scheduler" if k == 0 else f"worker {k}"
+            try:
+                tree = psutil.Process(process.pid)
+                out[role] = [process.pid, *(c.pid for c in tree.children(recursive=True))]
+            except psutil.NoSuchProcess:
+                continue
+        return out
+
+    def worker_addresses(self) -> list[str]:
+        """The workers' addresses, in the order of their names."""
+        from distributed import Client
+
+        with Client(self.address, timeout=10) as client:
+            workers = client.scheduler_info(n_workers=-1)["workers"]
+        return [a for a, _ in sorted(workers.items(), key=lambda item: item[1]["name"])]
+
+    def stop(self) -> None:
+        for process in reversed(self.processes):
+            try:
+                os.killpg(process.pid, signal.SIGTERM)
+                process.wait(timeout=30)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                try:
+                    os.killpg(process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+
+
+def _cpu_seconds(pids: list[int]) -> float:
+    import psutil
+
+    total = 0.0
+    for pid in pids:
+        try:
+            times = psutil.Process(pid).cpu_times()
+            total += times.user + times.system
+        except psutil.NoSuchProcess:
+            continue
+    return total
+
+
+def _server_pids() -> list[int]:
+    """The temporary Prefect server: this process's children that are not Dask's."""
+    import psutil
+
+    me = psutil.Process()
+    return [
+        child.pid
+        for child in me.children(recursive=True)
+        if "dask" not in " ".join(child.cmdline()) and "spawn_main" not in " ".join(child.cmdline())
+    ]
+
+
+def _timed_run(config: Path, store: Path, cluster: Cluster, workers: int) -> dict:
+    """One DoE on the cluster's first ``workers`` workers (the others idle: a Dask
+    restriction, ``dask.annotate(workers=...)``)."""
+    import dask
+    import psutil
 
     from flows.doe import run_doe_flow
     from ovtraj.runs import RunStore
 
-    samples = int(sys.argv[1]) if len(sys.argv) > 1 else SAMPLES
-    workdir = Path(tempfile.mkdtemp(prefix="ovtraj-doe-"))
+    groups = {"Prefect server": _server_pids(), "flow (this process)": [os.getpid()]}
+    for role, pids in cluster.pids().items():
+        groups[f"Dask {role}"] = pids
+    before = {k: _cpu_seconds(v) for k, v in groups.items()}
+    machine = psutil.cpu_times()
+    start = time.perf_counter()
+    with dask.annotate(workers=cluster.worker_addresses()[:workers]):
+        summary = run_doe_flow(
+            config=str(config), store_root=str(store), runner="dask", dask_address=cluster.address
+        )
+    wall = time.perf_counter() - start
+    machine_after = psutil.cpu_times()
+    cpu = {k: _cpu_seconds(v) - before[k] for k, v in groups.items()}
+    busy = (machine_after.user + machine_after.system) - (machine.user + machine.system)
+    cpu["rest of the machine"] = max(busy - sum(cpu.values()), 0.0)
+    run = RunStore(store).run(summary["run_id"])
+    evaluations = [
+        float(t)
+        for marker in run.markers().values()
+        for t in marker["timing"]["sample_wall_time_s"].values()
+    ]
+    assert summary["status"] == "complete" and len(evaluations) == summary["samples"]
+    return {
+        "wall_s": wall,
+        "evaluations_s": evaluations,
+        "task_s": summary["task_time_s"],
+        "cpu_s": cpu,
+    }
+
+
+def _serial_median(config: Path, samples: int) -> float:
+    """Median evaluation of ``samples`` samples in this process (the library path)."""
+    from ovtraj.config import load_scenario
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
+    from ovtraj.runs import latin_hypercube
+
+    scenario = load_scenario(config)
+    context = MissionContext(scenario, find_launch_fit(scenario))
+    designs = latin_hypercube(scenario.mission.design_bounds, samples + 2, seed=1)
+    times = []
+    for k, row in enumerate(designs.itertuples(index=False)):
+        design = MissionDesign(**{n: float(getattr(row, n)) for n in DESIGN_NAMES})
+        start = time.perf_counter()
+        evaluate(context, design)
+        if k >= 2:  # the first two compile
+            times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def _variant(args: argparse.Namespace) -> None:
+    """The measured variants: workers as ``dask worker`` starts them (no thread limits,
+    profiler on) instead of as the flow sets them up; tagged batch task runs."""
+    import flows.doe
+    import flows.runners
+
+    if args.worker_setup == "default":
+        settings = flows.runners.ORCHESTRATION
+        dask = settings.dask.model_copy(update={"worker_threads": None, "worker_profiler": True})
+        flows.runners.ORCHESTRATION = settings.model_copy(update={"dask": dask})
+    if args.task_tags:
+        tagged = flows.doe.mission_batch_task.with_options(tags=["ovtraj", "doe", "benchmark"])
+        flows.doe.mission_batch_task = tagged
+
+
+def _summary(runs: list[dict], workers: int) -> dict[str, float]:
+    walls = [r["wall_s"] for r in runs]
+    overheads = [(workers * r["wall_s"] - r["task_s"]) / r["task_s"] for r in runs]
+    beyond_evaluation = [
+        (workers * r["wall_s"] - sum(r["evaluations_s"])) / sum(r["evaluations_s"]) for r in runs
+    ]
+    medians = [statistics.median(r["evaluations_s"]) for r in runs]
+    cpu = {k: statistics.median(r["cpu_s"][k] for r in runs) for k in runs[0]["cpu_s"]}
+    return {
+        "wall_s": statistics.median(walls),
+        "wall_range_s": [min(walls), max(walls)],
+        "evaluation_median_s": statistics.median(medians),
+        "evaluation_sum_s": statistics.median(sum(r["evaluations_s"]) for r in runs),
+        "task_sum_s": statistics.median(r["task_s"] for r in runs),
+        "overhead": statistics.median(overheads),
+        "overhead_range": [min(overheads), max(overheads)],
+        "overhead_vs_evaluation": statistics.median(beyond_evaluation),
+        "cpu_s": cpu,
+    }
+
+
+def main() -> None:
+    args = _arguments()
+    say = (lambda *_: None) if args.json else print
+    from prefect.testing.utilities import prefect_test_harness
+
+    from flows.doe import run_doe_flow
+
+    _variant(args)
+    workdir = Path(tempfile.mkdtemp(prefix="ovtraj-doe-bench-"))
+    os.environ["OVTRAJ_PREFECT_RESULTS"] = str(workdir / "task-results")
     data = yaml.safe_load((ROOT / "configs" / "scenario.yaml").read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(ROOT / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"].update(
-        {
-            "samples": samples,
-            "workers": WORKERS,
-            "task_runner": RUNNER if RUNNER != "dask-cluster" else "dask",
-            "store": str(workdir),
-            "batch_size": BATCH,
-        }
+        samples=args.samples, batch_size=args.batch, task_runner="dask", task_retries=0
     )
     config = workdir / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
-    os.chdir(ROOT)  # the launch fit is looked up under data/
-    with prefect_test_harness(server_startup_timeout=60):
-        # Worker processes inherit the environment, not the harness's settings context:
-        # point them at this server instead of letting each start its own.
-        from prefect.settings import PREFECT_API_URL
-
-        os.environ["PREFECT_API_URL"] = PREFECT_API_URL.value()
-        cluster = None
-        if RUNNER == "dask-cluster":
-            # An existing cluster whose worker processes stay up between runs (the
-            # dask_address setting): their imports and compiled integrators are reused.
-            from distributed import LocalCluster
-
-            cluster = LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True)
-            doe = yaml.safe_load(config.read_text(encoding="utf-8"))
-            doe["mission"]["doe"].update(
-                {"task_runner": "dask", "dask_address": cluster.scheduler_address}
+    serial = _serial_median(config, args.serial_samples) if args.serial_samples else None
+    cluster: Cluster | None = None
+    results: dict[int, list[dict]] = {1: [], 2: []}
+    try:
+        with prefect_test_harness(server_startup_timeout=120):
+            cluster = Cluster(workdir, "cluster", 2)
+            cluster.wait()
+            # Warm-up: both workers import, compile and evaluate (batches of 2).
+            run_doe_flow(
+                config=str(config),
+                samples=8,
+                store_root=str(workdir / "warm-up"),
+                runner="dask",
+                dask_address=cluster.address,
             )
-            config.write_text(yaml.safe_dump(doe), encoding="utf-8")
-        # Warm-up: small batches so that every worker imports, compiles and evaluates.
-        warm = yaml.safe_load(config.read_text(encoding="utf-8"))
-        warm["mission"]["doe"]["batch_size"] = 2
-        warm_config = workdir / "warm-up.yaml"
-        warm_config.write_text(yaml.safe_dump(warm), encoding="utf-8")
-        warm_store = str(workdir / "warm-up")
-        run_doe_flow(config=str(warm_config), samples=4 * WORKERS, store_root=warm_store)
-        timings = []
-        for rep in range(REPEATS):  # fresh stores: each repetition simulates everything
-            store = workdir / f"timed-{rep}"
-            start = time.perf_counter()
-            summary = run_doe_flow(config=str(config), store_root=str(store))
-            wall = time.perf_counter() - start
-            totals = RunStore(store).run(summary["run_id"]).totals()
-            timings.append((wall, totals["wall_time_s"].to_numpy(), summary))
+            for rep in range(args.repeats):
+                for workers in (1, 2) if rep % 2 == 0 else (2, 1):
+                    store = workdir / f"timed-{workers}-{rep}"
+                    run = _timed_run(config, store, cluster, workers)
+                    results[workers].append(run)
+                    say(
+                        f"  run {rep}  {workers} worker(s)  wall {run['wall_s']:6.1f} s  "
+                        f"evaluation median {statistics.median(run['evaluations_s']):.3f} s"
+                    )
+    finally:
         if cluster is not None:
-            cluster.close()
-    print(
-        f"DoE benchmark: {samples} samples, {WORKERS} workers ({RUNNER}), batches of "
-        f"{BATCH}, {REPEATS} timed runs"
+            cluster.stop()
+    one, two = _summary(results[1], 1), _summary(results[2], 2)
+    speedup = one["wall_s"] / two["wall_s"]
+    report = {
+        "samples": args.samples,
+        "batch_size": args.batch,
+        "repeats": args.repeats,
+        "worker_setup": args.worker_setup,
+        "task_tags": args.task_tags,
+        "speedup_2_workers": round(speedup, 3),
+        "speedup_goal": SPEEDUP_GOAL,
+        "speedup_ratio": round(speedup / SPEEDUP_GOAL, 3),
+        "overhead": round(two["overhead"], 4),
+        "overhead_goal": OVERHEAD_GOAL,
+        "overhead_ratio": round(two["overhead"] / OVERHEAD_GOAL, 3),
+        "overhead_1_worker": round(one["overhead"], 4),
+        "overhead_vs_evaluation_2_workers": round(two["overhead_vs_evaluation"], 4),
+        "overhead_vs_evaluation_1_worker": round(one["overhead_vs_evaluation"], 4),
+        "wall_1_worker_s": round(one["wall_s"], 2),
+        "wall_2_workers_s": round(two["wall_s"], 2),
+        "evaluation_median_serial_s": None if serial is None else round(serial, 4),
+        "evaluation_median_1_worker_s": round(one["evaluation_median_s"], 4),
+        "evaluation_median_2_workers_s": round(two["evaluation_median_s"], 4),
+        "cpu_s_1_worker": {k: round(v, 1) for k, v in one["cpu_s"].items()},
+        "cpu_s_2_workers": {k: round(v, 1) for k, v in two["cpu_s"].items()},
+    }
+    say(
+        f"\nDoE of {args.samples} samples, batches of {args.batch}, on a Dask cluster of two "
+        f"worker processes (--nthreads 1; set up: {args.worker_setup}; task tags: "
+        f"{'yes' if args.task_tags else 'no'}), one of them or both; medians of {args.repeats} "
+        "runs each"
     )
-    print("  run   wall [s]   evaluation median [s]   summed [s]   overhead   feasible")
-    overheads, medians = [], []
-    for rep, (wall, per_sample, summary) in enumerate(timings):
-        busy = float(per_sample.sum()) / WORKERS
-        overheads.append(max(wall - busy, 0.0) / wall)
-        medians.append(statistics.median(per_sample))
-        print(
-            f"  {rep:3d}   {wall:8.1f}   {medians[-1]:21.3f}   {per_sample.sum():10.1f}   "
-            f"{100 * overheads[-1]:6.1f} %   {summary['feasible']}/{summary['evaluated']}"
+    say(f"  {'':34}{'1 worker':>12}{'2 workers':>12}")
+    for label, key, fmt in (
+        ("wall [s]", "wall_s", "{:12.1f}"),
+        ("evaluation median [s]", "evaluation_median_s", "{:12.3f}"),
+        ("evaluation summed [s]", "evaluation_sum_s", "{:12.1f}"),
+        ("tasks summed (evaluate + store) [s]", "task_sum_s", "{:12.1f}"),
+        ("overhead (vs the tasks)", "overhead", "{:12.1%}"),
+        ("overhead (vs the evaluations)", "overhead_vs_evaluation", "{:12.1%}"),
+    ):
+        say(f"  {label:34}" + fmt.format(one[key]) + fmt.format(two[key]))
+    for name in two["cpu_s"]:
+        say(
+            f"  {'CPU [s] ' + name:34}{one['cpu_s'].get(name, 0.0):12.1f}"
+            f"{two['cpu_s'].get(name, 0.0):12.1f}"
         )
-    evaluation, overhead = statistics.median(medians), statistics.median(overheads)
-    print(
-        f"  one mission evaluation   {evaluation:6.3f} s median   goal {EVALUATION_GOAL_S:.1f} s"
-        f"   ratio {evaluation / EVALUATION_GOAL_S:.2f}"
+    if serial is not None:
+        say(f"  evaluation median, serial in this process: {serial:.3f} s")
+    say(
+        f"  speed-up on 2 workers {speedup:.2f} (goal >= {SPEEDUP_GOAL}, ratio "
+        f"{speedup / SPEEDUP_GOAL:.2f}); overhead {two['overhead']:.1%} (goal < "
+        f"{OVERHEAD_GOAL:.0%}, ratio {two['overhead'] / OVERHEAD_GOAL:.2f})"
     )
-    print(
-        f"  orchestration overhead   {100 * overhead:6.1f} % median of the runs "
-        f"(range {100 * min(overheads):.1f}-{100 * max(overheads):.1f} %)   goal "
-        f"{100 * OVERHEAD_GOAL:.0f} %   ratio {overhead / OVERHEAD_GOAL:.2f}"
-    )
+    print(json.dumps(report))
 
 
 if __name__ == "__main__":
