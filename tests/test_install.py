@@ -135,6 +135,14 @@ def test_the_installed_command_runs_from_any_folder_into_the_workspace(installed
     (run_dir,) = (workspace / "runs").iterdir()
     assert f"stored in {run_dir}" in done.stdout
     assert _run(installed, "verify", run_dir.name).returncode == 0
+    # Every runner is the package's own: a local Dask cluster of the installed package.
+    parallel = _run(installed, "run", "--samples", "4", "--runner", "dask")
+    assert parallel.returncode == 0, parallel.stderr
+    (stored,) = [line for line in parallel.stdout.splitlines() if line.startswith("stored in ")]
+    child = Path(stored.removeprefix("stored in "))
+    assert child.parent == workspace / "runs" and child != run_dir
+    shown = json.loads(_run(installed, "show", child.name).stdout)["manifest"]
+    assert shown["status"] == "complete" and shown["evaluated"] == 4
     # OVTRAJ_HOME moves the workspace.
     moved = subprocess.run(
         [str(installed["venv"] / "bin" / "ovtraj"), "paths", "--json"],

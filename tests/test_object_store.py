@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -218,7 +219,7 @@ def test_two_processes_on_one_run_in_the_object_store_compute_each_batch_once(s3
         int(line.split()[1].split("/")[0])
         for out, _ in outputs
         for line in out.decode().splitlines()
-        if " samples in " in line
+        if re.match(r"batch \d+/\d+: \d+ samples, ", line) and "already stored" not in line
     ]
     assert sorted(stored) == [1, 2, 3, 4, 5, 6], stored
     (url,) = {

@@ -344,8 +344,11 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
 
 
 def _batches_stored(stdout: str) -> list[int]:
+    """The batches this process computed and stored (``batch k/n: m samples, ...``)."""
     return [
-        int(line.split()[1].split("/")[0]) for line in stdout.splitlines() if " samples in " in line
+        int(line.split()[1].split("/")[0])
+        for line in stdout.splitlines()
+        if re.match(r"batch \d+/\d+: \d+ samples, ", line) and "already stored" not in line
     ]
 
 
