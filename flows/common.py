@@ -29,11 +29,31 @@ def result_storage() -> Any:
     """Where task results go: a local folder (a ``Path``) or an fsspec URL's file system
     (``configs/orchestration.yaml`` ``results.storage``; ``OVTRAJ_PREFECT_RESULTS``)."""
     location = ORCHESTRATION.results.location()
-    if "://" in location:
-        from prefect.filesystems import RemoteFileSystem
+    if "://" not in location:
+        return Path(location)
+    return _remote_storage(location)
 
-        return RemoteFileSystem(basepath=location)
-    return Path(location)
+
+_REMOTE_BLOCKS: dict[tuple[str, str], Any] = {}
+
+
+def _remote_storage(url: str) -> Any:
+    """A ``RemoteFileSystem`` block at ``url``, saved on the Prefect server once per process
+    and API (Prefect takes a remote result storage only as a saved block); its name is a
+    hash of the URL, so every flow run on that server shares it."""
+    import hashlib
+
+    from prefect.filesystems import RemoteFileSystem
+    from prefect.settings import PREFECT_API_URL
+
+    key = (url, str(PREFECT_API_URL.value()))
+    block = _REMOTE_BLOCKS.get(key)
+    if block is None:
+        block = RemoteFileSystem(basepath=url)
+        name = f"ovtraj-results-{hashlib.sha256(url.encode()).hexdigest()[:12]}"
+        block.save(name, overwrite=True)
+        _REMOTE_BLOCKS[key] = block
+    return block
 
 
 def prune_expired_results() -> int:

@@ -10,6 +10,7 @@ object store has neither): create-only writes (``If-None-Match``), leases for lo
 from __future__ import annotations
 
 import copy
+import importlib
 import json
 import os
 import re
@@ -231,3 +232,32 @@ def test_two_processes_on_one_run_in_the_object_store_compute_each_batch_once(s3
     rid = url.rsplit("/", 1)[1]
     verified = _cli(s3, "verify", rid, "--store", store)
     assert verified.returncode == 0, verified.stdout
+
+
+def test_task_results_on_the_object_store_serve_the_cache(prefect_server, client, monkeypatch):
+    """configs/orchestration.yaml ``results.storage`` as an ``s3://`` URL (here through
+    ``OVTRAJ_PREFECT_RESULTS``): the task's result is an object there, and a second flow run
+    with the same inputs and code is served from it without solving again."""
+    from collections import Counter
+
+    import tasks.rendezvous
+    from flows.rendezvous import rendezvous_flow
+    from ovtraj.config.orchestration import RESULTS_ENV
+
+    s3_client, bucket = client
+    monkeypatch.setenv(RESULTS_ENV, f"s3://{bucket}/prefect-results")
+    calls: Counter = Counter()
+    real = tasks.rendezvous.solve_rendezvous
+
+    def counted(*args, **kwargs):
+        calls["solve"] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tasks.rendezvous, "solve_rendezvous", counted)
+    monkeypatch.setattr(importlib.import_module("ovtraj.version"), "code_version", lambda: BUCKET)
+    first = rendezvous_flow(str(DEFAULT_SCENARIO))
+    listed = s3_client.list_objects_v2(Bucket=bucket, Prefix="prefect-results/")
+    keys = [item["Key"] for item in listed.get("Contents", [])]
+    assert keys, "no task result in the object store"
+    again = rendezvous_flow(str(DEFAULT_SCENARIO))
+    assert calls["solve"] == 1 and again == first  # the second run read the stored result
