@@ -1,15 +1,17 @@
 """DoE scaling on a Dask cluster of real worker processes: one worker against two (issue 19).
 
 A ``samples``-sample DoE of the default scenario runs through ``flows/doe.py:doe_flow``
-(``runner="dask"``) on two warm clusters started here, side by side: a ``dask
-scheduler`` with one ``dask worker``, and one with two (``--nthreads 1`` each; every
-process in a folder of its own, without the checkout on its path), against a temporary
-Prefect server. Each repetition runs the DoE once on each cluster into fresh stores
-(nothing cached), alternating which goes first. Measured per run: the wall time of the
-flow call, every sample's evaluation time (inside the tasks, from the batch markers) and
-the CPU time each process used (the Prefect server, the Dask schedulers and workers, this
-process, and the rest of the machine). The medians over the repetitions are reported;
-the VM is shared and noisy.
+(``runner="dask"``: "flow"), and through what ``ovtraj run --runner dask`` does (the
+library's pool, no Prefect: "command"), on a warm cluster started here: a ``dask
+scheduler`` and two ``dask worker`` processes (``--nthreads 1`` each; every process in a
+folder of its own, without the checkout on its path), using one worker (a Dask
+restriction, the other idle) or both, against a temporary Prefect server. Each repetition
+runs the four cases once into fresh stores (nothing cached), the order reversed every
+other repetition. Measured per run: the wall time of the call, every sample's evaluation
+time (inside the tasks, from the batch markers), the tasks' summed time (evaluation and
+storing) and the CPU time each process used (the Prefect server, the Dask scheduler and
+workers, this process, and the rest of the machine). The medians over the repetitions are
+reported; the VM is shared and noisy.
 
 - ``speedup_2_workers`` = median wall on one worker / median wall on two;
 - ``overhead`` (two workers) = (workers x wall - summed evaluation time) / summed
@@ -50,6 +52,7 @@ DASK = Path(sys.executable).with_name("dask")
 SPEEDUP_GOAL = 1.7  # issue 19: two workers at least 1.7x one
 OVERHEAD_GOAL = 0.10  # issue 19: orchestration under 10 % of the evaluation time
 START_TIMEOUT_S = 120.0
+VIAS = ("flow", "command")  # the Prefect DoE flow; `ovtraj run --runner dask` (the library)
 
 
 def _arguments() -> argparse.Namespace:
@@ -190,25 +193,64 @@ def _server_pids() -> list[int]:
     ]
 
 
-def _timed_run(config: Path, store: Path, cluster: Cluster, workers: int) -> dict:
+def _command_doe(config: Path, store: Path, address: str) -> dict:
+    """What ``ovtraj run CONFIG --store STORE --runner dask --dask-address ADDRESS`` does
+    (the library's pool, no Prefect), in this process; the run's summary with the summed
+    time of its batch jobs."""
+    from ovtraj.config import load_scenario
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.runs import RunStore, prepare_run, run_doe
+    from ovtraj.version import code_version
+
+    scenario = load_scenario(config)
+    settings = scenario.mission.doe
+    run = prepare_run(
+        scenario,
+        samples=settings.samples,
+        seed=settings.seed,
+        code=code_version(),
+        store=RunStore(store),
+    )
+    jobs: list[dict] = []
+    run_doe(
+        scenario,
+        run,
+        find_launch_fit(scenario),
+        batch_size=settings.batch_size,
+        runner="dask",
+        dask_address=address,
+        dask=load_orchestration().dask,
+        on_batch=jobs.append,
+    )
+    return run.summary() | {"task_time_s": sum(job["wall_time_s"] for job in jobs)}
+
+
+def _timed_run(config: Path, store: Path, cluster: Cluster, workers: int, via: str) -> dict:
     """One DoE on the cluster's first ``workers`` workers (the others idle: a Dask
-    restriction, ``dask.annotate(workers=...)``)."""
+    restriction, ``dask.annotate(workers=...)``), through the flow or the command."""
     import dask
     import psutil
 
     from flows.doe import run_doe_flow
     from ovtraj.runs import RunStore
 
-    groups = {"Prefect server": _server_pids(), "flow (this process)": [os.getpid()]}
+    groups = {"Prefect server": _server_pids(), "this process (flow or command)": [os.getpid()]}
     for role, pids in cluster.pids().items():
         groups[f"Dask {role}"] = pids
     before = {k: _cpu_seconds(v) for k, v in groups.items()}
     machine = psutil.cpu_times()
     start = time.perf_counter()
     with dask.annotate(workers=cluster.worker_addresses()[:workers]):
-        summary = run_doe_flow(
-            config=str(config), store_root=str(store), runner="dask", dask_address=cluster.address
-        )
+        if via == "flow":
+            summary = run_doe_flow(
+                config=str(config),
+                store_root=str(store),
+                runner="dask",
+                dask_address=cluster.address,
+            )
+        else:
+            summary = _command_doe(config, store, cluster.address)
     wall = time.perf_counter() - start
     machine_after = psutil.cpu_times()
     cpu = {k: _cpu_seconds(v) - before[k] for k, v in groups.items()}
@@ -304,7 +346,9 @@ def main() -> None:
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     serial = _serial_median(config, args.serial_samples) if args.serial_samples else None
     cluster: Cluster | None = None
-    results: dict[int, list[dict]] = {1: [], 2: []}
+    results: dict[tuple[str, int], list[dict]] = {
+        (via, workers): [] for via in VIAS for workers in (1, 2)
+    }
     try:
         with prefect_test_harness(server_startup_timeout=120):
             cluster = Cluster(workdir, "cluster", 2)
@@ -318,19 +362,23 @@ def main() -> None:
                 dask_address=cluster.address,
             )
             for rep in range(args.repeats):
-                for workers in (1, 2) if rep % 2 == 0 else (2, 1):
-                    store = workdir / f"timed-{workers}-{rep}"
-                    run = _timed_run(config, store, cluster, workers)
-                    results[workers].append(run)
+                order = [(v, w) for v in VIAS for w in (1, 2)]
+                for via, workers in order if rep % 2 == 0 else order[::-1]:
+                    store = workdir / f"timed-{via}-{workers}-{rep}"
+                    run = _timed_run(config, store, cluster, workers, via)
+                    results[via, workers].append(run)
                     say(
-                        f"  run {rep}  {workers} worker(s)  wall {run['wall_s']:6.1f} s  "
-                        f"evaluation median {statistics.median(run['evaluations_s']):.3f} s"
+                        f"  run {rep}  {via:7}  {workers} worker(s)  wall {run['wall_s']:6.1f} s"
+                        f"  evaluation median {statistics.median(run['evaluations_s']):.3f} s"
                     )
     finally:
         if cluster is not None:
             cluster.stop()
-    one, two = _summary(results[1], 1), _summary(results[2], 2)
+    summaries = {key: _summary(runs, key[1]) for key, runs in results.items()}
+    one, two = summaries["flow", 1], summaries["flow", 2]
     speedup = one["wall_s"] / two["wall_s"]
+    command_one, command_two = summaries["command", 1], summaries["command", 2]
+    command_speedup = command_one["wall_s"] / command_two["wall_s"]
     report = {
         "samples": args.samples,
         "batch_size": args.batch,
@@ -343,11 +391,17 @@ def main() -> None:
         "overhead": round(two["overhead"], 4),
         "overhead_goal": OVERHEAD_GOAL,
         "overhead_ratio": round(two["overhead"] / OVERHEAD_GOAL, 3),
+        "speedup_2_workers_command": round(command_speedup, 3),
+        "speedup_ratio_command": round(command_speedup / SPEEDUP_GOAL, 3),
+        "overhead_command": round(command_two["overhead"], 4),
+        "overhead_ratio_command": round(command_two["overhead"] / OVERHEAD_GOAL, 3),
         "overhead_1_worker": round(one["overhead"], 4),
         "overhead_vs_evaluation_2_workers": round(two["overhead_vs_evaluation"], 4),
         "overhead_vs_evaluation_1_worker": round(one["overhead_vs_evaluation"], 4),
         "wall_1_worker_s": round(one["wall_s"], 2),
         "wall_2_workers_s": round(two["wall_s"], 2),
+        "wall_1_worker_command_s": round(command_one["wall_s"], 2),
+        "wall_2_workers_command_s": round(command_two["wall_s"], 2),
         "evaluation_median_serial_s": None if serial is None else round(serial, 4),
         "evaluation_median_1_worker_s": round(one["evaluation_median_s"], 4),
         "evaluation_median_2_workers_s": round(two["evaluation_median_s"], 4),
@@ -357,10 +411,11 @@ def main() -> None:
     say(
         f"\nDoE of {args.samples} samples, batches of {args.batch}, on a Dask cluster of two "
         f"worker processes (--nthreads 1; set up: {args.worker_setup}; task tags: "
-        f"{'yes' if args.task_tags else 'no'}), one of them or both; medians of {args.repeats} "
-        "runs each"
+        f"{'yes' if args.task_tags else 'no'}), one of them or both, through the Prefect flow "
+        f"and through `ovtraj run --runner dask` (command); medians of {args.repeats} runs each"
     )
-    say(f"  {'':34}{'1 worker':>12}{'2 workers':>12}")
+    columns = [("flow", 1), ("flow", 2), ("command", 1), ("command", 2)]
+    say(f"  {'':38}" + "".join(f"{f'{v} {w}w':>12}" for v, w in columns))
     for label, key, fmt in (
         ("wall [s]", "wall_s", "{:12.1f}"),
         ("evaluation median [s]", "evaluation_median_s", "{:12.3f}"),
@@ -369,19 +424,20 @@ def main() -> None:
         ("overhead (vs the tasks)", "overhead", "{:12.1%}"),
         ("overhead (vs the evaluations)", "overhead_vs_evaluation", "{:12.1%}"),
     ):
-        say(f"  {label:34}" + fmt.format(one[key]) + fmt.format(two[key]))
+        say(f"  {label:38}" + "".join(fmt.format(summaries[c][key]) for c in columns))
     for name in two["cpu_s"]:
         say(
-            f"  {'CPU [s] ' + name:34}{one['cpu_s'].get(name, 0.0):12.1f}"
-            f"{two['cpu_s'].get(name, 0.0):12.1f}"
+            f"  {'CPU [s] ' + name:38}"
+            + "".join(f"{summaries[c]['cpu_s'].get(name, 0.0):12.1f}" for c in columns)
         )
     if serial is not None:
         say(f"  evaluation median, serial in this process: {serial:.3f} s")
-    say(
-        f"  speed-up on 2 workers {speedup:.2f} (goal >= {SPEEDUP_GOAL}, ratio "
-        f"{speedup / SPEEDUP_GOAL:.2f}); overhead {two['overhead']:.1%} (goal < "
-        f"{OVERHEAD_GOAL:.0%}, ratio {two['overhead'] / OVERHEAD_GOAL:.2f})"
-    )
+    for via, rate, extra in (("flow", speedup, two), ("command", command_speedup, command_two)):
+        say(
+            f"  {via}: speed-up on 2 workers {rate:.2f} (goal >= {SPEEDUP_GOAL}, ratio "
+            f"{rate / SPEEDUP_GOAL:.2f}); overhead {extra['overhead']:.1%} (goal < "
+            f"{OVERHEAD_GOAL:.0%}, ratio {extra['overhead'] / OVERHEAD_GOAL:.2f})"
+        )
     print(json.dumps(report))
 
 

@@ -223,6 +223,7 @@ def run_doe(
     dask_address: str | None = None,
     dask: DaskSettings | None = None,
     time_limit_s: float | None = None,
+    on_batch: Callable[[dict[str, Any]], None] | None = None,
 ) -> Run:
     """Evaluate every batch the run does not hold yet and finish the manifest.
 
@@ -230,7 +231,8 @@ def run_doe(
     where the batches run; each stores its own batch in the run. Batches that another
     process is computing are left to it at first, then waited for
     (``mission.doe.claim_wait_s``); one whose process died is computed again. A complete
-    run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches.
+    run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches;
+    ``on_batch`` receives each finished batch's summary (:func:`store_batch_job`).
 
     Raises :class:`ClusterError` (the manifest ends ``failed``) when the Dask cluster is
     unusable or loses every worker for ``dask.no_worker_timeout_s``, and
@@ -248,7 +250,7 @@ def run_doe(
                 say(f"removed {len(removed)} temporary file(s) of an interrupted write")
             run.update_manifest(batches=len(batches))
             with batch_pool(runner, workers, dask_address, settings) as pool:
-                jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings)
+                jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings, on_batch)
                 todo = [k for k, _ in batches if not run.is_stored(k)]
                 waiting = jobs.evaluate(todo, 0.0, time_limit_s)
                 for k in waiting:
@@ -282,11 +284,13 @@ class _BatchJobs:
         pool: BatchPool,
         say: Callable[[str], None],
         settings: DaskSettings,
+        on_batch: Callable[[dict[str, Any]], None] | None = None,
     ) -> None:
         self.run, self.pool, self.say, self.settings = run, pool, say, settings
         self.batches = dict(batches)
         self.resolved, self.coefficients = scenario.resolved(), launch_fit.to_dict()
         self.failures: dict[int, str] = {}
+        self.on_batch = on_batch
 
     def _job(self, k: int, wait_s: float) -> tuple[Any, ...]:
         records = self.batches[k].to_dict(orient="records")
@@ -296,6 +300,8 @@ class _BatchJobs:
         """Report a finished job; False when another process holds the batch's claim."""
         if summary["stored"] is None:
             return False
+        if self.on_batch is not None:
+            self.on_batch(summary)
         self.say(
             f"batch {k + 1}/{len(self.batches)}: {summary['samples']} samples, "
             f"{summary['feasible']} feasible, {summary['wall_time_s']:.1f} s"
