@@ -16,9 +16,12 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
+from ovtraj.config import load_scenario
+from ovtraj.launch.fit import LaunchFit
 from ovtraj.runs import execute
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
@@ -131,6 +134,11 @@ def test_launch_fit_flow_recomputes_after_a_code_change_only(prefect_server, tmp
     assert again["cached_points"] == again["solved_points"] == first["solved_points"]
     assert again["payload_kg"] == first["payload_kg"]
     assert changed["cached_points"] == 0 and changed["solved_points"] == first["solved_points"]
+    # What the flow stores: the fit of the configured range, payload falling with altitude.
+    assert first["points"] == 5 and np.all(np.diff(np.array(first["payload_kg"])) < 0.0)
+    fit = LaunchFit.load(tmp_path / "a")
+    assert fit.altitude_range_km == pytest.approx((280.0, 320.0))
+    assert fit.launcher == load_scenario(Path(config)).launch.launcher.name
 
 
 # -- DoE --------------------------------------------------------------------------------------

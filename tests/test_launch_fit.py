@@ -8,7 +8,6 @@ stored data is checked against the code rather than trusted.
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import math
@@ -20,12 +19,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config import load_scenario
 from ovtraj.files import StoreError
 from ovtraj.launch.fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.result import LaunchResult
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import REPO
 
 REFERENCE = REPO / "data" / "reference" / "launch_fit" / "iss-like-rendezvous"
 
@@ -173,53 +171,8 @@ def test_stored_grid_point_is_what_the_task_computes(grid_rows, scenario):
     assert row["payload_kg"] == pytest.approx(by_altitude[point]["payload_kg"], abs=0.15)
 
 
-# -- the flow: a small grid, solved in parallel tasks, cached on re-run -------------------
-
-
-def _small_grid_scenario_data() -> dict:
-    import yaml
-
-    data = copy.deepcopy(yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8")))
-    data["name"] = "launch-fit-flow-test"
-    data["launch"]["fit"].update(
-        {"altitude_min_km": 285.0, "altitude_max_km": 315.0, "points": 5, "order": 1}
-    )
-    data.pop("mission")  # its design bounds need the full fit range
-    return data
-
-
-def test_launch_fit_flow_runs_the_grid_in_parallel_and_caches_every_point(tmp_path, monkeypatch):
-    import yaml
-    from prefect.settings import PREFECT_LOCAL_STORAGE_PATH, temporary_settings
-    from prefect.testing.utilities import prefect_test_harness
-
-    from flows.launch_fit import launch_fit_flow
-    from ovtraj.config.orchestration import RESULTS_ENV
-
-    data = _small_grid_scenario_data()
-    # The launcher file is relative to configs/: point at the repository's copy.
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    build_scenario(data)  # valid
-    config = tmp_path / "scenario.yaml"
-    config.write_text(yaml.safe_dump(data), encoding="utf-8")
-    storage = tmp_path / "results"
-    monkeypatch.setenv(RESULTS_ENV, str(storage))  # the flows' task results (not the workspace)
-    with (
-        temporary_settings(updates={PREFECT_LOCAL_STORAGE_PATH: storage}),
-        prefect_test_harness(server_startup_timeout=60),
-    ):
-        first = launch_fit_flow(str(config), output_dir=str(tmp_path / "fit"))
-        second = launch_fit_flow(str(config), output_dir=str(tmp_path / "fit2"))
-    assert first["points"] == 5
-    assert first["cached_points"] == 0
-    assert second["cached_points"] == second["solved_points"] == first["solved_points"]
-    assert second["payload_kg"] == first["payload_kg"]
-    payload = np.array(first["payload_kg"])
-    assert np.all(np.diff(payload) < 0.0)
-    fit = LaunchFit.load(tmp_path / "fit")
-    assert fit.altitude_range_km == pytest.approx((285.0, 315.0))
-    scenario = load_scenario(config)
-    assert fit.launcher == scenario.launch.launcher.name
+# The launch-fit flow (a small grid in parallel tasks, cached on re-run, recomputed after a
+# code change) is tested in tests/test_caching.py, on the session's Prefect server.
 
 
 def test_a_fit_travels_as_its_coefficients_and_predicts_the_same():
