@@ -103,6 +103,11 @@ class MissionRecord:
     dv_total_mps: float | None = None
     m_load_kg: float | None = None
     wall_time_s: float = 0.0  # timing of the evaluation, never part of the totals
+    # Wall time of each stage reached [s], from the end of the previous one (the
+    # rendezvous includes the target's propagation, the transfer the stay's coast):
+    # timing, never stored with the results (benchmarks/mission.py).
+    stage_time_s: dict[str, float] = field(default_factory=dict)
+    _clock: float = field(default=0.0, repr=False)
     # Each stage's result object and the launch dict (with the insertion state), for the
     # mission plan (ovtraj.mission.plan); not persisted, not in totals().
     results: dict[str, Any] = field(default_factory=dict)
@@ -159,7 +164,7 @@ class MissionContext:
 def evaluate(context: MissionContext, design: MissionDesign) -> MissionRecord:
     """Run the chain for one design; see the module notes."""
     start = time.perf_counter()
-    record = MissionRecord(design=design)
+    record = MissionRecord(design=design, _clock=start)
     try:
         _run(context, design, record)
         record.feasible = True
@@ -202,6 +207,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         "feasible": True,
         "reason": None,
     }
+    _lap(record, "launch")
     # 3. rendezvous
     common = {
         "settings": scenario.rendezvous,
@@ -295,5 +301,13 @@ def _keep(
     record.stages[stage] = row
     record.results[stage] = result
     record.trajectories[stage] = trajectory
+    _lap(record, stage)
     if not feasible:
         raise _StageFailed(stage, reason or "infeasible")
+
+
+def _lap(record: MissionRecord, stage: str) -> None:
+    """The stage's wall time: since the previous lap (or the evaluation's start)."""
+    now = time.perf_counter()
+    record.stage_time_s[stage] = now - record._clock
+    record._clock = now

@@ -1,0 +1,36 @@
+"""Store the mission chain's reference values (issue 20): data/reference/mission_chain/.
+
+Evaluates the reference designs of ``configs/mission_reference.yaml`` with the shipped
+scenario and stores the totals, each stage's impulse and the landing miss, with the code
+version that computed them. Run it once, before speed work on the chain; again only for a
+deliberate change of the physics, after removing the stored reference (it never
+overwrites). ``tests/test_mission_reference.py`` compares the chain with these values.
+
+Run: ``python tools/mission_reference.py`` (prints the path it wrote).
+"""
+
+from __future__ import annotations
+
+from ovtraj.mission import reference
+from ovtraj.version import code_version
+
+
+def main() -> None:
+    settings = reference.load_settings()
+    context = reference.context(settings)
+    frame = reference.values(context, reference.designs(context.scenario, settings))
+    written = reference.store(
+        reference.reference_directory(),
+        frame,
+        {
+            "what": "mission chain reference values (issue 20)",
+            "code_version": code_version(),
+            "settings": settings.model_dump(mode="json"),
+            "feasible": int(frame["feasible"].sum()),
+        },
+    )
+    print(f"stored {len(frame)} designs ({int(frame['feasible'].sum())} feasible) in {written}")
+
+
+if __name__ == "__main__":
+    main()
