@@ -1069,7 +1069,6 @@ def entry_point() -> None:
     """
     import os
     import signal
-    import sys
 
     from ovtraj.files import StoreError
 
@@ -1099,4 +1098,21 @@ def entry_point() -> None:
             raise
         typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
         code = 2
-    sys.exit(code if isinstance(code, int) else 0)
+    _exit(code if isinstance(code, int) else 0)
+
+
+def _exit(code: int) -> None:
+    """End the process with ``code`` once its output is flushed, without the interpreter's
+    teardown: Arrow's thread pools can abort the process there after a Parquet read
+    (``terminate called without an active exception``, exit -6; apache/arrow#34314, once
+    in our CI after `ovtraj verify` had printed its result). Nothing is left to run at
+    exit: every file is written and closed, and the kernel releases the locks."""
+    import os
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass  # a closed pipe: nothing more can be said there
+    os._exit(code)
