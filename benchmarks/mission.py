@@ -5,17 +5,20 @@ Side by side in this process:
 1. one day of LEO J2 propagation (the default target's orbit) by scipy's DOP853 at
    rtol = atol = 1e-10, the reference figure of the developers' guide: a unit that moves
    with the machine's speed, so the ratio below does not;
-2. the evaluation of the mission chain (``ovtraj.mission.evaluate``) on ``--designs``
-   designs of a Latin hypercube over the design bounds (seeded), after ``--warm-up``
-   evaluations that build the integrators and compile: the median wall time, and the
+2. the evaluation of the mission chain (``ovtraj.mission.evaluate``) on the reference
+   designs (``configs/mission_reference.yaml``: 20 of a seeded hypercube over the design
+   bounds, the set whose results tests/test_mission_reference.py holds), after
+   ``--warm-up`` evaluations that build the integrators and compile: the median wall
+   time, and the
    median of each stage's own time (``MissionRecord.stage_time_s``) over the designs
    that reach it.
 
 Goal (issue 20): ``ratio = median_eval_s / dop853_day_s <= 0.6``.
 
-Run: ``python benchmarks/mission.py [--designs 20] [--repeats 3] [--json]``: ``--repeats``
-evaluates the set that many times (each design's median is kept); ``--json`` prints only
-the JSON object (otherwise the table, then that object as the last line).
+Run: ``python benchmarks/mission.py [--repeats 3] [--json]``: ``--repeats`` evaluates the
+set that many times (each design's median is kept), with DOP853 days timed between the
+rounds; ``--json`` prints only the JSON object (otherwise the table, then that object as
+the last line).
 """
 
 from __future__ import annotations
@@ -27,21 +30,15 @@ import time
 from pathlib import Path
 
 from ovtraj.astro.propagation.reference import propagate_dop853
-from ovtraj.config import load_scenario
-from ovtraj.launch.fit import find_launch_fit
-from ovtraj.mission import DESIGN_NAMES, STAGES, MissionContext, MissionDesign, evaluate
-from ovtraj.paths import config_path
-from ovtraj.runs import latin_hypercube
+from ovtraj.mission import STAGES, MissionContext, MissionDesign, evaluate, reference
 
 ROOT = Path(__file__).resolve().parents[1]
 DAY_S = 86400.0
 RATIO_GOAL = 0.6  # issue 20: one evaluation in at most 0.6 DOP853 days
-DESIGN_SEED = 20  # the designs' hypercube (any fixed seed: the set must not move)
 
 
 def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--designs", type=int, default=20)
     parser.add_argument("--warm-up", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--dop853-repeats", type=int, default=5)
@@ -89,26 +86,36 @@ def evaluations(context: MissionContext, designs: list[MissionDesign], repeats: 
 def main() -> None:
     args = _arguments()
     say = (lambda *_: None) if args.json else print
-    scenario = load_scenario(config_path("scenario.yaml"))
-    context = MissionContext(scenario, find_launch_fit(scenario))
-    table = latin_hypercube(
-        scenario.mission.design_bounds, args.warm_up + args.designs, seed=DESIGN_SEED
-    )
-    designs = [
-        MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
-        for row in table.itertuples(index=False)
-    ]
+    settings = reference.load_settings()
+    context = reference.context(settings)
+    designs = reference.designs(context.scenario, settings)
     for design in designs[: args.warm_up]:
         evaluate(context, design)  # integrators built, numba compiled
-    day = dop853_day_s(context, args.dop853_repeats)
-    measured = evaluations(context, designs[args.warm_up :], args.repeats)
-    day_after = dop853_day_s(context, args.dop853_repeats)  # the machine's drift
-    day = statistics.median([day, day_after])
+    # The reference's timings interleaved with the evaluations: the VM's speed drifts.
+    days: list[float] = []
+    runs: list[dict] = []
+    for _ in range(args.repeats):
+        days.append(dop853_day_s(context, args.dop853_repeats))
+        runs.append(evaluations(context, designs, 1))
+    days.append(dop853_day_s(context, args.dop853_repeats))
+    day = statistics.median(days)
+    measured = {
+        "design_medians_s": [
+            statistics.median(run["design_medians_s"][k] for run in runs)
+            for k in range(len(designs))
+        ],
+        "stage_medians_s": {
+            stage: statistics.median(run["stage_medians_s"][stage] for run in runs)
+            for stage in runs[0]["stage_medians_s"]
+        },
+        "stage_counts": runs[0]["stage_counts"],
+        "feasible": runs[0]["feasible"],
+    }
     median = statistics.median(measured["design_medians_s"])
     ratio = median / day
     stages = {stage: round(t, 5) for stage, t in measured["stage_medians_s"].items()}
     report = {
-        "designs": args.designs,
+        "designs": len(designs),
         "repeats": args.repeats,
         "feasible_designs": measured["feasible"],
         "median_eval_s": round(median, 5),
@@ -121,14 +128,14 @@ def main() -> None:
         "stage_counts": measured["stage_counts"],
     }
     say(
-        f"Mission evaluation: {args.designs} designs of the default scenario (hypercube seed "
-        f"{DESIGN_SEED}, {measured['feasible']} feasible), {args.repeats} evaluations each, "
-        f"after {args.warm_up} warm-up evaluations; DOP853 day: median of "
-        f"{2 * args.dop853_repeats} runs before and after"
+        f"Mission evaluation: the {len(designs)} reference designs of the default scenario "
+        f"(configs/mission_reference.yaml, {measured['feasible']} feasible), {args.repeats} "
+        f"evaluations each after {args.warm_up} warm-up evaluations; DOP853 day: median of "
+        f"{len(days) * args.dop853_repeats} runs between the evaluation rounds"
     )
     say(f"  {'':28}{'median [ms]':>12}{'/ DOP853 day':>14}{'designs':>9}")
     say(f"  {'DOP853, 1 day LEO J2, 1e-10':28}{day * 1e3:12.1f}{1.0:14.3f}")
-    say(f"  {'whole evaluation':28}{median * 1e3:12.1f}{ratio:14.3f}{args.designs:9d}")
+    say(f"  {'whole evaluation':28}{median * 1e3:12.1f}{ratio:14.3f}{len(designs):9d}")
     for stage, seconds in stages.items():
         say(
             f"  {'  ' + stage:28}{seconds * 1e3:12.1f}{seconds / day:14.3f}"
