@@ -103,6 +103,17 @@ def flow_parameter(name: str) -> Any:
     return flow_run.parameters.get(name)
 
 
+def run_name(kind: str, parameter: str = "config") -> Callable[[], str]:
+    """A ``flow_run_name`` callable: ``<kind> <the parameter>`` (a config as its file's
+    stem), the name a flow run has until it is renamed once its run is known."""
+
+    def name() -> str:
+        value = flow_parameter(parameter)
+        return f"{kind} {config_label(value) if parameter == 'config' else value}"
+
+    return name
+
+
 def label_flow_run(name: str, tags: list[str]) -> None:
     """Rename the running flow run and add tags, once the scenario and run are known."""
     from prefect.client.orchestration import get_client

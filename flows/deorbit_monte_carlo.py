@@ -22,12 +22,11 @@ from prefect.artifacts import create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    config_label,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
     run_batches,
+    run_name,
     run_tags,
 )
 from flows.runners import check_runner, task_runner
@@ -62,13 +61,9 @@ def _describe(k: int, summary: dict[str, Any]) -> str:
     )
 
 
-def _flow_run_name() -> str:
-    return f"deorbit-monte-carlo {config_label(flow_parameter('config'))}"
-
-
 @flow(
     name="deorbit-monte-carlo",
-    flow_run_name=_flow_run_name,
+    flow_run_name=run_name("deorbit-monte-carlo"),
     timeout_seconds=FLOW_TIMEOUTS.deorbit_monte_carlo_s,
     log_prints=True,
 )

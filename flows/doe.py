@@ -27,12 +27,11 @@ from prefect.artifacts import acreate_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    config_label,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
     run_batches,
+    run_name,
     run_slot,
     run_tags,
     run_to_completion,
@@ -198,11 +197,7 @@ def evaluate_run(
 LIMIT = "flows.doe_s of configs/orchestration.yaml"
 
 
-def _flow_run_name() -> str:
-    return f"doe {config_label(flow_parameter('config'))}"
-
-
-@flow(name="doe", flow_run_name=_flow_run_name, log_prints=True)
+@flow(name="doe", flow_run_name=run_name("doe"), log_prints=True)
 async def doe_flow(
     config: str = "configs/scenario.yaml",
     samples: int | None = None,

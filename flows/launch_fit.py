@@ -21,11 +21,10 @@ from prefect import flow, get_run_logger
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    config_label,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
+    run_name,
     run_tags,
 )
 from flows.runners import task_runner
@@ -37,11 +36,11 @@ from tasks.launch import launch_point_task
 CHAINS = 2
 
 
-def _flow_run_name() -> str:
-    return f"launch-fit {config_label(flow_parameter('config'))}"
-
-
-@flow(name="launch-fit", flow_run_name=_flow_run_name, timeout_seconds=FLOW_TIMEOUTS.launch_fit_s)
+@flow(
+    name="launch-fit",
+    flow_run_name=run_name("launch-fit"),
+    timeout_seconds=FLOW_TIMEOUTS.launch_fit_s,
+)
 def launch_fit_flow(
     config: str = "configs/scenario.yaml",
     output_dir: str | None = None,

@@ -14,10 +14,10 @@ from prefect.artifacts import create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
+    run_name,
     run_tags,
 )
 from flows.surrogate import call_stored, fit_run_surrogates, publish_validation
@@ -46,13 +46,9 @@ def surrogate_front(scenario: Scenario, run: Run, fit_id: str) -> dict[str, Any]
     )
 
 
-def _flow_run_name() -> str:
-    return f"optimize {flow_parameter('run_id')}"
-
-
 @flow(
     name="optimize",
-    flow_run_name=_flow_run_name,
+    flow_run_name=run_name("optimize", "run_id"),
     timeout_seconds=FLOW_TIMEOUTS.optimize_s,
     log_prints=True,
 )

@@ -23,11 +23,10 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    config_label,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
+    run_name,
     run_tags,
 )
 from flows.doe import ensure_launch_fit, evaluate_run, execution
@@ -92,13 +91,9 @@ def mission_plan(
     return planned
 
 
-def _flow_run_name() -> str:
-    return f"mission {config_label(flow_parameter('config'))}"
-
-
 @flow(
     name="mission",
-    flow_run_name=_flow_run_name,
+    flow_run_name=run_name("mission"),
     timeout_seconds=FLOW_TIMEOUTS.mission_s,
     log_prints=True,
 )

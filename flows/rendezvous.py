@@ -8,24 +8,19 @@ from prefect import flow, get_run_logger, tags
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    config_label,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
+    run_name,
     run_tags,
 )
 from ovtraj.config import load_scenario
 from tasks.rendezvous import rendezvous_task
 
 
-def _flow_run_name() -> str:
-    return f"rendezvous {config_label(flow_parameter('config'))}"
-
-
 @flow(
     name="rendezvous",
-    flow_run_name=_flow_run_name,
+    flow_run_name=run_name("rendezvous"),
     timeout_seconds=FLOW_TIMEOUTS.rendezvous_s,
     log_prints=False,
 )

@@ -16,10 +16,10 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
-    flow_parameter,
     label_flow_run,
     prepared,
     prune_expired_results,
+    run_name,
     run_tags,
 )
 from ovtraj.config import Scenario
@@ -72,13 +72,9 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
     )
 
 
-def _flow_run_name() -> str:
-    return f"surrogate {flow_parameter('run_id')}"
-
-
 @flow(
     name="surrogate",
-    flow_run_name=_flow_run_name,
+    flow_run_name=run_name("surrogate", "run_id"),
     timeout_seconds=FLOW_TIMEOUTS.surrogate_s,
     log_prints=True,
 )

@@ -110,3 +110,20 @@ def scenario_data() -> dict[str, Any]:
 
 def build_scenario(data: dict[str, Any]) -> Scenario:
     return scenario_from_dict(data, "test")
+
+
+def held_claim(run_dir: Path) -> tuple[int, int] | None:
+    """(batch, pid) of a batch claim a live process holds now on a batch not stored yet
+    (the tests that kill the process computing a batch)."""
+    import re
+
+    from ovtraj import locks
+
+    for lock in sorted((run_dir / "locks").glob("batch-*.lock")):
+        batch = int(lock.stem.split("-")[1])
+        if (run_dir / "batches" / f"{batch}.json").exists() or not locks.held(lock):
+            continue
+        found = re.search(r"pid (\d+)", lock.read_text(encoding="utf-8"))
+        if found:
+            return batch, int(found.group(1))
+    return None

@@ -35,10 +35,9 @@ from typing import Any
 import pytest
 import yaml
 
-from ovtraj import locks
 from ovtraj.config.orchestration import RESULTS_ENV
 from ovtraj.runs import RunStore
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, held_claim
 
 DASK = Path(sys.executable).with_name("dask")
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
@@ -243,18 +242,6 @@ def test_every_sample_lands_in_the_store_the_command_names(prefect_server, clust
         assert "batch 1/2" in done.stdout and "batch 2/2" in done.stdout
 
 
-def _held_batch(run_dir: Path) -> tuple[int, int] | None:
-    """(batch, pid) of a claim held now on a batch not stored yet."""
-    for lock in sorted((run_dir / "locks").glob("batch-*.lock")):
-        batch = int(lock.stem.split("-")[1])
-        if (run_dir / "batches" / f"{batch}.json").exists() or not locks.held(lock):
-            continue
-        found = re.search(r"pid (\d+)", lock.read_text(encoding="utf-8"))
-        if found:
-            return batch, int(found.group(1))
-    return None
-
-
 @pytest.mark.parametrize("via", VIAS)
 def test_a_lost_worker_has_its_batch_run_again_on_the_other(prefect_server, cluster, tmp_path, via):
     cluster.replace_lost_workers(["worker-1", "worker-2"])
@@ -268,7 +255,7 @@ def test_a_lost_worker_has_its_batch_run_again_on_the_other(prefect_server, clus
         while not finished.is_set():
             runs = [d for d in store.glob("*") if (d / "batches").is_dir()]
             if runs and any((runs[0] / "batches").glob("*.json")):
-                held = _held_batch(runs[0])
+                held = held_claim(runs[0])
                 seen.append(held)
                 if held is not None:
                     batch, pid = held

@@ -25,9 +25,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ovtraj import locks
 from ovtraj.runs import RunStore
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, held_claim
 
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
@@ -80,18 +79,6 @@ def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
     assert run.manifest["status"] == "complete" and run.verify().clean
 
 
-def _held_claim(run_dir: Path) -> tuple[int, int] | None:
-    """(batch, pid) of a claim held now on a batch not stored yet."""
-    for lock in sorted((run_dir / "locks").glob("batch-*.lock")):
-        batch = int(lock.stem.split("-")[1])
-        if (run_dir / "batches" / f"{batch}.json").exists() or not locks.held(lock):
-            continue
-        found = re.search(r"pid (\d+)", lock.read_text(encoding="utf-8"))
-        if found:
-            return batch, int(found.group(1))
-    return None
-
-
 def test_a_killed_pool_process_fails_the_command_and_the_run_resumes(tmp_path):
     config = _config(tmp_path / "project", samples=8, batch_size=2, workers=2)
     store = tmp_path / "project" / "runs"
@@ -101,7 +88,7 @@ def test_a_killed_pool_process_fails_the_command_and_the_run_resumes(tmp_path):
     def kill_a_busy_process() -> None:
         while not finished.is_set():
             for run_dir in store.glob("*"):
-                held = _held_claim(run_dir) if (run_dir / "locks").is_dir() else None
+                held = held_claim(run_dir) if (run_dir / "locks").is_dir() else None
                 if held is not None and held[1] != os.getpid():
                     os.kill(held[1], signal.SIGKILL)
                     killed.update(batch=held[0], pid=held[1])

@@ -15,7 +15,7 @@ sec. 3.7.5; Hoots & Roehrich 1980, Spacetrack Report No. 3, where GMST of the
 same IAU-82 formula turns the elements' frame to the Earth), with polar motion the
 only step left from PEF to the ITRF.
 
-The project's ECI (``../shared/SPEC.md``, ``docs/conventions.md``) is defined by the
+The project's ECI (``docs/conventions.md``) is defined by the
 same relation: its Earth-fixed frame is ECI rotated about z by GMST (IAU-82, UT1 =
 UTC), with precession, nutation and polar motion neglected. Reading the Earth-fixed
 frame as PEF, the rotation from TEME to ECI is therefore
