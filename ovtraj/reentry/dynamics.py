@@ -164,6 +164,23 @@ def _interp(x: float, xs: np.ndarray, ys: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _coefficients(cl: np.ndarray, cd: np.ndarray, a: float, m: float) -> tuple[float, float]:
+    """Lift and drag coefficients: both polynomials in one pass over the powers."""
+    c_lift = 0.0
+    c_drag = 0.0
+    ai = 1.0
+    for i in range(cl.shape[0]):
+        mj = 1.0
+        for j in range(cl.shape[1]):
+            term = ai * mj
+            c_lift += cl[i, j] * term
+            c_drag += cd[i, j] * term
+            mj *= m
+        ai *= a
+    return c_lift, c_drag
+
+
+@njit(cache=True)
 def _aero(
     x: np.ndarray,
     p: np.ndarray,
@@ -175,11 +192,9 @@ def _aero(
     rho, a = _atmosphere(h, p, log_rho, sound)
     mach = x[3] / a
     alpha = _interp(mach, mach_nodes, alpha_nodes)
-    a_poly = alpha * p[P_ALPHA_SCALE]
-    q = 0.5 * rho * x[3] * x[3]
-    lift = q * _poly(cl, a_poly, mach) / p[P_MASS_AREA]
-    drag = q * _poly(cd, a_poly, mach) / p[P_MASS_AREA]
-    return lift, drag, alpha, mach, rho
+    q = 0.5 * rho * x[3] * x[3] / p[P_MASS_AREA]
+    c_lift, c_drag = _coefficients(cl, cd, alpha * p[P_ALPHA_SCALE], mach)
+    return q * c_lift, q * c_drag, alpha, mach, rho
 
 
 @njit(cache=True)
@@ -198,11 +213,19 @@ def _derivatives(
     tables: Tables,
     out: np.ndarray,
 ) -> None:
+    lift, drag, _, _, _ = _aero(x, p, tables)
+    _rates(x, sign, lift, drag, p, out)
+
+
+@njit(cache=True)
+def _rates(
+    x: np.ndarray, sign: float, lift: float, drag: float, p: np.ndarray, out: np.ndarray
+) -> None:
+    """The state derivatives (module equations) with the lift and drag at x given."""
     r, lat, v, gamma, psi = x[0], x[2], x[3], x[4], x[5]
     # The magnitude follows the stage's speed (it is a function of the state); only
     # the sign, a guidance decision, is held over the step.
     sigma = sign * _bank_magnitude(v, p)
-    lift, drag, _, _, _ = _aero(x, p, tables)
     g = p[P_MU] / (r * r)
     w = p[P_OMEGA]
     cg, sg = math.cos(gamma), math.sin(gamma)
@@ -234,6 +257,14 @@ def _path(
 ) -> tuple[float, float, float, float, float, float]:
     """Angle of attack, Mach, density, heat rate, normal load [g], dynamic pressure."""
     lift, drag, alpha, mach, rho = _aero(x, p, tables)
+    return _path_from(x, p, lift, drag, alpha, mach, rho)
+
+
+@njit(cache=True)
+def _path_from(
+    x: np.ndarray, p: np.ndarray, lift: float, drag: float, alpha: float, mach: float, rho: float
+) -> tuple[float, float, float, float, float, float]:
+    """:func:`_path` from the aerodynamics at x."""
     heat = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
     load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
     return alpha, mach, rho, heat, load, 0.5 * rho * x[3] * x[3]
@@ -290,7 +321,9 @@ def fly(
                 sign = 1.0
                 reversals += 1
         sigma = sign * _bank_magnitude(x[3], p)
-        alpha, mach, rho, heat, load, qdyn = _path(x, p, tables)
+        # One aerodynamic evaluation at x serves the path quantities and the first stage.
+        lift, drag, alpha, mach, rho = _aero(x, p, tables)
+        alpha, mach, rho, heat, load, qdyn = _path_from(x, p, lift, drag, alpha, mach, rho)
         _update_maxima(maxima, t, heat, load, qdyn)
         maxima[6] = max(maxima[6], abs(sigma))
         if record:
@@ -306,7 +339,7 @@ def fly(
             history[n, 14] = togo
         n += 1
         args = (sign, p, tables)
-        _derivatives(x, *args, k1)
+        _rates(x, sign, lift, drag, p, k1)
         for i in range(6):
             stage[i] = x[i] + 0.5 * dt * k1[i]
         _derivatives(stage, *args, k2)
