@@ -298,3 +298,25 @@ def test_fast_cross_matches_numpy_cross_with_broadcasting():
     np.testing.assert_allclose(cross(a, b), np.cross(a, b), rtol=0, atol=1e-15)
     np.testing.assert_allclose(cross(a[0], b), np.cross(a[0], b), rtol=0, atol=1e-15)
     np.testing.assert_array_equal(cross([1, 0, 0], [0, 1, 0]), [0.0, 0.0, 1.0])
+
+
+def test_single_vector_paths_equal_the_broadcasting_paths() -> None:
+    """One vector or four numbers take a scalar path; it must give the array path's values."""
+    vectors = RNG.normal(size=(50, 3)) * 7.0e6
+    angles = RNG.uniform(-10.0, 10.0, size=50)
+    rotated = eci_to_ecef(vectors, angles)
+    lat, lon, alt = ecef_to_geocentric(vectors, radius=EARTH.radius)
+    for k in range(50):
+        np.testing.assert_allclose(eci_to_ecef(vectors[k], angles[k]), rotated[k], rtol=1e-15)
+        one = ecef_to_geocentric(vectors[k], radius=EARTH.radius)
+        assert all(isinstance(value, float) for value in one)
+        np.testing.assert_allclose(one, (lat[k], lon[k], alt[k]), rtol=1e-14, atol=1e-7)
+    # The half-open longitude convention holds on both paths (atan2(-0.0, -1) = -pi).
+    assert ecef_to_geocentric(np.array([-1.0, -0.0, 0.0]), radius=1.0)[1] == math.pi
+    points = RNG.uniform(-1.5, 1.5, size=(50, 4))
+    distances = great_circle_distance(*points.T, radius=EARTH.radius)
+    for k in range(50):
+        one = great_circle_distance(*(float(v) for v in points[k]), radius=EARTH.radius)
+        assert one == pytest.approx(distances[k], rel=1e-13, abs=1e-6)
+    # Antipodes: the haversine clipped at 1 on the scalar path too.
+    assert great_circle_distance(0.0, 0.0, 0.0, math.pi, radius=1.0) == pytest.approx(math.pi)

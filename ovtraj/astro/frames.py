@@ -27,6 +27,8 @@ Sinnott, R. W., "Virtues of the Haversine", *Sky and Telescope* 68 (2), 1984.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -79,6 +81,12 @@ def _unit(a: np.ndarray) -> np.ndarray:
 
 def _rotate_about_z(vec: np.ndarray, angle: ArrayLike) -> np.ndarray:
     """Components of ``vec`` in axes turned by ``angle`` about z (Vallado ROT3, sec. 3.4)."""
+    if vec.shape == (3,) and np.ndim(angle) == 0:
+        # One vector: scalar arithmetic, a tenth of the broadcasting path's cost (the
+        # ground-track searches call this thousands of times per mission evaluation).
+        cos_s, sin_s = math.cos(angle), math.sin(angle)
+        x_s, y_s = float(vec[0]), float(vec[1])
+        return np.array([cos_s * x_s + sin_s * y_s, -sin_s * x_s + cos_s * y_s, float(vec[2])])
     cos_a, sin_a = np.cos(angle), np.sin(angle)
     x, y, z = vec[..., 0], vec[..., 1], vec[..., 2]
     x_new = cos_a * x + sin_a * y
@@ -197,6 +205,14 @@ def ecef_to_geocentric(
     keeps full precision near the poles.
     """
     r_ecef = _vectors(r_ecef)
+    if r_ecef.shape == (3,):  # one position: scalar arithmetic (see _rotate_about_z)
+        x_s, y_s, z_s = (float(c) for c in r_ecef)
+        lon_s = math.atan2(y_s, x_s)
+        return (
+            math.atan2(z_s, math.hypot(x_s, y_s)),
+            math.pi if lon_s == -math.pi else lon_s,
+            math.sqrt(x_s * x_s + y_s * y_s + z_s * z_s) - radius,
+        )
     x, y, z = r_ecef[..., 0], r_ecef[..., 1], r_ecef[..., 2]
     lat = np.arctan2(z, np.hypot(x, y))
     lon = np.arctan2(y, x)
@@ -344,6 +360,13 @@ def great_circle_distance(
     radius:
         Sphere radius [m].
     """
+    if all(isinstance(a, (float, int)) for a in (lat1, lon1, lat2, lon2)):
+        # Four numbers: scalar arithmetic (see _rotate_about_z).
+        half_sum = (
+            math.sin((lat2 - lat1) / 2.0) ** 2
+            + math.cos(lat1) * math.cos(lat2) * math.sin((lon2 - lon1) / 2.0) ** 2
+        )
+        return 2.0 * radius * math.asin(math.sqrt(min(max(half_sum, 0.0), 1.0)))
     lat1, lon1, lat2, lon2 = (np.asarray(a, dtype=float) for a in (lat1, lon1, lat2, lon2))
     haversine = (
         np.sin((lat2 - lat1) / 2.0) ** 2
