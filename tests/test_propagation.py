@@ -265,3 +265,27 @@ def test_integrators_are_built_once_per_thread(earth):
 def test_invalid_tolerance_is_refused(earth):
     with pytest.raises(ValueError, match="tol must be in"):
         OrbitPropagator(earth, tol=0.0)
+
+
+def test_grid_output_equals_dense_output_and_a_later_start(earth, j2):
+    """heyoka's grid output (no continuous-output object) gives the dense output's states;
+    a grid that starts after t0 is reached first, forward and backward."""
+    s0 = _state(earth, earth.radius + 400e3, 0.001, 51.6)
+    times = np.r_[np.arange(0.0, 5000.0, 60.0), 5000.0]
+    dense = j2.propagate(s0, 0.0, 5000.0, dense=True).dense(times)
+    np.testing.assert_array_equal(j2.propagate_grid(s0, 0.0, times), dense)
+    later = j2.propagate_grid(s0, 0.0, times[10:])
+    np.testing.assert_allclose(later[:, :3], dense[10:, :3], rtol=0.0, atol=1e-4)
+    backward = j2.propagate_grid(dense[-1], 5000.0, times[::-1][5:])
+    np.testing.assert_allclose(backward[:, :3], dense[::-1][5:, :3], rtol=0.0, atol=1e-4)
+
+
+def test_zero_length_dense_propagation_is_the_state_itself(earth, j2):
+    s0 = _state(earth, earth.radius + 400e3, 0.001, 51.6)
+    result = j2.propagate(s0, 100.0, 100.0, dense=True)
+    assert result.ok and result.t == 100.0
+    np.testing.assert_array_equal(result.state_at(100.0), s0)
+    np.testing.assert_array_equal(result.dense(np.array([100.0, 100.0])), [s0, s0])
+    np.testing.assert_array_equal(result.dense(100.0), s0)
+    with pytest.raises(ValueError, match="must lie in"):
+        result.dense(101.0)

@@ -259,7 +259,7 @@ def correct_burn(
     elif status == _SLSQP_ITERATION_LIMIT:
         limit = f"deorbit.solver.max_iterations = {settings.max_iterations} reached"
     t, dv = unscale(z)
-    shot = model.shoot(t, dv, dense=True)
+    shot = model.shoot(t, dv)
     final = constraint_values(shot, model.entry, radius, dv_max_mps, vs)
     violation = float(max(0.0, -float(np.min(final))))
     return Correction(

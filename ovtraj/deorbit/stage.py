@@ -142,6 +142,7 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     reason = None if feasible else "; ".join(reasons)
     return _result(
         inp,
+        propagator,
         forecast,
         correction,
         track_pass,
@@ -192,6 +193,7 @@ def _failure(correction: Correction, inp: DeorbitInput) -> str:
 
 def _result(
     inp: DeorbitInput,
+    propagator: OrbitPropagator,
     forecast: Forecast,
     correction: Correction,
     track_pass: TrackPass,
@@ -237,12 +239,14 @@ def _result(
         iterations=correction.iterations,
         solver_message=correction.message,
         constraints=correction.constraints,
-        trajectory=trajectory_table(inp, forecast, correction),
+        trajectory=trajectory_table(inp, propagator, forecast, correction),
         **extra,
     )
 
 
-def trajectory_table(inp: DeorbitInput, forecast: Forecast, correction: Correction) -> pd.DataFrame:
+def trajectory_table(
+    inp: DeorbitInput, propagator: OrbitPropagator, forecast: Forecast, correction: Correction
+) -> pd.DataFrame:
     """Preparation orbit up to the burn, then the descent to the entry altitude.
 
     Columns: time [s from the epoch], phase, ECI position and velocity, altitude,
@@ -254,7 +258,11 @@ def trajectory_table(inp: DeorbitInput, forecast: Forecast, correction: Correcti
     t_wait = np.r_[np.arange(0.0, shot.burn_t_s, step), shot.burn_t_s]
     t_down = np.r_[np.arange(shot.burn_t_s, shot.entry_t_s, step), shot.entry_t_s]
     wait = forecast.trajectory.dense(t_wait)
-    down = shot.descent.dense(t_down) if shot.descent._dense is not None else np.empty((0, 6))
+    after_burn = np.r_[shot.state_before[:3], shot.state_before[3:] + shot.dv_eci_mps]
+    try:
+        down = propagator.propagate_grid(after_burn, shot.burn_t_s, t_down)
+    except RuntimeError:  # the shot flew this arc; an arc that cannot be sampled has no rows
+        down = np.empty((0, 6))
     t = np.r_[t_wait, t_down[: len(down)]]
     states = np.vstack([wait, down])
     earth = inp.earth

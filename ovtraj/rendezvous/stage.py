@@ -307,9 +307,6 @@ def _result(
             )
     lead = phase_angle(c.chaser_at_burn, plan.target_coast.dense(c.burn_time_s)[:3])
     final_state = c.chaser_at_arrival + np.r_[0.0, 0.0, 0.0, c.dv2_eci]
-    transfer_arc = prop.propagate(
-        c.chaser_at_burn + np.r_[0.0, 0.0, 0.0, c.dv1_eci], c.burn_time_s, arrival, dense=True
-    )
     return RendezvousResult(
         kind=kind,
         feasible=not reasons,
@@ -332,21 +329,26 @@ def _result(
         evaluations=c.evaluations,
         solver_message=c.message,
         final_state=final_state,
-        trajectory=_trajectory(inp, plan, c, transfer_arc),
+        trajectory=_trajectory(inp, prop, plan, c),
     )
 
 
 def _trajectory(
     inp: RendezvousInput | TransferInput,
+    prop: OrbitPropagator,
     plan: _Plan,
     c: CorrectionResult,
-    transfer_arc: PropagationResult,
 ) -> pd.DataFrame:
     step = inp.settings.trajectory_step_s
     arrival = c.burn_time_s + c.transfer_time_s
     t_wait = np.unique(np.r_[np.arange(inp.t0_s, c.burn_time_s, step), c.burn_time_s])
     t_transfer = np.unique(np.r_[np.arange(c.burn_time_s, arrival, step), arrival])
-    chaser = np.vstack([plan.chaser_coast.dense(t_wait), transfer_arc.dense(t_transfer)])
+    after_burn = c.chaser_at_burn + np.r_[0.0, 0.0, 0.0, c.dv1_eci]
+    try:
+        transfer_arc = prop.propagate_grid(after_burn, c.burn_time_s, t_transfer)
+    except RuntimeError as err:  # the correction flew this arc: not expected
+        raise FloatingPointError(f"transfer arc: {err}") from None
+    chaser = np.vstack([plan.chaser_coast.dense(t_wait), transfer_arc])
     times = np.r_[t_wait, t_transfer]
     # A target-less transfer's virtual target exists only from the burn on: those rows are
     # missing values (pandas NA, null in Parquet), not NaN.

@@ -96,6 +96,16 @@ class PropagationResult:
         return np.array(self._dense(min(max(float(t), lo), hi))[:6])
 
 
+@dataclass(frozen=True)
+class _Stationary:
+    """The dense output of a zero-length propagation: its one state at any time asked."""
+
+    state: np.ndarray
+
+    def __call__(self, t: float | np.ndarray) -> np.ndarray:
+        return np.tile(self.state, np.size(t)) if np.ndim(t) else self.state.copy()
+
+
 def _symbols() -> tuple[dict[str, Any], dict[str, Any]]:
     state = dict(zip(_STATE_NAMES, hy.make_vars(*_STATE_NAMES), strict=True))
     shared = {name: hy.par[i] for i, name in enumerate(_SHARED_PARAMS)}
@@ -253,6 +263,13 @@ class OrbitPropagator:
         Never raises on numerical failure: a non-finite state comes back with
         ``status == "error"`` and a message, so batch callers can record it.
         """
+        if dense and t1 == t0 and not events:
+            # Nothing to integrate: the state itself, without heyoka's continuous-output
+            # object (~1 ms), e.g. a transfer that burns at its start.
+            state = np.array(state0, dtype=float).reshape(6)
+            return PropagationResult(
+                float(t0), float(t0), state, "time_limit", _dense=_Stationary(state)
+            )
         integrator = _event_integrator(self.tol, events)
         ta = integrator.ta
         pars = np.zeros(integrator.n_pars)
@@ -293,12 +310,25 @@ class OrbitPropagator:
         return result
 
     def propagate_grid(self, state0: np.ndarray, t0: float, times: np.ndarray) -> np.ndarray:
-        """States (n, 6) at increasing ``times`` (the first may equal ``t0``)."""
+        """States (n, 6) at monotonic ``times`` (the first may equal ``t0``).
+
+        heyoka's own grid output (its dense output inside each step): no continuous-output
+        object, whose ~1 ms fixed cost is most of a short coast's (issue 20). With
+        ``times[0] == t0`` the states equal ``propagate(..., dense=True).dense(times)``.
+        """
         times = np.asarray(times, dtype=float)
-        result = self.propagate(state0, t0, float(times[-1]), dense=True)
-        if not result.ok:
-            raise RuntimeError(result.message)
-        return result.dense(times)
+        ta = _event_integrator(self.tol, ()).ta
+        ta.pars[:] = self.shared_parameters[: len(ta.pars)]
+        ta.time = float(t0)
+        ta.state[:] = np.asarray(state0, dtype=float)
+        outcome = hy.taylor_outcome.time_limit
+        if times[0] != t0:
+            outcome, *_ = ta.propagate_until(float(times[0]))
+        if outcome == hy.taylor_outcome.time_limit:
+            outcome, *_, states = ta.propagate_grid(times)
+        if outcome != hy.taylor_outcome.time_limit:
+            raise RuntimeError(f"integration stopped at t = {ta.time:.3f} s: {outcome}")
+        return np.array(states, dtype=float)[:, :6]
 
     def propagate_batch(
         self, states0: np.ndarray, t0: float | np.ndarray, t1: float | np.ndarray
