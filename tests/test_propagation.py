@@ -245,6 +245,22 @@ def test_state_transition_matrix_against_central_differences(earth, j2):
     assert np.max(np.abs(stm - fd) / (np.abs(fd) + 1.0)) < 1e-6
 
 
+def test_batch_state_transition_matrices_equal_the_scalar_ones(earth, j2):
+    """More states than SIMD lanes (chunks and a padded last one), each with its times."""
+    rng = np.random.default_rng(7)
+    base = _state(earth, earth.radius + 300e3, 0.001, 51.6)
+    states = base + rng.normal(size=(11, 6)) * np.r_[np.full(3, 1e3), np.full(3, 1.0)]
+    t0 = rng.uniform(-500.0, 500.0, 11)
+    t1 = t0 + rng.uniform(1000.0, 6000.0, 11)
+    finals, stms = j2.propagate_with_stm_batch(states, t0, t1)
+    for k in range(11):
+        final, stm = j2.propagate_with_stm(states[k], t0[k], t1[k])
+        np.testing.assert_allclose(finals[k], final, rtol=1e-13, atol=1e-9)
+        np.testing.assert_allclose(stms[k], stm, rtol=1e-11, atol=1e-12)
+    with pytest.raises(FloatingPointError, match="variational propagation failed"):
+        j2.propagate_with_stm_batch(np.vstack([states[:2], np.zeros(6)]), 0.0, 100.0)
+
+
 def test_non_finite_state_is_reported_not_raised(earth, j2):
     result = j2.propagate(np.zeros(6), 0.0, 100.0)
     assert result.status == "error" and not result.ok

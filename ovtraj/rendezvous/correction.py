@@ -157,15 +157,43 @@ class _Transfer:
 
     def _evaluate(self, x: np.ndarray) -> _Point:
         self.evaluations += 1
+        burn_time, arrival, chaser, after_burn = self._departure(x)
+        final, stm = self.p.propagator.propagate_with_stm(after_burn, burn_time, arrival)
+        return self._candidate(x, chaser, final, stm)
+
+    def _evaluate_many(self, xs: list[np.ndarray]) -> list[_Point]:
+        """:meth:`_evaluate` of several points, their arcs in one batch propagation."""
+        self.evaluations += len(xs)
+        departures = [self._departure(x) for x in xs]
+        finals, stms = self.p.propagator.propagate_with_stm_batch(
+            np.array([d[3] for d in departures]),
+            np.array([d[0] for d in departures]),
+            np.array([d[1] for d in departures]),
+        )
+        return [
+            self._candidate(x, d[2], final, stm)
+            for x, d, final, stm in zip(xs, departures, finals, stms, strict=True)
+        ]
+
+    def _departure(self, x: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """Burn epoch, arrival epoch, chaser state before and after the first impulse."""
+        p = self.p
+        burn_time = p.burn_time_s + (x[4] * p.hohmann_time_s if self.free_epoch else 0.0)
+        arrival = burn_time + x[3] * p.hohmann_time_s
+        chaser = p.chaser_coast.state_at(burn_time)
+        after_burn = chaser.copy()
+        after_burn[3:] += x[:3] * self.dv_scale
+        return burn_time, arrival, chaser, after_burn
+
+    def _candidate(
+        self, x: np.ndarray, chaser: np.ndarray, final: np.ndarray, stm: np.ndarray
+    ) -> _Point:
+        """The candidate at ``x`` from its arc's end state and state-transition matrix."""
         p = self.p
         dv = x[:3] * self.dv_scale
         transfer_time = x[3] * p.hohmann_time_s
         burn_time = p.burn_time_s + (x[4] * p.hohmann_time_s if self.free_epoch else 0.0)
         arrival = burn_time + transfer_time
-        chaser = p.chaser_coast.state_at(burn_time)
-        after_burn = chaser.copy()
-        after_burn[3:] += dv
-        final, stm = p.propagator.propagate_with_stm(after_burn, burn_time, arrival)
         target = p.target_coast.state_at(arrival)
         f_final = two_body_j2_rhs_single(final, **self._rhs_args)
         f_target = two_body_j2_rhs_single(target, **self._rhs_args)
@@ -209,10 +237,9 @@ class _Transfer:
         base = self.at(x)
         h_obj = np.empty((self.n, self.n))
         h_con = np.empty((3, self.n, self.n))
-        for k in range(self.n):
-            step = np.array(x, dtype=float)
-            step[k] += self._fd_step
-            moved = self._evaluate(step)
+        steps = [np.array(x, dtype=float) + self._fd_step * e for e in np.eye(self.n)]
+        # The columns' arcs are independent: one batch propagation (issue 20).
+        for k, moved in enumerate(self._evaluate_many(steps)):
             h_obj[:, k] = (moved.grad - base.grad) / self._fd_step
             h_con[:, :, k] = (moved.d_miss - base.d_miss) / self._fd_step
         h_obj = 0.5 * (h_obj + h_obj.T)
