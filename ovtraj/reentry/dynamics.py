@@ -343,17 +343,16 @@ def fly(
             history[n, 13] = qdyn
             history[n, 14] = togo
         n += 1
-        args = (sign, p, tables)
         _rates(x, sign, lift, drag, p, k1)
         for i in range(6):
             stage[i] = x[i] + 0.5 * dt * k1[i]
-        _derivatives(stage, *args, k2)
+        _derivatives(stage, sign, p, tables, k2)
         for i in range(6):
             stage[i] = x[i] + 0.5 * dt * k2[i]
-        _derivatives(stage, *args, k3)
+        _derivatives(stage, sign, p, tables, k3)
         for i in range(6):
             stage[i] = x[i] + dt * k3[i]
-        _derivatives(stage, *args, k4)
+        _derivatives(stage, sign, p, tables, k4)
         finite = True
         for i in range(6):
             new[i] = x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
