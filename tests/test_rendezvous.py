@@ -193,6 +193,27 @@ def test_random_coplanar_pairs_meet_epsilon_dis(scenario, seed):
     assert np.linalg.norm(c[:3] - t[:3]) < 2 * scenario.tolerances.miss_distance_m
 
 
+def test_a_given_target_coast_is_used_where_it_covers_and_agrees(scenario):
+    """A shared target ephemeris (the mission chain's) gives the result of the stage's own
+    target propagation; one that does not reach back to t0 is ignored, one too short is
+    extended by the stage's own propagation."""
+    inp = rendezvous_input(scenario)
+    prop = OrbitPropagator(scenario.earth, tol=scenario.tolerances.integrator)
+    alone = solve_rendezvous(inp)
+    assert alone.feasible, alone.reason
+    # The target's trajectory from 1000 s before t0, on the input's time axis.
+    before = prop.propagate(inp.target_state, inp.t0_s, inp.t0_s - 1000.0).state
+    long = prop.propagate(before, inp.t0_s - 1000.0, inp.t0_s + 5 * 86400.0, dense=True)
+    short = prop.propagate(before, inp.t0_s - 1000.0, inp.t0_s + 600.0, dense=True)
+    late = prop.propagate(inp.target_state, inp.t0_s + 60.0, inp.t0_s + 5 * 86400.0, dense=True)
+    for coast in (long, short, late):
+        shared = solve_rendezvous(RendezvousInput(**{**inp.__dict__, "target_coast": coast}))
+        assert shared.feasible, shared.reason
+        assert shared.dv_total_mps == pytest.approx(alone.dv_total_mps, abs=1e-4)
+        assert shared.burn2.t_s == pytest.approx(alone.burn2.t_s, abs=1e-2)
+        assert shared.miss_distance_m <= scenario.tolerances.miss_distance_m
+
+
 # --- cases the stage does not handle: infeasible with a reason, never raised ------
 
 

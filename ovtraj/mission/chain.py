@@ -26,12 +26,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.astro.elements import orbital_period, rv_to_coe
+from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.launch.fit import LaunchFit
@@ -43,6 +45,7 @@ from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
 from ovtraj.targets import circular_orbit_state, target_state
 
+_DAY_S = 86400.0
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
 DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
 
@@ -147,9 +150,33 @@ class MissionContext:
         self.target0 = target_state(scenario.target.orbit, scenario)
         self.target_offset_s = self.day.seconds_since(scenario.epoch)
 
+    @cached_property
+    def target_ephemeris(self) -> PropagationResult:
+        """The target's dense J2 trajectory in seconds from the launch day's 0 h, once per
+        context: from the scenario epoch to the latest arrival any design's rendezvous can
+        need (the launch day, the longest wait, twice the burn-epoch window, two target
+        periods for the coverage of a transfer shorter than half of one). A stage that needs
+        more propagates its own; the span depends on the scenario only, so every design's
+        result is the same in any process and any order.
+        """
+        settings = self.scenario.rendezvous
+        mu = self.scenario.earth.mu
+        target = rv_to_coe(self.target0[:3], self.target0[3:], mu=mu)
+        period = float(orbital_period(target.a, mu=mu))
+        horizon = (
+            _DAY_S + settings.max_wait_time_s + 2.0 * settings.burn_epoch_window_s + 2.0 * period
+        )
+        result = self.propagator.propagate(self.target0, -self.target_offset_s, horizon, dense=True)
+        if not result.ok:
+            raise _StageFailed("rendezvous", f"target propagation failed: {result.message}")
+        return result
+
     def target_at(self, t_s: float) -> np.ndarray:
         """Target ECI state ``t_s`` after the launch day's 0 h (J2)."""
-        result = self.propagator.propagate(self.target0, 0.0, t_s + self.target_offset_s)
+        ephemeris = self.target_ephemeris
+        if ephemeris.t0 <= t_s <= ephemeris.t:
+            return ephemeris.state_at(t_s)
+        result = self.propagator.propagate(self.target0, -self.target_offset_s, t_s)
         if not result.ok:
             raise _StageFailed("rendezvous", f"target propagation failed: {result.message}")
         return result.state
@@ -222,6 +249,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
             t0_s=t_ins,
             chaser_state=parked,
             target_state=ctx.target_at(t_ins),
+            target_coast=ctx.target_ephemeris,
             **common,
         )
     )

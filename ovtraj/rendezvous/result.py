@@ -11,6 +11,7 @@ import pandas as pd
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
+from ovtraj.astro.propagation import PropagationResult
 from ovtraj.config.scenario import RendezvousSettings
 from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
@@ -19,7 +20,12 @@ TransferKind = Literal["rendezvous", "transfer"]
 
 @dataclass(frozen=True)
 class RendezvousInput:
-    """A chaser and a target at ``t0_s`` (s from ``epoch``), Cartesian ECI (m, m/s)."""
+    """A chaser and a target at ``t0_s`` (s from ``epoch``), Cartesian ECI (m, m/s).
+
+    ``target_coast``: optionally, the target's dense trajectory on this input's time
+    axis (e.g. one ephemeris shared by every design of a mission DoE); the stage uses it
+    where it covers ``t0_s`` onwards and propagates ``target_state`` where it does not.
+    """
 
     epoch: Epoch
     t0_s: float
@@ -30,6 +36,7 @@ class RendezvousInput:
     max_impulse_mps: float
     integrator_tol: float
     earth: EarthModel
+    target_coast: PropagationResult | None = None
 
 
 @dataclass(frozen=True)

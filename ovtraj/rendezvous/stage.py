@@ -122,7 +122,9 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
 
     hi = s.transfer_time_bounds[1]
     pad = _COVERAGE_PAD * transfer.transfer_time_s
-    chaser_coast = target_coast = None
+    chaser_coast = None
+    given = inp.target_coast
+    target_coast = given if given is not None and given.t0 <= inp.t0_s <= given.t else None
 
     def cover(burn_time: float) -> None:
         """Dense coasts spanning every burn epoch and arrival the correction may try."""
