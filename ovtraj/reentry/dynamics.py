@@ -136,15 +136,22 @@ def _atmosphere(
 @njit(cache=True, error_model="numpy")
 def range_and_bearing(lat1: float, lon1: float, lat2: float, lon2: float) -> tuple[float, float]:
     """Central angle [rad] and initial bearing from north [rad] from point 1 to point 2."""
+    return _range_and_bearing(lat1, lon1, lat2, lon2, math.cos(lat2), math.sin(lat2))
+
+
+@njit(cache=True, error_model="numpy")
+def _range_and_bearing(
+    lat1: float, lon1: float, lat2: float, lon2: float, cos_lat2: float, sin_lat2: float
+) -> tuple[float, float]:
+    """:func:`range_and_bearing` with point 2's latitude cosine and sine given (a fixed
+    landing site: the flight's loop computes them once)."""
     dlon = lon2 - lon1
-    s = (
-        math.sin(0.5 * (lat2 - lat1)) ** 2
-        + math.cos(lat1) * math.cos(lat2) * math.sin(0.5 * dlon) ** 2
-    )
+    cos_lat1 = math.cos(lat1)
+    s = math.sin(0.5 * (lat2 - lat1)) ** 2 + cos_lat1 * cos_lat2 * math.sin(0.5 * dlon) ** 2
     angle = 2.0 * math.asin(math.sqrt(min(max(s, 0.0), 1.0)))
     bearing = math.atan2(
-        math.sin(dlon) * math.cos(lat2),
-        math.cos(lat1) * math.sin(lat2) - math.sin(lat1) * math.cos(lat2) * math.cos(dlon),
+        math.sin(dlon) * cos_lat2,
+        cos_lat1 * sin_lat2 - math.sin(lat1) * cos_lat2 * math.cos(dlon),
     )
     return angle, bearing
 
@@ -312,8 +319,11 @@ def fly(
     reversals = 0
     n = 0
     status = TIME_LIMIT
+    cos_site, sin_site = math.cos(p[P_TARGET_LAT]), math.sin(p[P_TARGET_LAT])
     while t < p[P_MAX_TIME]:
-        angle, bearing = range_and_bearing(x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON])
+        angle, bearing = _range_and_bearing(
+            x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON], cos_site, sin_site
+        )
         togo = angle * p[P_RADIUS]
         if p[P_GUIDED] > 0.5:
             frac = min(togo / p[P_CORRIDOR_RANGE], 1.0)
