@@ -343,12 +343,14 @@ def reentry(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
 
 
 _OPTIMAL_ENTRY_ROWS = [
+    ("reason", "reason"),
     ("status", "status"),
     ("objective", "objective"),
     (
         "formulation",
         lambda row: (
             f"{row['independent']}, {row['method']} {row['segments']}x{row['nodes_per_segment']}"
+            f" ({row['refinements']} mesh refinements)"
         ),
     ),
     ("objective value", "objective_value"),

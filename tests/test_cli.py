@@ -154,6 +154,24 @@ def test_optimal_entry_unposable_config_exits_2_with_the_field(tmp_path):
     assert "energy" in result.output
 
 
+def test_optimal_entry_that_does_not_fly_exits_1_with_the_reason(tmp_path):
+    """IPOPT succeeds on a coarse mesh whose controls do not fly to its end point: exit 1,
+    the reason printed (issue 22's false convergence), the histories still written."""
+    case = REPO / "configs" / "cases" / "shuttle_crossrange_heating.yaml"
+    data = yaml.safe_load(case.read_text(encoding="utf-8"))
+    data["transcription"]["max_refinements"] = 0
+    path = tmp_path / "coarse.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = runner.invoke(
+        app, ["optimal-entry", str(path), "--independent", "time", "--out", str(tmp_path)]
+    )
+    assert result.exit_code == 1, result.output
+    assert "converged" in result.stdout and "False" in result.stdout
+    assert "no re-flight of the interpolated controls meets the tolerance" in result.stdout
+    assert "Solve_Succeeded" in result.stdout
+    assert "Traceback" not in result.output
+
+
 MANEUVER_CASE = REPO / "configs" / "cases" / "upper_stage_rendezvous.yaml"
 
 

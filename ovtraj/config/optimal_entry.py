@@ -244,6 +244,13 @@ class TranscriptionConfig(StrictModel):
     method: Method
     segments: int = bounded(ge=1, le=50)
     nodes_per_segment: int = bounded(ge=2, le=200)
+    max_refinements: int = bounded(
+        ge=0,
+        le=20,
+        description="h-refinements after the first mesh until the re-flight meets "
+        "feasibility.tolerance_km (0: the configured mesh only)",
+    )
+    max_segments: int = bounded(ge=1, le=400, description="refinement stops at this many segments")
     final_time_bounds_s: tuple[float, float] = Field(
         description="time formulation: bounds of the free final time [s]"
     )
@@ -254,6 +261,14 @@ class TranscriptionConfig(StrictModel):
         if not 0.0 < value[0] < value[1] <= 1.0e5:
             raise ValueError(f"need 0 < lower < upper <= 1e5, got {value[0]:g}, {value[1]:g}")
         return value
+
+    @model_validator(mode="after")
+    def _room_to_refine(self) -> TranscriptionConfig:
+        if self.max_segments < self.segments:
+            raise ValueError(
+                f"max_segments ({self.max_segments}) is below segments ({self.segments})"
+            )
+        return self
 
 
 class SolverConfig(StrictModel):
@@ -295,6 +310,19 @@ class FeasibilityConfig(StrictModel):
     interpolations: list[Interpolation] = Field(min_length=1)
     relative_tolerance: float = bounded(gt=0, lt=1)
     absolute_tolerance: float = bounded(gt=0, lt=1)
+    tolerance_km: float = bounded(
+        unit="km",
+        gt=0,
+        le=1.0e4,
+        description="a result converges only if every re-flight ends this close to the "
+        "optimised terminal point",
+    )
+    tolerance_deg: float = bounded(
+        unit="deg",
+        gt=0,
+        le=180,
+        description="... and its terminal angles (fpa, heading, latitude, longitude) this close",
+    )
 
 
 class OptimalEntryConfig(StrictModel):

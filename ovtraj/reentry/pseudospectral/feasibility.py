@@ -28,7 +28,7 @@ from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.flight import PointMass, fly
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
-__all__ = ["FeasibilityReport", "check_feasibility", "control_interpolant"]
+__all__ = ["FeasibilityReport", "check_feasibility", "control_interpolant", "position_distance_m"]
 
 
 @dataclass(frozen=True)
@@ -86,12 +86,16 @@ def control_interpolant(
     raise ValueError(f"unknown interpolation {kind!r} (use 'linear' or 'cubic')")
 
 
-def _cartesian(state: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
-    r = radius + state[0]
-    lon, lat = state[1], state[2]
-    return r * np.array(
-        [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
-    )
+def position_distance_m(a: NDArray[np.float64], b: NDArray[np.float64], radius: float) -> float:
+    """Straight-line distance [m] between two ``(h, lon, lat, ...)`` states over a sphere."""
+
+    def cartesian(state: NDArray[np.float64]) -> NDArray[np.float64]:
+        r, lon, lat = radius + state[0], state[1], state[2]
+        return r * np.array(
+            [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
+        )
+
+    return float(np.linalg.norm(cartesian(a) - cartesian(b)))
 
 
 def check_feasibility(
@@ -128,9 +132,7 @@ def check_feasibility(
         for t, row in zip(flown.t, flown.y, strict=True)
     ]
     deg = math.degrees
-    position = float(
-        np.linalg.norm(_cartesian(end, problem.radius) - _cartesian(final_state, problem.radius))
-    )
+    position = position_distance_m(end, final_state, problem.radius)
     if flown.status != "completed":
         position = math.inf
     return FeasibilityReport(

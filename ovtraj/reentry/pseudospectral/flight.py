@@ -149,8 +149,12 @@ def fly(
     stop_energy: float | None = None,
     breaks: NDArray[np.float64] | None = None,
     deadline: Deadline | None = None,
+    start: tuple[float, NDArray[np.float64]] | None = None,
 ) -> Flown:
     """Integrate from the problem's initial state to ``t_end`` [s] with ``controls(t)``.
+
+    ``start``: ``(t0, state)`` to begin elsewhere than the initial state at 0 (one mesh
+    segment, :mod:`.mesh`).
 
     Stops early at ``stop_energy`` [J/kg] (if given) or on the ground. ``atol`` applies to
     the states scaled to order one (altitude and speed by their initial values). The
@@ -163,8 +167,10 @@ def fly(
     """
     model = PointMass(problem)
     frozen = np.zeros(6)
-    y0 = problem.initial_state.copy()
-    scale = np.array([max(abs(y0[0]), 1.0), 1.0, 1.0, abs(y0[3]), 1.0, 1.0])
+    t0, y0 = (0.0, problem.initial_state.copy()) if start is None else start
+    y0 = np.asarray(y0, dtype=float)
+    initial = problem.initial_state
+    scale = np.array([max(abs(initial[0]), 1.0), 1.0, 1.0, abs(initial[3]), 1.0, 1.0])
 
     def rhs(t: float, z: NDArray[np.float64]) -> NDArray[np.float64]:
         if deadline is not None and deadline.expired():
@@ -187,11 +193,11 @@ def fly(
         energy.terminal = True  # type: ignore[attr-defined]
         energy.direction = -1  # type: ignore[attr-defined]
         events.append(energy)
-    edges = [0.0]
+    edges = [t0]
     if breaks is not None:
-        edges += sorted(float(b) for b in breaks if 0.0 < b < t_end)
+        edges += sorted(float(b) for b in breaks if t0 < b < t_end)
     edges.append(t_end)
-    times, states = [np.array([0.0])], [(y0 / scale)[None, :]]
+    times, states = [np.array([t0])], [(y0 / scale)[None, :]]
     z = y0 / scale
     status = "completed"
     for a, b in itertools.pairwise(edges):

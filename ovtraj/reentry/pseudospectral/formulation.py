@@ -92,7 +92,7 @@ class Formulation:
         # Earth rotation can make E wiggle; keep the increasing envelope for interpolation.
         s = np.maximum.accumulate(s)
         keep = np.concatenate(([True], np.diff(s) > 0.0))
-        x = np.column_stack([y[:, [0, 1, 2, 4, 5]], *extra])[keep]
+        x = np.column_stack([y[:, [0, 1, 2, 4, 5]], *extra, traj.t])[keep]
         return Guess(s=s[keep], x=x, u=u[keep], sf=1.0, p=np.array([traj.target_energy]))
 
 
@@ -159,6 +159,18 @@ def formulate(problem: EntryProblem, independent: str, traj: GuessTrajectory) ->
             control_lower.append(p.control_lower[j])
             control_upper.append(p.control_upper[j])
         control_scale.append(1.0)
+    increasing: tuple[int, ...] = ()
+    if energy_form:
+        # Time is a state (rate dt/de): collocated like the others, so the recovered time
+        # is the collocation polynomial's, and it must increase between the state points.
+        increasing = (len(state_names),)
+        state_names.append("time")
+        state_lower.append(0.0)
+        state_upper.append(float(p.final_time_bounds[1]))
+        initial.append(0.0)
+        final_lower.append(0.0)
+        final_upper.append(float(p.final_time_bounds[1]))
+        state_scale.append(float(traj.t[-1]) if traj.t[-1] > 0 else 1.0)
     initial_lower = [v if np.isfinite(v) else -np.inf for v in initial]
     initial_upper = [v if np.isfinite(v) else np.inf for v in initial]
     nbase = len(base)
@@ -200,20 +212,24 @@ def formulate(problem: EntryProblem, independent: str, traj: GuessTrajectory) ->
         d = model.time_rates(h, lat, v, gamma, psi, bank, av)
         return d, av, rates, (h, lon, lat, v, gamma, psi, alpha, bank, energy)
 
+    def energy_rate(x: ca.SX, u: ca.SX, s: ca.SX, par: ca.SX) -> ca.SX:
+        """E' = V V' + g h' [W/kg] (-V D without Earth rotation, seed eq. 9)."""
+        d, _, _, phys = time_derivatives(x, u, s, par)
+        h, v = phys[0], phys[3]
+        return v * d[3] + model.gravity(h) * d[0]
+
     def dt_ds(x: ca.SX, u: ca.SX, s: ca.SX, par: ca.SX) -> ca.SX:
         if not energy_form:
             return ca.SX(1.0)
-        d, _, _, phys = time_derivatives(x, u, s, par)
-        h, v = phys[0], phys[3]
-        e_dot = v * d[3] + model.gravity(h) * d[0]
-        return (par[0] - e0) / e_dot
+        return (par[0] - e0) / energy_rate(x, u, s, par)
 
     def dynamics(x: ca.SX, u: ca.SX, s: ca.SX, par: ca.SX) -> ca.SX:
         d, _, rates, _ = time_derivatives(x, u, s, par)
         rows = [d[i] for i in base] + [r for r in rates if r is not None]
         if not energy_form:
             return ca.vertcat(*rows)
-        return ca.vertcat(*rows) * dt_ds(x, u, s, par)
+        rate = dt_ds(x, u, s, par)
+        return ca.vertcat(ca.vertcat(*rows) * rate, rate)
 
     path_lower: list[float] = []
     path_upper: list[float] = []
@@ -230,6 +246,8 @@ def formulate(problem: EntryProblem, independent: str, traj: GuessTrajectory) ->
         if energy_form:
             h = phys[0]
             rows.append(2.0 * (e0 + s * (par[0] - e0) - p.potential(h)) / v_scale**2)
+            # The energy must decrease (dt/de > 0): E' <= 0, scaled by g0 V0.
+            rows.append(energy_rate(x, u, s, par) / (p.g0 * v_scale))
         return ca.vertcat(*rows)
 
     if p.max_load_g is not None:
@@ -244,6 +262,8 @@ def formulate(problem: EntryProblem, independent: str, traj: GuessTrajectory) ->
     if energy_form:
         path_lower.append(v_lo**2 / v_scale**2)
         path_upper.append(v_hi**2 / v_scale**2)
+        path_lower.append(-np.inf)
+        path_upper.append(0.0)
 
     def final_angles(xf: ca.SX) -> tuple[ca.SX, ca.SX]:
         return circle.angles_sx(xf[1], xf[2])
@@ -321,6 +341,7 @@ def formulate(problem: EntryProblem, independent: str, traj: GuessTrajectory) ->
         path=path if path_lower else None,
         path_lower=np.array(path_lower, dtype=float),
         path_upper=np.array(path_upper, dtype=float),
+        increasing_states=increasing,
         boundary=boundary,
         boundary_lower=boundary_lower,
         boundary_upper=boundary_upper,

@@ -55,6 +55,9 @@ class OptimalControlProblem:
     path: Dynamics | None = None  # c(x, u, s, p) -> vector
     path_lower: NDArray[np.float64] = field(default_factory=lambda: _EMPTY)
     path_upper: NDArray[np.float64] = field(default_factory=lambda: _EMPTY)
+    # States that may not decrease from one state point to the next (the time of the
+    # energy formulation: its quadrature must run forwards between the nodes too).
+    increasing_states: tuple[int, ...] = ()
     boundary: Boundary | None = None  # b(x0, xf, sf, p) -> vector
     boundary_lower: NDArray[np.float64] = field(default_factory=lambda: _EMPTY)
     boundary_upper: NDArray[np.float64] = field(default_factory=lambda: _EMPTY)

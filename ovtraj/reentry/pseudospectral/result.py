@@ -101,6 +101,7 @@ class OptimalEntryResult:
     max_constraint_violation: float
     feasibility_error_km: float  # largest over the interpolations
     feasibility_error_deg: float
+    refinements: int = 0  # mesh refinements after the configured mesh (``segments`` is the last)
     feasibility: tuple[FeasibilityReport, ...] = ()
     states: pd.DataFrame = field(default_factory=pd.DataFrame)
     controls: pd.DataFrame = field(default_factory=pd.DataFrame)
@@ -114,6 +115,7 @@ class OptimalEntryResult:
             "method": self.method,
             "segments": self.segments,
             "nodes_per_segment": self.nodes_per_segment,
+            "refinements": self.refinements,
             "converged": self.converged,
             "status": self.status,
             "reason": self.reason,

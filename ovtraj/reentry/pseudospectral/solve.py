@@ -21,16 +21,24 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from ovtraj.config.base import ConfigError
 from ovtraj.deadline import Deadline
-from ovtraj.reentry.pseudospectral.feasibility import FeasibilityReport, check_feasibility
+from ovtraj.reentry.pseudospectral.feasibility import (
+    FeasibilityReport,
+    check_feasibility,
+    control_interpolant,
+)
 from ovtraj.reentry.pseudospectral.formulation import AUX_NAMES, POINT_NAMES, Formulation, formulate
 from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+from ovtraj.reentry.pseudospectral.mesh import refined_edges, segment_errors
 from ovtraj.reentry.pseudospectral.nlp import NlpSolution, solve_nlp, stopped_before
+from ovtraj.reentry.pseudospectral.ocp import Guess
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 from ovtraj.reentry.pseudospectral.result import OptimalEntryResult
 from ovtraj.reentry.pseudospectral.transcription import DiscreteSolution, transcribe
@@ -76,22 +84,64 @@ def solve_optimal_entry(
     deadline = Deadline(problem.solver.time_limit_s, "solver.time_limit_s")
     traj = guess_trajectory(problem, deadline)
     form = formulate(problem, independent, traj)
-    tr = transcribe(form.ocp, method, problem.nodes_per_segment, problem.segments)
-    w0 = tr.initial_point(form.guess(traj))
-    if deadline.reached:
-        reason = f"{deadline.reason()} while flying the initial guess"
-        sol = stopped_before(w0, reason, problem.solver.backend)
-    else:
-        sol = solve_nlp(tr, w0, problem.solver, deadline)
+    guess = form.guess(traj)
+    mesh = problem.config.transcription
+    edges = np.linspace(0.0, 1.0, problem.segments + 1)
+    refinements, iterations = 0, 0
+    while True:
+        tr = transcribe(form.ocp, method, problem.nodes_per_segment, edges=edges)
+        w0 = tr.initial_point(guess)
+        if deadline.reached:
+            when = "while flying the initial guess" if refinements == 0 else "refining the mesh"
+            sol = stopped_before(w0, f"{deadline.reason()} {when}", problem.solver.backend)
+        else:
+            sol = solve_nlp(tr, w0, problem.solver, deadline)
+        iterations += sol.iterations
+        discrete = tr.unpack(sol.w)
+        outcome = _assess(problem, form, discrete, sol, deadline)
+        if (
+            outcome.accepted
+            or not sol.converged
+            or refinements >= mesh.max_refinements
+            or deadline.reached
+        ):
+            break
+        t_points = outcome.states["time_s"].to_numpy()
+        if np.all(np.diff(t_points) > 0.0):
+            errors = segment_errors(
+                problem,
+                t_points,
+                _physical_states(outcome.states),
+                tr.segment_points,
+                _controls(problem, outcome),
+                deadline,
+            )
+        else:  # energy: split the segments where the recovered time goes backwards
+            errors = np.array(
+                [
+                    np.inf if np.any(np.diff(t_points[pts]) <= 0.0) else 0.0
+                    for pts in tr.segment_points
+                ]
+            )
+        refined = refined_edges(
+            edges, errors, problem.config.feasibility.tolerance_km, mesh.max_segments
+        )
+        if refined is None:
+            break
+        edges = refined
+        guess = _warm_start(discrete)
+        refinements += 1
     solve_time = time.perf_counter() - start
-    discrete = tr.unpack(sol.w)
-    return _result(problem, form, discrete, sol, method, solve_time, deadline)
+    return _result(
+        problem, form, discrete, sol, outcome, method, solve_time, refinements, iterations
+    )
 
 
 def _histories(
     form: Formulation, d: DiscreteSolution
-) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
-    """States at every state point, controls and path quantities at the collocation points."""
+) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray, np.ndarray]:
+    """States at every state point, controls and path quantities at the collocation points,
+    the heat load and dt/ds at the collocation points."""
     p = form.problem
     tr = d.transcription
     k = tr.n_colloc
@@ -103,7 +153,7 @@ def _histories(
     pts = np.asarray(form.point.map(m)(d.x.T, d.s, point_params), dtype=float)
     pt = dict(zip(POINT_NAMES, pts, strict=True))
     if form.independent == "energy":
-        t_points = d.cumulative(a["dt_ds"])
+        t_points = d.x[:, form.ocp.state_names.index("time")]
     else:
         t_points = d.s
     t_colloc = t_points[tr.colloc_point]
@@ -149,25 +199,13 @@ def _histories(
             controls[f"{name}_deg_s"] = np.degrees(d.u[:, j])
     heat_rate_dt = a["heat_rate"] * a["dt_ds"]
     heat_load = d.integral(heat_rate_dt)
-    return states, controls, np.array([heat_load])
+    return states, controls, np.array([heat_load]), a["dt_ds"]
 
 
-def _feasibility(
-    form: Formulation, states: pd.DataFrame, controls: pd.DataFrame, deadline: Deadline
-) -> tuple[FeasibilityReport, ...]:
-    p = form.problem
-    final = states.iloc[-1]
-    final_state = np.array(
-        [
-            final["altitude_km"] * 1e3,
-            math.radians(final["longitude_deg"]),
-            math.radians(final["latitude_deg"]),
-            final["speed_mps"],
-            math.radians(final["fpa_deg"]),
-            math.radians(final["heading_deg"]),
-        ]
-    )
-    final_time = float(final["time_s"])
+def _control_samples(
+    states: pd.DataFrame, controls: pd.DataFrame
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times [s], angle of attack and bank [rad] where the controls are known."""
     # Rate-limited angles are states, known at every state point (ends included).
     source = states if "alpha_deg" in states else controls
     t = source["time_s"].to_numpy()
@@ -179,12 +217,135 @@ def _feasibility(
         t = controls["time_s"].to_numpy()
         alpha = np.interp(t, source["time_s"].to_numpy(), alpha)
         bank = np.interp(t, t_bank, bank)
-    reports = []
-    for kind in p.config.feasibility.interpolations:
-        reports.append(
-            check_feasibility(p, t, alpha, bank, final_time, final_state, kind, deadline)
+    return t, alpha, bank
+
+
+def _feasibility(
+    form: Formulation, states: pd.DataFrame, controls: pd.DataFrame, deadline: Deadline
+) -> tuple[FeasibilityReport, ...]:
+    p = form.problem
+    final_state = _physical_states(states)[-1]
+    final_time = float(states["time_s"].iloc[-1])
+    t, alpha, bank = _control_samples(states, controls)
+    return tuple(
+        check_feasibility(p, t, alpha, bank, final_time, final_state, kind, deadline)
+        for kind in p.config.feasibility.interpolations
+    )
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """One mesh's solution read back, re-flown and judged."""
+
+    states: pd.DataFrame
+    controls: pd.DataFrame
+    heat_load: float
+    reports: tuple[FeasibilityReport, ...]
+    accepted: bool
+    reason: str | None
+
+
+def _assess(
+    problem: EntryProblem,
+    form: Formulation,
+    d: DiscreteSolution,
+    sol: NlpSolution,
+    deadline: Deadline,
+) -> _Outcome:
+    """Histories, the re-flights and the verdict: converged means the NLP succeeded and
+    every re-flight of the interpolated controls meets ``feasibility.tolerance_km`` and
+    ``tolerance_deg``; anything else says why."""
+    states, controls, extra, dt_ds = _histories(form, d)
+    settings = problem.config.feasibility
+    if sol.limit is not None:
+        return _Outcome(
+            states,
+            controls,
+            float(extra[0]),
+            (),
+            False,
+            f"{sol.limit} ({sol.backend}: {sol.status})",
         )
-    return tuple(reports)
+    if not sol.converged:
+        return _Outcome(
+            states, controls, float(extra[0]), (), False, f"{sol.backend}: {sol.status}"
+        )
+    if not bool(np.all(np.isfinite(states.to_numpy(dtype=float)))):
+        return _Outcome(
+            states, controls, float(extra[0]), (), False, "the solution has non-finite values"
+        )
+    if form.independent == "energy":
+        refusal = _energy_refusal(dt_ds, states)
+        if refusal is not None:
+            return _Outcome(states, controls, float(extra[0]), (), False, refusal)
+    reports = _feasibility(form, states, controls, deadline)
+    if any(r.status == "time limit" for r in reports):
+        reason = f"{deadline.reason()} while re-flying the optimal controls (feasibility check)"
+        return _Outcome(states, controls, float(extra[0]), reports, False, reason)
+    # A flight needs one reconstruction of the controls that flies: any configured one.
+    if any(
+        r.position_error_km <= settings.tolerance_km and r.angle_error_deg <= settings.tolerance_deg
+        for r in reports
+    ):
+        return _Outcome(states, controls, float(extra[0]), reports, True, None)
+    closest = min(reports, key=lambda r: r.position_error_km)
+    reason = (
+        f"no re-flight of the interpolated controls meets the tolerance: the closest "
+        f"({closest.interpolation}) ends {closest.position_error_km:.3g} km and "
+        f"{closest.angle_error_deg:.3g} deg from the optimised terminal state "
+        f"(feasibility.tolerance_km {settings.tolerance_km:g}, tolerance_deg "
+        f"{settings.tolerance_deg:g})"
+    )
+    return _Outcome(states, controls, float(extra[0]), reports, False, reason)
+
+
+def _energy_refusal(dt_de: np.ndarray, states: pd.DataFrame) -> str | None:
+    """Why an energy-formulation solution cannot stand, if it cannot: the energy must
+    decrease along the flight (dt/dE > 0 at the collocation points: drag work), and the
+    time recovered from dt/dE must then increase from state point to state point."""
+    if np.any(dt_de <= 0.0):
+        return (
+            "the energy formulation needs the energy to decrease along the flight (drag "
+            f"work); it does not at {int(np.sum(dt_de <= 0.0))} collocation points: solve "
+            "this problem in time (transcription.independent: time)"
+        )
+    steps = np.diff(states["time_s"].to_numpy())
+    if np.any(steps <= 0.0):
+        return (
+            "the time recovered from dt/dE decreases between state points (by up to "
+            f"{-float(np.min(steps)):.3g} s): the mesh does not resolve dt/dE"
+        )
+    return None
+
+
+def _physical_states(states: pd.DataFrame) -> np.ndarray:
+    """Rows of (h, lon, lat, V, gamma, psi), SI, at every state point."""
+    return np.column_stack(
+        [
+            states["altitude_km"].to_numpy() * 1e3,
+            np.radians(states["longitude_deg"].to_numpy()),
+            np.radians(states["latitude_deg"].to_numpy()),
+            states["speed_mps"].to_numpy(),
+            np.radians(states["fpa_deg"].to_numpy()),
+            np.radians(states["heading_deg"].to_numpy()),
+        ]
+    )
+
+
+def _controls(problem: EntryProblem, outcome: _Outcome) -> Callable[[float], tuple[float, float]]:
+    """The optimal controls of the first configured interpolation, as functions of time."""
+    kind = problem.config.feasibility.interpolations[0]
+    t, alpha, bank = _control_samples(outcome.states, outcome.controls)
+    lo, hi = problem.control_lower, problem.control_upper
+    f_alpha = control_interpolant(t, alpha, kind, lo[0], hi[0])
+    f_bank = control_interpolant(t, bank, kind, lo[1], hi[1])
+    return lambda x: (f_alpha(x), f_bank(x))
+
+
+def _warm_start(d: DiscreteSolution) -> Guess:
+    """A solved mesh as the next mesh's starting point (controls onto the state points)."""
+    u = np.column_stack([np.interp(d.s, d.s_colloc, col) for col in d.u.T])
+    return Guess(s=d.s, x=d.x, u=u, sf=d.sf, p=d.p)
 
 
 def _result(
@@ -192,41 +353,36 @@ def _result(
     form: Formulation,
     d: DiscreteSolution,
     sol: NlpSolution,
+    outcome: _Outcome,
     method: str,
     solve_time: float,
-    deadline: Deadline,
+    refinements: int,
+    iterations: int,
 ) -> OptimalEntryResult:
-    states, controls, extra = _histories(form, d)
-    finite = bool(np.all(np.isfinite(states.to_numpy(dtype=float))))
-    reports: tuple[FeasibilityReport, ...] = ()
-    # Re-flying is meaningful (and affordable) only for an optimum.
-    if sol.converged and finite and states["time_s"].iloc[-1] > 0.0:
-        reports = _feasibility(form, states, controls, deadline)
+    states, controls, reports = outcome.states, outcome.controls, outcome.reports
     final = states.iloc[-1]
     objective = problem.objective
     value = {
         "max_downrange": float(final["downrange_km"]),
         "max_crossrange": float(final["latitude_deg"]),
-        "min_heat_load": float(extra[0]) / 1e6,
+        "min_heat_load": outcome.heat_load / 1e6,
         "min_time": float(final["time_s"]),
     }[objective]
-    reason = None
-    converged = sol.converged
-    if sol.limit is not None:
-        reason = f"{sol.limit} ({sol.backend}: {sol.status})"
-    elif not sol.converged:
-        reason = f"{sol.backend}: {sol.status}"
-    elif any(r.status == "time limit" for r in reports):
-        converged = False
-        reason = f"{deadline.reason()} while re-flying the optimal controls (feasibility check)"
+    reason = outcome.reason
+    if reason is not None and refinements:
+        reason += (
+            f"; after {refinements} mesh refinement(s), {d.transcription.segments} segments "
+            f"(transcription.max_refinements {problem.config.transcription.max_refinements}, "
+            f"max_segments {problem.config.transcription.max_segments})"
+        )
     return OptimalEntryResult(
         name=problem.name,
         objective=objective,
         independent=form.independent,
         method=method,
-        segments=problem.segments,
+        segments=d.transcription.segments,
         nodes_per_segment=problem.nodes_per_segment,
-        converged=converged,
+        converged=outcome.accepted,
         status=sol.status,
         reason=reason,
         backend=sol.backend,
@@ -244,14 +400,15 @@ def _result(
         max_load_g=float(np.max(np.abs(controls["load_g"]))),
         max_dynamic_pressure_kpa=float(np.max(controls["dynamic_pressure_kpa"])),
         max_heat_rate=float(np.max(controls["heat_rate_kw_m2"])),
-        heat_load_mj_m2=float(extra[0]) / 1e6,
-        nlp_iterations=sol.iterations,
+        heat_load_mj_m2=outcome.heat_load / 1e6,
+        nlp_iterations=iterations,
         solve_time_s=solve_time,
         nlp_build_time_s=sol.build_time_s,
         nlp_solve_time_s=sol.solve_time_s,
         max_constraint_violation=sol.max_constraint_violation,
         feasibility_error_km=max((r.position_error_km for r in reports), default=math.nan),
         feasibility_error_deg=max((r.angle_error_deg for r in reports), default=math.nan),
+        refinements=refinements,
         feasibility=reports,
         states=states,
         controls=controls,

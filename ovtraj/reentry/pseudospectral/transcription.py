@@ -164,10 +164,10 @@ class Transcription:
 
 
 def _layout(
-    scheme: CollocationScheme, segments: int
+    scheme: CollocationScheme, edges: NDArray
 ) -> tuple[NDArray, NDArray, NDArray, list[NDArray], list[NDArray], NDArray]:
     """Positions in [0, 1] of the state and collocation points, and their indices."""
-    edges = np.linspace(0.0, 1.0, segments + 1)
+    segments = len(edges) - 1
     n = scheme.n
     fractions = [0.0]
     colloc_fraction: list[float] = []
@@ -203,14 +203,28 @@ def _layout(
 
 
 def transcribe(
-    ocp: OptimalControlProblem, kind: SchemeKind, nodes: int, segments: int = 1
+    ocp: OptimalControlProblem,
+    kind: SchemeKind,
+    nodes: int,
+    segments: int = 1,
+    edges: NDArray[np.float64] | None = None,
 ) -> Transcription:
-    """Build the NLP of ``ocp`` with ``segments`` segments of ``nodes`` collocation points."""
+    """Build the NLP of ``ocp`` with ``segments`` segments of ``nodes`` collocation points.
+
+    ``edges``: the segment boundaries as fractions of the interval (increasing from 0 to
+    1; a refined mesh), instead of ``segments`` equal segments.
+    """
+    if edges is None:
+        edges = np.linspace(0.0, 1.0, segments + 1)
+    edges = np.asarray(edges, dtype=float)
+    segments = len(edges) - 1
     if segments < 1 or nodes < 1:
         raise ValueError(f"need at least one segment and one node, got {segments}, {nodes}")
+    if edges[0] != 0.0 or edges[-1] != 1.0 or np.any(np.diff(edges) <= 0.0):
+        raise ValueError("segment edges must increase from 0 to 1")
     scheme = collocation_scheme(kind, nodes)
     point_fraction, colloc_fraction, colloc_point, support_idx, segment_points, edges = _layout(
-        scheme, segments
+        scheme, edges
     )
     nx, nu, npar = ocp.nx, ocp.nu, ocp.npar
     m, kc = len(point_fraction), len(colloc_fraction)
@@ -264,6 +278,11 @@ def transcribe(
             ubg.append(np.zeros(nx))
         if ocp.lagrange is not None:
             objective += half * ca.mtimes(l_all[:, cols], w)
+    for j in ocp.increasing_states:
+        # State points are in increasing s: consecutive differences of x_j >= 0.
+        constraints.append(ca.vec(xs[j, 1:] - xs[j, : m - 1]))
+        lbg.append(np.zeros(m - 1))
+        ubg.append(np.full(m - 1, np.inf))
     if ocp.path is not None:
         c_fun = ca.Function("c", [xsym, usym, ssym, psym], [ocp.path(xsym, usym, ssym, psym)])
         c_all = c_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))

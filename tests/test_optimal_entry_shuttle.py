@@ -1,0 +1,147 @@
+"""A long lifting entry from near-orbital speed, posed by YAML alone (issue 22).
+
+Betts' Space Shuttle maximum cross-range problem (*Practical Methods for Optimal
+Control*, 2nd ed., SIAM 2010, sec. 6.1), with and without its heating limit: the
+published optima (final latitude 34.1412 deg at 2008.59 s; 30.6255 deg at 2198.67 s
+with q <= 70 BTU/ft^2/s) against both of our formulations, which must also agree with
+each other within 0.1 % of the objective. Then honest convergence (a coarse mesh whose
+re-flight misses is not ``converged``), the mesh refinement's pieces, and the energy
+formulation's refusal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ovtraj.paths import config_path
+from ovtraj.reentry.pseudospectral import load_optimal_entry, solve_optimal_entry
+from ovtraj.reentry.pseudospectral.flight import fly
+from ovtraj.reentry.pseudospectral.mesh import refined_edges
+from ovtraj.reentry.pseudospectral.solve import _energy_refusal
+from ovtraj.reentry.pseudospectral.transcription import transcribe
+
+# Betts (2010), sec. 6.1: (final latitude [deg], final time [s]).
+PUBLISHED = {
+    "shuttle_crossrange.yaml": (34.1412, 2008.59),
+    "shuttle_crossrange_heating.yaml": (30.6255, 2198.67),
+}
+
+
+@pytest.fixture(scope="module", params=sorted(PUBLISHED))
+def solved(request):
+    problem = load_optimal_entry(config_path(f"cases/{request.param}"))
+    return (
+        request.param,
+        problem,
+        {form: solve_optimal_entry(problem, independent=form) for form in ("energy", "time")},
+    )
+
+
+def test_both_formulations_reach_the_published_optimum(solved):
+    case, problem, results = solved
+    latitude, final_time = PUBLISHED[case]
+    for form, result in results.items():
+        assert result.converged, f"{form}: {result.reason}"
+        assert result.final_latitude_deg == pytest.approx(latitude, abs=0.005), form
+        assert result.final_time_s == pytest.approx(final_time, abs=2.0), form
+        assert result.final_altitude_km == pytest.approx(24.384, abs=1e-6)
+        assert result.final_speed_mps == pytest.approx(762.0, abs=1e-3)
+        assert result.final_fpa_deg == pytest.approx(-5.0, abs=1e-6)
+        # Converged means flown: one reconstruction of the controls lands within tolerance.
+        tolerance = problem.config.feasibility.tolerance_km
+        assert min(r.position_error_km for r in result.feasibility) <= tolerance
+    energy, time = results["energy"], results["time"]
+    assert abs(energy.objective_value / time.objective_value - 1.0) < 1e-3
+
+
+def test_the_heating_limit_binds_and_is_kept(solved):
+    _, problem, results = solved
+    if problem.max_heat_rate is None:  # the variant without a heat-rate law computes none
+        assert all(result.max_heat_rate == 0.0 for result in results.values())
+        return
+    for result in results.values():
+        # 70 BTU/ft^2/s on the nodes, and within 1 % on the independent re-flight.
+        assert result.max_heat_rate == pytest.approx(problem.max_heat_rate / 1e3, rel=1e-6)
+        flown = min(result.feasibility, key=lambda r: r.position_error_km)
+        assert flown.max_heat_rate_kw_m2 <= 1.01 * problem.max_heat_rate / 1e3
+
+
+def test_energy_time_is_a_state_that_runs_forwards(solved):
+    _, _, results = solved
+    states = results["energy"].states
+    assert np.all(np.diff(states["time_s"].to_numpy()) >= 0.0)
+    assert states["time_s"].iloc[0] == 0.0
+
+
+def test_a_coarse_mesh_that_does_not_fly_is_not_converged():
+    """The issue's false convergence: 10 x 5 nodes from a -45 deg bank, no refinement."""
+    problem = load_optimal_entry(config_path("cases/shuttle_crossrange_heating.yaml"))
+    mesh = problem.config.transcription.model_copy(update={"max_refinements": 0})
+    coarse = dataclasses.replace(
+        problem, config=problem.config.model_copy(update={"transcription": mesh})
+    )
+    result = solve_optimal_entry(coarse, independent="time")
+    assert result.status == "Solve_Succeeded"  # IPOPT is satisfied ...
+    assert not result.converged  # ... but its controls do not fly to its end point
+    assert "re-flight" in result.reason and "tolerance_km" in result.reason
+    assert min(r.position_error_km for r in result.feasibility) > 1.0
+    assert result.refinements == 0 and result.segments == 10
+
+
+def test_refinement_splits_the_segments_over_their_share():
+    edges = np.linspace(0.0, 1.0, 5)
+    errors = np.array([0.01, 0.6, 0.02, np.inf])
+    new = refined_edges(edges, errors, tolerance_km=1.0, max_segments=10)
+    np.testing.assert_allclose(new, [0.0, 0.25, 0.375, 0.5, 0.75, 0.875, 1.0])
+    # All under their share: the worst quarter is split all the same.
+    new = refined_edges(edges, np.array([0.1, 0.2, 0.05, 0.01]), 1.0, 10)
+    np.testing.assert_allclose(new, [0.0, 0.25, 0.375, 0.5, 0.75, 1.0])
+    # No room left.
+    assert refined_edges(edges, errors, 1.0, 4) is None
+    # Room for one: the worst goes first.
+    np.testing.assert_allclose(
+        refined_edges(edges, errors, 1.0, 5), [0.0, 0.25, 0.5, 0.75, 0.875, 1.0]
+    )
+
+
+def test_unequal_segments_place_the_points_inside_their_edges():
+    problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
+    from ovtraj.reentry.pseudospectral.formulation import formulate
+    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+
+    form = formulate(problem, "time", guess_trajectory(problem))
+    edges = np.array([0.0, 0.1, 0.15, 0.6, 1.0])
+    tr = transcribe(form.ocp, "lgr", 4, edges=edges)
+    assert tr.segments == 4
+    np.testing.assert_allclose(tr.segment_edges, edges)
+    for k, points in enumerate(tr.segment_points):
+        inside = tr.point_fraction[points]
+        assert inside[0] == pytest.approx(edges[k]) and inside[-1] == pytest.approx(edges[k + 1])
+    with pytest.raises(ValueError, match="increase from 0 to 1"):
+        transcribe(form.ocp, "lgr", 4, edges=np.array([0.0, 0.5, 0.4, 1.0]))
+
+
+def test_a_segment_flown_from_its_start_continues_the_whole_flight():
+    problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
+    controls = lambda t: (math.radians(20.0), math.radians(-30.0))  # noqa: E731
+    settings = problem.config.feasibility
+    tol = {"rtol": settings.relative_tolerance, "atol": settings.absolute_tolerance}
+    whole = fly(problem, controls, 600.0, **tol)
+    half = fly(problem, controls, 300.0, **tol)
+    rest = fly(problem, controls, 600.0, start=(300.0, half.y[-1]), **tol)
+    assert rest.t[0] == 300.0 and rest.t[-1] == pytest.approx(600.0)
+    np.testing.assert_allclose(rest.y[-1], whole.y[-1], rtol=1e-7, atol=1e-6)
+
+
+def test_the_energy_formulation_refuses_what_it_cannot_pose():
+    forwards = pd.DataFrame({"time_s": [0.0, 10.0, 30.0]})
+    assert _energy_refusal(np.array([5.0, 8.0]), forwards) is None
+    reason = _energy_refusal(np.array([5.0, -1.0]), forwards)
+    assert "energy to decrease" in reason and "independent: time" in reason
+    backwards = pd.DataFrame({"time_s": [0.0, 10.0, 7.0]})
+    assert "decreases between state points" in _energy_refusal(np.array([1.0, 1.0]), backwards)
