@@ -108,14 +108,17 @@ def solve_optimal_entry(
             break
         t_points = outcome.states["time_s"].to_numpy()
         if np.all(np.diff(t_points) > 0.0):
-            errors = segment_errors(
-                problem,
-                t_points,
-                _physical_states(outcome.states),
-                tr.segment_points,
-                _controls(problem, outcome),
-                deadline,
-            )
+            try:
+                errors = segment_errors(
+                    problem,
+                    t_points,
+                    _physical_states(outcome.states),
+                    tr.segment_points,
+                    _controls(problem, outcome),
+                    deadline,
+                )
+            except (ArithmeticError, ValueError):  # no refinement then: the verdict stands
+                break
         else:  # energy: split the segments where the recovered time goes backwards
             errors = np.array(
                 [
@@ -257,28 +260,24 @@ def _assess(
     ``tolerance_deg``; anything else says why."""
     states, controls, extra, dt_ds = _histories(form, d)
     settings = problem.config.feasibility
+
+    def refused(reason: str) -> _Outcome:
+        return _Outcome(states, controls, float(extra[0]), (), False, reason)
+
     if sol.limit is not None:
-        return _Outcome(
-            states,
-            controls,
-            float(extra[0]),
-            (),
-            False,
-            f"{sol.limit} ({sol.backend}: {sol.status})",
-        )
+        return refused(f"{sol.limit} ({sol.backend}: {sol.status})")
     if not sol.converged:
-        return _Outcome(
-            states, controls, float(extra[0]), (), False, f"{sol.backend}: {sol.status}"
-        )
+        return refused(f"{sol.backend}: {sol.status}")
     if not bool(np.all(np.isfinite(states.to_numpy(dtype=float)))):
-        return _Outcome(
-            states, controls, float(extra[0]), (), False, "the solution has non-finite values"
-        )
+        return refused("the solution has non-finite values")
     if form.independent == "energy":
         refusal = _energy_refusal(dt_ds, states)
         if refusal is not None:
-            return _Outcome(states, controls, float(extra[0]), (), False, refusal)
-    reports = _feasibility(form, states, controls, deadline)
+            return refused(refusal)
+    try:
+        reports = _feasibility(form, states, controls, deadline)
+    except (ArithmeticError, ValueError) as err:  # e.g. controls that cannot be splined
+        return refused(f"the re-flight of the optimal controls failed: {err}")
     if any(r.status == "time limit" for r in reports):
         reason = f"{deadline.reason()} while re-flying the optimal controls (feasibility check)"
         return _Outcome(states, controls, float(extra[0]), reports, False, reason)
