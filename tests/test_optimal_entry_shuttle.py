@@ -145,3 +145,46 @@ def test_the_energy_formulation_refuses_what_it_cannot_pose():
     assert "energy to decrease" in reason and "independent: time" in reason
     backwards = pd.DataFrame({"time_s": [0.0, 10.0, 7.0]})
     assert "decreases between state points" in _energy_refusal(np.array([1.0, 1.0]), backwards)
+
+
+@pytest.mark.parametrize(
+    "case", ["shuttle_crossrange_heating.yaml", "suborbital_return.yaml"]
+)  # exponential and US76 atmospheres, with and without a heat-rate law
+def test_compiled_flight_equals_the_numpy_model_under_scipy(case):
+    """The numba re-flight against flight.py's numpy model integrated by scipy's DOP853:
+    the same points and states, for splined and piecewise-linear controls and a terminal
+    energy."""
+    from ovtraj.reentry.pseudospectral import flight
+    from ovtraj.reentry.pseudospectral.feasibility import control_table
+    from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable, fly_compiled
+    from ovtraj.reentry.pseudospectral.guess import target_energy
+
+    problem = load_optimal_entry(config_path(f"cases/{case}"))
+    t = np.linspace(0.0, 400.0, 30)
+    alpha = np.radians(20.0 + 5.0 * np.sin(t / 100.0))
+    bank = np.radians(-30.0 + 10.0 * np.cos(t / 50.0))
+    for kind in ("cubic", "linear"):
+        table = control_table(t, alpha, bank, kind, problem.control_lower, problem.control_upper)
+        options = {"rtol": 1e-10, "atol": 1e-10, "breaks": t if kind == "linear" else None}
+        compiled = fly_compiled(problem, table, 400.0, **options)
+        reference = flight.fly(problem, lambda x, table=table: table(x), 400.0, **options)
+        assert compiled.status == reference.status == "completed"
+        assert compiled.t[-1] == reference.t[-1] == 400.0
+        # Same method and step control; step sequences may part on rounding, ends agree.
+        assert abs(len(compiled.t) - len(reference.t)) <= 0.1 * len(reference.t)
+        np.testing.assert_allclose(compiled.y[-1], reference.y[-1], rtol=1e-9, atol=1e-4)
+        model = flight.PointMass(problem)
+        heat = [
+            model.path_values(y[0], y[3], table(s)[0]).heat_rate
+            for s, y in zip(compiled.t, compiled.y, strict=True)
+        ]
+        np.testing.assert_allclose(compiled.path[:, 0], heat, rtol=1e-12, atol=1e-9)
+    stop = target_energy(problem)
+    constant = ControlTable.constant(math.radians(15.0), 0.0)
+    compiled = fly_compiled(problem, constant, 5000.0, rtol=1e-8, atol=1e-8, stop_energy=stop)
+    reference = flight.fly(
+        problem, lambda x: constant(x), 5000.0, rtol=1e-8, atol=1e-8, stop_energy=stop
+    )
+    assert compiled.status == reference.status == "terminal energy"
+    assert compiled.t[-1] == pytest.approx(reference.t[-1], abs=1e-2)  # integration error
+    assert problem.energy(compiled.y[-1, 0], compiled.y[-1, 3]) == pytest.approx(stop, rel=1e-9)

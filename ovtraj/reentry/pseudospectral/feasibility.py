@@ -17,7 +17,6 @@ flight-path angle, heading, latitude and longitude differences.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,10 +24,11 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
 from ovtraj.deadline import Deadline
-from ovtraj.reentry.pseudospectral.flight import PointMass, fly
+from ovtraj.reentry.pseudospectral.flight import fly
+from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
-__all__ = ["FeasibilityReport", "check_feasibility", "control_interpolant", "position_distance_m"]
+__all__ = ["FeasibilityReport", "check_feasibility", "control_table", "position_distance_m"]
 
 
 @dataclass(frozen=True)
@@ -60,30 +60,38 @@ class FeasibilityReport:
         )
 
 
-def control_interpolant(
-    t: NDArray[np.float64],
-    values: NDArray[np.float64],
-    kind: str,
-    lower: float,
-    upper: float,
-) -> Callable[[float], float]:
-    """``f(t)`` through ``(t, values)``: linear or not-a-knot cubic spline, held at the ends."""
-    t = np.asarray(t, dtype=float)
-    values = np.asarray(values, dtype=float)
+def _pieces(t: NDArray[np.float64], values: NDArray[np.float64], kind: str) -> tuple:
+    """Breakpoints and piecewise-polynomial coefficients (scipy's ``PPoly`` layout)."""
     if kind == "linear":
-
-        def linear(x: float) -> float:
-            return float(np.interp(x, t, values))
-
-        return linear
+        slopes = np.diff(values) / np.diff(t)
+        return t, np.vstack([slopes, values[:-1]])
     if kind == "cubic":
-        spline = CubicSpline(t, values)
-
-        def cubic(x: float) -> float:
-            return float(np.clip(spline(min(max(x, t[0]), t[-1])), lower, upper))
-
-        return cubic
+        spline = CubicSpline(t, values)  # not-a-knot
+        return spline.x, spline.c
     raise ValueError(f"unknown interpolation {kind!r} (use 'linear' or 'cubic')")
+
+
+def control_table(
+    t: NDArray[np.float64],
+    alpha: NDArray[np.float64],
+    bank: NDArray[np.float64],
+    kind: str,
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+) -> ControlTable:
+    """Controls through ``(t, alpha)`` and ``(t, bank)`` [rad]: linear or not-a-knot cubic
+    spline, held at the ends, clipped to ``[lower, upper]`` (alpha, bank)."""
+    t = np.asarray(t, dtype=float)
+    alpha_x, alpha_c = _pieces(t, np.asarray(alpha, dtype=float), kind)
+    bank_x, bank_c = _pieces(t, np.asarray(bank, dtype=float), kind)
+    return ControlTable(
+        np.ascontiguousarray(alpha_x),
+        np.ascontiguousarray(alpha_c),
+        np.ascontiguousarray(bank_x),
+        np.ascontiguousarray(bank_c),
+        np.asarray(lower, dtype=float),
+        np.asarray(upper, dtype=float),
+    )
 
 
 def position_distance_m(a: NDArray[np.float64], b: NDArray[np.float64], radius: float) -> float:
@@ -113,12 +121,12 @@ def check_feasibility(
     ``final_state`` is the optimised terminal ``(h, lon, lat, V, gamma, psi)`` (SI).
     """
     settings = problem.config.feasibility
-    lo, hi = problem.control_lower, problem.control_upper
-    f_alpha = control_interpolant(t_controls, alpha, interpolation, lo[0], hi[0])
-    f_bank = control_interpolant(t_controls, bank, interpolation, lo[1], hi[1])
+    controls = control_table(
+        t_controls, alpha, bank, interpolation, problem.control_lower, problem.control_upper
+    )
     flown = fly(
         problem,
-        lambda t: (f_alpha(t), f_bank(t)),
+        controls,
         final_time,
         rtol=settings.relative_tolerance,
         atol=settings.absolute_tolerance,
@@ -126,11 +134,7 @@ def check_feasibility(
         deadline=deadline,
     )
     end = flown.y[-1]
-    model = PointMass(problem)
-    values = [
-        model.path_values(row[0], row[3], f_alpha(t))
-        for t, row in zip(flown.t, flown.y, strict=True)
-    ]
+    heat, load, dynamic_pressure = flown.path.T
     deg = math.degrees
     position = position_distance_m(end, final_state, problem.radius)
     if flown.status != "completed":
@@ -145,9 +149,9 @@ def check_feasibility(
         heading_error_deg=deg(end[5] - final_state[5]),
         latitude_error_deg=deg(end[2] - final_state[2]),
         longitude_error_deg=deg(end[1] - final_state[1]),
-        max_load_g=max(abs(v.load_g) for v in values),
-        max_dynamic_pressure_kpa=max(v.dynamic_pressure for v in values) / 1e3,
-        max_heat_rate_kw_m2=max(v.heat_rate for v in values) / 1e3,
+        max_load_g=float(np.max(np.abs(load))),
+        max_dynamic_pressure_kpa=float(np.max(dynamic_pressure)) / 1e3,
+        max_heat_rate_kw_m2=float(np.max(heat)) / 1e3,
         t=flown.t,
         y=flown.y,
     )

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from ovtraj.deadline import Deadline
+from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable, fly_compiled
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["Flown", "PointMass", "fly"]
@@ -137,6 +138,8 @@ class Flown:
     t: NDArray[np.float64]
     y: NDArray[np.float64]
     status: str
+    # Heat rate [W/m^2], load [g] and dynamic pressure [Pa] at each point (compiled flights).
+    path: NDArray[np.float64] | None = None
 
 
 def fly(
@@ -165,6 +168,22 @@ def fly(
     ``t_end`` in a few long steps) and the status is ``time limit``: what was flown
     until then is kept.
     """
+    if isinstance(controls, ControlTable):
+        # The compiled flight (milliseconds); the deadline is checked before it.
+        if deadline is not None and deadline.expired():
+            t0, y0 = (0.0, problem.initial_state) if start is None else start
+            return Flown(np.array([t0]), np.array([y0], dtype=float), "time limit")
+        flown = fly_compiled(
+            problem,
+            controls,
+            t_end,
+            rtol=rtol,
+            atol=atol,
+            stop_energy=stop_energy,
+            breaks=breaks,
+            start=start,
+        )
+        return Flown(flown.t, flown.y, flown.status, flown.path)
     model = PointMass(problem)
     frozen = np.zeros(6)
     t0, y0 = (0.0, problem.initial_state.copy()) if start is None else start

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.flight import fly
+from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["GuessTrajectory", "best_glide_alpha", "guess_trajectory", "target_energy"]
@@ -73,7 +74,7 @@ def guess_trajectory(problem: EntryProblem, deadline: Deadline | None = None) ->
     target = target_energy(problem)
     flown = fly(
         problem,
-        lambda t: (alpha, bank),
+        ControlTable.constant(alpha, bank),
         g.max_time_s,
         rtol=g.relative_tolerance,
         atol=g.relative_tolerance,

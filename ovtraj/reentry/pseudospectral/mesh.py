@@ -14,7 +14,7 @@ the collocation residual between the nodes.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.feasibility import position_distance_m
 from ovtraj.reentry.pseudospectral.flight import fly
+from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["refined_edges", "segment_errors"]
@@ -32,7 +33,7 @@ def segment_errors(
     t_points: NDArray[np.float64],
     y_points: NDArray[np.float64],
     segment_points: Sequence[NDArray[np.intp]],
-    controls: Callable[[float], tuple[float, float]],
+    controls: ControlTable,
     deadline: Deadline | None = None,
 ) -> NDArray[np.float64]:
     """Each segment's re-flight error [km]: flown from its first state point to its last.

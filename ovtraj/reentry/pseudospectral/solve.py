@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,8 +31,9 @@ from ovtraj.deadline import Deadline
 from ovtraj.reentry.pseudospectral.feasibility import (
     FeasibilityReport,
     check_feasibility,
-    control_interpolant,
+    control_table,
 )
+from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable
 from ovtraj.reentry.pseudospectral.formulation import AUX_NAMES, POINT_NAMES, Formulation, formulate
 from ovtraj.reentry.pseudospectral.guess import guess_trajectory
 from ovtraj.reentry.pseudospectral.mesh import refined_edges, segment_errors
@@ -331,14 +331,12 @@ def _physical_states(states: pd.DataFrame) -> np.ndarray:
     )
 
 
-def _controls(problem: EntryProblem, outcome: _Outcome) -> Callable[[float], tuple[float, float]]:
+def _controls(problem: EntryProblem, outcome: _Outcome) -> ControlTable:
     """The optimal controls of the first configured interpolation, as functions of time."""
     kind = problem.config.feasibility.interpolations[0]
     t, alpha, bank = _control_samples(outcome.states, outcome.controls)
     lo, hi = problem.control_lower, problem.control_upper
-    f_alpha = control_interpolant(t, alpha, kind, lo[0], hi[0])
-    f_bank = control_interpolant(t, bank, kind, lo[1], hi[1])
-    return lambda x: (f_alpha(x), f_bank(x))
+    return control_table(t, alpha, bank, kind, lo, hi)
 
 
 def _warm_start(d: DiscreteSolution) -> Guess:
