@@ -8,6 +8,11 @@ Entry Flight Mechanics*, 1980, ch. 2; seed 001 eqs. 1-6 without rotation), state
 ``(h, lon, lat, V, gamma, psi)``, heading from north, clockwise. The atmosphere is the
 library's numpy model (:mod:`ovtraj.astro.atmosphere`), not the NLP's expressions, and
 the integrator is scipy's ``solve_ivp`` (DOP853, Hairer, Norsett & Wanner, 1993).
+
+Controls given as a :class:`~.flight_kernel.ControlTable` (splined or piecewise-linear
+samples, constants) are flown by the same equations and integrator compiled with numba
+(:mod:`.flight_kernel`, milliseconds per flight); any other callable by the Python
+right-hand side below (the reference the compiled flight is tested against).
 """
 
 from __future__ import annotations
