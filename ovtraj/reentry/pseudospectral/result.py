@@ -101,7 +101,7 @@ class OptimalEntryResult:
     max_constraint_violation: float
     feasibility_error_km: float  # largest over the interpolations
     feasibility_error_deg: float
-    refinements: int = 0  # mesh refinements after the configured mesh (``segments`` is the last)
+    refinements: int  # mesh refinements after the configured mesh (``segments`` is the last)
     feasibility: tuple[FeasibilityReport, ...] = ()
     states: pd.DataFrame = field(default_factory=pd.DataFrame)
     controls: pd.DataFrame = field(default_factory=pd.DataFrame)
