@@ -188,3 +188,13 @@ def test_compiled_flight_equals_the_numpy_model_under_scipy(case):
     assert compiled.status == reference.status == "terminal energy"
     assert compiled.t[-1] == pytest.approx(reference.t[-1], abs=1e-2)  # integration error
     assert problem.energy(compiled.y[-1, 0], compiled.y[-1, 3]) == pytest.approx(stop, rel=1e-9)
+
+
+def test_a_compiled_flight_with_nan_controls_fails_instead_of_hanging():
+    from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable, fly_compiled
+
+    problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
+    nan = ControlTable.constant(math.nan, 0.0)
+    flown = fly_compiled(problem, nan, 100.0, rtol=1e-8, atol=1e-8)
+    assert flown.status.startswith("integration failed")
+    assert flown.t[-1] < 100.0

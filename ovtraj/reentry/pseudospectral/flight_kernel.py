@@ -527,7 +527,7 @@ def _integrate(
             min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
             rejected = False
             while True:
-                if h_abs < min_step:
+                if not h_abs >= min_step:  # also a NaN step: never loop on it
                     return ts[:n], zs[:n], FAILED
                 t_new = min(t + h_abs, t_bound)
                 h = t_new - t
@@ -545,7 +545,8 @@ def _integrate(
                         factor = min(1.0, factor)
                     h_abs = h * factor
                     break
-                h_abs = h * max(_MIN_FACTOR, _SAFETY * error**_ERROR_EXPONENT)
+                shrink = _SAFETY * error**_ERROR_EXPONENT
+                h_abs = h * (shrink if shrink > _MIN_FACTOR else _MIN_FACTOR)  # NaN: the minimum
                 rejected = True
             ground0, energy0 = _event(z, scale, model, stop_energy, use_energy)
             ground1, energy1 = _event(z_new, scale, model, stop_energy, use_energy)
