@@ -368,6 +368,17 @@ _OPTIMAL_ENTRY_ROWS = [
     ("solve time [s]", "solve_time_s"),
     ("feasibility error [km]", "feasibility_error_km"),
     ("feasibility error [deg]", "feasibility_error_deg"),
+    (
+        "re-flight, each interpolation [km]",
+        lambda row: (
+            ", ".join(
+                f"{key[len('feasibility_') : -len('_position_km')]} {value:.3g}"
+                for key, value in row.items()
+                if key.startswith("feasibility_") and key.endswith("_position_km")
+            )
+            or None
+        ),
+    ),
 ]
 
 Choice = Annotated[str | None, typer.Option(help="override the config's choice")]
