@@ -198,3 +198,36 @@ def test_a_compiled_flight_with_nan_controls_fails_instead_of_hanging():
     flown = fly_compiled(problem, nan, 100.0, rtol=1e-8, atol=1e-8)
     assert flown.status.startswith("integration failed")
     assert flown.t[-1] < 100.0
+
+
+@pytest.mark.parametrize(
+    ("case", "method", "independent"),
+    [
+        ("suborbital_return.yaml", "lg", "energy"),
+        ("suborbital_return.yaml", "lgr", "time"),
+        ("shuttle_crossrange_heating.yaml", "lgr", "energy"),
+        ("shuttle_crossrange_heating.yaml", "lg", "time"),
+    ],
+)
+def test_the_blockwise_constraint_jacobian_equals_casadis_whole_one(case, method, independent):
+    """IPOPT gets the Jacobian block by block (constant linear terms, then the nonlinear
+    ones); it must be CasADi's Jacobian of the whole constraint vector, entry for entry."""
+    import casadi as ca
+
+    from ovtraj.reentry.pseudospectral.formulation import formulate
+    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+
+    problem = load_optimal_entry(config_path(f"cases/{case}"))
+    trajectory = guess_trajectory(problem)
+    form = formulate(problem, independent, trajectory)
+    tr = transcribe(form.ocp, method, 5, 3)
+    w = tr.initial_point(form.guess(trajectory))
+    w = w + 1e-3 * np.random.default_rng(1).standard_normal(w.shape) * np.abs(w)
+    g, blockwise = tr.jacobian()(w, [])
+    whole = ca.Function("whole", [tr.nlp["x"]], [ca.jacobian(tr.nlp["g"], tr.nlp["x"])])(w)
+    np.testing.assert_allclose(
+        np.array(g).ravel(), np.array(ca.Function("g", [tr.nlp["x"]], [tr.nlp["g"]])(w)).ravel()
+    )
+    np.testing.assert_allclose(
+        np.array(ca.densify(blockwise)), np.array(ca.densify(whole)), rtol=1e-12, atol=1e-12
+    )

@@ -128,6 +128,8 @@ def _solve_ipopt(
         "ipopt.linear_solver": s.linear_solver,
         "expand": s.expand,
     }
+    if not s.expand:
+        options["jac_g"] = tr.jacobian()
     start = time.perf_counter()
     if math.isfinite(deadline.limit_s):
         # IPOPT's own wall-time limit, counted from its start: what the deadline has left.

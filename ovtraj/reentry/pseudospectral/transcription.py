@@ -76,6 +76,7 @@ class Transcription:
     scheme: CollocationScheme
     segments: int
     nlp: dict[str, ca.MX]
+    blocks: list[tuple[ca.MX | None, ca.MX | None]]  # g's rows: linear and nonlinear terms
     lbx: NDArray[np.float64]
     ubx: NDArray[np.float64]
     lbg: NDArray[np.float64]
@@ -87,6 +88,32 @@ class Transcription:
     segment_edges: NDArray[np.float64]
     _nxvar: int
     _nuvar: int
+
+    def jacobian(self) -> ca.Function:
+        """``(x, p) -> (g, dg/dx)`` for IPOPT, block by block: a constant sparse matrix for
+        the linear terms plus CasADi's Jacobian of the nonlinear ones (issue 22).
+
+        A segment's differentiation matrix couples all its state points, so the Jacobian
+        of the whole of ``g`` needs a forward sweep per state-point variable through every
+        mapped node (182 on the seed's 1 x 30 mesh). The dynamics and path terms alone are
+        one block per collocation point (about a dozen sweeps); the LG end quadrature's
+        few rows go by reverse sweeps; the linear terms' Jacobian is evaluated once.
+        """
+        x = self.nlp["x"]
+        rows = []
+        for linear, nonlinear in self.blocks:
+            jac = None
+            if linear is not None:
+                constant = ca.Function("linear_jacobian", [x], [ca.jacobian(linear, x)])
+                jac = ca.DM(constant(np.zeros(x.shape[0])))
+            if nonlinear is not None:
+                dynamic = ca.jacobian(nonlinear, x)
+                jac = dynamic if jac is None else jac + dynamic
+            rows.append(jac)
+        p = ca.MX.sym("p", 0)
+        return ca.Function(
+            "nlp_jac_g", [x, p], [self.nlp["g"], ca.vertcat(*rows)], ["x", "p"], ["g", "jac_g_x"]
+        )
 
     @property
     def n_points(self) -> int:
@@ -261,39 +288,55 @@ def transcribe(
         l_fun = ca.Function("L", [xsym, usym, ssym, psym], [ocp.lagrange(xsym, usym, ssym, psym)])
         l_all = l_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
     n = scheme.n
+    # Constraint blocks as (linear terms, nonlinear terms, lower, upper): the linear terms
+    # (differentiation matrices, end-point differences, monotonicity) have a constant
+    # Jacobian, evaluated once (Transcription.jacobian).
+    blocks: list[tuple[ca.MX | None, ca.MX | None, NDArray, NDArray]] = []
+    defect_linear, defect_dynamics, end_linear, end_dynamics = [], [], [], []
     for k in range(segments):
         half = 0.5 * span * float(edges[k + 1] - edges[k])
         cols = list(range(k * n, (k + 1) * n))
         f_k = f_all[:, cols] * ca.repmat(inv_scale, 1, n)
-        defect = ca.mtimes(xs[:, support_idx[k].tolist()], d.T) - half * f_k
-        constraints.append(ca.vec(defect))
-        lbg.append(np.zeros(nx * n))
-        ubg.append(np.zeros(nx * n))
+        defect_linear.append(ca.vec(ca.mtimes(xs[:, support_idx[k].tolist()], d.T)))
+        defect_dynamics.append(ca.vec(-half * f_k))
         if scheme.end_by_quadrature:
             end = int(segment_points[k][-1])
             start = int(support_idx[k][0])
-            quad = xs[:, end] - xs[:, start] - half * ca.mtimes(f_k, w)
-            constraints.append(quad)
-            lbg.append(np.zeros(nx))
-            ubg.append(np.zeros(nx))
+            end_linear.append(xs[:, end] - xs[:, start])
+            end_dynamics.append(-half * ca.mtimes(f_k, w))
         if ocp.lagrange is not None:
             objective += half * ca.mtimes(l_all[:, cols], w)
+    zeros = np.zeros(nx * kc)
+    blocks.append((ca.vertcat(*defect_linear), ca.vertcat(*defect_dynamics), zeros, zeros))
+    if end_linear:
+        zeros = np.zeros(nx * segments)
+        blocks.append((ca.vertcat(*end_linear), ca.vertcat(*end_dynamics), zeros, zeros))
     for j in ocp.increasing_states:
         # State points are in increasing s: consecutive differences of x_j >= 0.
-        constraints.append(ca.vec(xs[j, 1:] - xs[j, : m - 1]))
-        lbg.append(np.zeros(m - 1))
-        ubg.append(np.full(m - 1, np.inf))
+        blocks.append(
+            (ca.vec(xs[j, 1:] - xs[j, : m - 1]), None, np.zeros(m - 1), np.full(m - 1, np.inf))
+        )
     if ocp.path is not None:
         c_fun = ca.Function("c", [xsym, usym, ssym, psym], [ocp.path(xsym, usym, ssym, psym)])
         c_all = c_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
-        constraints.append(ca.vec(c_all))
-        lbg.append(np.tile(ocp.path_lower, kc))
-        ubg.append(np.tile(ocp.path_upper, kc))
+        blocks.append(
+            (None, ca.vec(c_all), np.tile(ocp.path_lower, kc), np.tile(ocp.path_upper, kc))
+        )
     x_first, x_last = x[:, 0], x[:, m - 1]
     if ocp.boundary is not None:
-        constraints.append(ocp.boundary(x_first, x_last, sf, p))
-        lbg.append(np.asarray(ocp.boundary_lower, dtype=float))
-        ubg.append(np.asarray(ocp.boundary_upper, dtype=float))
+        blocks.append(
+            (
+                None,
+                ocp.boundary(x_first, x_last, sf, p),
+                np.asarray(ocp.boundary_lower, dtype=float),
+                np.asarray(ocp.boundary_upper, dtype=float),
+            )
+        )
+    for linear, nonlinear, lower_g, upper_g in blocks:
+        parts = [term for term in (linear, nonlinear) if term is not None]
+        constraints.append(parts[0] + parts[1] if len(parts) == 2 else parts[0])
+        lbg.append(lower_g)
+        ubg.append(upper_g)
     if ocp.mayer is not None:
         objective += ocp.mayer(x_first, x_last, sf, p)
 
@@ -325,6 +368,7 @@ def transcribe(
         scheme=scheme,
         segments=segments,
         nlp=nlp,
+        blocks=[(linear, nonlinear) for linear, nonlinear, _, _ in blocks],
         lbx=np.concatenate(lbx),
         ubx=np.concatenate(ubx),
         lbg=np.concatenate(lbg),
