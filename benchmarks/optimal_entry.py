@@ -8,7 +8,7 @@ Two peers, written here from scratch with CasADi and sharing no code with
   NLP one SX graph for IPOPT, a straight-line guess. It poses each case from the same
   YAML file on the mesh our solver starts from, for the published seed-001 case
   (``configs/cases/suborbital_return.yaml``) and Betts' shuttle maximum cross-range
-  with its heating limit (``configs/cases/shuttle_crossrange_heating.yaml``).
+  without and with its heating limit (``configs/cases/shuttle_crossrange*.yaml``).
 * **Hermite-Simpson** (issue 8, ``--hermite-simpson``): CasADi's ``Opti`` stack,
   separated form (Betts, *Practical Methods for Optimal Control*, 2nd ed., 2010, sec.
   4.6.6), 150 intervals, on the seed case.
@@ -41,6 +41,7 @@ from ovtraj.reentry.pseudospectral import load_optimal_entry, solve_optimal_entr
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "configs" / "cases" / "suborbital_return.yaml"
 SHUTTLE = ROOT / "configs" / "cases" / "shuttle_crossrange_heating.yaml"
+SHUTTLE_FREE = ROOT / "configs" / "cases" / "shuttle_crossrange.yaml"  # no heating limit
 SPEED_GOAL_S = 0.1  # issue 22: under 0.1 s on a ~50-node problem (the shuttle's 10 x 5)
 _DEG = math.pi / 180.0
 # The LGR peer's own straight-line guesses: terminal state (h, lon, lat, V, gamma, psi),
@@ -59,6 +60,7 @@ PEER_GUESSES = {
         "objective_scale": 0.5,
     },
 }
+PEER_GUESSES[SHUTTLE_FREE] = PEER_GUESSES[SHUTTLE]
 US76 = ROOT / "configs" / "atmosphere_us76.yaml"
 EARTH = ROOT / "configs" / "earth.yaml"
 OBJECTIVE_GOAL = 0.001  # issue 8: objectives equal within 0.1 %
@@ -482,7 +484,7 @@ def main() -> None:
     args = parser.parse_args()
     say = (lambda *_: None) if args.json else print
     figures: dict = {"cases": {}}
-    for case in (CASE, SHUTTLE):
+    for case in (CASE, SHUTTLE_FREE, SHUTTLE):
         mine = ours(case, args.repeats, independent="time", transcription="lgr")
         configured = ours(case, args.repeats)
         theirs = peer(case, args.repeats)
@@ -530,7 +532,7 @@ def main() -> None:
             "peer_objective": theirs["objective"],
             "converged": mine["converged"],
         }
-    shuttle = figures["cases"][SHUTTLE.stem]
+    shuttles = [figures["cases"][case.stem] for case in (SHUTTLE_FREE, SHUTTLE)]
     figures["goals"] = {
         "time_ratio_max": 1.0,
         "shuttle_50_nodes_s_max": SPEED_GOAL_S,
@@ -538,7 +540,7 @@ def main() -> None:
     }
     figures["met"] = {
         "no_slower": all(c["time_ratio"] <= 1.0 for c in figures["cases"].values()),
-        "shuttle_under_0.1_s": shuttle["ours_s"] < SPEED_GOAL_S,
+        "shuttle_under_0.1_s": all(shuttle["ours_s"] < SPEED_GOAL_S for shuttle in shuttles),
         "objectives": all(c["objective_gap"] <= OBJECTIVE_GOAL for c in figures["cases"].values()),
     }
     say(
