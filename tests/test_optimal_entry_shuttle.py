@@ -101,6 +101,15 @@ def test_refinement_splits_the_segments_over_their_share():
     # All under their share: the worst quarter is split all the same.
     new = refined_edges(edges, np.array([0.1, 0.2, 0.05, 0.01]), 1.0, 10)
     np.testing.assert_allclose(new, [0.0, 0.25, 0.375, 0.5, 0.75, 1.0])
+    # A terminal miss 10x the segments' summed errors: each share is 10x smaller.
+    small = np.array([0.01, 0.03, 0.02, 0.04])
+    np.testing.assert_allclose(
+        refined_edges(edges, small, 1.0, 10, terminal_error_km=1.0),
+        [0.0, 0.25, 0.375, 0.5, 0.75, 0.875, 1.0],  # 0.03 and 0.04 exceed 1 / 4 / 10
+    )
+    np.testing.assert_allclose(  # without it: none over 0.25, the worst quarter only
+        refined_edges(edges, small, 1.0, 10), [0.0, 0.25, 0.5, 0.75, 0.875, 1.0]
+    )
     # No room left.
     assert refined_edges(edges, errors, 1.0, 4) is None
     # Room for one: the worst goes first.

@@ -69,8 +69,13 @@ def refined_edges(
     errors: NDArray[np.float64],
     tolerance_km: float,
     max_segments: int,
+    terminal_error_km: float | None = None,
 ) -> NDArray[np.float64] | None:
     """The segment edges with the segments over their share of the tolerance halved.
+
+    The share is ``tolerance_km / segments``, divided by how much the terminal miss
+    (``terminal_error_km``, the re-flight's) exceeds the segments' summed errors: the
+    entry's dynamics grow a segment's error along the rest of the flight.
 
     When every segment is under its share while the terminal error is not (errors
     compound along the flight), the worst quarter of the segments is split; ``None`` when
@@ -80,7 +85,13 @@ def refined_edges(
     room = max_segments - n
     if room <= 0:
         return None
-    over = np.flatnonzero(errors > tolerance_km / n)
+    share = tolerance_km / n
+    finite = errors[np.isfinite(errors)]
+    if terminal_error_km is not None and np.isfinite(terminal_error_km) and finite.sum() > 0.0:
+        # The terminal miss is the segments' errors grown along the flight: their ratio
+        # (measured) scales each segment's share down.
+        share /= max(1.0, terminal_error_km / float(finite.sum()))
+    over = np.flatnonzero(errors > share)
     worst_first = over[np.argsort(-errors[over], kind="stable")]
     if len(worst_first) == 0:
         worst_first = np.argsort(-errors, kind="stable")[: max(1, math.ceil(n / 4))]

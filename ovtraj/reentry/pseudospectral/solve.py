@@ -126,8 +126,9 @@ def solve_optimal_entry(
                     for pts in tr.segment_points
                 ]
             )
+        terminal = min((r.position_error_km for r in outcome.reports), default=None)
         refined = refined_edges(
-            edges, errors, problem.config.feasibility.tolerance_km, mesh.max_segments
+            edges, errors, problem.config.feasibility.tolerance_km, mesh.max_segments, terminal
         )
         if refined is None:
             break
