@@ -118,48 +118,16 @@ def us76_density_sound(z: ca.MX | ca.SX, table: dict) -> tuple:
 def peer_solve(intervals: int) -> dict:
     """The published case by Hermite-Simpson in time (see the module notes)."""
     case = yaml.safe_load(CASE.read_text(encoding="utf-8"))
-    table = yaml.safe_load(US76.read_text(encoding="utf-8"))
     earth = yaml.safe_load(EARTH.read_text(encoding="utf-8"))
-    # float(): PyYAML reads "3.986004418e14" (no exponent sign) as a string.
-    mu, re_, g0 = (float(earth[k]) for k in ("mu_m3_s2", "equatorial_radius_m", "g0_m_s2"))
-    veh, ini, term = case["vehicle"], case["initial"], case["terminal"]
-    mass, area = veh["mass_kg"], veh["reference_area_m2"]
-    cl_c, cd_c = veh["aero"]["cl"], veh["aero"]["cd"]
-    path, heat = case["path"], case["path"]["heat_rate"]
+    re_ = float(earth["equatorial_radius_m"])  # PyYAML may read "6.378137e6" as a string
+    ini, term = case["initial"], case["terminal"]
     deg = math.pi / 180.0
     lon0, lat0, psi0 = (
         ini["longitude_deg"] * deg,
         ini["latitude_deg"] * deg,
         ini["heading_deg"] * deg,
     )
-
-    def rhs(x, u):
-        h, _, lat, v, gam, psi = (x[i] for i in range(6))
-        alpha, bank = u[0], u[1]
-        rho, sound = us76_density_sound(h, table)
-        a_deg, mach = alpha / deg, v / sound
-        cl = sum(cl_c[i][j] * a_deg**i * mach**j for i in range(3) for j in range(2))
-        cd = sum(cd_c[i][j] * a_deg**i * mach**j for i in range(3) for j in range(2))
-        q = 0.5 * rho * v**2
-        lift, drag = q * area * cl / mass, q * area * cd / mass
-        r = re_ + h
-        g = mu / r**2
-        dx = ca.vertcat(
-            v * ca.sin(gam),
-            v * ca.cos(gam) * ca.sin(psi) / (r * ca.cos(lat)),
-            v * ca.cos(gam) * ca.cos(psi) / r,
-            -drag - g * ca.sin(gam),
-            (lift * ca.cos(bank) + (v**2 / r - g) * ca.cos(gam)) / v,
-            (lift * ca.sin(bank) / ca.cos(gam) + v**2 / r * ca.cos(gam) * ca.sin(psi) * ca.tan(lat))
-            / v,
-        )
-        load = (lift * ca.cos(alpha) + drag * ca.sin(alpha)) / g0
-        qdot = heat["coefficient"] * rho ** heat["density_exponent"] * v ** heat["speed_exponent"]
-        return dx, ca.vertcat(load, q, qdot)
-
-    xs, us = ca.MX.sym("x", 6), ca.MX.sym("u", 2)
-    dx, pc = rhs(xs, us)
-    f = ca.Function("f", [xs, us], [dx, pc]).expand()
+    f, path_lower, path_upper = _peer_model(case)  # the peers' own model, written here
 
     n = intervals
     opti = ca.Opti()
@@ -198,10 +166,9 @@ def peer_solve(intervals: int) -> dict:
         lo, hi = ctl[key]["lower_deg"] * deg, ctl[key]["upper_deg"] * deg
         opti.subject_to(opti.bounded(lo, u[row, :], hi))
         opti.subject_to(opti.bounded(lo, um[row, :], hi))
-    limits = [path["max_load_g"], path["max_dynamic_pressure_kpa"] * 1e3, heat["max_kw_m2"] * 1e3]
-    for k, limit in enumerate(limits):
-        opti.subject_to(opti.bounded(-1, px[k, :] / limit, 1))
-        opti.subject_to(opti.bounded(-1, pm[k, :] / limit, 1))
+    for k, (lower, upper) in enumerate(zip(path_lower, path_upper, strict=True)):
+        opti.subject_to(opti.bounded(lower, px[k, :], upper))
+        opti.subject_to(opti.bounded(lower, pm[k, :], upper))
     t_lo, t_hi = case["transcription"]["final_time_bounds_s"]
     opti.subject_to(opti.bounded(t_lo, tf, t_hi))
 

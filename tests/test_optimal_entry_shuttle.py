@@ -240,3 +240,17 @@ def test_the_blockwise_constraint_jacobian_equals_casadis_whole_one(case, method
     np.testing.assert_allclose(
         np.array(ca.densify(blockwise)), np.array(ca.densify(whole)), rtol=1e-12, atol=1e-12
     )
+
+
+def test_the_compiled_us76_equals_the_librarys_from_the_ground_to_its_top():
+    """The re-flight's US76 (both regions: the closed form below 86 km, the density nodes
+    and temperature segments above) against ovtraj.astro.atmosphere."""
+    from ovtraj.astro.atmosphere import default_atmosphere
+    from ovtraj.reentry.pseudospectral.flight_kernel import _us76, _us76_arrays
+
+    atmosphere = default_atmosphere()
+    scalars, arrays = _us76_arrays(atmosphere)
+    altitudes = np.r_[np.linspace(0.0, atmosphere.top_altitude_m, 2001), 11019.0, 86000.0]
+    compiled = np.array([_us76(float(z), scalars, *arrays) for z in altitudes])
+    np.testing.assert_allclose(compiled[:, 0], atmosphere.density(altitudes), rtol=1e-12)
+    np.testing.assert_allclose(compiled[:, 1], atmosphere.speed_of_sound(altitudes), rtol=1e-12)

@@ -234,12 +234,32 @@ def _rates(
     x: np.ndarray, sign: float, lift: float, drag: float, p: np.ndarray, out: np.ndarray
 ) -> None:
     """The state derivatives (module equations) with the lift and drag at x given."""
-    r, lat, v, gamma, psi = x[0], x[2], x[3], x[4], x[5]
+    r, v = x[0], x[3]
     # The magnitude follows the stage's speed (it is a function of the state); only
     # the sign, a guidance decision, is held over the step.
     sigma = sign * _bank_magnitude(v, p)
-    g = p[P_MU] / (r * r)
-    w = p[P_OMEGA]
+    point_mass_rates(r, x[2], v, x[4], x[5], lift, drag, sigma, p[P_MU] / (r * r), p[P_OMEGA], out)
+
+
+@njit(cache=True, error_model="numpy")
+def point_mass_rates(
+    r: float,
+    lat: float,
+    v: float,
+    gamma: float,
+    psi: float,
+    lift: float,
+    drag: float,
+    bank: float,
+    g: float,
+    omega: float,
+    out: np.ndarray,
+) -> None:
+    """d/dt of (r or h, lon, lat, V, gamma, psi): the module equations (Vinh, Busemann &
+    Culp 1980, ch. 2), radius r [m], speed [m/s], angles [rad], lift and drag
+    accelerations and gravity g [m/s^2], Earth rate omega [rad/s]. The same primitive for
+    the guided entry and the optimal entry's compiled re-flight."""
+    w = omega
     cg, sg = math.cos(gamma), math.sin(gamma)
     cl_, sl = math.cos(lat), math.sin(lat)
     cp, sp = math.cos(psi), math.sin(psi)
@@ -248,13 +268,13 @@ def _rates(
     out[2] = v * cg * cp / r
     out[3] = -drag - g * sg + w * w * r * cl_ * (sg * cl_ - cg * sl * cp)
     out[4] = (
-        lift * math.cos(sigma)
+        lift * math.cos(bank)
         + (v * v / r - g) * cg
         + 2.0 * w * v * cl_ * sp
         + w * w * r * cl_ * (cg * cl_ + sg * cp * sl)
     ) / v
     out[5] = (
-        lift * math.sin(sigma) / cg
+        lift * math.sin(bank) / cg
         + v * v / r * cg * sp * sl / cl_
         - 2.0 * w * v * (sg / cg * cp * cl_ - sl)
         + w * w * r * sp * sl * cl_ / cg

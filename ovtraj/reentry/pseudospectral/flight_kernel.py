@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from ovtraj.astro.atmosphere import ExponentialAtmosphere, US76Atmosphere
+from ovtraj.reentry.dynamics import point_mass_rates
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["ControlTable", "KernelFlight", "fly_compiled", "model_arrays"]
@@ -292,23 +293,10 @@ def _poly2(c: Array, a: float, m: float) -> float:
 
 @njit(cache=True, error_model="numpy")
 def _path(
-    h: float,
-    v: float,
-    alpha: float,
-    p: Array,
-    cl: Array,
-    cd: Array,
-    heat_poly: Array,
-    u: Array,
-    a0: Array,
-    a1: Array,
-    a2: Array,
-    a3: Array,
-    a4: Array,
-    a5: Array,
-    a6: Array,
+    h: float, v: float, alpha: float, model: Arrays
 ) -> tuple[float, float, float, float, float]:
     """Lift and drag accelerations, heat rate, load [g] and dynamic pressure."""
+    p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6 = model
     z = min(max(h, 0.0), p[P_TOP])
     if p[P_EXPONENTIAL] > 0.5:
         rho = p[P_RHO0] * math.exp(-z / p[P_SCALE_HEIGHT])
@@ -334,49 +322,14 @@ def _path(
 
 
 @njit(cache=True, error_model="numpy")
-def _rates(
-    y: Array,
-    alpha: float,
-    bank: float,
-    out: Array,
-    p: Array,
-    cl: Array,
-    cd: Array,
-    heat_poly: Array,
-    u: Array,
-    a0: Array,
-    a1: Array,
-    a2: Array,
-    a3: Array,
-    a4: Array,
-    a5: Array,
-    a6: Array,
-) -> None:
+def _rates(y: Array, alpha: float, bank: float, out: Array, model: Arrays) -> None:
     """d/dt of (h, lon, lat, V, gamma, psi): PointMass.rates."""
-    h, lat, v, gamma, psi = y[0], y[2], y[3], y[4], y[5]
+    p = model[0]
+    h, v = y[0], y[3]
     r = p[P_RADIUS] + h
     g = p[P_G0] if p[P_CONSTANT_GRAVITY] > 0.5 else p[P_MU] / (r * r)
-    w = p[P_OMEGA]
-    lift, drag, _, _, _ = _path(h, v, alpha, p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6)
-    sg, cg = math.sin(gamma), math.cos(gamma)
-    sp, cp = math.sin(psi), math.cos(psi)
-    sl, cl_ = math.sin(lat), math.cos(lat)
-    out[0] = v * sg
-    out[1] = v * cg * sp / (r * cl_)
-    out[2] = v * cg * cp / r
-    out[3] = -drag - g * sg + w * w * r * cl_ * (sg * cl_ - cg * sl * cp)
-    out[4] = (
-        lift * math.cos(bank)
-        + (v * v / r - g) * cg
-        + 2.0 * w * v * cl_ * sp
-        + w * w * r * cl_ * (cg * cl_ + sg * cp * sl)
-    ) / v
-    out[5] = (
-        lift * math.sin(bank) / cg
-        + v * v / r * cg * sp * math.tan(lat)
-        - 2.0 * w * v * (math.tan(gamma) * cp * cl_ - sl)
-        + w * w * r * sp * sl * cl_ / cg
-    ) / v
+    lift, drag, _, _, _ = _path(h, v, alpha, model)
+    point_mass_rates(r, y[2], v, y[4], y[5], lift, drag, bank, g, p[P_OMEGA], out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -384,9 +337,7 @@ def _rhs(t: float, z: Array, scale: Array, out: Array, controls: Arrays, model: 
     ax, ac, bx, bc, lower, upper = controls
     alpha = _piecewise(t, ax, ac, lower[0], upper[0])
     bank = _piecewise(t, bx, bc, lower[1], upper[1])
-    y = z * scale
-    p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6 = model
-    _rates(y, alpha, bank, out, p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6)
+    _rates(z * scale, alpha, bank, out, model)
     for i in range(6):
         out[i] /= scale[i]
 
@@ -587,13 +538,10 @@ def _integrate(
 @njit(cache=True, error_model="numpy")
 def _path_history(ts: Array, ys: Array, controls: Arrays, model: Arrays) -> Array:
     ax, ac, _, _, lower, upper = controls
-    p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6 = model
     out = np.empty((ts.shape[0], 3))
     for n in range(ts.shape[0]):
         alpha = _piecewise(ts[n], ax, ac, lower[0], upper[0])
-        _, _, heat, load, q = _path(
-            ys[n, 0], ys[n, 3], alpha, p, cl, cd, heat_poly, u, a0, a1, a2, a3, a4, a5, a6
-        )
+        _, _, heat, load, q = _path(ys[n, 0], ys[n, 3], alpha, model)
         out[n, 0], out[n, 1], out[n, 2] = heat, load, q
     return out
 
