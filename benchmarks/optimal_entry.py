@@ -6,7 +6,9 @@ Two peers, written here from scratch with CasADi and sharing no code with
 * **LGR on the same mesh** (issue 22): Legendre-Gauss-Radau collocation in time (nodes
   from the roots of ``P_{n-1} + P_n``, a barycentric differentiation matrix), the whole
   NLP one SX graph for IPOPT, a straight-line guess. It poses each case from the same
-  YAML file on the mesh our solver starts from, for the published seed-001 case
+  YAML file on the mesh ours is accepted on (the starting mesh, or ours' refined segment
+  edges when the starting mesh's solution does not re-fly within the tolerance; then also
+  on the starting mesh, reported beside), for the published seed-001 case
   (``configs/cases/suborbital_return.yaml``) and Betts' shuttle maximum cross-range
   without and with its heating limit (``configs/cases/shuttle_crossrange*.yaml``).
 * **Hermite-Simpson** (issue 8, ``--hermite-simpson``): CasADi's ``Opti`` stack,
@@ -18,7 +20,8 @@ re-flights that decide convergence), in the time formulation with LGR on the sam
 mesh and in the configured formulation; the peers' time is their NLP build and solve.
 
 Goals (issue 22): ours no slower than the same-mesh peer on both problems, under 0.1 s
-on a ~50-node problem (the shuttle's 10 x 5); issue 8: objective within 0.1 %.
+on a ~50-node problem (the shuttle without its heating limit, accepted on its 10 x 5
+nodes); issue 8: objective within 0.1 %.
 
 Run: ``python benchmarks/optimal_entry.py [--repeats 3] [--hermite-simpson] [--json]``:
 a table, then one JSON object as the last line (``--json``: only that).
@@ -27,6 +30,7 @@ a table, then one JSON object as the last line (``--json``: only that).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import time
@@ -43,6 +47,7 @@ CASE = ROOT / "configs" / "cases" / "suborbital_return.yaml"
 SHUTTLE = ROOT / "configs" / "cases" / "shuttle_crossrange_heating.yaml"
 SHUTTLE_FREE = ROOT / "configs" / "cases" / "shuttle_crossrange.yaml"  # no heating limit
 SPEED_GOAL_S = 0.1  # issue 22: under 0.1 s on a ~50-node problem (the shuttle's 10 x 5)
+NOMINAL_NODES = 50  # issue 22's "~50-node problem": collocation points of the accepted mesh
 _DEG = math.pi / 180.0
 # The LGR peer's own straight-line guesses: terminal state (h, lon, lat, V, gamma, psi),
 # controls (alpha, bank) [rad], final time [s], and the objective's order of magnitude.
@@ -309,8 +314,16 @@ def _peer_model(case: dict) -> tuple[ca.Function, list[float], list[float]]:
     return f, lower, upper
 
 
-def peer_lgr(case_path: Path, segments: int, nodes: int, guess: dict) -> dict:
-    """The case by LGR collocation in time on ``segments`` x ``nodes``: one SX NLP."""
+def peer_lgr(
+    case_path: Path, segments: int, nodes: int, guess: dict, edges: np.ndarray | None = None
+) -> dict:
+    """The case by LGR collocation in time on ``segments`` x ``nodes``: one SX NLP.
+
+    ``edges``: the segments' boundaries as fractions of the flight time (a refined mesh;
+    default equal segments)."""
+    if edges is None:
+        edges = np.linspace(0.0, 1.0, segments + 1)
+    segments = len(edges) - 1
     case = yaml.safe_load(Path(case_path).read_text(encoding="utf-8"))
     f, path_lower, path_upper = _peer_model(case)
     ini, term = case["initial"], case["terminal"]
@@ -327,7 +340,7 @@ def peer_lgr(case_path: Path, segments: int, nodes: int, guess: dict) -> dict:
         xk = x[:, k * nodes : (k + 1) * nodes + 1]
         for i in range(nodes):
             rates, path = f(xk[:, i], us[:, k * nodes + i])
-            defect = ca.mtimes(xk, ca.DM(d[i])) - tf / segments / 2.0 * rates
+            defect = ca.mtimes(xk, ca.DM(d[i])) - tf * (edges[k + 1] - edges[k]) / 2.0 * rates
             constraints += [defect / ca.DM(scale), path]
             lbg += [0.0] * 6 + path_lower
             ubg += [0.0] * 6 + path_upper
@@ -359,7 +372,9 @@ def peer_lgr(case_path: Path, segments: int, nodes: int, guess: dict) -> dict:
     u_lower = [controls[k]["lower_deg"] * _DEG for k in ("alpha", "bank")]
     u_upper = [controls[k]["upper_deg"] * _DEG for k in ("alpha", "bank")]
     t_lower, t_upper = case["transcription"]["final_time_bounds_s"]
-    fraction = np.linspace(0.0, 1.0, points)
+    fraction = np.concatenate(
+        [[0.0]] + [a + (b - a) * (support[1:] + 1.0) / 2.0 for a, b in itertools.pairwise(edges)]
+    )
     x_guess = (np.outer(start, 1 - fraction) + np.outer(guess["end"], fraction)) / scale[:, None]
     u_guess = np.tile(np.array(guess["controls"])[:, None], colloc)
     begin = time.perf_counter()
@@ -371,7 +386,15 @@ def peer_lgr(case_path: Path, segments: int, nodes: int, guess: dict) -> dict:
             "f": objective / guess["objective_scale"],
             "g": ca.vertcat(*constraints),
         },
-        {"print_time": False, "ipopt": {**PEER_IPOPT, "max_iter": 3000}},
+        # The case's own barrier strategy, so that both solvers run IPOPT alike.
+        {
+            "print_time": False,
+            "ipopt": {
+                **PEER_IPOPT,
+                "max_iter": 3000,
+                "mu_strategy": case["solver"]["barrier_strategy"],
+            },
+        },
     )
     solution = solver(
         x0=np.r_[x_guess.ravel(order="F"), u_guess.ravel(order="F"), guess["tf"]],
@@ -402,6 +425,10 @@ def ours(case: Path, repeats: int, **choice: str) -> dict:
         runs.append((time.perf_counter() - start, result))
     runs.sort(key=lambda run: run[0])
     wall, result = runs[len(runs) // 2]
+    # The mesh the result was accepted on: LGR in time has ``nodes`` new state points per
+    # segment, so every segment starts at every ``nodes``-th state point.
+    times = result.states["time_s"].to_numpy()
+    edges = times[:: result.nodes_per_segment] / times[-1] if result.method == "lgr" else None
     return {
         "label": f"ours, {result.independent}, {result.method.upper()} "
         f"{problem.segments}x{result.nodes_per_segment}"
@@ -414,23 +441,28 @@ def ours(case: Path, repeats: int, **choice: str) -> dict:
         "converged": result.converged,
         "status": result.status,
         "final_time_s": result.final_time_s,
+        "segments": result.segments,
+        "nodes": result.segments * result.nodes_per_segment,
+        "refinements": result.refinements,
+        "edges": edges,
     }
 
 
-def peer(case: Path, repeats: int) -> dict:
-    """The LGR peer on the mesh our solver starts from (median of ``repeats``)."""
+def peer(case: Path, repeats: int, edges: np.ndarray | None = None) -> dict:
+    """The LGR peer on the mesh our solver starts from, or on ``edges`` (the mesh ours was
+    accepted on after refining), median of ``repeats``."""
     problem = load_optimal_entry(case)
+    n = problem.nodes_per_segment
     runs = sorted(
-        (
-            peer_lgr(case, problem.segments, problem.nodes_per_segment, PEER_GUESSES[case])
-            for _ in range(repeats)
-        ),
+        (peer_lgr(case, problem.segments, n, PEER_GUESSES[case], edges) for _ in range(repeats)),
         key=lambda run: run["time_s"],
     )
     run = runs[len(runs) // 2]
     unit_km = case == CASE
+    segments = problem.segments if edges is None else len(edges) - 1
+    mesh = "our refined mesh" if edges is not None else "our start mesh"
     return {
-        "label": f"peer, LGR {problem.segments}x{problem.nodes_per_segment}, one SX graph",
+        "label": f"peer, LGR {segments}x{n} ({mesh}), one SX graph",
         "objective": run["objective"] * (problem.radius / 1e3 if unit_km else 1.0 / _DEG),
         "unit": "km" if unit_km else "deg",
         "iterations": int(run["iterations"]),
@@ -454,8 +486,11 @@ def main() -> None:
     for case in (CASE, SHUTTLE_FREE, SHUTTLE):
         mine = ours(case, args.repeats, independent="time", transcription="lgr")
         configured = ours(case, args.repeats)
-        theirs = peer(case, args.repeats)
-        rows = [mine, configured, theirs]
+        at_start = peer(case, args.repeats)
+        # The same mesh: the one ours was accepted on (its start mesh unless it refined,
+        # because the start mesh's solution did not re-fly within the tolerance).
+        same = peer(case, args.repeats, mine["edges"]) if mine["refinements"] else at_start
+        rows = [mine, configured, at_start] + ([same] if same is not at_start else [])
         if args.hermite_simpson and case == CASE:
             hs = peer_solve(args.intervals)
             rows.append(
@@ -482,32 +517,41 @@ def main() -> None:
                 f"{row['final_time_s']:7.1f} {row['iterations']:5d} {row['nlp_s']:13.3f} "
                 f"{row['time_s']:9.3f}  {row['converged']} ({row['status']})"
             )
-        ratio = mine["time_s"] / theirs["time_s"]
-        gap = abs(mine["objective"] / theirs["objective"] - 1.0)
+        ratio = mine["time_s"] / same["time_s"]
+        start_ratio = mine["time_s"] / at_start["time_s"]
+        gap = abs(mine["objective"] / same["objective"] - 1.0)
         say(
-            f"  ours / peer time {ratio:.2f} (goal <= 1); objectives differ by {gap:.4%} "
-            f"(goal {OBJECTIVE_GOAL:.1%})"
+            f"  ours / peer on the same mesh {ratio:.2f} (goal <= 1); ours / peer on our start "
+            f"mesh {start_ratio:.2f}; objectives differ by {gap:.4%} (goal {OBJECTIVE_GOAL:.1%})"
         )
         figures["cases"][case.stem] = {
             "ours_s": round(mine["time_s"], 4),
             "ours_nlp_s": round(mine["nlp_s"], 4),
             "ours_configured_s": round(configured["time_s"], 4),
-            "peer_s": round(theirs["time_s"], 4),
+            "ours_nodes": mine["nodes"],
+            "peer_s": round(same["time_s"], 4),
+            "peer_start_mesh_s": round(at_start["time_s"], 4),
             "time_ratio": round(ratio, 3),
+            "start_mesh_time_ratio": round(start_ratio, 3),
             "objective_gap": round(gap, 6),
             "ours_objective": mine["objective"],
-            "peer_objective": theirs["objective"],
+            "peer_objective": same["objective"],
+            "peer_start_mesh_objective": at_start["objective"],
             "converged": mine["converged"],
         }
-    shuttles = [figures["cases"][case.stem] for case in (SHUTTLE_FREE, SHUTTLE)]
+    fifty = figures["cases"][SHUTTLE_FREE.stem]
     figures["goals"] = {
         "time_ratio_max": 1.0,
         "shuttle_50_nodes_s_max": SPEED_GOAL_S,
+        "nominal_nodes": NOMINAL_NODES,
         "objective_gap_max": OBJECTIVE_GOAL,
     }
     figures["met"] = {
         "no_slower": all(c["time_ratio"] <= 1.0 for c in figures["cases"].values()),
-        "shuttle_under_0.1_s": all(shuttle["ours_s"] < SPEED_GOAL_S for shuttle in shuttles),
+        # The ~50-node problem: the shuttle without its heating limit, accepted on its
+        # 10 x 5 start mesh (the heating case needs a finer one to re-fly within 1 km).
+        "shuttle_50_nodes_under_0.1_s": fifty["ours_nodes"] <= NOMINAL_NODES
+        and fifty["ours_s"] < SPEED_GOAL_S,
         "objectives": all(c["objective_gap"] <= OBJECTIVE_GOAL for c in figures["cases"].values()),
     }
     say(

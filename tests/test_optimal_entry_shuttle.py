@@ -135,6 +135,29 @@ def test_unequal_segments_place_the_points_inside_their_edges():
         transcribe(form.ocp, "lgr", 4, edges=np.array([0.0, 0.5, 0.4, 1.0]))
 
 
+def test_meshes_of_one_problem_share_its_node_functions_and_they_equal_its_rates():
+    import casadi as ca
+
+    from ovtraj.reentry.pseudospectral.formulation import formulate
+    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+
+    problem = load_optimal_entry(config_path("cases/shuttle_crossrange_heating.yaml"))
+    ocp = formulate(problem, "time", guess_trajectory(problem)).ocp
+    coarse = transcribe(ocp, "lgr", 4, 3)
+    fine = transcribe(ocp, "lgr", 4, edges=np.array([0.0, 0.2, 0.5, 0.7, 1.0]))
+    assert coarse.ocp.node_functions is fine.ocp.node_functions
+    x = np.array([60e3, 0.2, 0.1, 6000.0, -0.01, 1.2])
+    u = np.array([math.radians(30.0), math.radians(-50.0)])
+    node = ocp.node_functions
+    xs, us, ss, ps = ca.SX.sym("x", 6), ca.SX.sym("u", 2), ca.SX.sym("s"), ca.SX.sym("p", 0)
+    direct = ca.Function("direct", [xs, us, ss, ps], [ocp.dynamics(xs, us, ss, ps)])
+    args = (x, u, 100.0, np.zeros(0))
+    np.testing.assert_array_equal(np.asarray(node.dynamics(*args)), np.asarray(direct(*args)))
+    path = ca.Function("path", [xs, us, ss, ps], [ocp.path(xs, us, ss, ps)])
+    np.testing.assert_array_equal(np.asarray(node.path(*args)), np.asarray(path(*args)))
+    assert np.asarray(node.path(*args)).size >= 1  # the heat rate row is there
+
+
 def test_a_segment_flown_from_its_start_continues_the_whole_flight():
     problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
     controls = lambda t: (math.radians(20.0), math.radians(-30.0))  # noqa: E731

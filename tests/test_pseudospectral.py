@@ -414,6 +414,7 @@ def _set(data, path, value):
         ({"terminal.speed_mps": {"lower": 900.0, "upper": 800.0}}, "terminal.speed_mps: empty"),
         ({"objective": "max_range"}, "objective = 'max_range'"),
         ({"vehicle.wingspan_m": 5.0}, "vehicle.wingspan_m: unknown key"),
+        ({"solver.barrier_strategy": "fast"}, "solver.barrier_strategy = 'fast'"),
     ],
 )
 def test_bad_configs_are_refused_naming_the_field(case_data, changes, fragment):

@@ -282,6 +282,10 @@ class SolverConfig(StrictModel):
         unit="s", gt=0, le=86400, description="wall time of the solve: guess, NLP, re-flights"
     )
     linear_solver: str = "mumps"
+    barrier_strategy: Literal["monotone", "adaptive"] = Field(
+        description="IPOPT mu_strategy: the barrier parameter decreased monotonically (Fiacco-"
+        "McCormick) or chosen each iteration (Nocedal, Waechter & Waltz, 2009)"
+    )
     print_level: int = bounded(ge=0, le=12, default=0)
     expand: bool = Field(
         default=False,

@@ -47,6 +47,7 @@ class NlpSettings:
     constraint_tolerance: float
     max_iterations: int
     linear_solver: str = "mumps"
+    barrier_strategy: str = "monotone"  # IPOPT's mu_strategy
     print_level: int = 0
     expand: bool = False
     time_limit_s: float = math.inf  # wall time of the whole solve (``solver.time_limit_s``)
@@ -126,6 +127,7 @@ def _solve_ipopt(
         "ipopt.constr_viol_tol": s.constraint_tolerance,
         "ipopt.max_iter": s.max_iterations,
         "ipopt.linear_solver": s.linear_solver,
+        "ipopt.mu_strategy": s.barrier_strategy,
         "expand": s.expand,
     }
     if not s.expand:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -27,6 +28,15 @@ Dynamics = Callable[[ca.SX, ca.SX, ca.SX, ca.SX], ca.SX]
 Boundary = Callable[[ca.SX, ca.SX, ca.SX, ca.SX], ca.SX]
 
 _EMPTY = np.zeros(0)
+
+
+@dataclass(frozen=True)
+class NodeFunctions:
+    """One node's functions of ``(x, u, s, p)`` (:attr:`OptimalControlProblem.node_functions`)."""
+
+    dynamics: ca.Function
+    lagrange: ca.Function | None
+    path: ca.Function | None
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,23 @@ class OptimalControlProblem:
     @property
     def nx(self) -> int:
         return len(self.state_names)
+
+    @cached_property
+    def node_functions(self) -> NodeFunctions:
+        """The dynamics, Lagrange integrand and path constraints of one node as SX functions
+        of ``(x, u, s, p)``, built once per problem: CasADi keeps each function's derivatives,
+        so every mesh of a refinement maps the same functions and reuses them (issue 22)."""
+        x, u = ca.SX.sym("xn", self.nx), ca.SX.sym("un", self.nu)
+        s, p = ca.SX.sym("sn"), ca.SX.sym("pn", self.npar)
+
+        def node(name: str, rule: Dynamics | None) -> ca.Function | None:
+            return None if rule is None else ca.Function(name, [x, u, s, p], [rule(x, u, s, p)])
+
+        return NodeFunctions(
+            dynamics=node("f", self.dynamics),
+            lagrange=node("L", self.lagrange),
+            path=node("c", self.path),
+        )
 
     @property
     def nu(self) -> int:

@@ -300,6 +300,7 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
             constraint_tolerance=s.constraint_tolerance,
             max_iterations=s.max_iterations,
             linear_solver=s.linear_solver,
+            barrier_strategy=s.barrier_strategy,
             print_level=s.print_level,
             expand=s.expand,
             time_limit_s=s.time_limit_s,

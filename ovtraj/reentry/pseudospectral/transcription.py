@@ -270,12 +270,12 @@ def transcribe(
     span = sf - ocp.s0
     s_colloc = ocp.s0 + ca.DM(colloc_fraction).T * span
 
-    # One symbolic evaluation per node; map() keeps the expression graph compact.
-    xsym, usym = ca.SX.sym("xn", nx), ca.SX.sym("un", nu)
-    ssym, psym = ca.SX.sym("sn"), ca.SX.sym("pn", npar)
-    f_fun = ca.Function("f", [xsym, usym, ssym, psym], [ocp.dynamics(xsym, usym, ssym, psym)])
+    # One symbolic evaluation per node; map() keeps the expression graph compact. The
+    # node functions are the problem's, so every mesh of a refinement reuses their
+    # derivatives.
+    node = ocp.node_functions
     x_colloc = x[:, colloc_point.tolist()]
-    f_all = f_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
+    f_all = node.dynamics.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
 
     constraints: list[ca.MX] = []
     lbg: list[NDArray] = []
@@ -284,9 +284,8 @@ def transcribe(
     w = ca.DM(scheme.weights)
     inv_scale = ca.DM(1.0 / ocp.state_scale)
     objective = ca.MX(0.0)
-    if ocp.lagrange is not None:
-        l_fun = ca.Function("L", [xsym, usym, ssym, psym], [ocp.lagrange(xsym, usym, ssym, psym)])
-        l_all = l_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
+    if node.lagrange is not None:
+        l_all = node.lagrange.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
     n = scheme.n
     # Constraint blocks as (linear terms, nonlinear terms, lower, upper): the linear terms
     # (differentiation matrices, end-point differences, monotonicity) have a constant
@@ -304,7 +303,7 @@ def transcribe(
             start = int(support_idx[k][0])
             end_linear.append(xs[:, end] - xs[:, start])
             end_dynamics.append(-half * ca.mtimes(f_k, w))
-        if ocp.lagrange is not None:
+        if node.lagrange is not None:
             objective += half * ca.mtimes(l_all[:, cols], w)
     zeros = np.zeros(nx * kc)
     blocks.append((ca.vertcat(*defect_linear), ca.vertcat(*defect_dynamics), zeros, zeros))
@@ -316,9 +315,8 @@ def transcribe(
         blocks.append(
             (ca.vec(xs[j, 1:] - xs[j, : m - 1]), None, np.zeros(m - 1), np.full(m - 1, np.inf))
         )
-    if ocp.path is not None:
-        c_fun = ca.Function("c", [xsym, usym, ssym, psym], [ocp.path(xsym, usym, ssym, psym)])
-        c_all = c_fun.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
+    if node.path is not None:
+        c_all = node.path.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
         blocks.append(
             (None, ca.vec(c_all), np.tile(ocp.path_lower, kc), np.tile(ocp.path_upper, kc))
         )
