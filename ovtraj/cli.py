@@ -1028,6 +1028,63 @@ def fly(
 
 
 @app.command()
+def export(
+    plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
+    fmt: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="oem: the whole trajectory (CCSDS 502.0 OEM 2.0); opm: the insertion state "
+            "and the five impulses (OPM 2.0)",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="file to write (never overwritten)")],
+    settings_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--settings",
+            help="export settings YAML (default: the shipped configs/ccsds_export.yaml)",
+        ),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Export a mission plan as a CCSDS OEM or OPM (KVN, EME2000, UTC) for GMAT, Orekit, STK."""
+    from ovtraj.config.base import load_model
+    from ovtraj.config.export import CcsdsExportSettings, default_export_settings
+    from ovtraj.mission.ccsds import FORMATS, UnflownPlan, export_plan
+    from ovtraj.mission.plan import PlanError, read_plan
+
+    fmt = fmt.lower()
+    if fmt not in FORMATS:
+        typer.echo(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}", err=True)
+        raise typer.Exit(code=2)
+    try:
+        settings = (
+            default_export_settings()
+            if settings_file is None
+            else load_model(CcsdsExportSettings, settings_file)
+        )
+        path, report = export_plan(read_plan(plan_file), fmt, out, settings)
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    except UnflownPlan as err:
+        typer.echo(f"{plan_file}: {err}", err=True)
+        raise typer.Exit(code=1) from None
+    except PlanError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    written = path.resolve()
+    if as_json:
+        row = {"format": fmt, "path": str(written), "frame": settings.ref_frame}
+        if report is not None:
+            row["replay_miss_distance_m"] = report.miss_distance_m
+        typer.echo(json_text(row, indent=None))
+    else:
+        typer.echo(f"{fmt}: {written}")
+
+
+@app.command()
 def target(
     source: Annotated[
         str, typer.Argument(help="TLE or OMM file, http(s) URL, or scenario YAML with a source")

@@ -49,6 +49,7 @@ __all__ = [
     "relative_velocity_state",
     "rsw_basis",
     "rsw_to_eci",
+    "spherical_to_ecef_state",
 ]
 
 _TWO_PI = 2.0 * np.pi
@@ -259,6 +260,41 @@ def local_north_east_up(lat: ArrayLike, lon: ArrayLike) -> np.ndarray:
     east = np.stack([-sin_lon, cos_lon, np.zeros_like(lon)], axis=-1)
     up = np.stack([cos_lat * cos_lon, cos_lat * sin_lon, sin_lat], axis=-1)
     return np.stack([north, east, up], axis=-2)
+
+
+def spherical_to_ecef_state(
+    lat: ArrayLike,
+    lon: ArrayLike,
+    alt: ArrayLike,
+    speed: ArrayLike,
+    fpa: ArrayLike,
+    heading_angle: ArrayLike,
+    *,
+    radius: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Earth-fixed position [m] and Earth-relative velocity [m/s] of an entry state.
+
+    The spherical state of the atmospheric phases (Vinh, Busemann & Culp, *Hypersonic
+    and Planetary Entry Flight Mechanics*, 1980, ch. 2): geocentric latitude and
+    longitude [rad], altitude over the sphere [m], speed relative to the Earth [m/s],
+    flight-path angle above the local horizontal and heading clockwise from north
+    [rad]. The velocity is ``V (cos(gamma) (cos(psi) N + sin(psi) E) + sin(gamma) U)``
+    in the local north/east/up axes (:func:`local_north_east_up`). Inverse of
+    :func:`ecef_to_geocentric`, :func:`flight_path_angle` and :func:`heading` on the
+    Earth-relative velocity; inputs broadcast, results have shape (..., 3).
+    """
+    basis = local_north_east_up(lat, lon)
+    speed, fpa = np.asarray(speed, dtype=float), np.asarray(fpa, dtype=float)
+    psi = np.asarray(heading_angle, dtype=float)
+    horizontal = speed * np.cos(fpa)
+    components = np.stack(
+        np.broadcast_arrays(
+            horizontal * np.cos(psi), horizontal * np.sin(psi), speed * np.sin(fpa)
+        ),
+        axis=-1,
+    )
+    velocity = np.einsum("...i,...ij->...j", components, basis)
+    return geocentric_to_ecef(lat, lon, alt, radius=radius), velocity
 
 
 def rsw_basis(r: ArrayLike, v: ArrayLike) -> np.ndarray:

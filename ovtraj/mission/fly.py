@@ -19,6 +19,11 @@ manoeuvre open-loop, with nothing but the plan (its resolved scenario included):
    instead of the chain's fixed-step RK4 with its heading-corridor feedback; it
    stops at the terminal speed, as the reentry stage does.
 
+:func:`replay_ephemeris` flies the same replay and also samples it: one
+:class:`EphemerisSegment` per continuous arc (split at every impulse, at the entry
+interface and at every bank reversal), in the project's ECI (TEME, docs/conventions.md),
+the source of the CCSDS export (:mod:`ovtraj.mission.ccsds`).
+
 The :class:`FlightReport` holds the terminal state, the miss from the landing site
 and from the plan's predicted terminal point, the rendezvous arrival miss, the path
 maxima against their limits, the perigee and entry-angle checks and
@@ -36,8 +41,10 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from ovtraj.astro.frames import ecef_to_eci_state, spherical_to_ecef_state
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
 from ovtraj.records import plain
@@ -114,6 +121,37 @@ class FlightReport:
         return plain(asdict(self))
 
 
+@dataclass(frozen=True)
+class EphemerisSegment:
+    """One continuous arc of the replayed trajectory in the project's ECI (TEME).
+
+    ``t_s``: (N,) seconds from the plan's launch day 0 h UTC, increasing, the arc's two
+    ends included; ``r_eci_m`` [m] and ``v_eci_mps`` [m/s]: (N, 3).
+    """
+
+    name: str
+    t_s: NDArray[np.float64]
+    r_eci_m: NDArray[np.float64]
+    v_eci_mps: NDArray[np.float64]
+
+
+class _Recorder:
+    """Samples the replay's arcs every ``orbit_step_s`` (orbits) and ``entry_step_s``."""
+
+    def __init__(self, orbit_step_s: float, entry_step_s: float) -> None:
+        self.orbit_step_s = orbit_step_s
+        self.entry_step_s = entry_step_s
+        self.segments: list[EphemerisSegment] = []
+
+    @staticmethod
+    def times(t0: float, t1: float, step: float) -> NDArray[np.float64]:
+        return np.unique(np.r_[np.arange(t0, t1, step), t1])
+
+    def add(self, name: str, t: NDArray, r: NDArray, v: NDArray) -> None:
+        if len(t) >= 2:  # a zero-length arc (e.g. no stay) is no segment
+            self.segments.append(EphemerisSegment(name, t, r, v))
+
+
 # --- orbital arcs ------------------------------------------------------------------------
 
 
@@ -153,11 +191,18 @@ class _Orbit:
         self.atol = scenario.mission.plan.orbit_atol
 
     def arc(
-        self, state: np.ndarray, t0: float, t1: float, *, floor_m: float | None = None
+        self,
+        state: np.ndarray,
+        t0: float,
+        t1: float,
+        *,
+        floor_m: float | None = None,
+        record: tuple[_Recorder, str] | None = None,
     ) -> tuple[np.ndarray, float, bool, float]:
         """(state at the end, end time, stopped at ``floor_m``, lowest altitude on the way).
 
-        With ``floor_m`` the arc stops where the altitude first falls through it.
+        With ``floor_m`` the arc stops where the altitude first falls through it. With
+        ``record`` (a recorder and the arc's name) the arc is sampled into the recorder.
         """
         events = None
         if floor_m is not None:
@@ -181,13 +226,22 @@ class _Orbit:
             rtol=self.rtol,
             atol=self.atol,
             events=events,
+            dense_output=record is not None,
         )
         if sol.status < 0 or not np.all(np.isfinite(sol.y)):
             raise ReplayFailed(f"orbit integration failed from {t0:.1f} s: {sol.message}")
         lowest = float(np.min(np.linalg.norm(sol.y[:3], axis=0))) - self.earth.radius
         if sol.status == 1 and floor_m is not None and len(sol.t_events[0]):
-            return sol.y_events[0][0].copy(), float(sol.t_events[0][0]), True, lowest
-        return sol.y[:, -1].copy(), float(sol.t[-1]), False, lowest
+            end, t_end, stopped = sol.y_events[0][0].copy(), float(sol.t_events[0][0]), True
+        else:
+            end, t_end, stopped = sol.y[:, -1].copy(), float(sol.t[-1]), False
+        if record is not None:
+            recorder, name = record
+            times = recorder.times(t0, t_end, recorder.orbit_step_s)
+            states = sol.sol(times).T
+            states[-1] = end  # the arc's end exactly (an event's root, not the interpolant)
+            recorder.add(name, times, states[:, :3], states[:, 3:])
+        return end, t_end, stopped, lowest
 
 
 def _altitude(state: np.ndarray, radius: float) -> float:
@@ -269,8 +323,18 @@ class _EntryFlight:
     max_dynamic_pressure_pa: float
 
 
-def _fly_entry(plan: MissionPlan, scenario: Scenario, entry: EntryState) -> _EntryFlight:
-    """The open-loop reentry from ``entry`` with the plan's bank profile (DOP853)."""
+def _fly_entry(
+    plan: MissionPlan,
+    scenario: Scenario,
+    entry: EntryState,
+    record: tuple[_Recorder, Any] | None = None,
+) -> _EntryFlight:
+    """The open-loop reentry from ``entry`` with the plan's bank profile (DOP853).
+
+    ``record``: a recorder and a function of (seconds from the entry interface, rows of
+    the entry state) returning the times from the launch day, ECI positions and
+    velocities; every interval between reversals is sampled into its own segment.
+    """
     profile = plan.reentry.bank_profile
     settings = scenario.mission.plan
     model = EntryModel(reentry_input(scenario, entry=entry))
@@ -336,6 +400,15 @@ def _fly_entry(plan: MissionPlan, scenario: Scenario, entry: EntryState) -> _Ent
             x = sol.y_events[hit][0].copy()
         else:
             x = sol.y[:, -1].copy()
+        if record is not None:
+            recorder, to_eci = record
+            times = recorder.times(t0, t_end, recorder.entry_step_s)
+            states = sol.sol(times).T
+            states[-1] = x
+            recorder.add(
+                f"entry, bank sign {sign:+.0f} ({t0:.1f} to {t_end:.1f} s from the interface)",
+                *to_eci(times, states),
+            )
         samples = np.unique(np.r_[np.arange(t0, t_end, settings.path_sample_step_s), t_end])
         for t in samples:
             state = x if t == t_end else sol.sol(t)
@@ -367,8 +440,10 @@ def _fly_entry(plan: MissionPlan, scenario: Scenario, entry: EntryState) -> _Ent
 # --- the replay ----------------------------------------------------------------------------
 
 
-def fly_plan(plan: MissionPlan) -> FlightReport:
-    """Replay ``plan`` through the dynamics; see the module notes. Never raises."""
+def fly_plan(plan: MissionPlan, recorder: _Recorder | None = None) -> FlightReport:
+    """Replay ``plan`` through the dynamics; see the module notes. Never raises.
+
+    ``recorder``: samples the trajectory (:func:`replay_ephemeris`)."""
     start = time.perf_counter()
     report = FlightReport(
         ok=False,
@@ -384,7 +459,7 @@ def fly_plan(plan: MissionPlan) -> FlightReport:
     )
     try:
         with np.errstate(all="ignore"):
-            _replay(plan, report)
+            _replay(plan, report, recorder)
     except ReplayFailed as failure:
         report.reason = str(failure)
     except Exception as err:  # a replay never raises: any failure is reported
@@ -404,7 +479,19 @@ def fly_plan(plan: MissionPlan) -> FlightReport:
     return report
 
 
-def _replay(plan: MissionPlan, report: FlightReport) -> None:
+def replay_ephemeris(
+    plan: MissionPlan, *, orbit_step_s: float, entry_step_s: float
+) -> tuple[FlightReport, list[EphemerisSegment]]:
+    """The replay of :func:`fly_plan` and its trajectory sampled every ``orbit_step_s`` [s]
+    on the orbital arcs and ``entry_step_s`` [s] in the atmosphere, both ends of every arc
+    included. The segments cover what was flown: up to the failure if the report failed."""
+    if not (orbit_step_s > 0.0 and entry_step_s > 0.0):
+        raise ValueError(f"sampling steps must be positive, got {orbit_step_s}, {entry_step_s}")
+    recorder = _Recorder(orbit_step_s, entry_step_s)
+    return fly_plan(plan, recorder), recorder.segments
+
+
+def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None = None) -> None:
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     earth = scenario.earth
     day = plan.day
@@ -418,8 +505,17 @@ def _replay(plan: MissionPlan, report: FlightReport) -> None:
     perigee = _perigee_altitude(state, earth.mu, earth.radius)
     lowest = _altitude(state, earth.radius)
     impulses = plan.impulses()
+    previous = "insertion"
     for k, burn in enumerate(impulses):
-        state, t_end, entered, low = orbit.arc(state, t, burn.t_s, floor_m=entry_altitude_m)
+        name = f"{previous} to {burn.name}"
+        state, t_end, entered, low = orbit.arc(
+            state,
+            t,
+            burn.t_s,
+            floor_m=entry_altitude_m,
+            record=None if recorder is None else (recorder, name),
+        )
+        previous = burn.name
         lowest = min(lowest, low)
         if entered:
             raise ReplayFailed(
@@ -451,7 +547,13 @@ def _replay(plan: MissionPlan, report: FlightReport) -> None:
     r0 = float(np.linalg.norm(state[:3]))
     period = 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
     horizon = scenario.deorbit.max_descent_revolutions * period
-    state, t_entry, entered, _ = orbit.arc(state, t, t + horizon, floor_m=entry_altitude_m)
+    state, t_entry, entered, _ = orbit.arc(
+        state,
+        t,
+        t + horizon,
+        floor_m=entry_altitude_m,
+        record=None if recorder is None else (recorder, f"{previous} to the entry interface"),
+    )
     if not entered:
         raise ReplayFailed(
             f"the descent does not reach the entry interface ({entry_altitude_m / 1e3:g} km) "
@@ -497,7 +599,27 @@ def _replay(plan: MissionPlan, report: FlightReport) -> None:
         fpa_rad=rel["fpa_rad"],
         heading_rad=rel["heading_rad"],
     )
-    flight = _fly_entry(plan, scenario, entry)
+    entry_record = None
+    if recorder is not None:
+
+        def to_eci(t_from_entry: NDArray, x: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+            r_ecef, v_ecef = spherical_to_ecef_state(
+                x[:, 2],
+                x[:, 1],
+                x[:, 0] - earth.radius,
+                x[:, 3],
+                x[:, 4],
+                x[:, 5],
+                radius=earth.radius,
+            )
+            angle = theta + earth.omega * t_from_entry
+            return (
+                t_entry + t_from_entry,
+                *ecef_to_eci_state(r_ecef, v_ecef, angle, omega=earth.omega),
+            )
+
+        entry_record = (recorder, to_eci)
+    flight = _fly_entry(plan, scenario, entry, entry_record)
     reentry = scenario.reentry
     path = reentry.limits
     for name, value, limit, unit in (

@@ -1,0 +1,213 @@
+"""A mission plan as CCSDS Orbit Data Messages: OEM (trajectory) and OPM (manoeuvres).
+
+CCSDS 502.0-B-2, *Orbit Data Messages*, Blue Book, 2009, version 2.0 of both messages,
+in KVN (keyword = value notation), so that GMAT, Orekit or STK load the plan:
+
+* **OEM** (sec. 5): the whole planned trajectory from the insertion state to the
+  terminal interface, as the plan's replay flies it (:func:`ovtraj.mission.fly.replay_ephemeris`:
+  J2 orbital arcs, the deorbit descent, the open-loop guided entry). One segment per
+  continuous arc: a new segment at every impulse (the velocity jumps), at the entry
+  interface and at every bank reversal. Every segment declares its interpolation
+  (``INTERPOLATION``, ``INTERPOLATION_DEGREE``, lowered where a segment has too few
+  samples for the configured degree).
+* **OPM** (sec. 3): the insertion state, the OV's mass, and the five impulses (two of
+  the rendezvous, two of the transfer, the deorbit burn) as manoeuvres: ignition epoch,
+  duration 0 (impulsive, as planned), the mass they burn (the rocket equation with the
+  vehicle's specific impulse), and the delta-v in the declared frame.
+
+Frame and time: the project's ECI is TEME (docs/conventions.md); every position,
+velocity and delta-v is converted to EME2000 at its own epoch by the IAU-76/80
+precession-nutation of :func:`ovtraj.astro.eme2000.teme_to_eme2000` (pyerfa). Epochs are
+UTC, written as the plan's launch day plus seconds (leap seconds ignored, as everywhere
+in the project). Positions in km, velocities in km/s, masses in kg (the standard's units).
+
+The messages are a pure function of the plan and the settings: ``CREATION_DATE`` is the
+plan's launch day (a comment says so), so the same plan exports byte-identical files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ovtraj.astro.eme2000 import teme_to_eme2000
+from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.config import scenario_from_dict
+from ovtraj.config.export import CcsdsExportSettings
+from ovtraj.files import StoreError, write_bytes
+from ovtraj.maneuver.budget import burn_durations
+from ovtraj.mission.fly import EphemerisSegment, FlightReport, replay_ephemeris
+from ovtraj.mission.plan import MissionPlan, PlanError
+
+__all__ = ["FORMATS", "UnflownPlan", "export_plan", "oem_text", "opm_text"]
+
+FORMATS = ("oem", "opm")
+
+
+class UnflownPlan(PlanError):
+    """The plan's replay does not reach its terminal interface: no trajectory to export."""
+
+
+VERSION = "2.0"
+
+
+def _epoch_text(day: Epoch, t_s: float) -> str:
+    """CCSDS ASCII time (CCSDS 301.0-B-4 code A, UTC) with microseconds, no zone letter."""
+    return day.plus_seconds(t_s).iso().removesuffix("Z")
+
+
+def _julian_dates(day: Epoch, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    """Two-part UTC Julian dates of ``day + t_s`` (whole days first, as erfa takes them)."""
+    whole, rest = np.divmod(np.asarray(t_s, dtype=float), SECONDS_PER_DAY)
+    return day.jd1 + whole, day.jd2 + rest / SECONDS_PER_DAY
+
+
+def _header(kind: str, plan: MissionPlan, settings: CcsdsExportSettings) -> list[str]:
+    design = plan.design
+    return [
+        f"CCSDS_{kind}_VERS = {VERSION}",
+        f"COMMENT ovtraj mission plan, code {plan.code_version}; design: parking "
+        f"{design.parking_altitude_km:.3f} km, preparation {design.preparation_altitude_km:.3f} "
+        f"km, separation delay {design.separation_delay_h:.4f} h",
+        "COMMENT Converted from the project's TEME by IAU-76/80 precession-nutation (pyerfa); "
+        "CREATION_DATE is the plan's launch day, so the same plan gives the same file",
+        f"CREATION_DATE = {_epoch_text(plan.day, 0.0)}",
+        f"ORIGINATOR = {settings.originator}",
+    ]
+
+
+def _object(plan: MissionPlan, settings: CcsdsExportSettings) -> list[str]:
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    return [
+        f"OBJECT_NAME = {scenario.vehicle.name}",
+        f"OBJECT_ID = {settings.object_id}",
+        "CENTER_NAME = EARTH",
+        f"REF_FRAME = {settings.ref_frame}",
+        f"TIME_SYSTEM = {settings.time_system}",
+    ]
+
+
+def _degree(samples: int, settings: CcsdsExportSettings) -> int:
+    """The configured degree, or the highest the segment's samples support."""
+    if settings.interpolation == "HERMITE":  # n samples with derivatives: degree 2n - 1
+        return max(1, min(settings.interpolation_degree, 2 * samples - 1))
+    return max(1, min(settings.interpolation_degree, samples - 1))
+
+
+def oem_text(
+    plan: MissionPlan, segments: Sequence[EphemerisSegment], settings: CcsdsExportSettings
+) -> str:
+    """The OEM (KVN) of ``segments`` (the replay's, in TEME): see the module notes."""
+    if not segments:
+        raise PlanError("the plan's replay produced no trajectory to export")
+    day = plan.day
+    lines = _header("OEM", plan, settings)
+    for segment in segments:
+        jd1, jd2 = _julian_dates(day, segment.t_s)
+        r, v = teme_to_eme2000(jd1, jd2, segment.r_eci_m, segment.v_eci_mps)
+        t0, t1 = float(segment.t_s[0]), float(segment.t_s[-1])
+        lines += [
+            "",
+            "META_START",
+            f"COMMENT {segment.name}",
+            *_object(plan, settings),
+            f"START_TIME = {_epoch_text(day, t0)}",
+            f"STOP_TIME = {_epoch_text(day, t1)}",
+            f"INTERPOLATION = {settings.interpolation}",
+            f"INTERPOLATION_DEGREE = {_degree(len(segment.t_s), settings)}",
+            "META_STOP",
+            "",
+        ]
+        for t, position, velocity in zip(segment.t_s, r / 1e3, v / 1e3, strict=True):
+            lines.append(
+                f"{_epoch_text(day, float(t))} "
+                + " ".join(f"{c:.6f}" for c in position)
+                + " "
+                + " ".join(f"{c:.9f}" for c in velocity)
+            )
+    return "\n".join(lines) + "\n"
+
+
+def opm_text(plan: MissionPlan, settings: CcsdsExportSettings) -> str:
+    """The OPM (KVN): the insertion state and the five impulses; see the module notes."""
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    vehicle = scenario.vehicle
+    day = plan.day
+    t_insertion = plan.launch.insertion_t_s
+    jd1, jd2 = _julian_dates(day, np.array([t_insertion]))
+    r, v = teme_to_eme2000(
+        jd1,
+        jd2,
+        np.asarray([plan.launch.insertion_r_eci_m], dtype=float),
+        np.asarray([plan.launch.insertion_v_eci_mps], dtype=float),
+    )
+    impulses = plan.impulses()
+    dv = np.array([np.linalg.norm(burn.eci) for burn in impulses])
+    exhaust_speed = vehicle.isp_s * scenario.earth.g0_m_s2
+    _, masses = burn_durations(dv, vehicle.mass_kg, vehicle.thrust_n, exhaust_speed)
+    burnt = masses * np.expm1(-dv / exhaust_speed)  # negative: the mass each impulse burns
+    lines = [
+        *_header("OPM", plan, settings),
+        "",
+        *_object(plan, settings),
+        "",
+        "COMMENT State vector: the insertion into the parking orbit",
+        f"EPOCH = {_epoch_text(day, t_insertion)}",
+        *(f"{key} = {value:.6f}" for key, value in zip(("X", "Y", "Z"), r[0] / 1e3, strict=True)),
+        *(
+            f"{key} = {value:.9f}"
+            for key, value in zip(("X_DOT", "Y_DOT", "Z_DOT"), v[0] / 1e3, strict=True)
+        ),
+        "",
+        "COMMENT Spacecraft parameters: the OV's wet mass in orbit (scenario vehicle.mass_kg)",
+        f"MASS = {vehicle.mass_kg:.6f}",
+    ]
+    for burn, delta_mass in zip(impulses, burnt, strict=True):
+        jd1, jd2 = _julian_dates(day, np.array([burn.t_s]))
+        dv_eme, _ = teme_to_eme2000(jd1, jd2, burn.eci[None, :], np.zeros((1, 3)))
+        lines += [
+            "",
+            f"COMMENT {burn.name}: impulsive, {float(np.linalg.norm(burn.eci)):.6f} m/s; mass "
+            f"burnt by the rocket equation, Isp {vehicle.isp_s:g} s",
+            f"MAN_EPOCH_IGNITION = {_epoch_text(day, burn.t_s)}",
+            "MAN_DURATION = 0.000",
+            f"MAN_DELTA_MASS = {delta_mass:.6f}",
+            f"MAN_REF_FRAME = {settings.ref_frame}",
+            *(f"MAN_DV_{k} = {value:.9f}" for k, value in enumerate(dv_eme[0] / 1e3, start=1)),
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def export_plan(
+    plan: MissionPlan, fmt: str, out: Path, settings: CcsdsExportSettings
+) -> tuple[Path, FlightReport | None]:
+    """Write the plan's ``fmt`` (``"oem"`` or ``"opm"``) message to ``out``.
+
+    Returns the path and, for the OEM, the replay that produced the trajectory. A file
+    already at ``out`` with other content is never replaced (:class:`PlanError`); a
+    replay that does not reach the terminal interface is refused with its reason.
+    """
+    if fmt not in FORMATS:
+        raise PlanError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    report = None
+    if fmt == "oem":
+        report, segments = replay_ephemeris(
+            plan, orbit_step_s=settings.orbit_step_s, entry_step_s=settings.entry_step_s
+        )
+        if not report.ok:
+            raise UnflownPlan(f"the plan does not fly to its terminal interface: {report.reason}")
+        text = oem_text(plan, segments, settings)
+    else:
+        text = opm_text(plan, settings)
+    out = Path(out)
+    payload = text.encode("ascii")
+    if out.exists() and out.read_bytes() != payload:
+        raise PlanError(f"{out}: another file is there; refusing to overwrite it")
+    try:
+        write_bytes(out, payload)
+    except StoreError as err:
+        raise PlanError(str(err)) from None
+    return out, report
