@@ -11,8 +11,15 @@ import pytest
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.propagation.reference import propagate_dop853
 from ovtraj.config import load_scenario
+from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.launch.fit import find_launch_fit
-from ovtraj.mission.chain import MissionContext, MissionDesign, evaluate
+from ovtraj.mission.chain import (
+    LaunchLeg,
+    MissionContext,
+    MissionDesign,
+    entry_state,
+    evaluate,
+)
 from ovtraj.mission.fly import fly_plan, format_flight_report
 from ovtraj.mission.plan import (
     MissionPlan,
@@ -205,6 +212,36 @@ def test_plan_holds_the_stages_results(plan, record, scenario):
         -bank.initial_sign * (-1) ** k for k in range(len(bank.reversals))
     ]
     assert plan.terminal.miss_distance_m == pytest.approx(row["miss_distance_km"] * 1e3)
+
+
+def test_stage_results_reach_the_plan_typed_and_the_entry_state_is_built_once(
+    record, plan, context
+):
+    from ovtraj.reentry import EntryState
+    from ovtraj.reentry.result import ReentryResult
+    from ovtraj.rendezvous.result import RendezvousResult
+
+    results = record.results
+    assert results.missing() == []
+    assert isinstance(results.launch, LaunchLeg)
+    assert isinstance(results.rendezvous, RendezvousResult)
+    assert isinstance(results.transfer, RendezvousResult)
+    assert isinstance(results.deorbit, DeorbitResult)
+    assert isinstance(results.entry, EntryState)
+    assert isinstance(results.reentry, ReentryResult)
+    # The hand-off the reentry flew from is the deorbit's, built by one function, and
+    # the plan holds exactly it.
+    assert entry_state(results.deorbit) == results.entry
+    entry = plan.reentry.entry
+    assert entry.latitude_deg == math.degrees(results.entry.latitude_rad)
+    assert entry.speed_mps == results.entry.speed_mps
+    assert entry.heading_deg == math.degrees(results.entry.heading_rad)
+    assert plan.launch.payload_kg == results.launch.payload_kg == record.m_load_kg
+    assert plan.launch.insertion_r_eci_m == tuple(results.launch.insertion_state[:3])
+    # A design that fails early has only the stages it reached.
+    failed = evaluate(context, INFEASIBLE)
+    assert failed.failed_stage == "rendezvous"
+    assert failed.results.missing() == ["transfer", "deorbit", "entry", "reentry"]
 
 
 def test_json_and_yaml_round_trip_and_no_overwrite(plan, tmp_path):

@@ -14,6 +14,10 @@ chain composes the stages; it never changes their results:
 5. deorbit (step 103) from the end of the transfer;
 6. reentry (step 104) from the deorbit's entry state.
 
+Each stage's result reaches the plan typed (:class:`StageResults`: the launch leg, the
+two rendezvous-type results, the deorbit, the entry state built once by
+:func:`entry_state`, the reentry).
+
 Totals: ``T_total`` from the drop to the terminal interface, ``dV_total`` the sum
 of every OV impulse (rendezvous 2, transfer 2, deorbit 1), ``M_load`` the payload.
 A stage failure ends the chain for the sample with the stage and its reason;
@@ -36,12 +40,14 @@ from ovtraj.astro.elements import orbital_period, rv_to_coe
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
+from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
 from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
-from ovtraj.rendezvous.result import RendezvousInput, TransferInput
+from ovtraj.reentry.result import ReentryResult
+from ovtraj.rendezvous.result import RendezvousInput, RendezvousResult, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
 from ovtraj.targets import circular_orbit_state, target_state
 
@@ -92,6 +98,53 @@ class MissionDesign:
         return {name: float(getattr(self, name)) for name in DESIGN_NAMES}
 
 
+@dataclass(frozen=True)
+class LaunchLeg:
+    """The launch as the chain takes it from the launch fit (patent 5.1): times [s from
+    the launch day's 0 h UTC], payload [kg], the insertion's argument of latitude [deg]
+    and the ECI state the OV starts from (circular mean orbit in the target's plane)."""
+
+    launcher: str
+    parking_altitude_m: float
+    payload_kg: float
+    flight_time_s: float
+    drop_time_s: float
+    insertion_time_s: float
+    insertion_u_deg: float
+    insertion_state: np.ndarray
+
+
+@dataclass
+class StageResults:
+    """Each stage's typed result, as the chain handed it on (``None``: not reached)."""
+
+    launch: LaunchLeg | None = None
+    rendezvous: RendezvousResult | None = None
+    transfer: RendezvousResult | None = None
+    deorbit: DeorbitResult | None = None
+    entry: EntryState | None = None  # the reentry's initial state, from the deorbit
+    reentry: ReentryResult | None = None
+
+    def missing(self) -> list[str]:
+        """The stages without a result."""
+        names = ("launch", "rendezvous", "transfer", "deorbit", "entry", "reentry")
+        return [name for name in names if getattr(self, name) is None]
+
+
+def entry_state(deorbit: DeorbitResult) -> EntryState:
+    """The reentry's initial state: the deorbit's Earth-relative state at the entry
+    interface (the one place the hand-off from the deorbit to the reentry is built)."""
+    return EntryState(
+        epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
+        latitude_rad=deorbit.entry_latitude_rad,
+        longitude_rad=deorbit.entry_longitude_rad,
+        altitude_m=deorbit.entry_altitude_m,
+        speed_mps=deorbit.entry_relative_speed_mps,
+        fpa_rad=deorbit.entry_relative_fpa_rad,
+        heading_rad=deorbit.entry_heading_rad,
+    )
+
+
 @dataclass
 class MissionRecord:
     """One evaluated design: each stage's own row, the totals and the trajectories."""
@@ -111,9 +164,9 @@ class MissionRecord:
     # timing, never stored with the results (benchmarks/mission.py).
     stage_time_s: dict[str, float] = field(default_factory=dict)
     _clock: float = field(default=0.0, repr=False)
-    # Each stage's result object and the launch dict (with the insertion state), for the
-    # mission plan (ovtraj.mission.plan); not persisted, not in totals().
-    results: dict[str, Any] = field(default_factory=dict)
+    # Each stage's typed result, for the mission plan (ovtraj.mission.plan); not
+    # persisted, not in totals().
+    results: StageResults = field(default_factory=StageResults)
 
     def totals(self) -> dict[str, Any]:
         return {
@@ -220,7 +273,16 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         element_set="mean",
         earth=earth,
     )
-    record.results["launch"] = {**launch, "drop_time_s": t_drop, "insertion_state": parked}
+    record.results.launch = LaunchLeg(
+        launcher=ctx.fit.launcher,
+        parking_altitude_m=design.parking_altitude_km * 1e3,
+        payload_kg=launch["payload_kg"],
+        flight_time_s=launch["flight_time_s"],
+        drop_time_s=t_drop,
+        insertion_time_s=t_ins,
+        insertion_u_deg=launch["insertion_u_deg"] % 360.0,
+        insertion_state=parked,
+    )
     record.stages["launch"] = {
         "source": "launch fit",
         "launcher": ctx.fit.launcher,
@@ -291,15 +353,8 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
         deorbit,
     )
     # 6. reentry from the deorbit's entry state
-    entry = EntryState(
-        epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
-        latitude_rad=deorbit.entry_latitude_rad,
-        longitude_rad=deorbit.entry_longitude_rad,
-        altitude_m=deorbit.entry_altitude_m,
-        speed_mps=deorbit.entry_relative_speed_mps,
-        fpa_rad=deorbit.entry_relative_fpa_rad,
-        heading_rad=deorbit.entry_heading_rad,
-    )
+    entry = entry_state(deorbit)
+    record.results.entry = entry
     reentry = solve_reentry(reentry_input(scenario, entry=entry))
     _keep(
         record,
@@ -327,7 +382,7 @@ def _keep(
     result: Any = None,
 ) -> None:
     record.stages[stage] = row
-    record.results[stage] = result
+    setattr(record.results, stage, result)
     record.trajectories[stage] = trajectory
     _lap(record, stage)
     if not feasible:

@@ -36,7 +36,13 @@ from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.files import write_bytes
 from ovtraj.launch.fit import LaunchFit
-from ovtraj.mission.chain import MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.mission.chain import (
+    MissionContext,
+    MissionDesign,
+    MissionRecord,
+    StageResults,
+    evaluate,
+)
 from ovtraj.records import json_text
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS
@@ -341,25 +347,21 @@ def plan_from_record(
             stage=record.failed_stage,
             reason=record.reason,
         )
-    missing = [
-        s
-        for s in ("launch", "rendezvous", "transfer", "deorbit", "reentry")
-        if s not in record.results
-    ]
+    results: StageResults = record.results
+    missing = results.missing()
     if missing:
         raise PlanError(f"the record lacks the stage results of {', '.join(missing)}")
     scenario = context.scenario
     day = context.day
-    results = record.results
-    rdv: RendezvousResult = results["rendezvous"]
-    transfer: RendezvousResult = results["transfer"]
-    deorbit: DeorbitResult = results["deorbit"]
-    reentry: ReentryResult = results["reentry"]
+    rdv: RendezvousResult = results.rendezvous
+    transfer: RendezvousResult = results.transfer
+    deorbit: DeorbitResult = results.deorbit
+    reentry: ReentryResult = results.reentry
+    entry_state: EntryState = results.entry
     launch = _launch_plan(context, record)
     t_prep = transfer.arrival_time_s
     t_entry = t_prep + deorbit.entry_t_s
     t_terminal = t_entry + reentry.flight_time_s
-    entry_state = _entry_state(deorbit)
     settings = scenario.reentry
     plan_settings = scenario.mission.plan
     site = settings.landing_site
@@ -488,23 +490,23 @@ def _impulse(name: str, burn: Impulse, day: Epoch) -> dict[str, Any]:
 
 
 def _launch_plan(context: MissionContext, record: MissionRecord) -> dict[str, Any]:
-    launch = record.results["launch"]
+    launch = record.results.launch
     day = context.day
-    t_ins = launch["insertion_time_s"]
-    t_drop = launch["drop_time_s"]
-    state = np.asarray(launch["insertion_state"], dtype=float)
-    altitude_m = record.design.parking_altitude_km * 1e3
+    t_ins = launch.insertion_time_s
+    t_drop = launch.drop_time_s
+    state = np.asarray(launch.insertion_state, dtype=float)
+    altitude_m = launch.parking_altitude_m
     return {
         "source": "launch fit (patent 5.1): payload, times and insertion argument of latitude",
-        "launcher": context.fit.launcher,
+        "launcher": launch.launcher,
         "drop_epoch_utc": _iso(day, t_drop),
         "drop_t_s": t_drop,
         "insertion_epoch_utc": _iso(day, t_ins),
         "insertion_t_s": t_ins,
-        "flight_time_s": launch["flight_time_s"],
+        "flight_time_s": launch.flight_time_s,
         "parking_altitude_m": altitude_m,
-        "payload_kg": launch["payload_kg"],
-        "insertion_arg_latitude_deg": launch["insertion_u_deg"] % 360.0,
+        "payload_kg": launch.payload_kg,
+        "insertion_arg_latitude_deg": launch.insertion_u_deg,
         "plane_inclination_deg": math.degrees(context.plane.inclination_rad),
         "plane_raan_deg": math.degrees(context.plane.raan_at(t_ins)) % 360.0,
         "insertion_r_eci_m": _vector(state[:3]),
@@ -547,19 +549,6 @@ def launch_programme(fit: LaunchFit, altitude_m: float) -> dict[str, Any] | None
         "below": below,
         "above": above,
     }
-
-
-def _entry_state(deorbit: DeorbitResult) -> EntryState:
-    """The entry state the chain hands to the reentry (as ``chain._run`` builds it)."""
-    return EntryState(
-        epoch=deorbit.epoch.plus_seconds(deorbit.entry_t_s),
-        latitude_rad=deorbit.entry_latitude_rad,
-        longitude_rad=deorbit.entry_longitude_rad,
-        altitude_m=deorbit.entry_altitude_m,
-        speed_mps=deorbit.entry_relative_speed_mps,
-        fpa_rad=deorbit.entry_relative_fpa_rad,
-        heading_rad=deorbit.entry_heading_rad,
-    )
 
 
 def _bank_profile(
