@@ -38,9 +38,12 @@ def scenario():
 
 
 @pytest.fixture(scope="module")
-def plan(scenario):
+def plan(scenario, tmp_path_factory):
     context = MissionContext(scenario, find_launch_fit(scenario))
-    return build_plan(context, FEASIBLE, source={"run_id": "test", "front_index": 0})
+    cache = tmp_path_factory.mktemp("launch_solves")
+    return build_plan(
+        context, FEASIBLE, source={"run_id": "test", "front_index": 0}, launch_cache=cache
+    )
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +86,16 @@ def test_oem_reads_back_with_its_metadata_and_the_replayed_states(oem_file, plan
     message = OrbitEphemerisMessage.open(oem_file)
     assert message.version == "2.0"
     read = message.segments
-    assert len(read) == len(segments) >= 7  # 5 impulses, the entry interface, reversals
+    # The ascent's phases, 5 impulses, the entry interface, the bank reversals.
+    assert len(read) == len(segments) >= 13
+    assert [s.name for s in segments[:6]] == [
+        "ascent: free fall",
+        "ascent: stage 1 burn",
+        "ascent: separation coast",
+        "ascent: stage 2 burn",
+        "ascent: coast",
+        "ascent: stage 3 burn",
+    ]
     scenario_vehicle = plan.scenario["vehicle"]["name"]
     for segment, ours in zip(read, segments, strict=True):
         meta = segment.metadata
@@ -103,7 +115,7 @@ def test_oem_reads_back_with_its_metadata_and_the_replayed_states(oem_file, plan
         assert np.max(np.abs(r_teme - ours.r_eci_m)) < 1e-3
         assert np.max(np.abs(v_teme - ours.v_eci_mps)) < 1e-6
     first, last = next(iter(read[0].states)), list(read[-1].states)[-1]
-    assert _seconds(first.epoch, plan) == pytest.approx(plan.launch.insertion_t_s, abs=2e-6)
+    assert _seconds(first.epoch, plan) == pytest.approx(plan.launch.drop_t_s, abs=2e-6)
     assert _seconds(last.epoch, plan) == pytest.approx(report.terminal["t_s"], abs=2e-6)
     # The last state is the replay's terminal point: its altitude over the sphere.
     altitude = np.linalg.norm(last.position) * 1e3 - scenario.earth.radius
@@ -125,7 +137,9 @@ def test_the_declared_interpolation_reproduces_the_trajectory_between_samples(
     worst_position, worst_velocity = {}, {}
     for segment, dense in zip(message.segments, fine, strict=True):
         epochs = [s.epoch for s in segment.states]
-        if len(epochs) < 4:
+        # The ascent's segments hold the launch integrator's own RK4 step points: there is
+        # no finer flight of the same discretisation to compare with between them.
+        if len(epochs) < 4 or dense.name.startswith("ascent:"):
             continue
         middle = dense.t_s[1:-1:2][: len(epochs) - 1]
         jd1, jd2 = plan.day.jd1 + 0 * middle, plan.day.jd2 + middle / 86400.0
@@ -182,12 +196,20 @@ def test_opm_reads_back_with_the_five_impulses_and_the_rocket_equation(
         assert burn.man_ref_frame == "EME2000" and burn.man_duration.value == 0.0
         dv = np.array([burn.man_dv_1.value, burn.man_dv_2.value, burn.man_dv_3.value]) * 1e3
         assert np.linalg.norm(dv) == pytest.approx(np.linalg.norm(ours.eci), abs=1e-6)
-        # The delta-v is the planned one rotated into EME2000 at the burn's epoch: close
-        # to it (precession since J2000 is ~0.37 deg) but not equal.
+        # The delta-v is the planned one rotated into EME2000 at the burn's own epoch (to
+        # the file's 1e-9 km/s digits); the rotation since J2000 is under 0.5 deg.
+        seconds = np.array([ours.t_s])
+        expected, _ = teme_to_eme2000(
+            plan.day.jd1 + np.floor(seconds / 86400.0),
+            plan.day.jd2 + np.mod(seconds, 86400.0) / 86400.0,
+            ours.eci[None, :],
+            np.zeros((1, 3)),
+        )
+        assert np.max(np.abs(dv - expected[0])) < 1e-6
         angle = math.degrees(
             math.acos(np.dot(dv, ours.eci) / (np.linalg.norm(dv) * np.linalg.norm(ours.eci)))
         )
-        assert 0.2 < angle < 0.5
+        assert 0.0 < angle < 0.5
         assert burn.man_delta_mass.value < 0.0
     # Sequential masses burnt sum to the rocket equation on the total delta-v.
     total_dv = sum(float(np.linalg.norm(b.eci)) for b in planned)

@@ -11,6 +11,7 @@ import pytest
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.propagation.reference import propagate_dop853
 from ovtraj.config import load_scenario
+from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission.chain import (
@@ -25,6 +26,7 @@ from ovtraj.mission.plan import (
     MissionPlan,
     PlanError,
     build_plan,
+    plan_and_record,
     plan_json,
     read_plan,
     write_plan,
@@ -49,15 +51,27 @@ def context(scenario):
 
 
 @pytest.fixture(scope="module")
-def record(context):
-    record = evaluate(context, FEASIBLE)
+def launch_cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("launch_solves")
+
+
+@pytest.fixture(scope="module")
+def planned(context, launch_cache):
+    return plan_and_record(
+        context, FEASIBLE, source={"run_id": "test", "front_index": 3}, launch_cache=launch_cache
+    )
+
+
+@pytest.fixture(scope="module")
+def record(planned):
+    record = planned[1]
     assert record.feasible, record.reason
     return record
 
 
 @pytest.fixture(scope="module")
-def plan(context):
-    return build_plan(context, FEASIBLE, source={"run_id": "test", "front_index": 3})
+def plan(planned):
+    return planned[0]
 
 
 @pytest.fixture(scope="module")
@@ -189,7 +203,7 @@ def test_local_frame_impulses_agree_with_the_eci_ones(plan, burn_states):
     assert plan.deorbit.burn.dv_along_track_mps < -0.99 * plan.deorbit.burn.dv_mps
 
 
-def test_plan_holds_the_stages_results(plan, record, scenario):
+def test_plan_holds_the_stages_results(plan, record, scenario, context):
     assert plan.source == {"run_id": "test", "front_index": 3}
     assert plan.scenario == scenario.resolved()
     launch = record.stages["launch"]
@@ -198,9 +212,11 @@ def test_plan_holds_the_stages_results(plan, record, scenario):
     r = np.linalg.norm(plan.launch.insertion_r_eci_m) - scenario.earth.radius
     assert r == pytest.approx(FEASIBLE.parking_altitude_km * 1e3, abs=15e3)  # osculating
     programme = plan.launch.programme
-    for name, value in programme.variables.items():
-        lo, hi = sorted((programme.below[name], programme.above[name]))
-        assert lo <= value <= hi
+    assert set(programme.variables) == set(DESIGN_VARIABLES)
+    # The solved launch lies on the fit's branch: its payload within the fit's error.
+    fit = context.fit.evaluate(FEASIBLE.parking_altitude_km * 1e3)
+    assert plan.launch.payload_kg == pytest.approx(fit["payload_kg"], abs=0.05)
+    assert plan.launch.flight_time_s == pytest.approx(fit["flight_time_s"], abs=2.0)
     bank = plan.reentry.bank_profile
     row = record.stages["reentry"]
     assert len(bank.reversals) == row["reversals"]
@@ -244,6 +260,73 @@ def test_stage_results_reach_the_plan_typed_and_the_entry_state_is_built_once(
     assert failed.results.missing() == ["transfer", "deorbit", "entry", "reentry"]
 
 
+def test_the_plan_starts_at_the_drop_and_the_replay_flies_the_ascent(plan, replay, scenario):
+    launch = plan.launch
+    drop = launch.drop
+    earth = scenario.earth
+    # The drop state: the configured release point, Mach and path angle on the drop epoch.
+    assert drop.t_s == launch.drop_t_s and drop.epoch_utc == launch.drop_epoch_utc
+    r = np.asarray(drop.r_eci_m)
+    assert np.linalg.norm(r) - earth.radius == pytest.approx(drop.altitude_m, abs=1e-6)
+    assert drop.altitude_m == scenario.launch.drop.altitude_km * 1e3
+    theta = plan.day.gmst_rad() + earth.omega * drop.t_s
+    lon_fixed = math.atan2(r[1], r[0]) - theta
+    lat = math.asin(r[2] / np.linalg.norm(r))
+    assert math.degrees(lat) == pytest.approx(drop.latitude_deg, abs=1e-9)
+    wrapped = (math.degrees(lon_fixed) - drop.longitude_deg + 180.0) % 360.0 - 180.0
+    assert wrapped == pytest.approx(0.0, abs=1e-9)
+    v_rel = np.asarray(drop.v_eci_mps) - earth.omega * np.array([-r[1], r[0], 0.0])
+    from ovtraj.astro.atmosphere import default_atmosphere
+
+    sound = default_atmosphere().speed_of_sound(drop.altitude_m)
+    assert np.linalg.norm(v_rel) == pytest.approx(drop.mach * sound, rel=1e-3)  # table
+    assert launch.drop_t_s + launch.flight_time_s == pytest.approx(launch.insertion_t_s)
+    # The replay starts there: the programme flown again reaches the plan's insertion.
+    assert replay.start == "drop"
+    insertion = replay.insertion
+    assert insertion["position_difference_m"] < 1e-6
+    assert insertion["velocity_difference_mps"] < 1e-9
+    assert insertion["time_difference_s"] == 0.0
+    assert insertion["payload_kg"] == pytest.approx(launch.payload_kg)
+    for name in ("ascent_max_dynamic_pressure_pa", "ascent_max_axial_load_g"):
+        check = replay.checks[name]
+        assert check.ok and check.value > 0.0
+    assert replay.checks["ascent_max_dynamic_pressure_pa"].value == pytest.approx(
+        launch.max_dynamic_pressure_pa, rel=1e-9
+    )
+
+
+def test_a_programme_the_scenario_does_not_fly_fails_the_replay(plan):
+    data = plan.to_dict()
+    data["launch"]["programme"]["azimuth_deg"] += 1.0
+    report = fly_plan(MissionPlan.model_validate(data))
+    assert not report.ok and "azimuth" in report.reason
+
+
+def test_the_solved_launch_is_cached_by_its_inputs_and_checked_when_read(
+    context, launch_cache, plan, monkeypatch
+):
+    from ovtraj.launch import exact
+
+    (stored,) = [p for p in launch_cache.iterdir() if p.is_dir()]
+    assert sorted(f.name for f in stored.iterdir()) == ["launch.json", "meta.json"]
+    row = json.loads((stored / "launch.json").read_text())
+    assert "wall_time_s" not in row and "slsqp_time_s" not in row  # no timing stored
+
+    def no_solve(*_args, **_kwargs):
+        raise AssertionError("the cached launch was solved again")
+
+    monkeypatch.setattr(exact, "solve_launch_at", no_solve)
+    again = build_plan(
+        context, FEASIBLE, source={"run_id": "test", "front_index": 3}, launch_cache=launch_cache
+    )
+    assert again == plan
+    # A changed cache file is refused naming it; nothing is solved over it.
+    (stored / "launch.json").write_text(json.dumps({**row, "payload_kg": 999.0}))
+    with pytest.raises(PlanError, match=r"launch\.json"):
+        build_plan(context, FEASIBLE, source={}, launch_cache=launch_cache)
+
+
 def test_json_and_yaml_round_trip_and_no_overwrite(plan, tmp_path):
     json_path, yaml_path = write_plan(plan, tmp_path, "chosen")
     assert read_plan(json_path) == plan
@@ -280,9 +363,9 @@ def test_read_plan_names_the_file_and_the_field(plan, tmp_path):
         read_plan(old)
 
 
-def test_infeasible_design_raises_naming_the_stage(context):
+def test_infeasible_design_raises_naming_the_stage(context, launch_cache):
     with pytest.raises(PlanError, match="rendezvous") as err:
-        build_plan(context, INFEASIBLE, source={})
+        build_plan(context, INFEASIBLE, source={}, launch_cache=launch_cache)
     assert err.value.stage == "rendezvous"
     assert "wait" in err.value.reason
 

@@ -41,6 +41,7 @@ from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.deorbit.result import DeorbitResult
+from ovtraj.launch.exact import SolvedLaunch
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
@@ -104,6 +105,7 @@ class LaunchLeg:
     the launch day's 0 h UTC], payload [kg], the insertion's argument of latitude [deg]
     and the ECI state the OV starts from (circular mean orbit in the target's plane)."""
 
+    source: str  # "launch fit" or "solved launch" (ovtraj.launch.exact)
     launcher: str
     parking_altitude_m: float
     payload_kg: float
@@ -241,12 +243,19 @@ class MissionContext:
         return result.state
 
 
-def evaluate(context: MissionContext, design: MissionDesign) -> MissionRecord:
-    """Run the chain for one design; see the module notes."""
+def evaluate(
+    context: MissionContext, design: MissionDesign, *, launch: SolvedLaunch | None = None
+) -> MissionRecord:
+    """Run the chain for one design; see the module notes.
+
+    ``launch``: the launch solved at the design's parking altitude
+    (:func:`ovtraj.launch.exact.cached_launch_at`) instead of the launch fit: the OV
+    then starts from the solved ascent's insertion state, not the idealised circular one.
+    """
     start = time.perf_counter()
     record = MissionRecord(design=design, _clock=start)
     try:
-        _run(context, design, record)
+        _run(context, design, record, launch)
         record.feasible = True
     except _StageFailed as failure:
         record.failed_stage, record.reason = failure.stage, failure.reason
@@ -254,43 +263,77 @@ def evaluate(context: MissionContext, design: MissionDesign) -> MissionRecord:
     return record
 
 
-def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> None:
-    scenario = ctx.scenario
-    earth = scenario.earth
-    # 2. launch from the fit
+def _launch_leg(
+    ctx: MissionContext, design: MissionDesign, solved: SolvedLaunch | None
+) -> LaunchLeg:
+    """The launch from the fit (idealised circular insertion), or the solved one."""
+    altitude_m = design.parking_altitude_km * 1e3
+    if solved is not None:
+        if not solved.feasible:
+            raise _StageFailed("launch", solved.reason or "the solved launch is infeasible")
+        if abs(solved.altitude_m - altitude_m) > 1e-6:
+            raise _StageFailed(
+                "launch",
+                f"the solved launch aims at {solved.altitude_m / 1e3:.6f} km, the design's "
+                f"parking altitude is {design.parking_altitude_km:.6f} km",
+            )
+        return LaunchLeg(
+            source="solved launch",
+            launcher=ctx.fit.launcher,
+            parking_altitude_m=altitude_m,
+            payload_kg=solved.value("payload_kg"),
+            flight_time_s=solved.value("flight_time_s"),
+            drop_time_s=solved.value("drop_time_s"),
+            insertion_time_s=solved.value("insertion_time_s"),
+            insertion_u_deg=solved.value("insertion_u_deg") % 360.0,
+            insertion_state=solved.insertion_state,
+        )
     try:
-        launch = ctx.fit.evaluate(design.parking_altitude_km * 1e3)
+        launch = ctx.fit.evaluate(altitude_m)
     except FourierRangeError as err:
         raise _StageFailed("launch", str(err)) from None
     t_ins = launch["insertion_time_s"]
-    t_drop = t_ins - launch["flight_time_s"]
-    u = math.radians(launch["insertion_u_deg"])
     parked = circular_orbit_state(
-        design.parking_altitude_km * 1e3,
+        altitude_m,
         ctx.plane.inclination_rad,
         ctx.plane.raan_at(t_ins),
-        u,
+        math.radians(launch["insertion_u_deg"]),
         element_set="mean",
-        earth=earth,
+        earth=ctx.scenario.earth,
     )
-    record.results.launch = LaunchLeg(
+    return LaunchLeg(
+        source="launch fit",
         launcher=ctx.fit.launcher,
-        parking_altitude_m=design.parking_altitude_km * 1e3,
+        parking_altitude_m=altitude_m,
         payload_kg=launch["payload_kg"],
         flight_time_s=launch["flight_time_s"],
-        drop_time_s=t_drop,
+        drop_time_s=t_ins - launch["flight_time_s"],
         insertion_time_s=t_ins,
         insertion_u_deg=launch["insertion_u_deg"] % 360.0,
         insertion_state=parked,
     )
+
+
+def _run(
+    ctx: MissionContext,
+    design: MissionDesign,
+    record: MissionRecord,
+    solved: SolvedLaunch | None = None,
+) -> None:
+    scenario = ctx.scenario
+    earth = scenario.earth
+    # 2. launch from the fit (or the solved launch)
+    leg = _launch_leg(ctx, design, solved)
+    t_ins, t_drop, parked = leg.insertion_time_s, leg.drop_time_s, leg.insertion_state
+    record.results.launch = leg
     record.stages["launch"] = {
-        "source": "launch fit",
-        "launcher": ctx.fit.launcher,
+        "source": leg.source,
+        "launcher": leg.launcher,
         "parking_altitude_km": design.parking_altitude_km,
-        "payload_kg": launch["payload_kg"],
+        "payload_kg": leg.payload_kg,
         "drop_time_s": t_drop,
         "insertion_time_s": t_ins,
-        "insertion_u_deg": launch["insertion_u_deg"] % 360.0,
+        "insertion_u_deg": leg.insertion_u_deg,
         "drop_epoch_utc": ctx.day.plus_seconds(t_drop).iso(),
         "insertion_epoch_utc": ctx.day.plus_seconds(t_ins).iso(),
         "feasible": True,
@@ -369,7 +412,7 @@ def _run(ctx: MissionContext, design: MissionDesign, record: MissionRecord) -> N
     t_terminal = t_prep + deorbit.entry_t_s + reentry.flight_time_s
     record.t_total_s = t_terminal - t_drop
     record.dv_total_mps = rdv.dv_total_mps + transfer.dv_total_mps + deorbit.dv_mps
-    record.m_load_kg = launch["payload_kg"]
+    record.m_load_kg = leg.payload_kg
 
 
 def _keep(

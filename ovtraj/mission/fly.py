@@ -1,8 +1,13 @@
 """Replay of a mission plan through the dynamics, independently of the solvers (SPEC step 6).
 
-:func:`fly_plan` starts from the plan's insertion state and flies every planned
-manoeuvre open-loop, with nothing but the plan (its resolved scenario included):
+:func:`fly_plan` starts at the carrier's drop and flies every planned manoeuvre
+open-loop, with nothing but the plan (its resolved scenario included):
 
+0. the ascent from the drop to insertion: the plan's ten programme variables through
+   the launch stage's own 3-DOF model and fixed-step RK4 (``ovtraj.launch.ascent``,
+   whose scheme ``tests/test_launch_dynamics.py`` checks against DOP853), timed from
+   the plan's drop epoch; the insertion it reaches is compared with the plan's, and
+   the orbital phase continues from the flown insertion, not the planned one;
 1. orbital arcs under point-mass + J2 gravity, integrated with scipy's DOP853 on a
    right-hand side written here (the chain uses heyoka's Taylor integrator and the
    shared gravity module); each planned ECI impulse is added at its epoch
@@ -44,8 +49,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.frames import ecef_to_eci_state, spherical_to_ecef_state
+from ovtraj.astro.frames import ecef_to_eci, ecef_to_eci_state, spherical_to_ecef_state
 from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.launch.ascent import simulate
+from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
+from ovtraj.launch.inputs import launch_input
+from ovtraj.launch.stage import launch_problem
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
 from ovtraj.records import plain
 from ovtraj.reentry import EntryState, reentry_input
@@ -55,6 +65,8 @@ from ovtraj.targets import target_state
 from ovtraj.version import code_version
 
 INTEGRATORS = (
+    "ascent: the launch stage's 3-DOF model and fixed-step RK4 (ovtraj.launch.ascent) from "
+    "the drop with the plan's programme; "
     "orbit: scipy DOP853 on this module's J2 right-hand side (chain: heyoka Taylor); "
     "entry: scipy DOP853 between the planned bank reversals, open-loop (chain: fixed-step "
     "RK4 with the heading-corridor reversal logic)"
@@ -94,6 +106,7 @@ class FlightReport:
     reason: str | None
     landed_within_stated_miss: bool
     stated_miss_m: float | None
+    start: str = "drop"  # where the replay starts: the carrier's drop
     miss_distance_m: float | None = None  # from the landing site
     predicted_miss_distance_m: float | None = None  # the plan's
     prediction_distance_m: float | None = None  # from the plan's predicted terminal point
@@ -101,6 +114,9 @@ class FlightReport:
     matches_prediction: bool = False
     terminal_status: str | None = None
     terminal: dict[str, Any] | None = None
+    # The flown ascent's insertion against the plan's (position, velocity, time, altitude,
+    # speed): what the open-loop orbital phase inherits.
+    insertion: dict[str, Any] | None = None
     entry: dict[str, Any] | None = None
     entry_time_difference_s: float | None = None  # replay minus plan
     entry_position_difference_m: float | None = None
@@ -499,9 +515,11 @@ def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None 
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
     floor_m = scenario.limits.min_perigee_altitude_km * 1e3
 
-    # 1. orbital arcs from the insertion state, each planned impulse at its epoch
-    state = np.r_[plan.launch.insertion_r_eci_m, plan.launch.insertion_v_eci_mps].astype(float)
-    t = plan.launch.insertion_t_s
+    # 0. the ascent from the drop to insertion
+    state, t = _fly_ascent(plan, scenario, report)
+    if recorder is not None:
+        _record_ascent(plan, scenario, recorder)
+    # 1. orbital arcs from the flown insertion, each planned impulse at its epoch
     perigee = _perigee_altitude(state, earth.mu, earth.radius)
     lowest = _altitude(state, earth.radius)
     impulses = plan.impulses()
@@ -678,6 +696,101 @@ def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None 
     report.ok = True
 
 
+def _ascent(plan: MissionPlan, scenario: Scenario) -> tuple[Any, Any, np.ndarray]:
+    """The launch problem of the plan's parking altitude, its model and the SI design row."""
+    inp = launch_input(scenario, altitude_km=plan.launch.parking_altitude_m / 1e3)
+    problem = launch_problem(inp)
+    programme = plan.launch.programme
+    missing = [name for name in DESIGN_VARIABLES if name not in programme.variables]
+    if missing:
+        raise ReplayFailed(f"the plan's launch programme lacks {', '.join(missing)}")
+    values = np.array([programme.variables[name] for name in DESIGN_VARIABLES])
+    design = problem.to_si(problem.to_scaled(values))
+    azimuth_difference = math.degrees(float(design[0, 0])) - programme.azimuth_deg
+    if abs(azimuth_difference) > 1e-9:
+        raise ReplayFailed(
+            f"the programme's azimuth differs from the plan's by {azimuth_difference:.3g} deg: "
+            "the plan's scenario does not pose the launch it was solved for"
+        )
+    return inp, problem.model, design
+
+
+def _fly_ascent(
+    plan: MissionPlan, scenario: Scenario, report: FlightReport
+) -> tuple[np.ndarray, float]:
+    """Fly the plan's programme from the drop: the ECI state and time of insertion."""
+    earth = scenario.earth
+    inp, model, design = _ascent(plan, scenario)
+    outcome = simulate(model, design)
+    if bool(outcome.crashed[0]):
+        raise ReplayFailed("the replayed ascent hits the ground before insertion")
+    t_ins = plan.launch.drop_t_s + float(outcome.time_s[0])
+    theta = plan.day.gmst_rad() + earth.omega * t_ins
+    r = np.asarray(ecef_to_eci(outcome.r_ecef[0], theta), dtype=float)
+    v = np.asarray(ecef_to_eci(outcome.v_inertial_ecef_axes[0], theta), dtype=float)
+    r_plan = np.asarray(plan.launch.insertion_r_eci_m, dtype=float)
+    v_plan = np.asarray(plan.launch.insertion_v_eci_mps, dtype=float)
+    report.insertion = {
+        "t_s": t_ins,
+        "time_difference_s": t_ins - plan.launch.insertion_t_s,
+        "position_difference_m": float(np.linalg.norm(r - r_plan)),
+        "velocity_difference_mps": float(np.linalg.norm(v - v_plan)),
+        "altitude_difference_m": float(np.linalg.norm(r) - np.linalg.norm(r_plan)),
+        "speed_difference_mps": float(np.linalg.norm(v) - np.linalg.norm(v_plan)),
+        "payload_kg": float(outcome.payload_kg[0]),
+    }
+    limits = inp.launcher.limits
+    slack = 1.0 + inp.tolerances.path_limit_fraction
+    q_max = float(outcome.max_dynamic_pressure_pa[0])
+    load_max = float(outcome.max_axial_load_g[0])
+    q_limit = limits.max_dynamic_pressure_kpa * 1e3
+    report.checks["ascent_max_dynamic_pressure_pa"] = LimitCheck(
+        q_max,
+        q_limit,
+        f"Pa (counts as within up to a fraction {slack - 1:g} over it)",
+        q_max <= q_limit * slack,
+    )
+    report.checks["ascent_max_axial_load_g"] = LimitCheck(
+        load_max,
+        limits.max_axial_load_g,
+        f"g (counts as within up to a fraction {slack - 1:g} over it)",
+        load_max <= limits.max_axial_load_g * slack,
+    )
+    return np.r_[r, v], t_ins
+
+
+def _record_ascent(plan: MissionPlan, scenario: Scenario, recorder: _Recorder) -> None:
+    """The ascent as ephemeris segments in ECI, one per phase (free fall, each burn and
+    coast: no segment spans a thrust discontinuity), at the RK4 step points, each
+    segment ending where the next phase starts."""
+    earth = scenario.earth
+    _, model, design = _ascent(plan, scenario)
+    outcome = simulate(model, design, keep_history=True)
+    axes = launch_frame_axes(model.drop.latitude_rad, model.drop.longitude_rad, float(design[0, 0]))
+    history = outcome.history
+    t_flight = np.array([float(h["t"][0]) for h in history])
+    states = np.array([np.asarray(h["y"])[:6, 0] for h in history])
+    r_ecef, v_ecef = launch_to_ecef(states[:, :3], states[:, 3:6], axes, radius_m=earth.radius)
+    t_abs = plan.launch.drop_t_s + t_flight
+    theta = plan.day.gmst_rad() + earth.omega * t_abs
+    r_eci, v_eci = ecef_to_eci_state(r_ecef, v_ecef, theta, omega=earth.omega)
+    starts = [
+        k for k in range(len(history)) if k == 0 or history[k]["phase"] != history[k - 1]["phase"]
+    ]
+    ends = [*starts[1:], len(history)]
+    for first, end in zip(starts, ends, strict=True):
+        # A phase's samples, and the next phase's first one when it is later (a phase's
+        # last sample and the next one's first may be the same instant).
+        points = list(range(first, end))
+        if end < len(history) and t_abs[end] > t_abs[points[-1]]:
+            points.append(end)
+        points = np.asarray(points)
+        points = points[np.r_[True, np.diff(t_abs[points]) > 0.0]]
+        recorder.add(
+            f"ascent: {history[first]['phase']}", t_abs[points], r_eci[points], v_eci[points]
+        )
+
+
 def _apply(burn: PlannedImpulse, state: np.ndarray) -> BurnReplay:
     rsw = _rsw(burn.eci, state)
     return BurnReplay(
@@ -713,11 +826,19 @@ def format_flight_report(report: FlightReport) -> str:
         else "NOT within the stated miss"
     )
     lines = [
-        f"replay: {'completed' if report.ok else 'FAILED'}; {verdict}"
+        f"replay from the {report.start}: {'completed' if report.ok else 'FAILED'}; {verdict}"
         + ("" if report.passed or not report.ok else " (but a check failed, see below)"),
     ]
     if report.reason:
         lines.append(f"  reason: {report.reason}")
+    if report.insertion:
+        i = report.insertion
+        lines.append(
+            f"  insertion vs plan: {i['position_difference_m']:.3g} m, "
+            f"{i['velocity_difference_mps']:.3g} m/s, {i['time_difference_s']:.3g} s "
+            f"(altitude {i['altitude_difference_m']:.3g} m, "
+            f"speed {i['speed_difference_mps']:.3g} m/s)"
+        )
     lines.append(
         f"  miss from the landing site: {num(report.miss_distance_m, '.3f', 1e-3)} km "
         f"(stated {num(report.stated_miss_m, '.3f', 1e-3)} km; plan predicted "

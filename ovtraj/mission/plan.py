@@ -1,8 +1,10 @@
 """The mission plan (SPEC step 6, the patent's step 106): every manoeuvre of a chosen design.
 
-:func:`build_plan` evaluates the whole-mission chain for one design and turns its
-stage results into a :class:`MissionPlan`: the launch (fit outputs, insertion
-state, the launch programme interpolated from the solved grid), each impulse with
+:func:`build_plan` solves the launch at the design's parking altitude
+(:func:`ovtraj.launch.exact.cached_launch_at`: the stage's own optimisation, cached by
+its inputs), evaluates the whole-mission chain from that launch and turns the stage
+results into a :class:`MissionPlan`: the launch (the ten programme variables, the drop
+epoch and state, the solved insertion state and the ascent's path maxima), each impulse with
 its epoch in ECI and in the local RSW frame, the stay, the deorbit burn, the
 reentry's entry state and bank profile (with the bank reversals, so it can be
 re-flown open-loop), the predicted terminal state, the totals, the resolved
@@ -32,10 +34,10 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import format_validation_error
-from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
-from ovtraj.files import write_bytes
-from ovtraj.launch.fit import LaunchFit
+from ovtraj.files import StoreError, write_bytes
+from ovtraj.launch.exact import SolvedLaunch, cached_launch_at, drop_state
+from ovtraj.launch.inputs import launch_input
 from ovtraj.mission.chain import (
     MissionContext,
     MissionDesign,
@@ -52,14 +54,11 @@ from ovtraj.rendezvous.result import Impulse, RendezvousResult
 from ovtraj.storage import location
 from ovtraj.version import code_version
 
-SCHEMA_VERSION = "ovtraj.mission-plan/1"
+SCHEMA_VERSION = "ovtraj.mission-plan/2"
 Vector3 = tuple[float, float, float]
 _BANK = HISTORY_COLUMNS.index("bank_rad")
 _TIME = HISTORY_COLUMNS.index("time_s")
 _SPEED = HISTORY_COLUMNS.index("speed_mps")
-# The launch programme: the ten design variables of the launch (patent step 101), as the
-# solved grid stores them (``design_<name>``), plus the absolute launch azimuth.
-PROGRAMME_VARIABLES = DESIGN_VARIABLES
 
 
 class PlanError(ValueError):
@@ -102,19 +101,30 @@ class PlannedImpulse(_Model):
 
 
 class LaunchProgramme(_Model):
-    """The launch's ten programme variables at the parking altitude (not a solved launch).
+    """The launch's ten programme variables (patent step 101) solved at the parking altitude.
 
-    The launch fit (patent 5.1) gives payload, times and argument of latitude only;
-    the programme is interpolated linearly in altitude between the two solved grid
-    launches that bracket the parking altitude (both given too).
+    ``variables``: the stage's design variables in configuration units (``docs/launch.md``);
+    ``azimuth_deg``: the absolute launch azimuth from north they imply.
     """
 
     basis: str
-    altitude_below_m: float
-    altitude_above_m: float
     variables: dict[str, float]
-    below: dict[str, float]
-    above: dict[str, float]
+    azimuth_deg: float
+    opportunity: str
+
+
+class DropPlan(_Model):
+    """The carrier's release: where and how the ascent starts."""
+
+    epoch_utc: str
+    t_s: float
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+    mach: float
+    fpa_deg: float
+    r_eci_m: Vector3
+    v_eci_mps: Vector3
 
 
 class LaunchPlan(_Model):
@@ -132,7 +142,10 @@ class LaunchPlan(_Model):
     plane_raan_deg: float
     insertion_r_eci_m: Vector3
     insertion_v_eci_mps: Vector3
-    programme: LaunchProgramme | None
+    programme: LaunchProgramme
+    drop: DropPlan
+    max_dynamic_pressure_pa: float
+    max_axial_load_g: float
 
 
 class RendezvousPlan(_Model):
@@ -268,7 +281,7 @@ class PlanDesign(_Model):
 class MissionPlan(_Model):
     """A flyable mission plan; see the module notes for units and epochs."""
 
-    schema_version: Literal["ovtraj.mission-plan/1"]
+    schema_version: Literal["ovtraj.mission-plan/2"]
     code_version: str
     source: dict[str, Any]
     design: PlanDesign
@@ -311,22 +324,38 @@ class MissionPlan(_Model):
 
 
 def build_plan(
-    context: MissionContext, design: MissionDesign, *, source: dict[str, Any]
+    context: MissionContext,
+    design: MissionDesign,
+    *,
+    source: dict[str, Any],
+    launch_cache: Path | None = None,
 ) -> MissionPlan:
     """Evaluate the chain for ``design`` and return its plan (see :func:`plan_and_record`)."""
-    return plan_and_record(context, design, source=source)[0]
+    return plan_and_record(context, design, source=source, launch_cache=launch_cache)[0]
 
 
 def plan_and_record(
-    context: MissionContext, design: MissionDesign, *, source: dict[str, Any]
+    context: MissionContext,
+    design: MissionDesign,
+    *,
+    source: dict[str, Any],
+    launch_cache: Path | None = None,
 ) -> tuple[MissionPlan, MissionRecord]:
-    """Evaluate the chain for ``design``: its plan, and the record it comes from.
+    """Solve the launch at the design's parking altitude, evaluate the chain from it: the
+    plan, and the record it comes from.
 
     ``source`` is the caller's metadata (run id, front index, objectives...), stored
-    as given; it must be JSON data. Raises :class:`PlanError` naming the failed stage
-    and its reason when the design is infeasible.
+    as given; it must be JSON data. ``launch_cache``: where solved launches are cached
+    (default the workspace's ``launch_solves``). Raises :class:`PlanError` naming the
+    failed stage and its reason when the design is infeasible.
     """
-    record = evaluate(context, design)
+    try:
+        solved = cached_launch_at(
+            context.scenario, context.fit, design.parking_altitude_km * 1e3, launch_cache
+        )
+    except StoreError as err:
+        raise PlanError(f"the solved launch cannot be read or stored: {err}") from None
+    record = evaluate(context, design, launch=solved)
     if not record.feasible:
         raise PlanError(
             f"design {design.as_dict()} is infeasible: the {record.failed_stage} stage "
@@ -334,13 +363,26 @@ def plan_and_record(
             stage=record.failed_stage,
             reason=record.reason,
         )
-    return plan_from_record(context, record, source=source), record
+    return plan_from_record(context, record, source=source, solved=solved), record
 
 
 def plan_from_record(
-    context: MissionContext, record: MissionRecord, *, source: dict[str, Any]
+    context: MissionContext,
+    record: MissionRecord,
+    *,
+    source: dict[str, Any],
+    solved: SolvedLaunch | None = None,
 ) -> MissionPlan:
-    """The plan of an evaluated, feasible record (its ``results`` must be filled in)."""
+    """The plan of a feasible record evaluated from ``solved`` (the launch it flew from)."""
+    if (
+        solved is None
+        or record.results.launch is None
+        or (record.results.launch.source != "solved launch")
+    ):
+        raise PlanError(
+            "a plan flies from the drop: evaluate the chain from the solved launch "
+            "(plan_and_record)"
+        )
     if not record.feasible:
         raise PlanError(
             f"the record is infeasible: the {record.failed_stage} stage failed: {record.reason}",
@@ -358,7 +400,7 @@ def plan_from_record(
     deorbit: DeorbitResult = results.deorbit
     reentry: ReentryResult = results.reentry
     entry_state: EntryState = results.entry
-    launch = _launch_plan(context, record)
+    launch = _launch_plan(context, record, solved)
     t_prep = transfer.arrival_time_s
     t_entry = t_prep + deorbit.entry_t_s
     t_terminal = t_entry + reentry.flight_time_s
@@ -489,65 +531,56 @@ def _impulse(name: str, burn: Impulse, day: Epoch) -> dict[str, Any]:
     }
 
 
-def _launch_plan(context: MissionContext, record: MissionRecord) -> dict[str, Any]:
+def _launch_plan(
+    context: MissionContext, record: MissionRecord, solved: SolvedLaunch
+) -> dict[str, Any]:
     launch = record.results.launch
     day = context.day
     t_ins = launch.insertion_time_s
     t_drop = launch.drop_time_s
     state = np.asarray(launch.insertion_state, dtype=float)
-    altitude_m = launch.parking_altitude_m
+    scenario = context.scenario
+    inp = launch_input(scenario, altitude_km=launch.parking_altitude_m / 1e3)
+    azimuth = math.radians(solved.value("azimuth_deg"))
+    r_drop, v_drop = drop_state(inp, azimuth, launch.payload_kg, t_drop)
+    drop = scenario.launch.drop
     return {
-        "source": "launch fit (patent 5.1): payload, times and insertion argument of latitude",
+        "source": (
+            "solved launch (patent step 101) at the parking altitude: continuation from the "
+            "launch fit's grid (ovtraj.launch.exact), cached by its inputs"
+        ),
         "launcher": launch.launcher,
         "drop_epoch_utc": _iso(day, t_drop),
         "drop_t_s": t_drop,
         "insertion_epoch_utc": _iso(day, t_ins),
         "insertion_t_s": t_ins,
         "flight_time_s": launch.flight_time_s,
-        "parking_altitude_m": altitude_m,
+        "parking_altitude_m": launch.parking_altitude_m,
         "payload_kg": launch.payload_kg,
         "insertion_arg_latitude_deg": launch.insertion_u_deg,
         "plane_inclination_deg": math.degrees(context.plane.inclination_rad),
         "plane_raan_deg": math.degrees(context.plane.raan_at(t_ins)) % 360.0,
         "insertion_r_eci_m": _vector(state[:3]),
         "insertion_v_eci_mps": _vector(state[3:]),
-        "programme": launch_programme(context.fit, altitude_m),
-    }
-
-
-def launch_programme(fit: LaunchFit, altitude_m: float) -> dict[str, Any] | None:
-    """The programme between the solved grid launches bracketing ``altitude_m``.
-
-    ``None`` when the grid does not hold the design variables or does not bracket the
-    altitude (the fit's range check fails first in the chain).
-    """
-    grid = fit.grid
-    columns = [f"design_{name}" for name in PROGRAMME_VARIABLES]
-    if any(c not in grid.columns for c in [*columns, "target_altitude_km", "azimuth_deg"]):
-        return None
-    grid = grid.sort_values("target_altitude_km").reset_index(drop=True)
-    h = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
-    if not h[0] <= altitude_m <= h[-1]:
-        return None
-    k = int(np.clip(np.searchsorted(h, altitude_m, side="right") - 1, 0, len(h) - 2))
-    f = (altitude_m - h[k]) / (h[k + 1] - h[k])
-
-    def row(i: int) -> dict[str, float]:
-        values = {name: float(grid.at[i, f"design_{name}"]) for name in PROGRAMME_VARIABLES}
-        values["azimuth_deg"] = float(grid.at[i, "azimuth_deg"])
-        return values
-
-    below, above = row(k), row(k + 1)
-    return {
-        "basis": (
-            "linear interpolation in altitude between the two solved grid launches of the "
-            "launch fit; not a solved launch (the fit does not give the programme)"
-        ),
-        "altitude_below_m": float(h[k]),
-        "altitude_above_m": float(h[k + 1]),
-        "variables": {n: below[n] + f * (above[n] - below[n]) for n in below},
-        "below": below,
-        "above": above,
+        "programme": {
+            "basis": "the launch stage's optimum (ten design variables, configuration units)",
+            "variables": solved.design,
+            "azimuth_deg": solved.value("azimuth_deg"),
+            "opportunity": str(solved.row["opportunity"]),
+        },
+        "drop": {
+            "epoch_utc": _iso(day, t_drop),
+            "t_s": t_drop,
+            "latitude_deg": drop.latitude_deg,
+            "longitude_deg": drop.longitude_deg,
+            "altitude_m": drop.altitude_km * 1e3,
+            "mach": drop.mach,
+            "fpa_deg": drop.flight_path_angle_deg,
+            "r_eci_m": _vector(r_drop),
+            "v_eci_mps": _vector(v_drop),
+        },
+        "max_dynamic_pressure_pa": solved.value("max_dynamic_pressure_pa"),
+        "max_axial_load_g": solved.value("max_axial_load_g"),
     }
 
 
