@@ -1008,23 +1008,114 @@ def plan(
 @app.command()
 def fly(
     plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
+    monte_carlo: Annotated[
+        int,
+        typer.Option(
+            "--monte-carlo",
+            min=0,
+            max=100000,
+            help="also fly this many dispersed runs, closed loop and open loop (0: none)",
+        ),
+    ] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="seed of the dispersed runs")] = 0,
+    dispersions_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--dispersions",
+            help="dispersions YAML (default: the shipped configs/dispersions.yaml)",
+        ),
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Replay a mission plan through the real dynamics: landing miss and constraint maxima."""
+    """Replay a mission plan through the real dynamics from the carrier's drop: landing miss
+    and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights."""
     from ovtraj.mission.fly import fly_plan, format_flight_report
     from ovtraj.mission.plan import PlanError, read_plan
 
     try:
-        report = fly_plan(read_plan(plan_file))
+        plan = read_plan(plan_file)
+        dispersions = _dispersions(dispersions_file) if monte_carlo else None
     except PlanError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    report = fly_plan(plan)
+    row = report.to_dict()
+    if monte_carlo:
+        row["monte_carlo"] = _monte_carlo(plan, dispersions, monte_carlo, seed, as_json)
     if as_json:
-        typer.echo(json_text(report.to_dict(), indent=None))
+        typer.echo(json_text(row, indent=None))
     else:
         typer.echo(format_flight_report(report))
+        if monte_carlo:
+            typer.echo(_format_monte_carlo(row["monte_carlo"]))
     if not report.landed_within_stated_miss:
         raise typer.Exit(code=1)
+
+
+def _dispersions(path: Path | None) -> Any:
+    from ovtraj.config.base import load_model
+    from ovtraj.config.dispersions import DispersionsConfig, default_dispersions
+
+    return default_dispersions() if path is None else load_model(DispersionsConfig, path)
+
+
+def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool) -> dict:
+    """The dispersed runs, closed and open loop, summarised (a progress line per run on
+    stderr unless ``quiet``)."""
+    from ovtraj.mission.montecarlo import monte_carlo, summarise
+
+    def progress(done: int, total: int) -> None:
+        if not quiet:
+            typer.echo(f"monte carlo: {done}/{total} runs", err=True)
+
+    pairs = monte_carlo(plan, dispersions, runs, seed, progress=progress)
+    scenario_limits = plan.scenario["reentry"]["limits"]
+    limits = {
+        "max_heat_rate_w_m2": scenario_limits["max_heat_rate_kw_m2"] * 1e3,
+        "max_load_g": scenario_limits["max_load_g"],
+        "max_dynamic_pressure_pa": scenario_limits["max_dynamic_pressure_kpa"] * 1e3,
+    }
+    stated = plan.terminal.stated_miss_m
+    return {
+        "seed": seed,
+        "stated_miss_m": stated,
+        "closed_loop": summarise([c for c, _ in pairs], limits, stated),
+        "open_loop": summarise([o for _, o in pairs], limits, stated),
+    }
+
+
+def _format_monte_carlo(summary: dict) -> str:
+    lines = [f"monte carlo (seed {summary['seed']}): stated miss {summary['stated_miss_m']:g} m"]
+    for loop in ("closed_loop", "open_loop"):
+        s = summary[loop]
+        miss = s["landing_miss_m"]
+
+        def km(value: float | None) -> str:
+            return "a failed run" if value is None else f"{value / 1e3:.3f} km"
+
+        shown = (
+            "no run landed"
+            if miss is None
+            else f"miss p50 {km(miss['p50'])}, p95 {km(miss['p95'])}, max {km(miss['max'])} "
+            "(a failed run counts as beyond any miss)"
+        )
+        lines.append(
+            f"  {loop.replace('_', ' ')}: {s['landed']}/{s['runs']} landed "
+            f"({s['within_stated_miss_fraction']:.0%} within the stated miss); {shown}"
+        )
+        if s["failures"]:
+            failed = ", ".join(f"{stage} {n}" for stage, n in s["failures"].items())
+            lines.append(f"    failed: {failed}")
+        for name, margin in s["path_limit_margins"].items():
+            if margin is not None:
+                lines.append(
+                    f"    {name}: smallest margin {margin['smallest_margin']:.6g} "
+                    f"(limit {margin['limit']:g})"
+                )
+    return "\n".join(lines)
 
 
 @app.command()

@@ -133,6 +133,18 @@ class StageResults:
         return [name for name in names if getattr(self, name) is None]
 
 
+def rendezvous_settings(scenario: Scenario) -> dict[str, Any]:
+    """The fields a rendezvous or transfer input takes from the scenario (besides the states
+    and times): settings, the miss tolerance, the impulse limit, the integrator, the Earth."""
+    return {
+        "settings": scenario.rendezvous,
+        "miss_tolerance_m": scenario.tolerances.miss_distance_m,
+        "max_impulse_mps": scenario.vehicle.max_impulse_mps,
+        "integrator_tol": scenario.tolerances.integrator,
+        "earth": scenario.earth,
+    }
+
+
 def entry_state(deorbit: DeorbitResult) -> EntryState:
     """The reentry's initial state: the deorbit's Earth-relative state at the entry
     interface (the one place the hand-off from the deorbit to the reentry is built)."""
@@ -321,7 +333,6 @@ def _run(
     solved: SolvedLaunch | None = None,
 ) -> None:
     scenario = ctx.scenario
-    earth = scenario.earth
     # 2. launch from the fit (or the solved launch)
     leg = _launch_leg(ctx, design, solved)
     t_ins, t_drop, parked = leg.insertion_time_s, leg.drop_time_s, leg.insertion_state
@@ -341,13 +352,7 @@ def _run(
     }
     _lap(record, "launch")
     # 3. rendezvous
-    common = {
-        "settings": scenario.rendezvous,
-        "miss_tolerance_m": scenario.tolerances.miss_distance_m,
-        "max_impulse_mps": scenario.vehicle.max_impulse_mps,
-        "integrator_tol": scenario.tolerances.integrator,
-        "earth": earth,
-    }
+    common = rendezvous_settings(scenario)
     rdv = solve_rendezvous(
         RendezvousInput(
             epoch=ctx.day,

@@ -55,7 +55,7 @@ from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.launch.ascent import simulate
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import launch_input
-from ovtraj.launch.stage import launch_problem
+from ovtraj.launch.stage import ascent_model, launch_problem
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
 from ovtraj.records import plain
 from ovtraj.reentry import EntryState, reentry_input
@@ -75,6 +75,26 @@ INTEGRATORS = (
 
 class ReplayFailed(Exception):
     """Raised inside the replay to stop with a reason; never escapes :func:`fly_plan`."""
+
+
+class Perturbation:
+    """What a dispersed flight changes in the replay (``ovtraj.mission.montecarlo``); this
+    base class changes nothing (the nominal replay)."""
+
+    def ascent(self, inp: Any) -> Any:
+        """The launch input the ascent is flown with (its launcher and drop)."""
+        return inp
+
+    def burn(self, index: int, dv_eci_mps: np.ndarray) -> np.ndarray:
+        """The impulse executed for the ``index``-th planned one (time order)."""
+        return dv_eci_mps
+
+    def entry(self, model: EntryModel) -> EntryModel:
+        """The entry model the truth is flown with (atmosphere and aerodynamics)."""
+        return model
+
+
+NOMINAL = Perturbation()
 
 
 @dataclass
@@ -344,6 +364,7 @@ def _fly_entry(
     scenario: Scenario,
     entry: EntryState,
     record: tuple[_Recorder, Any] | None = None,
+    perturbation: Perturbation = NOMINAL,
 ) -> _EntryFlight:
     """The open-loop reentry from ``entry`` with the plan's bank profile (DOP853).
 
@@ -353,7 +374,7 @@ def _fly_entry(
     """
     profile = plan.reentry.bank_profile
     settings = scenario.mission.plan
-    model = EntryModel(reentry_input(scenario, entry=entry))
+    model = perturbation.entry(EntryModel(reentry_input(scenario, entry=entry)))
     p = model.params.copy()
     p[dyn.P_SIGMA0] = math.radians(profile.sigma0_deg)
     p[dyn.P_SIGMA1] = math.radians(profile.sigma1_deg)
@@ -456,10 +477,15 @@ def _fly_entry(
 # --- the replay ----------------------------------------------------------------------------
 
 
-def fly_plan(plan: MissionPlan, recorder: _Recorder | None = None) -> FlightReport:
+def fly_plan(
+    plan: MissionPlan,
+    recorder: _Recorder | None = None,
+    perturbation: Perturbation = NOMINAL,
+) -> FlightReport:
     """Replay ``plan`` through the dynamics; see the module notes. Never raises.
 
-    ``recorder``: samples the trajectory (:func:`replay_ephemeris`)."""
+    ``recorder``: samples the trajectory (:func:`replay_ephemeris`); ``perturbation``:
+    the errors of a dispersed open-loop flight (:mod:`ovtraj.mission.montecarlo`)."""
     start = time.perf_counter()
     report = FlightReport(
         ok=False,
@@ -475,7 +501,7 @@ def fly_plan(plan: MissionPlan, recorder: _Recorder | None = None) -> FlightRepo
     )
     try:
         with np.errstate(all="ignore"):
-            _replay(plan, report, recorder)
+            _replay(plan, report, recorder, perturbation)
     except ReplayFailed as failure:
         report.reason = str(failure)
     except Exception as err:  # a replay never raises: any failure is reported
@@ -507,7 +533,12 @@ def replay_ephemeris(
     return fly_plan(plan, recorder), recorder.segments
 
 
-def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None = None) -> None:
+def _replay(
+    plan: MissionPlan,
+    report: FlightReport,
+    recorder: _Recorder | None = None,
+    perturbation: Perturbation = NOMINAL,
+) -> None:
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     earth = scenario.earth
     day = plan.day
@@ -516,7 +547,7 @@ def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None 
     floor_m = scenario.limits.min_perigee_altitude_km * 1e3
 
     # 0. the ascent from the drop to insertion
-    state, t = _fly_ascent(plan, scenario, report)
+    state, t = _fly_ascent(plan, scenario, report, perturbation)
     if recorder is not None:
         _record_ascent(plan, scenario, recorder)
     # 1. orbital arcs from the flown insertion, each planned impulse at its epoch
@@ -543,7 +574,7 @@ def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None 
         if burn is plan.rendezvous.burn2:  # docking: the arrival miss at the target
             report.rendezvous_arrival_miss_m = _arrival_miss(plan, scenario, orbit, state)
         report.burns.append(_apply(burn, state))
-        state = state + np.r_[0.0, 0.0, 0.0, burn.eci]
+        state = state + np.r_[0.0, 0.0, 0.0, perturbation.burn(k, burn.eci)]
         t = burn.t_s
         if k < len(impulses) - 1:  # every orbit before the deorbit burn
             perigee = min(perigee, _perigee_altitude(state, earth.mu, earth.radius))
@@ -637,7 +668,7 @@ def _replay(plan: MissionPlan, report: FlightReport, recorder: _Recorder | None 
             )
 
         entry_record = (recorder, to_eci)
-    flight = _fly_entry(plan, scenario, entry, entry_record)
+    flight = _fly_entry(plan, scenario, entry, entry_record, perturbation)
     reentry = scenario.reentry
     path = reentry.limits
     for name, value, limit, unit in (
@@ -716,11 +747,17 @@ def _ascent(plan: MissionPlan, scenario: Scenario) -> tuple[Any, Any, np.ndarray
 
 
 def _fly_ascent(
-    plan: MissionPlan, scenario: Scenario, report: FlightReport
+    plan: MissionPlan,
+    scenario: Scenario,
+    report: FlightReport,
+    perturbation: Perturbation = NOMINAL,
 ) -> tuple[np.ndarray, float]:
     """Fly the plan's programme from the drop: the ECI state and time of insertion."""
     earth = scenario.earth
     inp, model, design = _ascent(plan, scenario)
+    flown = perturbation.ascent(inp)
+    if flown is not inp:
+        model = ascent_model(flown)
     outcome = simulate(model, design)
     if bool(outcome.crashed[0]):
         raise ReplayFailed("the replayed ascent hits the ground before insertion")

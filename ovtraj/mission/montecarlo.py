@@ -1,0 +1,674 @@
+"""Dispersed Monte Carlo of a mission plan, closed loop and open loop (issue 23).
+
+Each run draws its errors from its own generator (``numpy.random.default_rng([seed, run])``,
+so a run does not depend on how runs are batched), 1-sigma normal, from
+``configs/dispersions.yaml``:
+
+* the carrier's release (position, altitude, Mach, path angle) and each solid stage's
+  delivered thrust and specific impulse (the mass flow follows: ``F / (Isp g0)``);
+* the on-board state estimate before the rendezvous, the transfer and the deorbit burn
+  (position and velocity, per axis);
+* each impulse's execution (magnitude and two transverse pointing angles);
+* the atmosphere's density and the vehicle's lift and drag (one factor each per run).
+
+The same draw is flown twice (common random numbers):
+
+**Open loop** (:func:`fly_open_loop`): the plan as stored, through the replay of
+:mod:`ovtraj.mission.fly` with the errors applied (:class:`DispersedFlight`): the ascent
+with the dispersed launcher and release, each planned impulse executed with its errors at
+its planned epoch, the entry with the planned bank profile in the dispersed atmosphere.
+
+**Closed loop** (:func:`fly_closed_loop`): the corrections a real mission makes, each
+by the stage's own method from the on-board estimate:
+
+1. the ascent as above (the programme is open loop in this model: no launch guidance);
+2. rendezvous re-targeting: the rendezvous stage solved again from the estimated
+   insertion state; its first impulse executed with errors; the second re-computed at
+   its epoch to match the target's velocity from the estimate, executed with errors;
+   docking when the arrival miss is within ``closed_loop.docking_capture_m`` (the
+   proximity operations close it; the docked OV then moves with the target), a failure
+   otherwise, and also when the arrival comes after the planned separation;
+3. the transfer solved again at the planned separation from the estimate, executed
+   with errors;
+4. the deorbit solved again from the estimate at the end of the transfer; the burn is
+   cut off on-line by the osculating-element entry prediction of seed 004
+   (:func:`ovtraj.deorbit.burn.prediction.predict_entry`, strategy 1): along the
+   actually pointed direction, the engine stops when the predicted entry argument of
+   latitude reaches the one the nominal burn predicts from the same estimate, which
+   absorbs the magnitude error;
+5. the reentry guidance re-solved in flight every ``closed_loop.guidance_interval_s``
+   from the current state (:func:`ovtraj.reentry.solve_reentry`, the nominal model),
+   the truth flown between solves in the dispersed atmosphere with the guidance's
+   heading-corridor reversals.
+
+Every run ends with its landing miss, whether it reached the terminal speed, and the
+path maxima, reported against the limits as margins (limit minus maximum). Nothing
+raises out of a run: a stage that fails ends it with the stage and the reason.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+
+from ovtraj.astro.propagation import OrbitPropagator
+from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.deorbit import deorbit_input, solve_deorbit
+from ovtraj.deorbit.burn.prediction import predict_entry
+from ovtraj.deorbit.burn.problem import EarthConstants
+from ovtraj.launch.inputs import LaunchInput
+from ovtraj.mission.chain import rendezvous_settings
+from ovtraj.mission.fly import (
+    FlightReport,
+    Perturbation,
+    ReplayFailed,
+    _fly_ascent,
+    _haversine,
+    _Orbit,
+    _relative_entry,
+    fly_plan,
+)
+from ovtraj.mission.plan import MissionPlan
+from ovtraj.reentry import EntryState, reentry_input, solve_reentry
+from ovtraj.reentry import dynamics as dyn
+from ovtraj.reentry.model import EntryModel
+from ovtraj.rendezvous.result import RendezvousInput, TransferInput
+from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
+from ovtraj.targets import target_state
+
+__all__ = [
+    "DispersedFlight",
+    "RunDraw",
+    "RunOutcome",
+    "draw_run",
+    "fly_closed_loop",
+    "fly_open_loop",
+    "monte_carlo",
+    "summarise",
+]
+
+# Where the on-board estimate is drawn: before each corrected phase.
+NAVIGATION_POINTS = ("rendezvous", "arrival", "transfer", "deorbit")
+MAX_CORRECTIONS = 10  # draws kept for the rendezvous's mid-course corrections
+MAX_GUIDANCE_CALLS = 400  # draws kept for the entry guidance's measured lift and drag
+PATH_LIMITS = ("max_heat_rate_w_m2", "max_load_g", "max_dynamic_pressure_pa")
+
+
+@dataclass(frozen=True)
+class RunDraw:
+    """One run's errors (see the module notes); angles in rad, scales as factors."""
+
+    run: int
+    drop_north_m: float
+    drop_east_m: float
+    drop_altitude_m: float
+    drop_mach: float
+    drop_fpa_rad: float
+    thrust_scale: tuple[float, float, float]
+    isp_scale: tuple[float, float, float]
+    navigation: dict[str, NDArray[np.float64]]  # (6,) position [m], velocity [m/s]
+    burn_scale: tuple[float, ...]  # one per planned impulse
+    burn_pointing_rad: tuple[tuple[float, float], ...]
+    # The mid-course corrections: the estimate before each and its execution.
+    correction_navigation: tuple[NDArray[np.float64], ...]
+    correction_scale: tuple[float, ...]
+    correction_pointing_rad: tuple[tuple[float, float], ...]
+    density_scale: float
+    lift_scale: float
+    drag_scale: float
+    # Relative errors of the measured (lift, drag) at each entry guidance call.
+    measurement_error: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+def draw_run(config: DispersionsConfig, seed: int, run: int, impulses: int = 5) -> RunDraw:
+    """The errors of run ``run`` of the Monte Carlo seeded ``seed`` (1-sigma normal)."""
+    rng = np.random.default_rng([seed, run])
+    drop, stages, nav = config.drop, config.stages, config.navigation
+    burns, entry = config.burns, config.entry
+
+    def normal(sigma: float, size: int | None = None) -> Any:
+        return rng.normal(0.0, sigma, size)
+
+    return RunDraw(
+        run=run,
+        drop_north_m=float(normal(drop.position_m)),
+        drop_east_m=float(normal(drop.position_m)),
+        drop_altitude_m=float(normal(drop.altitude_m)),
+        drop_mach=float(normal(drop.mach)),
+        drop_fpa_rad=math.radians(float(normal(drop.fpa_deg))),
+        thrust_scale=tuple(1.0 + normal(stages.thrust_fraction, 3)),
+        isp_scale=tuple(1.0 + normal(stages.isp_fraction, 3)),
+        navigation={
+            point: np.r_[normal(nav.position_m, 3), normal(nav.velocity_mps, 3)]
+            for point in NAVIGATION_POINTS
+        },
+        burn_scale=tuple(1.0 + normal(burns.magnitude_fraction, impulses)),
+        burn_pointing_rad=tuple(
+            (float(a), float(b)) for a, b in np.radians(normal(burns.pointing_deg, (impulses, 2)))
+        ),
+        correction_navigation=tuple(
+            np.r_[normal(nav.position_m, 3), normal(nav.velocity_mps, 3)]
+            for _ in range(MAX_CORRECTIONS)
+        ),
+        correction_scale=tuple(1.0 + normal(burns.magnitude_fraction, MAX_CORRECTIONS)),
+        correction_pointing_rad=tuple(
+            (float(a), float(b))
+            for a, b in np.radians(normal(burns.pointing_deg, (MAX_CORRECTIONS, 2)))
+        ),
+        density_scale=float(max(1.0 + normal(entry.density_fraction), 0.05)),
+        lift_scale=float(max(1.0 + normal(entry.lift_fraction), 0.05)),
+        drag_scale=float(max(1.0 + normal(entry.drag_fraction), 0.05)),
+        measurement_error=normal(
+            config.closed_loop.accelerometer_fraction, (MAX_GUIDANCE_CALLS, 2)
+        ),
+    )
+
+
+def _pointed(dv: NDArray[np.float64], angles: tuple[float, float]) -> NDArray[np.float64]:
+    """``dv``'s direction turned by two small angles about two axes normal to it."""
+    norm = float(np.linalg.norm(dv))
+    if norm == 0.0:
+        return dv.copy()
+    u = dv / norm
+    helper = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(u, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    turned = u + math.tan(angles[0]) * e1 + math.tan(angles[1]) * e2
+    return norm * turned / np.linalg.norm(turned)
+
+
+class DispersedFlight(Perturbation):
+    """The errors of one draw applied to the replay (:func:`ovtraj.mission.fly.fly_plan`)."""
+
+    def __init__(self, draw: RunDraw) -> None:
+        self.draw = draw
+
+    def ascent(self, inp: LaunchInput) -> LaunchInput:
+        d = self.draw
+        stages = []
+        for stage, k_thrust, k_isp in zip(
+            inp.launcher.stages, d.thrust_scale, d.isp_scale, strict=True
+        ):
+            # The propellant burns in m_p Isp g0 / F: the action time follows.
+            stages.append(
+                stage.model_copy(
+                    update={
+                        "vacuum_thrust_n": stage.vacuum_thrust_n * k_thrust,
+                        "vacuum_isp_s": stage.vacuum_isp_s * k_isp,
+                        "burn_time_s": stage.burn_time_s * k_isp / k_thrust,
+                    }
+                )
+            )
+        launcher = inp.launcher.model_copy(update={"stages": tuple(stages)})
+        radius = inp.earth.radius
+        latitude = math.radians(inp.drop.latitude_deg)
+        drop = inp.drop.model_copy(
+            update={
+                "latitude_deg": inp.drop.latitude_deg + math.degrees(d.drop_north_m / radius),
+                "longitude_deg": inp.drop.longitude_deg
+                + math.degrees(d.drop_east_m / (radius * math.cos(latitude))),
+                "altitude_km": inp.drop.altitude_km + d.drop_altitude_m / 1e3,
+                "mach": inp.drop.mach + d.drop_mach,
+                "flight_path_angle_deg": inp.drop.flight_path_angle_deg
+                + math.degrees(d.drop_fpa_rad),
+            }
+        )
+        return replace(inp, launcher=launcher, drop=drop)
+
+    def burn(self, index: int, dv_eci_mps: NDArray[np.float64]) -> NDArray[np.float64]:
+        d = self.draw
+        return d.burn_scale[index] * _pointed(np.asarray(dv_eci_mps), d.burn_pointing_rad[index])
+
+    def entry(self, model: EntryModel) -> EntryModel:
+        d = self.draw
+        return scaled_entry_model(model, d.density_scale, d.lift_scale, d.drag_scale)
+
+
+def scaled_entry_model(model: EntryModel, density: float, lift: float, drag: float) -> EntryModel:
+    """A copy of ``model`` with its density, lift and drag coefficients scaled."""
+    scaled = copy.copy(model)
+    scaled.cl = model.cl * lift
+    scaled.cd = model.cd * drag
+    scaled.log_rho = model.log_rho + math.log(density)
+    scaled.params = model.params.copy()
+    scaled.params[dyn.P_RHO0] *= density
+    scaled.tables = (
+        scaled.cl,
+        scaled.cd,
+        model.mach_nodes,
+        model.alpha_nodes,
+        scaled.log_rho,
+        model.sound,
+    )
+    return scaled
+
+
+@dataclass
+class RunOutcome:
+    """One run flown: reached the terminal speed or not, where, and the path maxima."""
+
+    run: int
+    loop: str  # "closed" or "open"
+    landed: bool
+    failed_stage: str | None = None
+    reason: str | None = None
+    landing_miss_m: float | None = None
+    maxima: dict[str, float] = field(default_factory=dict)
+    arrival_miss_m: float | None = None
+    dv_total_mps: float | None = None
+
+
+def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
+    """The plan flown as stored with the draw's errors (the replay, no correction)."""
+    report: FlightReport = fly_plan(plan, perturbation=DispersedFlight(draw))
+    maxima = {
+        name: float(report.checks[name].value)
+        for name in PATH_LIMITS
+        if name in report.checks and report.checks[name].value is not None
+    }
+    return RunOutcome(
+        run=draw.run,
+        loop="open",
+        landed=bool(report.ok),
+        failed_stage=None if report.ok else "replay",
+        reason=report.reason,
+        landing_miss_m=report.miss_distance_m,
+        maxima=maxima,
+        arrival_miss_m=report.rendezvous_arrival_miss_m,
+        dv_total_mps=float(sum(b.dv_mps for b in report.burns)) if report.burns else None,
+    )
+
+
+class _Failed(Exception):
+    def __init__(self, stage: str, reason: str) -> None:
+        super().__init__(reason)
+        self.stage, self.reason = stage, reason
+
+
+def fly_closed_loop(
+    plan: MissionPlan, draw: RunDraw, config: DispersionsConfig, scenario: Scenario | None = None
+) -> RunOutcome:
+    """The draw flown with the mission's corrections (module notes). Never raises."""
+    outcome = RunOutcome(run=draw.run, loop="closed", landed=False)
+    scenario = scenario or scenario_from_dict(plan.scenario, "the plan's scenario")
+    try:
+        with np.errstate(all="ignore"):
+            _closed_loop(plan, scenario, draw, config, outcome)
+        outcome.landed = True
+    except _Failed as failure:
+        outcome.failed_stage, outcome.reason = failure.stage, failure.reason
+    except ReplayFailed as failure:
+        outcome.failed_stage, outcome.reason = "flight", str(failure)
+    except (ArithmeticError, ValueError) as err:
+        outcome.failed_stage = "flight"
+        outcome.reason = f"numerical failure: {type(err).__name__}: {err}"
+    return outcome
+
+
+def _closed_loop(
+    plan: MissionPlan,
+    scenario: Scenario,
+    draw: RunDraw,
+    config: DispersionsConfig,
+    outcome: RunOutcome,
+) -> None:
+    earth = scenario.earth
+    day = plan.day
+    orbit = _Orbit(scenario)
+    propagator = OrbitPropagator(earth, tol=scenario.tolerances.integrator)
+    flight = DispersedFlight(draw)
+    entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
+    spent = 0.0
+
+    def estimate(point: str, truth: NDArray[np.float64]) -> NDArray[np.float64]:
+        return truth + draw.navigation[point]
+
+    def coast(state: NDArray, t0: float, t1: float, stage: str) -> NDArray:
+        end, t_end, entered, _ = orbit.arc(state, t0, t1, floor_m=entry_altitude_m)
+        if entered:
+            raise _Failed(stage, f"the OV falls through the entry interface at {t_end:.0f} s")
+        return end
+
+    # 1. the ascent, dispersed
+    scratch = FlightReport(ok=False, reason=None, landed_within_stated_miss=False, stated_miss_m=0)
+    state, t = _fly_ascent(plan, scenario, scratch, flight)
+    # 2. rendezvous re-targeted from the estimated insertion
+    offset = day.seconds_since(scenario.epoch)
+    target0 = target_state(scenario.target.orbit, scenario)
+    target_at = lambda time_s: orbit.arc(target0, 0.0, time_s + offset)[0]  # noqa: E731
+    common = rendezvous_settings(scenario)
+    rdv = solve_rendezvous(
+        RendezvousInput(
+            epoch=day,
+            t0_s=t,
+            chaser_state=estimate("rendezvous", state),
+            target_state=target_at(t),
+            **common,
+        )
+    )
+    if not rdv.feasible:
+        raise _Failed("rendezvous", f"re-targeting failed: {rdv.reason}")
+    state = coast(state, t, rdv.burn1.t_s, "rendezvous")
+    dv = flight.burn(0, np.asarray(rdv.burn1.eci_mps))
+    state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], rdv.burn1.t_s, spent + np.linalg.norm(dv)
+    t_arrival = rdv.burn2.t_s
+    target = target_at(t_arrival)
+    # Mid-course corrections: from the estimate, the velocity that reaches the target's
+    # arrival position (differential correction under J2), executed with errors.
+    t_burn1 = t
+    for k, fraction in enumerate(config.closed_loop.rendezvous_corrections):
+        t_fix = t_burn1 + fraction * (t_arrival - t_burn1)
+        state = coast(state, t, t_fix, "rendezvous")
+        t = t_fix
+        estimated = state + draw.correction_navigation[k]
+        wanted = _reaching_velocity(
+            propagator, estimated, t, t_arrival, target[:3], config.closed_loop
+        )
+        dv = draw.correction_scale[k] * _pointed(
+            wanted - estimated[3:], draw.correction_pointing_rad[k]
+        )
+        state, spent = state + np.r_[0.0, 0.0, 0.0, dv], spent + np.linalg.norm(dv)
+    state = coast(state, t, t_arrival, "rendezvous")
+    # The second impulse matches the target's velocity, as the chaser estimates its own.
+    matched = target[3:] - estimate("arrival", state)[3:]
+    dv = flight.burn(1, matched)
+    state, spent = state + np.r_[0.0, 0.0, 0.0, dv], spent + np.linalg.norm(dv)
+    outcome.arrival_miss_m = float(np.linalg.norm(state[:3] - target[:3]))
+    capture = config.closed_loop.docking_capture_m
+    if outcome.arrival_miss_m > capture:
+        raise _Failed(
+            "rendezvous",
+            f"arrives {outcome.arrival_miss_m:.0f} m from the target (capture {capture:g} m)",
+        )
+    t_sep = plan.stay.separation_t_s
+    if t_arrival > t_sep:
+        raise _Failed(
+            "rendezvous", f"docks at {t_arrival:.0f} s, after the planned separation {t_sep:.0f} s"
+        )
+    # Docked: the OV moves with the target until the planned separation.
+    state, t = target_at(t_sep), t_sep
+    # 3. the transfer, solved again from the estimate at separation
+    transfer = circular_transfer(
+        TransferInput(
+            epoch=day,
+            t0_s=t,
+            chaser_state=estimate("transfer", state),
+            target_altitude_m=plan.transfer.preparation_altitude_m,
+            burn_time_s=t,
+            **common,
+        )
+    )
+    if not transfer.feasible:
+        raise _Failed("transfer", f"re-solving failed: {transfer.reason}")
+    for k, burn in ((2, transfer.burn1), (3, transfer.burn2)):
+        state = coast(state, t, burn.t_s, "transfer")
+        dv = flight.burn(k, np.asarray(burn.eci_mps))
+        state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], burn.t_s, spent + np.linalg.norm(dv)
+    t_prep = transfer.arrival_time_s
+    state = coast(state, t, t_prep, "transfer")
+    t = t_prep
+    # 4. the deorbit, solved again; the burn cut off by the entry prediction
+    deorbit = solve_deorbit(
+        deorbit_input(scenario, state0=estimate("deorbit", state), epoch=day.plus_seconds(t))
+    )
+    if not deorbit.feasible:
+        raise _Failed("deorbit", f"re-solving failed: {deorbit.reason}")
+    t_burn = t + deorbit.burn_t_s
+    state = coast(state, t, t_burn, "deorbit")
+    dv = _cut_off(
+        estimate("deorbit", state),
+        np.asarray(deorbit.dv_eci_mps, dtype=float),
+        flight.burn(4, np.asarray(deorbit.dv_eci_mps, dtype=float)),
+        scenario,
+        config,
+    )
+    state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], t_burn, spent + np.linalg.norm(dv)
+    outcome.dv_total_mps = float(spent)
+    # descent to the entry interface
+    r0 = float(np.linalg.norm(state[:3]))
+    horizon = scenario.deorbit.max_descent_revolutions * 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
+    state, t_entry, entered, _ = orbit.arc(state, t, t + horizon, floor_m=entry_altitude_m)
+    if not entered:
+        raise _Failed("deorbit", "the descent does not reach the entry interface")
+    theta = day.gmst_rad() + earth.omega * t_entry
+    rel = _relative_entry(state, theta, earth.omega, earth.radius)
+    # 5. the entry, guidance re-solved in flight
+    _guided_entry(plan, scenario, day.plus_seconds(t_entry), rel, flight, config, outcome)
+
+
+def _reaching_velocity(
+    propagator: OrbitPropagator,
+    state: NDArray[np.float64],
+    t0: float,
+    t1: float,
+    target_position: NDArray[np.float64],
+    settings: Any,
+) -> NDArray[np.float64]:
+    """The velocity at ``t0`` that coasts from ``state``'s position to ``target_position``
+    at ``t1`` under J2: Newton on the velocity with the state-transition matrix's
+    position-velocity block (differential correction; Vallado, 4th ed., sec. 7.5)."""
+    velocity = state[3:].copy()
+    for _ in range(10):
+        end, stm = propagator.propagate_with_stm(np.r_[state[:3], velocity], t0, t1)
+        miss = target_position - end[:3]
+        if float(np.linalg.norm(miss)) <= settings.correction_tolerance_m:
+            break
+        velocity = velocity + np.linalg.solve(stm[:3, 3:6], miss)
+    return velocity
+
+
+def _cut_off(
+    estimate: NDArray[np.float64],
+    nominal_dv: NDArray[np.float64],
+    executed_dv: NDArray[np.float64],
+    scenario: Scenario,
+    config: DispersionsConfig,
+) -> NDArray[np.float64]:
+    """The executed deorbit impulse, cut when the predicted entry argument of latitude from
+    the estimate reaches the nominal burn's (seed 004 strategy 1); the direction stays the
+    executed one."""
+    earth = scenario.earth
+    constants = EarthConstants(earth.mu, earth.radius, earth.j2, earth.g0_m_s2)
+    entry_radius = earth.radius + scenario.deorbit.entry.altitude_km * 1e3
+    iterations = config.closed_loop.prediction_iterations
+
+    def entry_u(dv: NDArray[np.float64]) -> float:
+        prediction = predict_entry(
+            estimate[None, :3],
+            (estimate[3:] + dv)[None, :],
+            earth=constants,
+            entry_radius=entry_radius,
+            iterations=iterations,
+        )
+        return float(prediction.u_rad[0])
+
+    target = entry_u(nominal_dv)
+    direction = executed_dv / float(np.linalg.norm(executed_dv))
+    magnitude = float(np.linalg.norm(nominal_dv))
+
+    def gap(scale: float) -> float:
+        u = entry_u(scale * magnitude * direction)
+        return (u - target + math.pi) % (2.0 * math.pi) - math.pi
+
+    lo, hi = 0.8, 1.25
+    if not (math.isfinite(gap(lo)) and math.isfinite(gap(hi))) or gap(lo) * gap(hi) > 0.0:
+        return executed_dv  # the prediction cannot bracket the cut-off: burn as executed
+    return brentq(gap, lo, hi, xtol=1e-10) * magnitude * direction
+
+
+def _guided_entry(
+    plan: MissionPlan,
+    scenario: Scenario,
+    epoch: Any,
+    rel: dict[str, float],
+    flight: DispersedFlight,
+    config: DispersionsConfig,
+    outcome: RunOutcome,
+) -> None:
+    """Fly the entry in the dispersed atmosphere, the guidance re-solved every interval."""
+    earth = scenario.earth
+    interval = config.closed_loop.guidance_interval_s
+    settings = scenario.reentry
+    x = np.array(
+        [
+            earth.radius + rel["altitude_m"],
+            rel["longitude_rad"],
+            rel["latitude_rad"],
+            rel["speed_mps"],
+            rel["fpa_rad"],
+            rel["heading_rad"],
+        ]
+    )
+    sign, elapsed, calls = 1.0, 0.0, 0
+    draw = flight.draw
+    sigma = None
+    maxima = dict.fromkeys(PATH_LIMITS, 0.0)
+    limit_s = settings.integration.max_time_s
+    while True:
+        entry = EntryState(
+            epoch=epoch.plus_seconds(elapsed),
+            latitude_rad=float(x[2]),
+            longitude_rad=float(x[1]),
+            altitude_m=float(x[0]) - earth.radius,
+            speed_mps=float(x[3]),
+            fpa_rad=float(x[4]),
+            heading_rad=float(x[5]),
+        )
+        inp = reentry_input(scenario, entry=entry)
+        nominal = EntryModel(inp)
+        truth = flight.entry(nominal)
+        predictor = _measured_model(nominal, truth, x, draw.measurement_error[calls], config)
+        calls = min(calls + 1, MAX_GUIDANCE_CALLS - 1)
+        guidance = solve_reentry(inp, model=predictor)
+        if guidance.sigma0_rad is not None and guidance.sigma1_rad is not None:
+            sigma = (guidance.sigma0_rad, guidance.sigma1_rad)
+        if sigma is None:
+            raise _Failed("reentry", f"the guidance finds no bank profile: {guidance.reason}")
+        truth.params[dyn.P_MAX_TIME] = min(interval, limit_s - elapsed)
+        leg = truth.fly(sigma[0], sigma[1], record=True, bank_sign=sign)
+        for name, value in (
+            ("max_heat_rate_w_m2", leg.max_heat_rate_w_m2),
+            ("max_load_g", leg.max_load_g),
+            ("max_dynamic_pressure_pa", leg.max_dynamic_pressure_pa),
+        ):
+            maxima[name] = max(maxima[name], value)
+        elapsed += leg.time_s
+        x = leg.state
+        if leg.history is not None and len(leg.history):
+            sign = -1.0 if np.signbit(leg.history[-1, _BANK]) else 1.0
+        if leg.status == dyn.TERMINAL:
+            break
+        if leg.status in (dyn.CRASHED, dyn.SKIPPED):
+            raise _Failed("reentry", dyn.STATUS_TEXT[leg.status])
+        if elapsed >= limit_s:
+            raise _Failed("reentry", f"no terminal speed within {limit_s:g} s")
+    outcome.maxima = maxima
+    site = settings.landing_site
+    outcome.landing_miss_m = _haversine(
+        float(x[2]),
+        float(x[1]),
+        math.radians(site.latitude_deg),
+        math.radians(site.longitude_deg),
+        earth.radius,
+    )
+
+
+_BANK = dyn.HISTORY_COLUMNS.index("bank_rad")
+
+
+def _measured_model(
+    nominal: EntryModel,
+    truth: EntryModel,
+    x: NDArray[np.float64],
+    error: NDArray[np.float64],
+    config: DispersionsConfig,
+) -> EntryModel:
+    """The guidance's predictor: the nominal model with its density scaled to the measured
+    drag and its lift coefficient to the measured lift-to-drag ratio, once the drag is
+    measurable (the density filter of predictor-corrector entry guidance); the measured
+    accelerations carry the draw's relative errors."""
+    lift_t, drag_t, *_ = dyn._aero(x, truth.params, truth.tables)
+    lift_n, drag_n, *_ = dyn._aero(x, nominal.params, nominal.tables)
+    drag_measured = drag_t * (1.0 + error[1])
+    if drag_measured < config.closed_loop.drag_estimate_threshold_mps2 or drag_n <= 0.0:
+        return nominal
+    drag_factor = drag_measured / drag_n
+    lift_factor = lift_t * (1.0 + error[0]) / lift_n if lift_n > 0.0 else 1.0
+    return scaled_entry_model(nominal, drag_factor, lift_factor / drag_factor, 1.0)
+
+
+def monte_carlo(
+    plan: MissionPlan,
+    config: DispersionsConfig,
+    runs: int,
+    seed: int,
+    *,
+    progress: Any = None,
+) -> list[tuple[RunOutcome, RunOutcome]]:
+    """``runs`` draws, each flown closed and open loop (serially, in this process);
+    ``progress(done, total)`` after each run."""
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    pairs = []
+    for run in range(runs):
+        draw = draw_run(config, seed, run, len(plan.impulses()))
+        pairs.append((fly_closed_loop(plan, draw, config, scenario), fly_open_loop(plan, draw)))
+        if progress is not None:
+            progress(run + 1, runs)
+    return pairs
+
+
+def summarise(
+    outcomes: list[RunOutcome], limits: dict[str, float], stated_miss_m: float
+) -> dict[str, Any]:
+    """The landing-miss percentiles over every run, a run that did not land counting as a
+    miss beyond any distance (a percentile that falls on one is ``None``); the landed
+    fraction, the fraction within the stated miss, the failures by stage and the smallest
+    margin of each path limit over the runs that flew the entry."""
+    landed = [o for o in outcomes if o.landed and o.landing_miss_m is not None]
+    misses = np.array([o.landing_miss_m if o in landed else np.inf for o in outcomes], dtype=float)
+
+    def percentile(q: float) -> float | None:
+        value = float(np.percentile(misses, q, method="higher")) if len(misses) else math.inf
+        return value if math.isfinite(value) else None
+
+    summary: dict[str, Any] = {
+        "runs": len(outcomes),
+        "landed": len(landed),
+        "feasible_fraction": len(landed) / len(outcomes) if outcomes else 0.0,
+        "within_stated_miss_fraction": (
+            float(np.sum(misses <= stated_miss_m)) / len(outcomes) if outcomes else 0.0
+        ),
+        "landing_miss_m": (
+            {"p50": percentile(50), "p95": percentile(95), "max": percentile(100)}
+            if landed
+            else None
+        ),
+        "failures": _failures(outcomes),
+    }
+    margins = {}
+    for name in PATH_LIMITS:
+        values = [o.maxima[name] for o in outcomes if name in o.maxima]
+        margins[name] = (
+            {"limit": limits[name], "smallest_margin": limits[name] - max(values)}
+            if values
+            else None
+        )
+    summary["path_limit_margins"] = margins
+    return summary
+
+
+def _failures(outcomes: list[RunOutcome]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for o in outcomes:
+        if not o.landed:
+            key = o.failed_stage or "unknown"
+            counts[key] = counts.get(key, 0) + 1
+    return counts
