@@ -30,7 +30,7 @@ def main() -> None:
     from ovtraj.config.dispersions import default_dispersions
     from ovtraj.launch.fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
-    from ovtraj.mission.montecarlo import monte_carlo, summarise
+    from ovtraj.mission.montecarlo import monte_carlo, path_limits, summarise
     from ovtraj.mission.plan import build_plan
     from ovtraj.paths import config_path
 
@@ -49,11 +49,7 @@ def main() -> None:
     start = time.perf_counter()
     pairs = monte_carlo(plan, config, args.runs, args.seed)
     wall = time.perf_counter() - start
-    limits = {
-        "max_heat_rate_w_m2": scenario.reentry.limits.max_heat_rate_kw_m2 * 1e3,
-        "max_load_g": scenario.reentry.limits.max_load_g,
-        "max_dynamic_pressure_pa": scenario.reentry.limits.max_dynamic_pressure_kpa * 1e3,
-    }
+    limits = path_limits(plan)
     stated = plan.terminal.stated_miss_m
     closed = summarise([c for c, _ in pairs], limits, stated)
     opened = summarise([o for _, o in pairs], limits, stated)

@@ -18,7 +18,7 @@ from typing import Any
 
 from prefect import get_run_logger
 
-from flows.runners import ClusterError, count_workers
+from flows.runners import ClusterError, count_workers, task_runner
 from tasks.common import ORCHESTRATION
 
 FLOW_TIMEOUTS = ORCHESTRATION.flows
@@ -175,6 +175,76 @@ class FlowDeadline(TimeoutError):
 
 def _dask_client(runner: Any) -> Any:
     return runner.client if type(runner).__name__ == "DaskTaskRunner" else None
+
+
+def consecutive_batches(todo: list[int], size: int) -> list[list[int]]:
+    """Consecutive run numbers still to do, grouped ``size`` at a time (a gap starts a new
+    group, so a batch's first run number names it whatever the batch size was)."""
+    groups: list[list[int]] = []
+    for run in todo:
+        if groups and len(groups[-1]) < size and groups[-1][-1] == run - 1:
+            groups[-1].append(run)
+        else:
+            groups.append([run])
+    return groups
+
+
+def describe_stored_batch(k: int, summary: dict[str, Any]) -> str:
+    """A log line for a Monte Carlo batch task's summary (its first run ``k``)."""
+    return (
+        f"runs {k}-{k + summary['runs'] - 1} stored: {summary['rows']} rows, "
+        f"{summary['failed']} failed, {summary['wall_time_s']:.1f} s"
+    )
+
+
+def store_missing_batches(
+    run: Any,
+    todo: list[int],
+    size: int,
+    task: Any,
+    parameters: Callable[[list[int]], dict[str, Any]],
+    *,
+    runner: str,
+    workers: int,
+    dask_address: str | None,
+    retries: int,
+    timeout_per_run_s: float,
+    deadline: float,
+    limit: str,
+    describe: Callable[[int, dict[str, Any]], str] = describe_stored_batch,
+) -> dict[int, str]:
+    """Run ``task`` on the runs of ``todo`` a batch at a time (``parameters(runs)`` plus the
+    batch's first run and its runs), each task storing its own batch in ``run`` (a
+    :class:`ovtraj.runs.batched.BatchedRun`); the failed batches by first run. A fault of
+    the runner marks the run ``failed`` in its ``run.json`` and is raised."""
+    if not todo:
+        return {}
+    run.update_info(status="running")
+    batch_task = prepared(task, timeout_s=timeout_per_run_s * size, retries=retries)
+    groups = {runs[0]: runs for runs in consecutive_batches(todo, size)}
+    arguments = {
+        first: {**parameters(group), "batch": first, "runs": group}
+        for first, group in groups.items()
+    }
+
+    def stored(first: int) -> bool:
+        return set(groups[first]) <= run.done_runs()
+
+    try:
+        with task_runner(runner, workers, dask_address) as started:
+            failures, _ = run_batches(
+                started,
+                batch_task,
+                arguments,
+                stored,
+                deadline=deadline,
+                limit=limit,
+                describe=describe,
+            )
+    except Exception as err:
+        run.update_info(status="failed", failures=[f"{type(err).__name__}: {err}"[:1000]])
+        raise
+    return failures
 
 
 def run_batches(

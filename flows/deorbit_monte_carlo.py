@@ -23,13 +23,12 @@ from prefect.artifacts import create_table_artifact
 from flows.common import (
     FLOW_TIMEOUTS,
     label_flow_run,
-    prepared,
     prune_expired_results,
-    run_batches,
     run_name,
     run_tags,
+    store_missing_batches,
 )
-from flows.runners import check_runner, task_runner
+from flows.runners import check_runner
 from ovtraj.deorbit.burn.montecarlo import monte_carlo_summary
 from ovtraj.deorbit.burn.plots import plot_dispersions
 from ovtraj.deorbit.burn.problem import load_deorbit_burn
@@ -41,24 +40,6 @@ from tasks.common import TIMEOUTS, code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
 
 LIMIT = "flows.deorbit_monte_carlo_s of configs/orchestration.yaml"
-
-
-def _batches(todo: list[int], size: int) -> list[list[int]]:
-    """Consecutive runs still to simulate, grouped ``size`` at a time."""
-    groups: list[list[int]] = []
-    for run in todo:
-        if groups and len(groups[-1]) < size and groups[-1][-1] == run - 1:
-            groups[-1].append(run)
-        else:
-            groups.append([run])
-    return groups
-
-
-def _describe(k: int, summary: dict[str, Any]) -> str:
-    return (
-        f"runs {k}-{k + summary['runs'] - 1} stored: {summary['rows']} rows, "
-        f"{summary['failed']} failed, {summary['wall_time_s']:.1f} s"
-    )
 
 
 @flow(
@@ -109,46 +90,26 @@ def deorbit_monte_carlo_flow(
     label_flow_run(f"deorbit-monte-carlo {problem.name} {run.id}", labels)
     todo = sorted(set(range(n)) - run.done_runs())
     logger.info("run %s (%s): %d runs, %d to simulate", run.id, problem.name, n, len(todo))
-    failures: dict[int, str] = {}
-    if todo:
-        run.update_info(status="running")
-        url = str(run.directory.resolve())
-        batch_task = prepared(
-            deorbit_mc_batch_task,
-            timeout_s=TIMEOUTS.deorbit_mc_batch_per_run_s * size,
-            retries=settings.task_retries,
-        )
-        groups = {runs_[0]: runs_ for runs_ in _batches(todo, size)}
-        parameters = {
-            first: {
-                "resolved_problem": resolved,
-                "run_url": url,
-                "batch": first,
-                "runs": group,
-                "strategies": chosen,
-                "seed": seed,
-            }
-            for first, group in groups.items()
-        }
-
-        def stored(first: int) -> bool:
-            return set(groups[first]) <= run.done_runs()
-
-        try:
-            count = workers or settings.workers
-            with task_runner(chosen_runner, count, dask_address) as started:
-                failures, _ = run_batches(
-                    started,
-                    batch_task,
-                    parameters,
-                    stored,
-                    deadline=deadline,
-                    limit=LIMIT,
-                    describe=_describe,
-                )
-        except Exception as err:
-            run.update_info(status="failed", failures=[f"{type(err).__name__}: {err}"[:1000]])
-            raise
+    url = str(run.directory.resolve())
+    failures = store_missing_batches(
+        run,
+        todo,
+        size,
+        deorbit_mc_batch_task,
+        lambda group: {
+            "resolved_problem": resolved,
+            "run_url": url,
+            "strategies": chosen,
+            "seed": seed,
+        },
+        runner=chosen_runner,
+        workers=workers or settings.workers,
+        dask_address=dask_address,
+        retries=settings.task_retries,
+        timeout_per_run_s=TIMEOUTS.deorbit_mc_batch_per_run_s,
+        deadline=deadline,
+        limit=LIMIT,
+    )
     frame = run.results()
     summary = monte_carlo_summary(frame)
     plots = plot_dispersions(frame, run.directory / "plots", problem.entry.radius_m)

@@ -1065,19 +1065,14 @@ def _dispersions(path: Path | None) -> Any:
 def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool) -> dict:
     """The dispersed runs, closed and open loop, summarised (a progress line per run on
     stderr unless ``quiet``)."""
-    from ovtraj.mission.montecarlo import monte_carlo, summarise
+    from ovtraj.mission.montecarlo import monte_carlo, path_limits, summarise
 
     def progress(done: int, total: int) -> None:
         if not quiet:
             typer.echo(f"monte carlo: {done}/{total} runs", err=True)
 
     pairs = monte_carlo(plan, dispersions, runs, seed, progress=progress)
-    scenario_limits = plan.scenario["reentry"]["limits"]
-    limits = {
-        "max_heat_rate_w_m2": scenario_limits["max_heat_rate_kw_m2"] * 1e3,
-        "max_load_g": scenario_limits["max_load_g"],
-        "max_dynamic_pressure_pa": scenario_limits["max_dynamic_pressure_kpa"] * 1e3,
-    }
+    limits = path_limits(plan)
     stated = plan.terminal.stated_miss_m
     return {
         "seed": seed,

@@ -131,3 +131,53 @@ def test_bad_dispersions_are_refused_naming_the_field(plan_file, tmp_path):
         app, ["fly", str(plan_file), "--monte-carlo", "2", "--dispersions", str(bad)]
     )
     assert result.exit_code == 2 and "rendezvous_corrections" in result.output
+
+
+def _parquet_digests(directory):
+    import hashlib
+    from pathlib import Path
+
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(Path(directory).rglob("*.parquet"))
+    }
+
+
+def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
+    prefect_server, plan, plan_file, tmp_path
+):
+    import pyarrow.parquet as pq
+
+    from flows.mission_monte_carlo import plan_monte_carlo_flow
+    from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA, loop_summaries, monte_carlo
+    from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+
+    data = yaml.safe_load(config_path("dispersions.yaml").read_text())
+    data["execution"].update(
+        runs=3, seed=4, batch_size=2, workers=2, task_runner="threads", store=str(tmp_path)
+    )
+    dispersions = tmp_path / "dispersions.yaml"
+    dispersions.write_text(yaml.safe_dump(data))
+    first = plan_monte_carlo_flow(str(plan_file), dispersions=str(dispersions))
+    assert first["status"] == "complete" and first["simulated_runs"] == 3
+    run = PlanMonteCarloRun(first["directory"])
+    parts = sorted((run.directory / "runs").glob("part-*.parquet"))
+    assert len(parts) == 2  # runs 0-1 and 2
+    for part in parts:
+        assert pq.read_schema(part).remove_metadata().equals(STORED_RUN_SCHEMA)
+    frame = run.results()
+    assert len(frame) == 6 and sorted(set(frame["loop"])) == ["closed", "open"]
+    assert len(run.timing()) == 6  # the wall times live in the batch markers only
+    closed = first["closed_loop"]
+    assert closed["landed"] == 3 and closed["within_stated_miss_fraction"] == 1.0
+    # The stored rows are the library's: the same draws give the same landings.
+    pairs = monte_carlo(plan, model_from_dict(DispersionsConfig, data, "test"), 3, 4)
+    assert [c.landing_miss_m for c, _ in pairs] == frame[frame["loop"] == "closed"][
+        "landing_miss_m"
+    ].tolist()
+    assert loop_summaries(plan, frame)["closed"] == closed
+    digests = _parquet_digests(run.directory)
+    second = plan_monte_carlo_flow(str(plan_file), dispersions=str(dispersions))
+    assert second["run_id"] == first["run_id"] and second["simulated_runs"] == 0
+    assert _parquet_digests(run.directory) == digests
+    assert json.loads((run.directory / "summary.json").read_text())["closed_loop"] == closed

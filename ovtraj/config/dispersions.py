@@ -8,6 +8,7 @@ flight makes (re-targeting, the deorbit cut-off, the entry guidance re-solved in
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Literal
 
 from pydantic import Field, field_validator
 
@@ -94,6 +95,21 @@ class ClosedLoopSettings(StrictModel):
         return fractions
 
 
+class MonteCarloExecution(StrictModel):
+    """How the Monte Carlo flow runs (never part of a run's id or results)."""
+
+    runs: int = bounded(ge=1, le=100000)
+    seed: int = bounded(ge=0, le=2**32 - 1)
+    batch_size: int = bounded(ge=1, le=10000, description="runs per Prefect task")
+    workers: int = bounded(ge=1, le=64)
+    task_runner: Literal["serial", "threads", "processes", "dask"]
+    task_retries: int = bounded(ge=0, le=10)
+    store: str | None = Field(
+        description="run-store root, relative to the config file's folder; null: the "
+        "workspace's runs/ (OVTRAJ_HOME)"
+    )
+
+
 class DispersionsConfig(StrictModel):
     drop: DropDispersion
     stages: StageDispersion
@@ -101,6 +117,11 @@ class DispersionsConfig(StrictModel):
     burns: BurnDispersion
     entry: EntryDispersion
     closed_loop: ClosedLoopSettings
+    execution: MonteCarloExecution
+
+    def results_content(self) -> dict:
+        """What the runs' results depend on: every group but ``execution``."""
+        return self.model_dump(mode="json", exclude={"execution"})
 
 
 @lru_cache(maxsize=1)

@@ -32,6 +32,9 @@ class TaskTimeouts(StrictModel):
     deorbit_mc_batch_per_run_s: float = bounded(
         unit="s", gt=0, le=86400, description="a Monte Carlo batch task: this times its runs"
     )
+    mission_mc_batch_per_run_s: float = bounded(
+        unit="s", gt=0, le=86400, description="a plan Monte Carlo batch: this times its runs"
+    )
     fit_surrogates_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     surrogate_front_s: float = bounded(unit="s", gt=0, le=86400)
     mission_plan_s: float = bounded(unit="s", gt=0, le=86400)
@@ -44,6 +47,7 @@ class FlowTimeouts(StrictModel):
     launch_fit_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     doe_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     deorbit_monte_carlo_s: float = bounded(unit="s", gt=0, le=7 * 86400)
+    mission_monte_carlo_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     surrogate_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     optimize_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     mission_s: float = bounded(unit="s", gt=0, le=7 * 86400)

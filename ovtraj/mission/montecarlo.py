@@ -54,8 +54,11 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+import pandas as pd
+import pyarrow as pa
 from numpy.typing import NDArray
 from scipy.optimize import brentq
+from threadpoolctl import threadpool_limits
 
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario, scenario_from_dict
@@ -76,21 +79,29 @@ from ovtraj.mission.fly import (
     fly_plan,
 )
 from ovtraj.mission.plan import MissionPlan
+from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.model import EntryModel
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
+from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
 from ovtraj.targets import target_state
 
 __all__ = [
+    "RUN_SCHEMA",
+    "STORED_RUN_SCHEMA",
     "DispersedFlight",
     "RunDraw",
     "RunOutcome",
     "draw_run",
     "fly_closed_loop",
     "fly_open_loop",
+    "loop_summaries",
     "monte_carlo",
+    "outcomes_of",
+    "path_limits",
+    "simulate_batch",
     "summarise",
 ]
 
@@ -99,6 +110,25 @@ NAVIGATION_POINTS = ("rendezvous", "arrival", "transfer", "deorbit")
 MAX_CORRECTIONS = 10  # draws kept for the rendezvous's mid-course corrections
 MAX_GUIDANCE_CALLS = 400  # draws kept for the entry guidance's measured lift and drag
 PATH_LIMITS = ("max_heat_rate_w_m2", "max_load_g", "max_dynamic_pressure_pa")
+
+RUN_SCHEMA = record_schema(
+    [
+        ("run", INT),
+        ("loop", TEXT),
+        ("landed", BOOL),
+        ("failed_stage", TEXT),
+        ("reason", TEXT),
+        ("landing_miss_m", FLOAT),
+        ("arrival_miss_m", FLOAT),
+        ("dv_total_mps", FLOAT),
+        *[(name, FLOAT) for name in PATH_LIMITS],
+        ("wall_time_s", FLOAT),
+    ],
+    required=("run", "loop", "landed"),
+)
+"""One flown run of one loop (``closed``/``open``); ``wall_time_s`` is timing only."""
+STORED_RUN_SCHEMA = pa.schema([f for f in RUN_SCHEMA if f.name != "wall_time_s"])
+"""The stored rows (the wall times go to the batch markers)."""
 
 
 @dataclass(frozen=True)
@@ -268,7 +298,8 @@ class RunOutcome:
 
 def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
     """The plan flown as stored with the draw's errors (the replay, no correction)."""
-    report: FlightReport = fly_plan(plan, perturbation=DispersedFlight(draw))
+    with threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"):
+        report: FlightReport = fly_plan(plan, perturbation=DispersedFlight(draw))
     maxima = {
         name: float(report.checks[name].value)
         for name in PATH_LIMITS
@@ -296,11 +327,18 @@ class _Failed(Exception):
 def fly_closed_loop(
     plan: MissionPlan, draw: RunDraw, config: DispersionsConfig, scenario: Scenario | None = None
 ) -> RunOutcome:
-    """The draw flown with the mission's corrections (module notes). Never raises."""
+    """The draw flown with the mission's corrections (module notes). Never raises.
+
+    On one BLAS thread, as every stored evaluation (:data:`EVALUATION_BLAS_THREADS`): the
+    closed loop amplifies the last digits of a multi-threaded sum to millimetres at
+    landing, and a run must land in the same place in any process and runner."""
     outcome = RunOutcome(run=draw.run, loop="closed", landed=False)
     scenario = scenario or scenario_from_dict(plan.scenario, "the plan's scenario")
     try:
-        with np.errstate(all="ignore"):
+        with (
+            np.errstate(all="ignore"),
+            threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"),
+        ):
             _closed_loop(plan, scenario, draw, config, outcome)
         outcome.landed = True
     except _Failed as failure:
@@ -625,6 +663,24 @@ def monte_carlo(
     return pairs
 
 
+def path_limits(plan: MissionPlan) -> dict[str, float]:
+    """The entry's path limits of the plan's scenario, in the units of ``PATH_LIMITS``."""
+    limits = plan.scenario["reentry"]["limits"]
+    return {
+        "max_heat_rate_w_m2": limits["max_heat_rate_kw_m2"] * 1e3,
+        "max_load_g": limits["max_load_g"],
+        "max_dynamic_pressure_pa": limits["max_dynamic_pressure_kpa"] * 1e3,
+    }
+
+
+def loop_summaries(plan: MissionPlan, frame: pd.DataFrame) -> dict[str, dict[str, Any]]:
+    """:func:`summarise` of the stored rows of each loop (``closed``, ``open``)."""
+    limits, stated = path_limits(plan), plan.terminal.stated_miss_m
+    return {
+        loop: summarise(outcomes_of(frame, loop), limits, stated) for loop in ("closed", "open")
+    }
+
+
 def summarise(
     outcomes: list[RunOutcome], limits: dict[str, float], stated_miss_m: float
 ) -> dict[str, Any]:
@@ -672,3 +728,61 @@ def _failures(outcomes: list[RunOutcome]) -> dict[str, int]:
             key = o.failed_stage or "unknown"
             counts[key] = counts.get(key, 0) + 1
     return counts
+
+
+def simulate_batch(
+    plan: MissionPlan, config: DispersionsConfig, runs: list[int], seed: int
+) -> pd.DataFrame:
+    """Rows of ``RUN_SCHEMA``: each run flown closed and open loop (timed per row)."""
+    import time
+
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    rows = []
+    for run in runs:
+        draw = draw_run(config, seed, run, len(plan.impulses()))
+        for fly in (
+            lambda d=draw: fly_closed_loop(plan, d, config, scenario),
+            lambda d=draw: fly_open_loop(plan, d),
+        ):
+            start = time.perf_counter()
+            outcome = fly()
+            rows.append(
+                {
+                    "run": run,
+                    "loop": outcome.loop,
+                    "landed": outcome.landed,
+                    "failed_stage": outcome.failed_stage,
+                    "reason": outcome.reason,
+                    "landing_miss_m": outcome.landing_miss_m,
+                    "arrival_miss_m": outcome.arrival_miss_m,
+                    "dv_total_mps": outcome.dv_total_mps,
+                    **{name: outcome.maxima.get(name) for name in PATH_LIMITS},
+                    "wall_time_s": time.perf_counter() - start,
+                }
+            )
+    return pd.DataFrame(rows, columns=RUN_SCHEMA.names)
+
+
+def outcomes_of(frame: pd.DataFrame, loop: str) -> list[RunOutcome]:
+    """The stored rows of one loop as outcomes (for :func:`summarise`)."""
+
+    def value(row: Any, name: str) -> Any:
+        item = row[name]
+        return None if item is None or (isinstance(item, float) and math.isnan(item)) else item
+
+    outcomes = []
+    for _, row in frame[frame["loop"] == loop].iterrows():
+        outcomes.append(
+            RunOutcome(
+                run=int(row["run"]),
+                loop=loop,
+                landed=bool(row["landed"]),
+                failed_stage=value(row, "failed_stage"),
+                reason=value(row, "reason"),
+                landing_miss_m=value(row, "landing_miss_m"),
+                maxima={n: float(row[n]) for n in PATH_LIMITS if value(row, n) is not None},
+                arrival_miss_m=value(row, "arrival_miss_m"),
+                dv_total_mps=value(row, "dv_total_mps"),
+            )
+        )
+    return outcomes

@@ -1,0 +1,155 @@
+"""Flow: dispersed Monte Carlo of a mission plan, closed and open loop.
+
+1. read the plan and the dispersions (``configs/dispersions.yaml`` by default);
+2. create (or reopen) the run directory ``<store>/<run_id>/``: the id hashes the plan, the
+   dispersions that count for results, the number of runs, the seed and the code version;
+3. fly the runs the store does not hold yet, closed and open loop, in batches of several
+   runs per task on the configured task runner; each task is cached on its inputs and
+   writes its own batch to Parquet;
+4. the landing-miss statistics of each loop, the landed fractions and the smallest margin
+   of each path limit into ``summary.json``; a table artifact; the summary is returned.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from prefect import flow, get_run_logger
+from prefect.artifacts import create_table_artifact
+
+from flows.common import (
+    FLOW_TIMEOUTS,
+    label_flow_run,
+    prune_expired_results,
+    run_name,
+    run_tags,
+    store_missing_batches,
+)
+from flows.runners import check_runner
+from ovtraj.config.base import load_model
+from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.mission.montecarlo import loop_summaries
+from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+from ovtraj.mission.plan import read_plan
+from ovtraj.paths import config_path
+from ovtraj.paths import store_root as store_root_of
+from tasks.common import TIMEOUTS, code_version
+from tasks.mission_monte_carlo import plan_mc_batch_task
+
+LIMIT = "flows.mission_monte_carlo_s of configs/orchestration.yaml"
+
+
+@flow(
+    name="plan-monte-carlo",
+    flow_run_name=run_name("plan-monte-carlo", "plan"),
+    timeout_seconds=FLOW_TIMEOUTS.mission_monte_carlo_s,
+    log_prints=True,
+)
+def plan_monte_carlo_flow(
+    plan: str,
+    dispersions: str | None = None,
+    runs: int | None = None,
+    seed: int | None = None,
+    store_root: str | None = None,
+    batch_size: int | None = None,
+    workers: int | None = None,
+    runner: str | None = None,
+    dask_address: str | None = None,
+) -> dict[str, Any]:
+    """Monte Carlo of a plan file; returns the run's summary (id, both loops' statistics).
+
+    Arguments left ``None`` take the dispersions file's ``execution`` values. Raises
+    ``RuntimeError`` naming the failed batches if a task fails (after its retries); the
+    stored batches are kept and a re-run flies only the missing runs.
+    """
+    deadline = time.monotonic() + FLOW_TIMEOUTS.mission_monte_carlo_s
+    logger = get_run_logger()
+    prune_expired_results()
+    mission_plan = read_plan(Path(plan))
+    config_file = Path(dispersions) if dispersions else config_path("dispersions.yaml")
+    config = load_model(DispersionsConfig, config_file)
+    execution = config.execution
+    chosen_runner = runner or execution.task_runner
+    check_runner(chosen_runner, dask_address)
+    n = runs or execution.runs
+    seed = execution.seed if seed is None else int(seed)
+    size = batch_size or execution.batch_size
+    plan_data = mission_plan.to_dict()
+    run = PlanMonteCarloRun.create(
+        store_root_of(execution.store, config_file.resolve().parent, store_root),
+        plan=plan_data,
+        dispersions=config.results_content(),
+        runs=n,
+        seed=seed,
+        code=code_version(),
+    )
+    labels = run_tags("plan-monte-carlo", mission_plan.scenario.get("name"), run.id)
+    label_flow_run(f"plan-monte-carlo {run.id}", labels)
+    todo = sorted(set(range(n)) - run.done_runs())
+    logger.info("run %s: %d runs, %d to fly", run.id, n, len(todo))
+    url = str(run.directory.resolve())
+    everything = config.model_dump(mode="json")
+    failures = store_missing_batches(
+        run,
+        todo,
+        size,
+        plan_mc_batch_task,
+        lambda group: {"plan": plan_data, "dispersions": everything, "run_url": url, "seed": seed},
+        runner=chosen_runner,
+        workers=workers or execution.workers,
+        dask_address=dask_address,
+        retries=execution.task_retries,
+        timeout_per_run_s=TIMEOUTS.mission_mc_batch_per_run_s,
+        deadline=deadline,
+        limit=LIMIT,
+    )
+    loops = loop_summaries(mission_plan, run.results())
+    stated = mission_plan.terminal.stated_miss_m
+    report = {
+        "run_id": run.id,
+        "directory": str(run.directory),
+        "runs": n,
+        "stored_runs": len(run.done_runs()),
+        "seed": seed,
+        "simulated_runs": len(todo),
+        "status": "incomplete" if failures else "complete",
+        "stated_miss_m": stated,
+        "closed_loop": loops["closed"],
+        "open_loop": loops["open"],
+    }
+    run.write_summary(report)
+    run.update_info(
+        status=report["status"], failures=[f"runs from {k}: {why}" for k, why in failures.items()]
+    )
+    create_table_artifact(
+        key="plan-monte-carlo",
+        table=[
+            {
+                "loop": loop,
+                "runs": s["runs"],
+                "landed": s["landed"],
+                "within_stated_miss": s["within_stated_miss_fraction"],
+                "p50_km": _km((s["landing_miss_m"] or {}).get("p50")),
+                "p95_km": _km((s["landing_miss_m"] or {}).get("p95")),
+                "max_km": _km((s["landing_miss_m"] or {}).get("max")),
+            }
+            for loop, s in loops.items()
+        ],
+        description=f"Plan Monte Carlo {run.id} ({n} runs, seed {seed})",
+    )
+    if failures:
+        text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())
+        raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {text}")
+    return report
+
+
+def _km(value: float | None) -> float | None:
+    return None if value is None else round(value / 1e3, 3)
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(plan_monte_carlo_flow(sys.argv[1]))
