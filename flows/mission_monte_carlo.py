@@ -30,7 +30,7 @@ from flows.common import (
 from flows.runners import check_runner
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig
-from ovtraj.mission.montecarlo import loop_summaries
+from ovtraj.mission.montecarlo import loop_summaries, monte_carlo_report
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import read_plan
 from ovtraj.paths import config_path
@@ -115,9 +115,7 @@ def plan_monte_carlo_flow(
         "seed": seed,
         "simulated_runs": len(todo),
         "status": "incomplete" if failures else "complete",
-        "stated_miss_m": stated,
-        "closed_loop": loops["closed"],
-        "open_loop": loops["open"],
+        **monte_carlo_report(loops["closed"], loops["open"], seed, stated),
     }
     run.write_summary(report)
     run.update_info(

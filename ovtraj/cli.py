@@ -1065,7 +1065,7 @@ def _dispersions(path: Path | None) -> Any:
 def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool) -> dict:
     """The dispersed runs, closed and open loop, summarised (a progress line per run on
     stderr unless ``quiet``)."""
-    from ovtraj.mission.montecarlo import monte_carlo, path_limits, summarise
+    from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, path_limits, summarise
 
     def progress(done: int, total: int) -> None:
         if not quiet:
@@ -1074,18 +1074,17 @@ def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool)
     pairs = monte_carlo(plan, dispersions, runs, seed, progress=progress)
     limits = path_limits(plan)
     stated = plan.terminal.stated_miss_m
-    return {
-        "seed": seed,
-        "stated_miss_m": stated,
-        "closed_loop": summarise([c for c, _ in pairs], limits, stated),
-        "open_loop": summarise([o for _, o in pairs], limits, stated),
-    }
+    return monte_carlo_report(
+        summarise([c for c, _ in pairs], limits, stated),
+        summarise([o for _, o in pairs], limits, stated),
+        seed,
+        stated,
+    )
 
 
 def _format_monte_carlo(summary: dict) -> str:
     lines = [f"monte carlo (seed {summary['seed']}): stated miss {summary['stated_miss_m']:g} m"]
-    for loop in ("closed_loop", "open_loop"):
-        s = summary[loop]
+    for loop, s in (("closed loop", summary), ("open loop", summary["open_loop"])):
         miss = s["landing_miss_m"]
 
         def km(value: float | None) -> str:
@@ -1098,7 +1097,7 @@ def _format_monte_carlo(summary: dict) -> str:
             "(a failed run counts as beyond any miss)"
         )
         lines.append(
-            f"  {loop.replace('_', ' ')}: {s['landed']}/{s['runs']} landed "
+            f"  {loop}: {s['landed']}/{s['runs']} landed "
             f"({s['within_stated_miss_fraction']:.0%} within the stated miss); {shown}"
         )
         if s["failures"]:

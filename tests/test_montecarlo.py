@@ -90,7 +90,9 @@ def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot
     row = json.loads(result.stdout)
     assert row["start"] == "drop" and row["landed_within_stated_miss"] is True
     mc = row["monte_carlo"]
-    closed, opened = mc["closed_loop"], mc["open_loop"]
+    # The shape: the closed loop's figures at the top, the open loop's beside.
+    closed, opened = mc, mc["open_loop"]
+    assert mc["loop"] == "closed" and {"runs", "landing_miss_m", "feasible_fraction"} <= set(mc)
     assert closed["runs"] == opened["runs"] == 4
     assert closed["feasible_fraction"] == 1.0 and closed["within_stated_miss_fraction"] == 1.0
     assert closed["landing_miss_m"]["max"] <= mc["stated_miss_m"]
@@ -168,7 +170,7 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
     frame = run.results()
     assert len(frame) == 6 and sorted(set(frame["loop"])) == ["closed", "open"]
     assert len(run.timing()) == 6  # the wall times live in the batch markers only
-    closed = first["closed_loop"]
+    closed = {k: first[k] for k in loop_summaries(plan, run.results())["closed"]}
     assert closed["landed"] == 3 and closed["within_stated_miss_fraction"] == 1.0
     # The stored rows are the library's: the same draws give the same landings.
     pairs = monte_carlo(plan, model_from_dict(DispersionsConfig, data, "test"), 3, 4)
@@ -176,8 +178,10 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
         "landing_miss_m"
     ].tolist()
     assert loop_summaries(plan, frame)["closed"] == closed
+    assert loop_summaries(plan, frame)["open"] == first["open_loop"]
     digests = _parquet_digests(run.directory)
     second = plan_monte_carlo_flow(str(plan_file), dispersions=str(dispersions))
     assert second["run_id"] == first["run_id"] and second["simulated_runs"] == 0
     assert _parquet_digests(run.directory) == digests
-    assert json.loads((run.directory / "summary.json").read_text())["closed_loop"] == closed
+    stored = json.loads((run.directory / "summary.json").read_text())
+    assert {k: stored[k] for k in closed} == closed

@@ -99,6 +99,7 @@ __all__ = [
     "fly_open_loop",
     "loop_summaries",
     "monte_carlo",
+    "monte_carlo_report",
     "outcomes_of",
     "path_limits",
     "simulate_batch",
@@ -678,6 +679,20 @@ def loop_summaries(plan: MissionPlan, frame: pd.DataFrame) -> dict[str, dict[str
     limits, stated = path_limits(plan), plan.terminal.stated_miss_m
     return {
         loop: summarise(outcomes_of(frame, loop), limits, stated) for loop in ("closed", "open")
+    }
+
+
+def monte_carlo_report(
+    closed: dict[str, Any], opened: dict[str, Any], seed: int, stated_miss_m: float
+) -> dict[str, Any]:
+    """The Monte Carlo as reported: the closed loop's figures (``runs``, ``landing_miss_m``,
+    ``feasible_fraction``, ...) with ``open_loop``'s beside them."""
+    return {
+        "loop": "closed",
+        "seed": int(seed),
+        "stated_miss_m": stated_miss_m,
+        **closed,
+        "open_loop": opened,
     }
 
 
