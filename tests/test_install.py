@@ -170,3 +170,32 @@ def test_a_crash_is_one_line_and_exit_2_not_the_infeasible_code(installed):
     done = _run(installed, "rendezvous", "no-such-file.yaml")
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "no-such-file.yaml" in done.stderr
+
+
+def test_the_installed_command_exports_and_flies_a_plan_with_the_shipped_settings(
+    installed, tmp_path
+):
+    from ovtraj.config import load_scenario
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.mission.chain import MissionContext, MissionDesign
+    from ovtraj.mission.plan import build_plan, write_plan
+    from ovtraj.paths import config_path
+
+    scenario = load_scenario(config_path("scenario.yaml"))
+    context = MissionContext(scenario, find_launch_fit(scenario))
+    plan = build_plan(
+        context, MissionDesign(285.06, 326.96, 0.79), source={}, launch_cache=tmp_path
+    )
+    plan_file, _ = write_plan(plan, installed["cwd"], "chosen")
+    done = _run(installed, "export", plan_file.name, "--format", "opm", "--out", "chosen.opm")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"opm: {installed['cwd'] / 'chosen.opm'}"
+    flown = _run(installed, "fly", plan_file.name, "--monte-carlo", "1", "--json")
+    assert flown.returncode == 0, flown.stderr
+    report = json.loads(flown.stdout)
+    assert report["start"] == "drop" and report["monte_carlo"]["runs"] == 1
+    missing = _run(
+        installed, "fly", plan_file.name, "--monte-carlo", "1", "--dispersions", "no.yaml"
+    )
+    assert missing.returncode == 2 and "Traceback" not in missing.stderr
+    assert len(missing.stderr.strip().splitlines()) == 1 and "no.yaml" in missing.stderr

@@ -51,6 +51,9 @@ class EntryDispersion(StrictModel):
     density_fraction: float = bounded(ge=0, le=0.5)
     lift_fraction: float = bounded(ge=0, le=0.5)
     drag_fraction: float = bounded(ge=0, le=0.5)
+    minimum_factor: float = bounded(
+        gt=0, le=1, description="a drawn density, lift or drag factor is held at least this"
+    )
 
 
 class ClosedLoopSettings(StrictModel):
@@ -63,6 +66,12 @@ class ClosedLoopSettings(StrictModel):
     )
     correction_tolerance_m: float = bounded(
         unit="m", gt=0, le=1000, description="the corrections' predicted arrival miss"
+    )
+    correction_iterations: int = bounded(
+        ge=1, le=50, description="Newton steps of a mid-course correction at most"
+    )
+    cutoff_scale_bounds: tuple[float, float] = Field(
+        description="where the deorbit cut-off is searched: fractions of the nominal impulse"
     )
     docking_capture_m: float = bounded(
         unit="m",
@@ -86,6 +95,13 @@ class ClosedLoopSettings(StrictModel):
     prediction_iterations: int = bounded(
         ge=1, le=10, description="passes of the osculating-element entry prediction"
     )
+
+    @field_validator("cutoff_scale_bounds")
+    @classmethod
+    def _bracket(cls, bounds: tuple[float, float]) -> tuple[float, float]:
+        if not 0.0 < bounds[0] < 1.0 < bounds[1] <= 10.0:
+            raise ValueError("need 0 < lower < 1 < upper <= 10 (fractions of the impulse)")
+        return bounds
 
     @field_validator("rendezvous_corrections")
     @classmethod

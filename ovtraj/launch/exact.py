@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -179,7 +178,3 @@ def drop_state(
     theta = inp.launch_day.gmst_rad() + inp.earth.omega * drop_time_s
     r, v = ecef_to_eci_state(r_ecef, v_ecef, theta, omega=inp.earth.omega)
     return np.asarray(r, dtype=float), np.asarray(v, dtype=float)
-
-
-def azimuth_rad(solved: SolvedLaunch) -> float:
-    return math.radians(solved.value("azimuth_deg"))

@@ -60,6 +60,7 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from threadpoolctl import threadpool_limits
 
+from ovtraj.astro.frames import great_circle_distance
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
@@ -73,7 +74,6 @@ from ovtraj.mission.fly import (
     Perturbation,
     ReplayFailed,
     _fly_ascent,
-    _haversine,
     _Orbit,
     _relative_entry,
     fly_plan,
@@ -108,8 +108,6 @@ __all__ = [
 
 # Where the on-board estimate is drawn: before each corrected phase.
 NAVIGATION_POINTS = ("rendezvous", "arrival", "transfer", "deorbit")
-MAX_CORRECTIONS = 10  # draws kept for the rendezvous's mid-course corrections
-MAX_GUIDANCE_CALLS = 400  # draws kept for the entry guidance's measured lift and drag
 PATH_LIMITS = ("max_heat_rate_w_m2", "max_load_g", "max_dynamic_pressure_pa")
 
 RUN_SCHEMA = record_schema(
@@ -154,8 +152,15 @@ class RunDraw:
     density_scale: float
     lift_scale: float
     drag_scale: float
-    # Relative errors of the measured (lift, drag) at each entry guidance call.
-    measurement_error: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    seed: int = 0
+    accelerometer_fraction: float = 0.0
+
+    def measurement_error(self, call: int) -> NDArray[np.float64]:
+        """Relative errors of the measured (lift, drag) at the ``call``-th entry guidance
+        call: drawn from the run's own stream for that call, as many calls as the entry
+        takes."""
+        rng = np.random.default_rng([self.seed, self.run, 1, call])
+        return rng.normal(0.0, self.accelerometer_fraction, 2)
 
 
 def draw_run(config: DispersionsConfig, seed: int, run: int, impulses: int = 5) -> RunDraw:
@@ -163,6 +168,7 @@ def draw_run(config: DispersionsConfig, seed: int, run: int, impulses: int = 5) 
     rng = np.random.default_rng([seed, run])
     drop, stages, nav = config.drop, config.stages, config.navigation
     burns, entry = config.burns, config.entry
+    corrections = len(config.closed_loop.rendezvous_corrections)
 
     def normal(sigma: float, size: int | None = None) -> Any:
         return rng.normal(0.0, sigma, size)
@@ -186,19 +192,18 @@ def draw_run(config: DispersionsConfig, seed: int, run: int, impulses: int = 5) 
         ),
         correction_navigation=tuple(
             np.r_[normal(nav.position_m, 3), normal(nav.velocity_mps, 3)]
-            for _ in range(MAX_CORRECTIONS)
+            for _ in range(corrections)
         ),
-        correction_scale=tuple(1.0 + normal(burns.magnitude_fraction, MAX_CORRECTIONS)),
+        correction_scale=tuple(1.0 + normal(burns.magnitude_fraction, corrections)),
         correction_pointing_rad=tuple(
             (float(a), float(b))
-            for a, b in np.radians(normal(burns.pointing_deg, (MAX_CORRECTIONS, 2)))
+            for a, b in np.radians(normal(burns.pointing_deg, (corrections, 2)))
         ),
-        density_scale=float(max(1.0 + normal(entry.density_fraction), 0.05)),
-        lift_scale=float(max(1.0 + normal(entry.lift_fraction), 0.05)),
-        drag_scale=float(max(1.0 + normal(entry.drag_fraction), 0.05)),
-        measurement_error=normal(
-            config.closed_loop.accelerometer_fraction, (MAX_GUIDANCE_CALLS, 2)
-        ),
+        density_scale=float(max(1.0 + normal(entry.density_fraction), entry.minimum_factor)),
+        lift_scale=float(max(1.0 + normal(entry.lift_fraction), entry.minimum_factor)),
+        drag_scale=float(max(1.0 + normal(entry.drag_fraction), entry.minimum_factor)),
+        seed=int(seed),
+        accelerometer_fraction=config.closed_loop.accelerometer_fraction,
     )
 
 
@@ -495,7 +500,7 @@ def _reaching_velocity(
     at ``t1`` under J2: Newton on the velocity with the state-transition matrix's
     position-velocity block (differential correction; Vallado, 4th ed., sec. 7.5)."""
     velocity = state[3:].copy()
-    for _ in range(10):
+    for _ in range(settings.correction_iterations):
         end, stm = propagator.propagate_with_stm(np.r_[state[:3], velocity], t0, t1)
         miss = target_position - end[:3]
         if float(np.linalg.norm(miss)) <= settings.correction_tolerance_m:
@@ -537,7 +542,7 @@ def _cut_off(
         u = entry_u(scale * magnitude * direction)
         return (u - target + math.pi) % (2.0 * math.pi) - math.pi
 
-    lo, hi = 0.8, 1.25
+    lo, hi = config.closed_loop.cutoff_scale_bounds
     if not (math.isfinite(gap(lo)) and math.isfinite(gap(hi))) or gap(lo) * gap(hi) > 0.0:
         return executed_dv  # the prediction cannot bracket the cut-off: burn as executed
     return brentq(gap, lo, hi, xtol=1e-10) * magnitude * direction
@@ -584,8 +589,8 @@ def _guided_entry(
         inp = reentry_input(scenario, entry=entry)
         nominal = EntryModel(inp)
         truth = flight.entry(nominal)
-        predictor = _measured_model(nominal, truth, x, draw.measurement_error[calls], config)
-        calls = min(calls + 1, MAX_GUIDANCE_CALLS - 1)
+        predictor = _measured_model(nominal, truth, x, draw.measurement_error(calls), config)
+        calls += 1
         guidance = solve_reentry(inp, model=predictor)
         if guidance.sigma0_rad is not None and guidance.sigma1_rad is not None:
             sigma = (guidance.sigma0_rad, guidance.sigma1_rad)
@@ -611,12 +616,12 @@ def _guided_entry(
             raise _Failed("reentry", f"no terminal speed within {limit_s:g} s")
     outcome.maxima = maxima
     site = settings.landing_site
-    outcome.landing_miss_m = _haversine(
+    outcome.landing_miss_m = great_circle_distance(
         float(x[2]),
         float(x[1]),
         math.radians(site.latitude_deg),
         math.radians(site.longitude_deg),
-        earth.radius,
+        radius=earth.radius,
     )
 
 
