@@ -295,3 +295,15 @@ def test_the_earth_model_file_refuses_a_bool_for_a_number(tmp_path):
     assert "j2: true" in path.read_text(encoding="utf-8")
     with pytest.raises(ValidationError, match="expected a number, not a boolean"):
         load_earth(path)
+
+
+@pytest.mark.parametrize("problems", [["mission.surrogate.seed: required"], ["a: bad", "b: bad"]])
+def test_a_config_error_from_a_worker_process_keeps_its_lines(problems):
+    """Pickled back from a worker, the error is rebuilt from its problems, not its text
+    (which was read as a list of characters: one line per letter)."""
+    import pickle
+
+    error = ConfigError(problems, "batch scenario")
+    again = pickle.loads(pickle.dumps(error))
+    assert str(again) == str(error) and again.problems == problems
+    assert again.source == "batch scenario"

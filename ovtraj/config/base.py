@@ -149,6 +149,11 @@ class ConfigError(ValueError):
         else:
             super().__init__("\n".join([head, *(f"  - {p}" for p in problems)]))
 
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[list[str], str]]:
+        # Raised in a worker process, it is pickled back: rebuilt from its problems, not
+        # from the formatted message (which a list of problems would read as characters).
+        return type(self), (self.problems, self.source)
+
 
 def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[FieldInfo | None, list]:
     """Follow an error location through nested models to the field it names."""
