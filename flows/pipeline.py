@@ -55,9 +55,12 @@ LIMIT = "flows.mission_s of configs/orchestration.yaml"
 def _steps(runner: Any, scenario: Scenario, fit: LaunchFit, deadline: float) -> PipelineSteps:
     """The pipeline's steps as tasks: batches on the runner, fit and front cached."""
 
-    def fit_surrogates(run: Run, data: Any, scenario: Scenario, code: str) -> Any:
-        publish_validation(fit_run_surrogates(scenario, run), run)
-        return fit_step(run, data, scenario, code)  # loads what the task stored
+    def fit_surrogates(
+        run: Run, data: Any, scenario: Scenario, code: str, candidates: Any = None
+    ) -> Any:
+        publish_validation(fit_run_surrogates(scenario, run, candidates), run)
+        # loads what the task stored
+        return fit_step(run, data, scenario, code, candidates=candidates)
 
     def front(run: Run, fitted: Any, scenario: Scenario, code: str) -> Any:
         surrogate_front(scenario, run, fitted.fit_id)

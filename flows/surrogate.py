@@ -46,7 +46,9 @@ def call_stored(task: Any, **parameters: Any) -> dict[str, Any]:
     return summary
 
 
-def fit_run_surrogates(scenario: Scenario, run: Run) -> dict[str, Any]:
+def fit_run_surrogates(
+    scenario: Scenario, run: Run, candidates: dict[str, str] | None = None
+) -> dict[str, Any]:
     data = training_data(run)
     data_hash = training_data_hash(data.designs, data.outputs, data.feasible)
     return call_stored(
@@ -54,6 +56,7 @@ def fit_run_surrogates(scenario: Scenario, run: Run) -> dict[str, Any]:
         resolved_scenario=scenario.resolved(),
         run_url=run.url,
         data_hash=data_hash,
+        candidates=candidates,
     )
 
 

@@ -46,12 +46,18 @@ def _front_name() -> str:
     **cached(),
 )
 def fit_surrogates_task(
-    resolved_scenario: dict[str, Any], run_url: str, data_hash: str
+    resolved_scenario: dict[str, Any],
+    run_url: str,
+    data_hash: str,
+    candidates: dict[str, str] | None = None,
 ) -> dict[str, Any]:
-    """Fit (or load) the run's surrogates; ``data_hash`` keys the cache on the samples."""
+    """Fit (or load) the run's surrogates; ``data_hash`` keys the cache on the samples.
+
+    ``candidates``: the models an earlier fit of the pipeline selected, refitted unchanged.
+    """
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
-    outcome = fit_step(run, training_data(run), scenario, code_version())
+    outcome = fit_step(run, training_data(run), scenario, code_version(), candidates=candidates)
     return {
         "fit_id": outcome.fit_id,
         "directory": str(outcome.directory),

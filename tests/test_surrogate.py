@@ -218,7 +218,9 @@ def test_heldout_samples_never_enter_a_fit(settings, monkeypatch):
     monkeypatch.setattr(
         validation_module, "fit_classifier", recording(validation_module.fit_classifier)
     )
-    quick = settings.model_copy(update={"regressors": ["QP", "RBF"], "classifiers": ["logistic"]})
+    quick = settings.model_copy(
+        update={"regressors": ["QP", "RBF"], "classifiers": ["logistic"], "holdout_refit": False}
+    )
     fit = fit_surrogates(x, {"y": y}, feasible, LOWER, UPPER, quick, input_names=NAMES)
 
     table = fit.predictions
@@ -234,6 +236,30 @@ def test_heldout_samples_never_enter_a_fit(settings, monkeypatch):
     assert len(seen) == 2 * (quick.folds + 1) + (quick.folds + 1)
     for u_fit in seen:
         assert held_points.isdisjoint(map(tuple, u_fit))
+
+
+def test_holdout_refit_scores_without_the_hold_out_and_uses_it(settings):
+    """RBF interpolates: refitted with the hold-out, it passes through the held-out values;
+    the stored held-out predictions stay those of the model fitted without them."""
+    u, x = lhs(40, seed=8)
+    y = np.sin(3 * u[:, 0]) + u[:, 1] ** 2 - u[:, 2]
+    feasible = np.ones(40, bool)
+    fits = {}
+    for refit in (False, True):
+        rbf = settings.model_copy(
+            update={"regressors": ["RBF"], "classifiers": ["logistic"], "holdout_refit": refit}
+        )
+        fits[refit] = fit_surrogates(x, {"y": y}, feasible, LOWER, UPPER, rbf, input_names=NAMES)
+    table = fits[True].predictions.query("model == 'y' and split == 'heldout'")
+    held = table["sample_id"].to_numpy()
+    assert len(held) == 8
+    assert np.allclose(fits[True].predict(x[held])["y"], y[held], atol=1e-8)
+    assert not np.allclose(fits[False].predict(x[held])["y"], y[held], atol=1e-3)
+    # The validation and the stored held-out predictions: the model scored without them.
+    for column in ("cv_rmse", "heldout_rmse"):
+        assert fits[True].validation[column].tolist() == fits[False].validation[column].tolist()
+    before = fits[False].predictions.query("model == 'y' and split == 'heldout'")
+    assert table["y_pred"].tolist() == before["y_pred"].tolist()
 
 
 def test_feasibility_classifier_on_a_known_region(settings):
@@ -539,6 +565,41 @@ def test_failing_candidates_are_recorded_not_selected(settings, monkeypatch):
     only_broken = settings.model_copy(update={"regressors": ["RBF", "QP"]})
     with pytest.raises(SurrogateError, match="output 'y': no candidate could be fitted"):
         fit_surrogates(x, outputs, feasible, LOWER, UPPER, only_broken, input_names=NAMES)
+
+
+def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
+    fitted, settings, monkeypatch
+):
+    """``candidates`` (an earlier fit's choice): one row per model, same CV folds."""
+    fit, (x, outputs, feasible, ids) = fitted
+    kept = {"t_h": "RBF", "dv_mps": "QP", "feasible": "logistic"}
+    again = fit_surrogates(
+        x,
+        outputs,
+        feasible,
+        LOWER,
+        UPPER,
+        settings,
+        input_names=NAMES,
+        sample_ids=ids,
+        candidates=kept,
+    )
+    assert again.selected == kept
+    assert again.validation.groupby("model")["candidate"].apply(list).to_dict() == {
+        name: [choice] for name, choice in kept.items()
+    }
+    # The same candidate scores the same as in the full comparison (same folds, same seed).
+    full = fit.validation.set_index(["model", "candidate"])
+    for row in again.validation.itertuples():
+        metric = "cv_balanced_accuracy" if row.model == "feasible" else "cv_rmse"
+        assert getattr(row, metric) == full.loc[(row.model, row.candidate), metric]
+    # A kept candidate that cannot be fitted now: every configured candidate is compared.
+    monkeypatch.setattr(candidates_module, "RBF", BrokenRBF)
+    fallback = fit_surrogates(
+        x, outputs, feasible, LOWER, UPPER, settings, input_names=NAMES, candidates=kept
+    )
+    assert fallback.selected["t_h"] != "RBF"
+    assert set(fallback.validation.query("model == 't_h'")["candidate"]) == set(settings.regressors)
 
 
 def test_heldout_r2_is_na_with_one_heldout_feasible_sample(settings):

@@ -80,11 +80,30 @@ class SurrogateSettings(StrictModel):
     holdout_fraction: float = bounded(
         gt=0, le=0.5, description="share of the samples kept out of fitting and selection"
     )
+    holdout_refit: bool = Field(
+        description="after scoring, fit the selected models again with the held-out samples"
+    )
     min_training_samples: int = bounded(ge=4, le=100000, description="feasible, after hold-out")
     kpls_components: int = bounded(ge=1, le=3)
     rbf_d0: float = bounded(gt=0, le=10, description="RBF basis scale, unit-cube inputs")
     phase_input: bool = Field(
         description="model dV_total by parts on the phase of the rendezvous wait (docs/optimize.md)"
+    )
+    selection: Literal["every_fit", "first_fit"] = Field(
+        description="candidates compared by CV on every fit, or on a pipeline's first fit and "
+        "refitted unchanged on its later ones"
+    )
+    floor_softness_h: float = bounded(
+        unit="h", gt=0, le=1000, description="T_total's predictions: softplus scale above its floor"
+    )
+    floor_softness_mps: float = bounded(
+        unit="m/s", gt=0, le=1000, description="dV parts' predictions: softplus scale above floors"
+    )
+    payload_match_kg: float = bounded(
+        unit="kg",
+        gt=0,
+        le=1.0,
+        description="largest difference between the launch fit's payload and a run's M_load",
     )
     extra_trees: int = bounded(ge=1, le=10000, description="trees of the ET candidate")
     kriging_starts: int = bounded(

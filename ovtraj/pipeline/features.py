@@ -16,6 +16,17 @@ wait it is smooth. So, instead of one model per objective on the design variable
   feasibility classifier;
 - dV_total is the sum of its three parts' predictions.
 
+Every prediction stays in its physical range by construction (issue 21):
+
+- M_load is not regressed: it is the launch fit's payload series at H_P0, the very function
+  the chain evaluates, so it is exact and inside the fit's range;
+- T_total and each dV part are regressed as they are, and the prediction is passed through
+  a softplus above the quantity's floor (:func:`above`): T_total above the docked stay plus
+  the separation delay, which it contains by definition; each dV part above its two-body
+  lower bound (:class:`DvFloors`), so dV_total stays above the sum of the floors. Far above
+  its floor (more than a few ``softness``) a prediction is the regressor's own.
+  Regressing log(y - floor) instead bounds them too, but measured worse (docs/optimize.md).
+
 Both sets are ordinary :class:`~ovtraj.surrogate.SurrogateSet` (CV selection, held-out
 checks, stored with their data hash); :class:`MissionSurrogates` composes them behind the
 same interface (``predict``, ``feasibility``, ``cube``, names, tables).
@@ -24,6 +35,7 @@ same interface (``predict``, ``feasibility``, ``cube``, names, tables).
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,48 +45,141 @@ import pandas as pd
 from ovtraj.astro.j2_elements import secular_rates, state_to_mean
 from ovtraj.config import Scenario
 from ovtraj.files import Digest, StoreError, read_json
+from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.fourier import FourierSeries
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.products import Product
+from ovtraj.rendezvous import hohmann
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 from ovtraj.targets import target_state
 
-KIND = "mission-phase-surrogates"
+KIND = "mission-phase-surrogates/2"
 WAIT = "rendezvous_wait_s"
 DV_PARTS = ("dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps")
 PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
+PAYLOAD = "payload_kg"
 MARKER = "meta.json"
 PARTS = ("wait", "main")
+
+
+def above(floor: np.ndarray, value: np.ndarray, softness: float) -> np.ndarray:
+    """``floor + softness * log(1 + exp((value - floor) / softness))``: always above ``floor``.
+
+    Equal to ``value`` within ``softness * exp(-(value - floor) / softness)`` when ``value``
+    is well above the floor; ``floor + softness * log 2`` at the floor; tends to ``floor``
+    far below it. (The softplus; Dugas et al. 2001.)
+    """
+    z = (np.asarray(value, dtype=float) - floor) / softness
+    return floor + softness * np.logaddexp(0.0, z)
+
+
+def _target_mean_orbit(scenario: Scenario) -> tuple[float, float, float]:
+    """The target's mean semi-major axis [m], eccentricity and inclination [rad] under J2."""
+    earth = scenario.earth
+    state = target_state(scenario.target.orbit, scenario)
+    mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
+    return float(mean.a), math.hypot(float(mean.ex), float(mean.ey)), float(mean.i)
 
 
 def target_draconic_period(scenario: Scenario) -> float:
     """Period [s] of the target's argument of latitude under J2 (mean elements)."""
     earth = scenario.earth
-    state = target_state(scenario.target.orbit, scenario)
-    mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
-    e = math.hypot(float(mean.ex), float(mean.ey))
-    _, argp_dot, m_dot = secular_rates(
-        float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
-    )
+    a, e, i = _target_mean_orbit(scenario)
+    _, argp_dot, m_dot = secular_rates(a, e, i, mu=earth.mu, radius=earth.radius, j2=earth.j2)
     return 2.0 * math.pi / (float(argp_dot) + float(m_dot))
 
 
+@dataclass(frozen=True)
+class DvFloors:
+    """Two-body lower bounds [m/s] of the chain's three dV parts, per design.
+
+    - rendezvous: the Hohmann transfer from the circular parking orbit (H_P0) to the
+      target's perigee radius;
+    - transfer: the Hohmann transfer from the target's perigee radius down to the circular
+      preparation orbit (H_dp);
+    - deorbit: the tangential burn at H_dp whose descent ellipse just reaches the entry
+      interface radius, i.e. the first Hohmann impulse from H_dp down to it (the
+      ``gamma_e -> 0`` limit of :func:`ovtraj.deorbit.estimate.tangential_deorbit`; a
+      steeper entry costs more).
+
+    Hohmann's is the cheapest two-impulse transfer between coplanar circular orbits
+    (Vallado, 4th ed., sec. 6.3); the chain's burns also pay the plane change, the
+    phasing and J2, so they only add to it. The perigee radius keeps the target's small
+    eccentricity on the safe side. On 1292 feasible designs of the default scenario the
+    real parts exceed these floors by at least 18.2, 1.9 and 12.5 m/s (docs/optimize.md).
+    Radii in m, ``mu`` in m^3/s^2.
+    """
+
+    mu: float
+    earth_radius_m: float
+    target_perigee_radius_m: float
+    entry_radius_m: float
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> DvFloors:
+        if scenario.deorbit is None:
+            raise SurrogateError("the scenario has no deorbit section: no deorbit floor")
+        earth = scenario.earth
+        a, e, _ = _target_mean_orbit(scenario)
+        return cls(
+            mu=earth.mu,
+            earth_radius_m=earth.radius,
+            target_perigee_radius_m=a * (1.0 - e),
+            entry_radius_m=earth.radius + scenario.deorbit.entry.altitude_km * 1e3,
+        )
+
+    def __call__(self, designs: np.ndarray) -> dict[str, np.ndarray]:
+        """Designs (m, 3) in DESIGN_NAMES order, km and h -> {dV part: floor (m,)}."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        parking = self.earth_radius_m + designs[:, 0] * 1e3
+        preparation = self.earth_radius_m + designs[:, 1] * 1e3
+        target, entry, mu = self.target_perigee_radius_m, self.entry_radius_m, self.mu
+        return {
+            "dv_rendezvous_mps": np.array([hohmann(r, target, mu).total_dv_mps for r in parking]),
+            "dv_transfer_mps": np.array([hohmann(target, r, mu).total_dv_mps for r in preparation]),
+            "dv_deorbit_mps": np.array([abs(hohmann(r, entry, mu).dv1_mps) for r in preparation]),
+        }
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
 class MissionSurrogates:
-    """The wait model and the phase-input model, composed into the mission objectives."""
+    """The wait model and the phase-input model, composed into the mission objectives.
+
+    ``payload``: the launch fit's payload series [kg] against the parking altitude [m];
+    ``floors``: the dV parts' lower bounds; ``stay_s``: the docked stay [s];
+    ``softness_s``, ``softness_mps``: of :func:`above`. See the module notes.
+    """
 
     output_names = ("t_total_s", "dv_total_mps", "m_load_kg")
 
     def __init__(
         self,
         wait: SurrogateSet,
-        main: SurrogateSet,
+        main: SurrogateSet | None,
         period_s: float,
         lower: np.ndarray,
         upper: np.ndarray,
+        *,
+        payload: FourierSeries,
+        floors: DvFloors,
+        stay_s: float,
+        softness_s: float,
+        softness_mps: float,
     ) -> None:
-        self.wait, self.main, self.period_s = wait, main, float(period_s)
+        self.wait, self._main, self.period_s = wait, main, float(period_s)
+        self.payload, self.floors = payload, floors
+        self.stay_s, self.softness_s, self.softness_mps = stay_s, softness_s, softness_mps
         self.input_names = tuple(DESIGN_NAMES)
         self.cube = UnitCube(np.asarray(lower, float), np.asarray(upper, float))
+
+    @property
+    def main(self) -> SurrogateSet:
+        if self._main is None:
+            raise SurrogateError("the phase-input model is not fitted yet")
+        return self._main
 
     @property
     def parts(self) -> tuple[SurrogateSet, SurrogateSet]:
@@ -104,11 +209,27 @@ class MissionSurrogates:
         return np.column_stack([designs, np.sin(phase), np.cos(phase)])
 
     def predict(self, designs: np.ndarray) -> dict[str, np.ndarray]:
-        parts = self.main.predict(self.features(designs))
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        parts = self.predict_parts(designs)
         return {
             "t_total_s": parts["t_total_s"],
             "dv_total_mps": sum(parts[name] for name in DV_PARTS),
-            "m_load_kg": parts["m_load_kg"],
+            "m_load_kg": np.asarray(self.payload(designs[:, 0] * 1e3), dtype=float),
+        }
+
+    def time_floor(self, designs: np.ndarray) -> np.ndarray:
+        """The docked stay plus the separation delay [s]: part of every T_total."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        return self.stay_s + 3600.0 * designs[:, 2]
+
+    def predict_parts(self, designs: np.ndarray) -> dict[str, np.ndarray]:
+        """T_total [s] and the three dV parts [m/s], each above its floor."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        raw = self.main.predict(self.features(designs))
+        floors = self.floors(designs)
+        return {
+            "t_total_s": above(self.time_floor(designs), raw["t_total_s"], self.softness_s),
+            **{name: above(floors[name], raw[name], self.softness_mps) for name in DV_PARTS},
         }
 
     def feasibility(self, designs: np.ndarray) -> np.ndarray:
@@ -131,6 +252,11 @@ class MissionSurrogates:
         content = {
             "kind": KIND,
             "period_s": self.period_s,
+            "payload_series": self.payload.to_dict(),
+            "floors": self.floors.to_dict(),
+            "stay_s": self.stay_s,
+            "softness_s": self.softness_s,
+            "softness_mps": self.softness_mps,
             "lower": self.cube.lower.tolist(),
             "upper": self.cube.upper.tolist(),
             "selected": self.selected,
@@ -157,13 +283,27 @@ class MissionSurrogates:
         except StoreError as err:
             raise SurrogateError(str(err)) from None
         if meta.get("kind") != KIND:
-            raise SurrogateError(f"{product.marker_path}: not a {KIND} directory")
+            raise SurrogateError(
+                f"{product.marker_path}: kind {meta.get('kind')!r}, not {KIND!r} "
+                "(a set of another version: fit again with --refit)"
+            )
+        try:
+            payload = FourierSeries.from_dict(meta["payload_series"])
+            floors = DvFloors(**meta["floors"])
+            float(meta["stay_s"]), float(meta["softness_s"]), float(meta["softness_mps"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise SurrogateError(f"{product.marker_path}: {err}") from None
         return cls(
             SurrogateSet.load(product.directory / "wait", digests["wait"]),
             SurrogateSet.load(product.directory / "main", digests["main"]),
             meta["period_s"],
             np.asarray(meta["lower"]),
             np.asarray(meta["upper"]),
+            payload=payload,
+            floors=floors,
+            stay_s=float(meta["stay_s"]),
+            softness_s=float(meta["softness_s"]),
+            softness_mps=float(meta["softness_mps"]),
         )
 
 
@@ -173,18 +313,52 @@ def load_surrogates(directory: Path) -> SurrogateSet | MissionSurrogates:
         marker = read_json(location(directory) / MARKER)
     except StoreError as err:
         raise SurrogateError(str(err)) from None
-    if isinstance(marker, dict) and marker.get("kind") == KIND:
+    if isinstance(marker, dict) and str(marker.get("kind", "")).startswith(KIND.split("/")[0]):
         return MissionSurrogates.load(directory)
     return SurrogateSet.load(directory)
 
 
+def launch_payload(scenario: Scenario, data: Any) -> FourierSeries:
+    """The launch fit's payload series, checked against the run's own M_load values."""
+    fit = find_launch_fit(scenario)
+    if fit is None:
+        raise SurrogateError(
+            "no launch fit is stored for this scenario: M_load is the launch fit's payload "
+            "(ovtraj launch-fit solves it)"
+        )
+    payload = fit.series[PAYLOAD]
+    known = np.isfinite(data.outputs["m_load_kg"])
+    if known.any():
+        expected = np.asarray(payload(data.designs[known, 0] * 1e3), dtype=float)
+        tolerance = scenario.mission.surrogate.payload_match_kg
+        worst = float(np.max(np.abs(expected - data.outputs["m_load_kg"][known])))
+        if worst > tolerance:
+            raise SurrogateError(
+                f"the stored launch fit's payload differs from the run's M_load by up to "
+                f"{worst:.3g} kg (surrogate.payload_match_kg {tolerance:g} kg): the run was "
+                "evaluated with another launch fit"
+            )
+    return payload
+
+
 def fit_mission_surrogates(
-    data: Any, scenario: Scenario, lower: np.ndarray, upper: np.ndarray
+    data: Any,
+    scenario: Scenario,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    candidates: dict[str, str] | None = None,
 ) -> MissionSurrogates:
-    """Fit the wait model and the phase-input model on a run's training data."""
+    """Fit the wait model and the phase-input model on a run's training data.
+
+    ``candidates``: an earlier fit's ``selected``, to refit those models without comparing
+    candidates again (:func:`ovtraj.surrogate.fit_surrogates`).
+    """
     settings = scenario.mission.surrogate
     if not data.feasible.any():
         raise SurrogateError(f"all {len(data)} samples are infeasible: nothing to fit")
+    payload = launch_payload(scenario, data)
+    floors = DvFloors.of(scenario)
     wait = data.components[WAIT]
     known = np.isfinite(wait)
     # The wait depends on H_P0 alone: one sample per distinct H_P0 (infill points at a
@@ -205,12 +379,19 @@ def fit_mission_surrogates(
         settings,
         input_names=DESIGN_NAMES[:1],
         sample_ids=data.sample_ids[known],
+        candidates=candidates,
     )
     period = target_draconic_period(scenario)
-    composed = MissionSurrogates(wait_set, wait_set, period, lower, upper)
+    bounds = {
+        "payload": payload,
+        "floors": floors,
+        "stay_s": 3600.0 * scenario.mission.stay_h,
+        "softness_s": 3600.0 * settings.floor_softness_h,
+        "softness_mps": settings.floor_softness_mps,
+    }
+    composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     outputs = {
         "t_total_s": data.outputs["t_total_s"],
-        "m_load_kg": data.outputs["m_load_kg"],
         **{name: np.where(data.feasible, data.components[name], np.nan) for name in DV_PARTS},
     }
     main = fit_surrogates(
@@ -222,5 +403,6 @@ def fit_mission_surrogates(
         settings,
         input_names=(*DESIGN_NAMES, *PHASE_INPUTS),
         sample_ids=data.sample_ids,
+        candidates=candidates,
     )
-    return MissionSurrogates(wait_set, main, period, lower, upper)
+    return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)

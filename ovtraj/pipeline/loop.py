@@ -104,7 +104,7 @@ class PipelineSteps:
     """How each step runs: the library calls by default; the flow passes tasks."""
 
     evaluate: Callable[[Run], Run]  # evaluate a run's pending batches, return it finished
-    fit: Callable[[Run, Any, Scenario, str], FitOutcome] = fit_step
+    fit: Callable[..., FitOutcome] = fit_step  # (run, data, scenario, code, *, candidates)
     front: Callable[[Run, FitOutcome, Scenario, str], FrontOutcome] = front_step
 
 
@@ -155,9 +155,12 @@ def run_pipeline(
     names = normalisation.names
     run, spent, rows, iterations = doe_run, 0, [], []
     stop = "max_iterations"
+    kept: dict[str, str] | None = None  # the first fit's models (surrogate.selection)
     for iteration in range(1, verify.max_iterations + 1):
         data = training_data(run)
-        fit = steps.fit(run, data, scenario, code)
+        fit = steps.fit(run, data, scenario, code, candidates=kept)
+        if scenario.mission.surrogate.selection == "first_fit" and kept is None:
+            kept = dict(fit.surrogates.selected)
         front = steps.front(run, fit, scenario, code).front
         record = {
             "iteration": iteration,

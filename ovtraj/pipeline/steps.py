@@ -93,26 +93,37 @@ class FrontOutcome:
 
 
 def fit_step(
-    run: Run, data: TrainingData, scenario: Scenario, code: str, *, refit: bool = False
+    run: Run,
+    data: TrainingData,
+    scenario: Scenario,
+    code: str,
+    *,
+    refit: bool = False,
+    candidates: dict[str, str] | None = None,
 ) -> FitOutcome:
-    """Surrogates of the run's samples: loaded when stored, else fitted and stored."""
+    """Surrogates of the run's samples: loaded when stored, else fitted and stored.
+
+    ``candidates``: an earlier fit's ``selected``, refitted without comparing the
+    candidates again (``surrogate.selection: first_fit``); part of the fit's id.
+    """
     settings = scenario.mission.surrogate
     lower, upper = bounds_arrays(scenario.mission.design_bounds)
     data_hash = training_data_hash(data.designs, {**data.outputs, **data.components}, data.feasible)
-    fit_id = content_id(
-        {
-            "data": data_hash,
-            "bounds": [lower.tolist(), upper.tolist()],
-            "settings": settings.model_dump(mode="json"),
-            "code": code,
-        }
-    )
+    content = {
+        "data": data_hash,
+        "bounds": [lower.tolist(), upper.tolist()],
+        "settings": settings.model_dump(mode="json"),
+        "code": code,
+    }
+    if candidates:
+        content["candidates"] = dict(sorted(candidates.items()))
+    fit_id = content_id(content)
     directory = run.directory / "surrogates" / fit_id
     stored = (directory / "meta.json").is_file()
     if stored and not refit:
         return FitOutcome(load_surrogates(directory), directory, fit_id, reused=True)
     if settings.phase_input:
-        surrogates = fit_mission_surrogates(data, scenario, lower, upper)
+        surrogates = fit_mission_surrogates(data, scenario, lower, upper, candidates=candidates)
         parts = surrogates.parts
     else:
         surrogates = fit_surrogates(
@@ -124,6 +135,7 @@ def fit_step(
             settings,
             input_names=DESIGN_NAMES,
             sample_ids=data.sample_ids,
+            candidates=candidates,
         )
         parts = (surrogates,)
     if not stored:

@@ -29,7 +29,7 @@ import pickle
 import platform
 import threading
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -56,7 +56,14 @@ from ovtraj.records import (
     table_from_rows,
 )
 from ovtraj.storage import location
-from ovtraj.surrogate.candidates import ALL_FEASIBLE, FeasibilityClassifier, Regressor
+from ovtraj.surrogate.candidates import (
+    ALL_FEASIBLE,
+    CandidateError,
+    FeasibilityClassifier,
+    Regressor,
+    fit_classifier,
+    fit_regressor,
+)
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
     ClassifierScore,
@@ -574,6 +581,7 @@ def fit_surrogates(
     *,
     input_names: tuple[str, ...],
     sample_ids: np.ndarray | None = None,
+    candidates: Mapping[str, str] | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
 
@@ -593,6 +601,16 @@ def fit_surrogates(
        training samples (stratified folds); highest balanced accuracy wins (ties: lower log
        loss, then config order). If every training sample is feasible, a constant
        probability 1 ("all-feasible") replaces the classifiers.
+
+    ``candidates`` (output name -> candidate, ``"feasible"`` -> classifier; e.g. an earlier
+    fit's ``selected``) restricts the models named there to that one candidate: it is still
+    cross-validated and checked on the hold-out, but not compared with the others. If it
+    cannot be fitted on these data (or the earlier set was all feasible and this one is
+    not), every configured candidate is tried as without the restriction.
+
+    With ``settings.holdout_refit`` the selected models are then fitted again on every
+    sample, the held-out ones included: the held-out figures describe the model fitted
+    without them, the model returned has seen them too.
 
     A candidate that fails gets its reason in the ``error`` column and is not selected.
     Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
@@ -618,8 +636,12 @@ def fit_surrogates(
         )
 
     with _serial_blas():
-        regressors, selected, rows, tables = _fit_regressors(u, values, flags, ids, held, settings)
-        classifier, rows_cls, table_cls = _fit_classifier(u, flags, ids, held, settings)
+        regressors, selected, rows, tables = _fit_regressors(
+            u, values, flags, ids, held, settings, dict(candidates or {})
+        )
+        classifier, rows_cls, table_cls = _fit_classifier(
+            u, flags, ids, held, settings, (candidates or {}).get(FEASIBLE)
+        )
     selected[FEASIBLE] = classifier.name
     rows += rows_cls
     tables.append(table_cls)
@@ -646,6 +668,7 @@ def _fit_regressors(
     ids: np.ndarray,
     held: np.ndarray,
     settings: SurrogateSettings,
+    candidates: dict[str, str],
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
     """CV, selection and final fit of every output's regressor (feasible samples only)."""
     reg_train = np.flatnonzero(~held & flags)  # ascending sample order
@@ -655,20 +678,34 @@ def _fit_regressors(
     selected: dict[str, str] = {}
     regressors: dict[str, Regressor] = {}
     folds = regression_folds(reg_train.size, settings.folds, settings.seed)
+    configured = list(dict.fromkeys(settings.regressors))
     for name, y in values.items():
-        scores = [
-            evaluate_regressor(
-                candidate, u[reg_train], y[reg_train], u[reg_held], y[reg_held], folds, settings
-            )
-            for candidate in dict.fromkeys(settings.regressors)
-        ]
+
+        def scored(names: list[str], y: np.ndarray = y) -> list[RegressorScore]:
+            return [
+                evaluate_regressor(
+                    candidate, u[reg_train], y[reg_train], u[reg_held], y[reg_held], folds, settings
+                )
+                for candidate in names
+            ]
+
+        kept = candidates.get(name)
+        scores = scored([kept]) if kept in configured else []
         best = select_regressor(scores)
+        if best is None:
+            scores = scored(configured)
+            best = select_regressor(scores)
         if best is None:
             raise SurrogateError(
                 f"output {name!r}: no candidate could be fitted ({_failures(scores)})"
             )
         selected[name] = best.name
         regressors[name] = best.model
+        if settings.holdout_refit and reg_held.size:
+            # Scored without the hold-out; the model used has seen it too.
+            regressors[name] = _refitted(
+                best.model, lambda n=best.name, y=y: fit_regressor(n, u[flags], y[flags], settings)
+            )
         rows += [dict(r, n_folds=len(folds)) for r in _regressor_rows(name, scores, best.name)]
         tables.append(
             _prediction_rows(
@@ -684,30 +721,51 @@ def _fit_regressors(
     return regressors, selected, rows, tables
 
 
+def _refitted(scored: Any, refit: Any) -> Any:
+    """The model refitted with the hold-out, or the scored one if that fit fails."""
+    try:
+        return refit()
+    except CandidateError:
+        return scored
+
+
 def _fit_classifier(
     u: np.ndarray,
     flags: np.ndarray,
     ids: np.ndarray,
     held: np.ndarray,
     settings: SurrogateSettings,
+    kept: str | None = None,
 ) -> tuple[FeasibilityClassifier, list[dict], pd.DataFrame]:
     """CV, selection and final fit of the feasibility classifier (all training samples)."""
     cls_train = np.flatnonzero(~held)
     cls_held = np.flatnonzero(held)
     y_cls = flags[cls_train]
     cls_folds = classification_folds(y_cls, settings.folds, settings.seed)
-    names = [ALL_FEASIBLE] if y_cls.all() else list(dict.fromkeys(settings.classifiers))
-    cls_scores = [
-        evaluate_classifier(
-            candidate, u[cls_train], y_cls, u[cls_held], flags[cls_held], cls_folds, settings
-        )
-        for candidate in names
-    ]
+    configured = list(dict.fromkeys(settings.classifiers))
+
+    def scored(names: list[str]) -> list[ClassifierScore]:
+        return [
+            evaluate_classifier(
+                candidate, u[cls_train], y_cls, u[cls_held], flags[cls_held], cls_folds, settings
+            )
+            for candidate in names
+        ]
+
+    if y_cls.all():
+        cls_scores = scored([ALL_FEASIBLE])
+    else:
+        cls_scores = scored([kept]) if kept in configured else []
+        if select_classifier(cls_scores) is None:
+            cls_scores = scored(configured)
     best = select_classifier(cls_scores)
     if best is None:
         raise SurrogateError(
             f"feasibility: no classifier could be fitted ({_failures(cls_scores)})"
         )
+    model = best.model
+    if settings.holdout_refit and cls_held.size and best.name != ALL_FEASIBLE:
+        model = _refitted(model, lambda: fit_classifier(best.name, u, flags, settings))
     rows = [dict(r, n_folds=len(cls_folds)) for r in _classifier_rows(cls_scores, best.name)]
     table = _prediction_rows(
         FEASIBLE,
@@ -718,4 +776,4 @@ def _fit_classifier(
         flags[cls_held].astype(float),
         best.heldout_pred,
     )
-    return best.model, rows, table
+    return model, rows, table
