@@ -95,8 +95,10 @@ def direct(scenario, normalisation, pool, population: int, generations: int) -> 
 
 
 def pipeline(scenario, fit, seed: int, doe_samples: int, workers: int) -> dict:
+    from ovtraj.config.orchestration import load_orchestration
     from ovtraj.pipeline import PipelineSteps, fit_step, front_step, run_pipeline
     from ovtraj.runs import RunStore, prepare_run, run_doe
+    from ovtraj.runs.runners import batch_pool
 
     store = RunStore(Path(tempfile.mkdtemp(prefix=f"ovtraj-svd-{seed}-")))
     spent = {"evaluate": 0.0, "fit": 0.0, "front": 0.0}
@@ -117,17 +119,20 @@ def pipeline(scenario, fit, seed: int, doe_samples: int, workers: int) -> dict:
         inherited = int(run.manifest.get("inherited_batches", 0))
         new = sum(len(batch) for _, batch in run.batches(10**9)[inherited:])
         size = max(1, -(-new // workers))
-        return run_doe(scenario, run, fit, batch_size=size, runner="processes", workers=workers)
+        return run_doe(scenario, run, fit, batch_size=size, pool=pool)
 
     evaluate = timed("evaluate", evaluate_run)
 
     start = time.perf_counter()
-    doe = prepare_run(scenario, samples=doe_samples, seed=seed, code="benchmark", store=store)
-    evaluate(doe)
-    steps = PipelineSteps(
-        evaluate=evaluate, fit=timed("fit", fit_step), front=timed("front", front_step)
-    )
-    result = run_pipeline(scenario, doe, store=store, code="benchmark", steps=steps)
+    # One pool for the DoE and every infill run, as `ovtraj pipeline` does; its start is
+    # part of the pipeline's wall time.
+    with batch_pool("processes", workers, None, load_orchestration().dask) as pool:
+        doe = prepare_run(scenario, samples=doe_samples, seed=seed, code="benchmark", store=store)
+        evaluate(doe)
+        steps = PipelineSteps(
+            evaluate=evaluate, fit=timed("fit", fit_step), front=timed("front", front_step)
+        )
+        result = run_pipeline(scenario, doe, store=store, code="benchmark", steps=steps)
     wall = time.perf_counter() - start
     real = result.summary["real_evaluations"]
     return {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Annotated, Any
@@ -859,7 +860,7 @@ def pipeline(
     from ovtraj.pipeline.planning import write_mission_plan
     from ovtraj.runs import StoreError, run_doe
     from ovtraj.runs.execute import BatchesFailed
-    from ovtraj.runs.runners import ClusterError
+    from ovtraj.runs.runners import ClusterError, batch_pool
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
 
@@ -868,14 +869,25 @@ def pipeline(
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
     fit = _launch_fit_or_exit(scenario, target)
+    exits = contextlib.ExitStack()
     execution = _doe_execution(scenario.mission.doe, runner, dask_address)
     store = _store(store_root, scenario, config)
     code = code_version()
 
     def evaluate(run: Any) -> Any:
-        return run_doe(scenario, run, fit, progress=typer.echo, **execution)
+        return run_doe(scenario, run, fit, progress=typer.echo, pool=pool, **execution)
 
     try:
+        # One pool for the DoE and every infill run: its processes keep their mission
+        # context between runs instead of each run starting and warming up its own.
+        pool = exits.enter_context(
+            batch_pool(
+                execution["runner"],
+                execution["workers"],
+                execution["dask_address"],
+                execution["dask"],
+            )
+        )
         doe_run, scenario = pipeline_doe_run(
             scenario,
             store,
@@ -895,6 +907,7 @@ def pipeline(
         result = run_pipeline(
             scenario, doe_run, store=store, code=code, steps=steps, progress=typer.echo
         )
+        exits.close()
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, fit, store, result, chosen)
     except OptimiserStopped as err:
@@ -910,6 +923,8 @@ def pipeline(
     ) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
+    finally:
+        exits.close()
     typer.echo(f"verified front of run {doe_run.id} (pipeline {result.pipeline_id}):")
     _print_front(result.front)
     typer.echo(f"front: {Path(result.front_path).resolve()}")

@@ -619,3 +619,41 @@ def test_nsga2_stopped_by_its_time_limit_stores_no_front_and_exits_1(small, tmp_
     store = str(small["store"].root)
     done = CliRunner().invoke(app, ["optimize", doe.id, "--config", str(config), "--store", store])
     assert done.exit_code == 1 and "no front stored" in done.stderr
+
+
+def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
+    """``ovtraj pipeline`` end to end in its own process, on the process runner: the DoE and
+    the infill run on one pool, every path printed is absolute, and the same command again
+    reuses every stored run and result (no batch evaluated)."""
+    import subprocess
+    import sys
+
+    data = _data(points_per_iteration=2, max_iterations=1, budget=2)
+    data["mission"]["doe"].update(store=str(tmp_path / "runs"), batch_size=6, workers=2)
+    config = tmp_path / "scenario.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    command = [
+        str(Path(sys.executable).with_name("ovtraj")),
+        "pipeline",
+        str(config),
+        "--samples",
+        "12",
+        "--runner",
+        "processes",
+    ]
+    done = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert re.search(r"^DoE run \w+: 12 samples$", done.stdout, flags=re.MULTILINE)
+    batches = [line for line in lines if re.match(r"batch \d+/\d+: ", line)]
+    assert len(batches) == 2 + 1  # the DoE's two batches, the infill's one
+    written = [
+        Path(line.split(": ", 1)[1]) for line in lines if line.startswith(("front:", "plan:"))
+    ]
+    assert len(written) == 3 and all(p.is_absolute() and p.is_file() for p in written)
+    runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
+    assert len(runs) == 2  # the DoE and its infill child
+    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert not [line for line in again.stdout.splitlines() if re.match(r"batch \d+/", line)]
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == runs

@@ -79,6 +79,37 @@ def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
     assert run.manifest["status"] == "complete" and run.verify().clean
 
 
+def test_runs_in_a_row_share_the_started_pool_they_are_given(tmp_path):
+    """The pipeline's DoE and infill runs on one pool: a run leaves a pool it did not
+    start running, and stores what the serial runner stores."""
+    from ovtraj.config import load_scenario
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.runs import prepare_run, run_doe
+    from ovtraj.runs.execute import EVALUATIONS
+    from ovtraj.runs.runners import batch_pool
+
+    scenario = load_scenario(_config(tmp_path, samples=2, batch_size=1, workers=2))
+    fit = find_launch_fit(scenario)
+    stored = {}
+    for runner in ("processes", "serial"):
+        store = RunStore(tmp_path / runner)
+        before = EVALUATIONS["count"]
+        with batch_pool(runner, 2, None, load_orchestration().dask) as pool:
+            doe = prepare_run(scenario, samples=2, seed=3, code="test", store=store)
+            run_doe(scenario, doe, fit, batch_size=1, pool=pool)
+            child = prepare_run(scenario, samples=2, seed=3, code="test", store=store, parent=doe)
+            run_doe(scenario, child, fit, batch_size=1, pool=pool)
+            if runner == "processes":  # still running after both runs
+                assert pool.executor.submit(os.getpid).result(timeout=60) != os.getpid()
+        assert child.manifest["status"] == "complete" and child.manifest["evaluated"] == 4
+        # run_doe's own runner is serial (in this process): the pool given ran the samples
+        in_process = EVALUATIONS["count"] - before
+        assert in_process == (0 if runner == "processes" else 4)
+        stored[runner] = (child.id, _digest(child.directory))
+    assert stored["processes"] == stored["serial"] and len(stored["serial"][1]) >= 8
+
+
 def test_a_killed_pool_process_fails_the_command_and_the_run_resumes(tmp_path):
     config = _config(tmp_path / "project", samples=8, batch_size=2, workers=2)
     store = tmp_path / "project" / "runs"

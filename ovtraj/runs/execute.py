@@ -7,7 +7,8 @@ import concurrent.futures
 import hashlib
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -224,11 +225,16 @@ def run_doe(
     dask: DaskSettings | None = None,
     time_limit_s: float | None = None,
     on_batch: Callable[[dict[str, Any]], None] | None = None,
+    pool: BatchPool | None = None,
 ) -> Run:
     """Evaluate every batch the run does not hold yet and finish the manifest.
 
     ``runner`` (``serial | threads | processes | dask``, :mod:`ovtraj.runs.runners`) says
-    where the batches run; each stores its own batch in the run. Batches that another
+    where the batches run; each stores its own batch in the run. ``pool``: a pool already
+    started (:func:`~ovtraj.runs.runners.batch_pool`), used instead of starting one, so
+    that several runs in a row (the pipeline's DoE and infill) share its processes and
+    each process's mission context (``runner``, ``workers`` and ``dask_address`` are then
+    the pool's). Batches that another
     process is computing are left to it at first, then waited for
     (``mission.doe.claim_wait_s``); one whose process died is computed again. A complete
     run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches;
@@ -249,7 +255,7 @@ def run_doe(
             if removed:
                 say(f"removed {len(removed)} temporary file(s) of an interrupted write")
             run.update_manifest(batches=len(batches))
-            with batch_pool(runner, workers, dask_address, settings) as pool:
+            with _started(pool, runner, workers, dask_address, settings) as pool:
                 jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings, on_batch)
                 todo = [k for k, _ in batches if not run.is_stored(k)]
                 waiting = jobs.evaluate(todo, 0.0, time_limit_s)
@@ -270,6 +276,22 @@ def run_doe(
             f"run {run.id} incomplete: {len(failures)} batch(es) failed: {'; '.join(texts)}"
         )
     return run
+
+
+@contextmanager
+def _started(
+    pool: BatchPool | None,
+    runner: str,
+    workers: int,
+    dask_address: str | None,
+    settings: DaskSettings,
+) -> Iterator[BatchPool]:
+    """``pool`` itself (left running), else a pool started for this run."""
+    if pool is not None:
+        yield pool
+        return
+    with batch_pool(runner, workers, dask_address, settings) as started:
+        yield started
 
 
 class _BatchJobs:
