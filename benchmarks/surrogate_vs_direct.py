@@ -33,6 +33,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -124,13 +125,15 @@ def pipeline(scenario, fit, seed: int, doe_samples: int, workers: int) -> dict:
     evaluate = timed("evaluate", evaluate_run)
 
     start = time.perf_counter()
-    # One pool for the DoE and every infill run, as `ovtraj pipeline` does; its start is
-    # part of the pipeline's wall time.
+    # One pool for the DoE, every infill run and the surrogate fits' candidates, as
+    # `ovtraj pipeline` does; its start is part of the pipeline's wall time.
     with batch_pool("processes", workers, None, load_orchestration().dask) as pool:
         doe = prepare_run(scenario, samples=doe_samples, seed=seed, code="benchmark", store=store)
         evaluate(doe)
         steps = PipelineSteps(
-            evaluate=evaluate, fit=timed("fit", fit_step), front=timed("front", front_step)
+            evaluate=evaluate,
+            fit=timed("fit", partial(fit_step, executor=pool.executor)),
+            front=timed("front", front_step),
         )
         result = run_pipeline(scenario, doe, store=store, code="benchmark", steps=steps)
     wall = time.perf_counter() - start

@@ -901,7 +901,13 @@ def pipeline(
         evaluate(doe_run)
         steps = PipelineSteps(
             evaluate=evaluate,
-            fit=partial(fit_step, refit=refit),
+            # the pool's processes score the surrogate candidates too (not threads: those
+            # would only share this process's core)
+            fit=partial(
+                fit_step,
+                refit=refit,
+                executor=pool.executor if execution["runner"] in ("processes", "dask") else None,
+            ),
             front=partial(front_step, refit=refit),
         )
         result = run_pipeline(

@@ -602,6 +602,35 @@ def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
     assert set(fallback.validation.query("model == 't_h'")["candidate"]) == set(settings.regressors)
 
 
+def test_candidates_scored_in_processes_give_the_fit_of_this_process(fitted, settings):
+    """On a pool of two spawned processes (the pipeline's ``processes`` runner): the same
+    selection, figures and predictions; only the measured fit times differ."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    fit, (x, outputs, feasible, ids) = fitted
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(2, mp_context=spawn) as pool:
+        parallel = fit_surrogates(
+            x,
+            outputs,
+            feasible,
+            LOWER,
+            UPPER,
+            settings,
+            input_names=NAMES,
+            sample_ids=ids,
+            executor=pool,
+        )
+    assert parallel.selected == fit.selected
+    figures = [c for c in fit.validation.columns if c != "fit_time_s"]
+    pd.testing.assert_frame_equal(parallel.validation[figures], fit.validation[figures])
+    pd.testing.assert_frame_equal(parallel.predictions, fit.predictions)
+    _, grid = lhs(200, seed=9)
+    for name, values in fit.predict(grid).items():
+        np.testing.assert_array_equal(parallel.predict(grid)[name], values, err_msg=name)
+
+
 def test_heldout_r2_is_na_with_one_heldout_feasible_sample(settings):
     x, outputs, feasible = _data(n=10, seed=6)
     quick = settings.model_copy(

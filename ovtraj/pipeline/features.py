@@ -35,6 +35,7 @@ same interface (``predict``, ``feasibility``, ``cube``, names, tables).
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -348,11 +349,13 @@ def fit_mission_surrogates(
     upper: np.ndarray,
     *,
     candidates: dict[str, str] | None = None,
+    executor: Executor | None = None,
 ) -> MissionSurrogates:
     """Fit the wait model and the phase-input model on a run's training data.
 
     ``candidates``: an earlier fit's ``selected``, to refit those models without comparing
-    candidates again (:func:`ovtraj.surrogate.fit_surrogates`).
+    candidates again; ``executor``: where the candidates are scored
+    (:func:`ovtraj.surrogate.fit_surrogates`).
     """
     settings = scenario.mission.surrogate
     if not data.feasible.any():
@@ -380,6 +383,7 @@ def fit_mission_surrogates(
         input_names=DESIGN_NAMES[:1],
         sample_ids=data.sample_ids[known],
         candidates=candidates,
+        executor=executor,
     )
     period = target_draconic_period(scenario)
     bounds = {
@@ -404,5 +408,6 @@ def fit_mission_surrogates(
         input_names=(*DESIGN_NAMES, *PHASE_INPUTS),
         sample_ids=data.sample_ids,
         candidates=candidates,
+        executor=executor,
     )
     return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -100,11 +101,13 @@ def fit_step(
     *,
     refit: bool = False,
     candidates: dict[str, str] | None = None,
+    executor: Executor | None = None,
 ) -> FitOutcome:
     """Surrogates of the run's samples: loaded when stored, else fitted and stored.
 
     ``candidates``: an earlier fit's ``selected``, refitted without comparing the
     candidates again (``surrogate.selection: first_fit``); part of the fit's id.
+    ``executor``: processes that score the candidates (the same fit; not part of its id).
     """
     settings = scenario.mission.surrogate
     lower, upper = bounds_arrays(scenario.mission.design_bounds)
@@ -123,7 +126,9 @@ def fit_step(
     if stored and not refit:
         return FitOutcome(load_surrogates(directory), directory, fit_id, reused=True)
     if settings.phase_input:
-        surrogates = fit_mission_surrogates(data, scenario, lower, upper, candidates=candidates)
+        surrogates = fit_mission_surrogates(
+            data, scenario, lower, upper, candidates=candidates, executor=executor
+        )
         parts = surrogates.parts
     else:
         surrogates = fit_surrogates(
@@ -136,6 +141,7 @@ def fit_step(
             input_names=DESIGN_NAMES,
             sample_ids=data.sample_ids,
             candidates=candidates,
+            executor=executor,
         )
         parts = (surrogates,)
     if not stored:

@@ -30,6 +30,7 @@ import platform
 import threading
 import warnings
 from collections.abc import Iterator, Mapping
+from concurrent.futures import Executor
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -582,6 +583,7 @@ def fit_surrogates(
     input_names: tuple[str, ...],
     sample_ids: np.ndarray | None = None,
     candidates: Mapping[str, str] | None = None,
+    executor: Executor | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
 
@@ -612,6 +614,10 @@ def fit_surrogates(
     sample, the held-out ones included: the held-out figures describe the model fitted
     without them, the model returned has seen them too.
 
+    ``executor`` (a ``concurrent.futures`` process pool or Dask executor) scores the
+    regressor candidates (every output's) on its processes: the same models and figures as
+    in this process, since every candidate is seeded and fitted with one BLAS thread.
+
     A candidate that fails gets its reason in the ``error`` column and is not selected.
     Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
     feasible training samples, shapes, NaN) or when no candidate of a model can be fitted.
@@ -637,7 +643,7 @@ def fit_surrogates(
 
     with _serial_blas():
         regressors, selected, rows, tables = _fit_regressors(
-            u, values, flags, ids, held, settings, dict(candidates or {})
+            u, values, flags, ids, held, settings, dict(candidates or {}), executor
         )
         classifier, rows_cls, table_cls = _fit_classifier(
             u, flags, ids, held, settings, (candidates or {}).get(FEASIBLE)
@@ -669,6 +675,7 @@ def _fit_regressors(
     held: np.ndarray,
     settings: SurrogateSettings,
     candidates: dict[str, str],
+    executor: Executor | None = None,
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
     """CV, selection and final fit of every output's regressor (feasible samples only)."""
     reg_train = np.flatnonzero(~held & flags)  # ascending sample order
@@ -679,22 +686,42 @@ def _fit_regressors(
     regressors: dict[str, Regressor] = {}
     folds = regression_folds(reg_train.size, settings.folds, settings.seed)
     configured = list(dict.fromkeys(settings.regressors))
+
+    def scored(names: dict[str, list[str]]) -> dict[str, list[RegressorScore]]:
+        jobs = [(name, candidate) for name, listed in names.items() for candidate in listed]
+        arguments = [
+            (
+                candidate,
+                u[reg_train],
+                values[name][reg_train],
+                u[reg_held],
+                values[name][reg_held],
+                folds,
+                settings,
+            )
+            for name, candidate in jobs
+        ]
+        results = _mapped(_evaluate_regressor, arguments, executor)
+        out: dict[str, list[RegressorScore]] = {name: [] for name in names}
+        for (name, _), score in zip(jobs, results, strict=True):
+            out[name].append(score)
+        return out
+
+    first = {
+        name: [candidates[name]] if candidates.get(name) in configured else configured
+        for name in values
+    }
+    all_scores = scored(first)
+    # A kept candidate that cannot be fitted on these data: every candidate is compared.
+    retry = {
+        name: configured
+        for name, listed in first.items()
+        if listed != configured and select_regressor(all_scores[name]) is None
+    }
+    all_scores |= scored(retry) if retry else {}
     for name, y in values.items():
-
-        def scored(names: list[str], y: np.ndarray = y) -> list[RegressorScore]:
-            return [
-                evaluate_regressor(
-                    candidate, u[reg_train], y[reg_train], u[reg_held], y[reg_held], folds, settings
-                )
-                for candidate in names
-            ]
-
-        kept = candidates.get(name)
-        scores = scored([kept]) if kept in configured else []
+        scores = all_scores[name]
         best = select_regressor(scores)
-        if best is None:
-            scores = scored(configured)
-            best = select_regressor(scores)
         if best is None:
             raise SurrogateError(
                 f"output {name!r}: no candidate could be fitted ({_failures(scores)})"
@@ -719,6 +746,20 @@ def _fit_regressors(
             )
         )
     return regressors, selected, rows, tables
+
+
+def _evaluate_regressor(*arguments: Any) -> RegressorScore:
+    """:func:`evaluate_regressor` with one BLAS thread, wherever it runs."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return evaluate_regressor(*arguments)
+
+
+def _mapped(function: Any, arguments: list[tuple], executor: Executor | None) -> list[Any]:
+    """``function(*a)`` for each ``a`` of ``arguments``, in order: on ``executor`` (e.g.
+    the pipeline's process pool, whose processes are already started) or in this process."""
+    if executor is None or len(arguments) <= 1:
+        return [function(*a) for a in arguments]
+    return list(executor.map(function, *zip(*arguments, strict=True)))
 
 
 def _refitted(scored: Any, refit: Any) -> Any:
