@@ -567,23 +567,21 @@ def test_failing_candidates_are_recorded_not_selected(settings, monkeypatch):
         fit_surrogates(x, outputs, feasible, LOWER, UPPER, only_broken, input_names=NAMES)
 
 
+def _fit_again(fitted, settings, **options):
+    """The ``fitted`` fixture's data fitted again with ``options``."""
+    _, (x, outputs, feasible, ids) = fitted
+    return fit_surrogates(
+        x, outputs, feasible, LOWER, UPPER, settings, input_names=NAMES, sample_ids=ids, **options
+    )
+
+
 def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
     fitted, settings, monkeypatch
 ):
     """``candidates`` (an earlier fit's choice): one row per model, same CV folds."""
-    fit, (x, outputs, feasible, ids) = fitted
+    fit, (x, outputs, feasible, _) = fitted
     kept = {"t_h": "RBF", "dv_mps": "QP", "feasible": "logistic"}
-    again = fit_surrogates(
-        x,
-        outputs,
-        feasible,
-        LOWER,
-        UPPER,
-        settings,
-        input_names=NAMES,
-        sample_ids=ids,
-        candidates=kept,
-    )
+    again = _fit_again(fitted, settings, candidates=kept)
     assert again.selected == kept
     assert again.validation.groupby("model")["candidate"].apply(list).to_dict() == {
         name: [choice] for name, choice in kept.items()
@@ -608,20 +606,10 @@ def test_candidates_scored_in_processes_give_the_fit_of_this_process(fitted, set
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    fit, (x, outputs, feasible, ids) = fitted
+    fit = fitted[0]
     spawn = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(2, mp_context=spawn) as pool:
-        parallel = fit_surrogates(
-            x,
-            outputs,
-            feasible,
-            LOWER,
-            UPPER,
-            settings,
-            input_names=NAMES,
-            sample_ids=ids,
-            executor=pool,
-        )
+        parallel = _fit_again(fitted, settings, executor=pool)
     assert parallel.selected == fit.selected
     figures = [c for c in fit.validation.columns if c != "fit_time_s"]
     pd.testing.assert_frame_equal(parallel.validation[figures], fit.validation[figures])
