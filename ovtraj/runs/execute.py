@@ -7,8 +7,8 @@ import concurrent.futures
 import hashlib
 import json
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
+from contextlib import nullcontext
 from typing import Any
 
 import numpy as np
@@ -255,7 +255,12 @@ def run_doe(
             if removed:
                 say(f"removed {len(removed)} temporary file(s) of an interrupted write")
             run.update_manifest(batches=len(batches))
-            with _started(pool, runner, workers, dask_address, settings) as pool:
+            started = (
+                nullcontext(pool)
+                if pool is not None
+                else batch_pool(runner, workers, dask_address, settings)
+            )
+            with started as pool:
                 jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings, on_batch)
                 todo = [k for k, _ in batches if not run.is_stored(k)]
                 waiting = jobs.evaluate(todo, 0.0, time_limit_s)
@@ -276,22 +281,6 @@ def run_doe(
             f"run {run.id} incomplete: {len(failures)} batch(es) failed: {'; '.join(texts)}"
         )
     return run
-
-
-@contextmanager
-def _started(
-    pool: BatchPool | None,
-    runner: str,
-    workers: int,
-    dask_address: str | None,
-    settings: DaskSettings,
-) -> Iterator[BatchPool]:
-    """``pool`` itself (left running), else a pool started for this run."""
-    if pool is not None:
-        yield pool
-        return
-    with batch_pool(runner, workers, dask_address, settings) as started:
-        yield started
 
 
 class _BatchJobs:
