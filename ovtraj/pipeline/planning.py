@@ -102,6 +102,8 @@ def write_mission_plan(
             chosen=chosen,
             title=f"front point {int(row['front_index'])} (sample {sample_id}), "
             f"pipeline {result.pipeline_id}",
+            scenario=scenario.name,
+            date=f"epoch {scenario.epoch_utc}",
         )
     )
     paths = [json_path, yaml_path, *(location(p) for p in plots)]

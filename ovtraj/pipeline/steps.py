@@ -200,6 +200,8 @@ def front_step(
             surrogate=front.predicted,
             samples=_feasible_totals(run),
             title=f"surrogate front {front_id} (run {run.id})",
+            scenario=scenario.name,
+            date=f"epoch {scenario.epoch_utc}",
         )
         out.add(plot.name, file_digest(plot))
         out.finish(meta)

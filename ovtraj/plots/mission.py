@@ -1,47 +1,71 @@
 """Mission plots from the chain's trajectory tables (``MissionRecord.trajectories``).
 
 Three PNGs (matplotlib's Agg canvas, no pyplot state; each written to a temporary
-name and renamed):
+name and renamed; :func:`mission_figures` gives the Figures themselves):
 
-* ``<prefix>_profile.png``: altitude against time from the launch day's 0 h, and
-  altitude against speed, the stages coloured;
-* ``<prefix>_ground_track.png``: the ground track (geocentric longitude and
-  latitude, spherical Earth) with the entry region, the entry point, the terminal
-  point and the landing site;
-* ``<prefix>_reentry_corridor.png``: the reentry in the altitude-speed plane with
-  the dynamic-pressure, load-factor and heat-rate limits drawn as boundary curves
-  (the reentry's own vehicle, angle-of-attack schedule and atmosphere model), the
-  entry interface and the terminal interface.
+* ``<prefix>_profile.png``: altitude against time from the launch day's 0 h [h], and
+  altitude against speed, every stage and phase in its own colour;
+* ``<prefix>_ground_track.png``: the ground track (geocentric longitude and latitude,
+  spherical Earth) over the coastlines (Natural Earth 1:110m, :mod:`ovtraj.plots.coastlines`),
+  the phases coloured, with the entry region (the deorbit's box), the entry point, the
+  terminal point and the landing site; a second panel zooms on the entry region, the
+  reentry and the landing site;
+* ``<prefix>_reentry_corridor.png``: the reentry in the altitude-speed plane with the
+  dynamic-pressure, load-factor and heat-rate limits drawn as boundary curves (the
+  reentry's own vehicle, angle-of-attack schedule and atmosphere model), each labelled
+  with its value from ``reentry.limits``, the entry interface and the terminal interface.
 
 The tables are the stages' own (the run store keeps the same ones): the rendezvous
 and transfer tables count seconds from the launch day's 0 h, the deorbit's from its
 start (the transfer's arrival) and the reentry's from the entry (the deorbit's last
-row); the plots chain these offsets. A missing stage is left out.
+row); the plots chain these offsets. A missing stage is left out. Every physical value
+drawn (limits, entry region, landing site, interfaces) comes from the scenario; titles
+name the scenario and its launch day (or epoch), never the wall clock.
 """
 
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario
-from ovtraj.files import write_bytes
+from ovtraj.plots.coastlines import draw_coastlines, split_at_wrap, with_breaks
+from ovtraj.plots.render import figure, write_png
 from ovtraj.storage import location
 
-__all__ = ["mission_plots"]
+__all__ = ["PHASES", "limit_labels", "mission_figures", "mission_plots"]
 
-_COLOURS = {
-    "rendezvous": "C0",
-    "transfer": "C2",
-    "deorbit": "C1",
-    "reentry": "C3",
+# (stage, phase) -> colour and legend text; the phases are the tables' ``phase`` column.
+PHASES: dict[tuple[str, str], tuple[str, str]] = {
+    ("rendezvous", "wait"): ("tab:blue", "rendezvous: phasing in the parking orbit"),
+    ("rendezvous", "transfer"): ("tab:cyan", "rendezvous: transfer to the target"),
+    ("transfer", "wait"): ("tab:green", "after separation: in the target's orbit"),
+    ("transfer", "transfer"): ("tab:olive", "transfer to the preparation orbit"),
+    ("deorbit", "preparation"): ("tab:orange", "deorbit: preparation orbit"),
+    ("deorbit", "descent"): ("tab:brown", "deorbit: descent to the entry interface"),
+    ("reentry", "reentry"): ("tab:red", "reentry"),
 }
+_STAGE_COLOURS = {"rendezvous": "tab:blue", "transfer": "tab:green", "deorbit": "tab:orange"}
+_ORBITAL = ("rendezvous", "transfer", "deorbit")
+_COASTS = ("wait", "preparation")  # phases that last many revolutions
 _HOUR = 3600.0
+_ZOOM_MARGIN_DEG = 6.0  # around the entry region, the reentry and the landing site
+_SITE = "tab:purple"
+
+
+def mission_figures(trajectories: dict[str, pd.DataFrame], scenario: Scenario) -> dict[str, Any]:
+    """The three mission Figures: ``profile``, ``ground_track``, ``reentry_corridor``."""
+    tracks = _tracks(trajectories, scenario)
+    return {
+        "profile": _profile(tracks, scenario),
+        "ground_track": _ground_track(tracks, scenario),
+        "reentry_corridor": _corridor(trajectories.get("reentry"), scenario),
+    }
 
 
 def mission_plots(
@@ -52,32 +76,8 @@ def mission_plots(
 ) -> list[Path]:
     """Write the three mission plots into ``directory``; returns their paths."""
     directory = location(directory)
-    tracks = _tracks(trajectories, scenario)
-    return [
-        _save(_profile(tracks), directory / f"{prefix}_profile.png"),
-        _save(_ground_track(tracks, scenario), directory / f"{prefix}_ground_track.png"),
-        _save(
-            _corridor(trajectories.get("reentry"), scenario),
-            directory / f"{prefix}_reentry_corridor.png",
-        ),
-    ]
-
-
-def _save(fig: object, path: Path) -> Path:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    fig.clear()
-    write_bytes(path, buffer.getvalue(), replace=True)
-    return path
-
-
-def _figure(size: tuple[float, float]) -> object:
-    from matplotlib.figure import Figure  # no pyplot: no global state, safe in workers
-
-    return Figure(figsize=size, constrained_layout=True)
+    figures = mission_figures(trajectories, scenario)
+    return [write_png(fig, directory / f"{prefix}_{name}.png") for name, fig in figures.items()]
 
 
 def _nonempty(table: pd.DataFrame | None) -> bool:
@@ -124,7 +124,7 @@ def _tracks(trajectories: dict[str, pd.DataFrame], scenario: Scenario) -> dict[s
                 "altitude_m": table["altitude_km"].to_numpy(dtype=float) * 1e3,
                 "speed_mps": table["speed_mps"].to_numpy(dtype=float),
                 "latitude_deg": table["latitude_deg"].to_numpy(dtype=float),
-                "longitude_deg": table["longitude_deg"].to_numpy(dtype=float),
+                "longitude_deg": _wrap_deg(table["longitude_deg"].to_numpy(dtype=float)),
                 "phase": table["phase"].to_numpy() if "phase" in table else stage,
             }
         )
@@ -138,20 +138,53 @@ def _launch_day(scenario: Scenario) -> Epoch:
     return scenario.epoch
 
 
+def _when(scenario: Scenario) -> str:
+    """The scenario's name and day, from the config (never the wall clock)."""
+    if scenario.launch is not None:
+        return f"scenario {scenario.name}, launch day {scenario.launch.launch_date_utc}"
+    return f"scenario {scenario.name}, epoch {scenario.epoch_utc}"
+
+
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _profile(tracks: dict[str, pd.DataFrame]) -> object:
-    fig = _figure((13.0, 4.8))
-    left, right = fig.subplots(1, 2)
+def _wrap_deg(angle: np.ndarray | float) -> np.ndarray:
+    """Degrees into [-180, 180)."""
+    return (np.asarray(angle, dtype=float) + 180.0) % 360.0 - 180.0
+
+
+def _segments(tracks: dict[str, pd.DataFrame]) -> list[tuple[str, str, pd.DataFrame]]:
+    """(stage, phase, rows) for every run of consecutive rows of one phase, in time order."""
+    out = []
     for stage, track in tracks.items():
-        label = stage + (" (Earth-relative speed)" if stage == "reentry" else "")
-        colour = _COLOURS[stage]
-        left.plot(
-            track["t_s"] / _HOUR, track["altitude_m"] / 1e3, color=colour, lw=1.0, label=label
-        )
-        right.plot(track["speed_mps"], track["altitude_m"] / 1e3, color=colour, lw=1.0, label=label)
+        phase = track["phase"].astype(str).to_numpy()
+        starts = np.r_[0, np.flatnonzero(phase[1:] != phase[:-1]) + 1]
+        ends = np.r_[starts[1:], len(track)]
+        for a, b in zip(starts, ends, strict=True):
+            # keep the next run's first row: the line has no gap at the phase change
+            out.append((stage, str(phase[a]), track.iloc[a : min(b + 1, len(track))]))
+    return out
+
+
+def _style(stage: str, phase: str) -> tuple[str, str]:
+    if (stage, phase) in PHASES:
+        return PHASES[(stage, phase)]
+    if stage == "reentry":
+        return PHASES[("reentry", "reentry")]
+    return _STAGE_COLOURS.get(stage, "0.3"), f"{stage}: {phase}"
+
+
+def _profile(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> Any:
+    fig = figure((13.0, 5.6))
+    left, right = fig.subplots(1, 2)
+    for stage, phase, rows in _segments(tracks):
+        colour, label = _style(stage, phase)
+        if stage == "reentry":
+            label += " (Earth-relative speed)"
+        altitude = rows["altitude_m"] / 1e3
+        left.plot(rows["t_s"] / _HOUR, altitude, color=colour, lw=1.0, label=label)
+        right.plot(rows["speed_mps"], altitude, color=colour, lw=1.0)
     if "rendezvous" in tracks and "transfer" in tracks:
         docked = (tracks["rendezvous"]["t_s"].iloc[-1], tracks["transfer"]["t_s"].iloc[0])
         left.axvspan(docked[0] / _HOUR, docked[1] / _HOUR, color="0.85", label="docked (stay)")
@@ -163,64 +196,221 @@ def _profile(tracks: dict[str, pd.DataFrame]) -> object:
     right.set_title("altitude against speed")
     for ax in (left, right):
         ax.grid(True, alpha=0.3)
-    if tracks:
-        left.legend(fontsize=8, loc="lower left")
-    fig.suptitle("Mission profile")
+    entries = _legend_entries(left)
+    if entries:
+        fig.legend(
+            list(entries.values()), list(entries), loc="outside lower center", ncols=4, fontsize=8
+        )
+    fig.suptitle(f"Mission profile: {_when(scenario)}")
     return fig
 
 
-def _broken(lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Longitude and latitude with NaN where the track wraps across +-180 deg."""
-    jumps = np.flatnonzero(np.abs(np.diff(lon)) > 180.0) + 1
-    return np.insert(lon, jumps, np.nan), np.insert(lat, jumps, np.nan)
+def _legend_entries(ax: Any) -> dict[str, Any]:
+    """Label -> handle of an axes' artists, each label once (first-drawn order)."""
+    handles, labels = ax.get_legend_handles_labels()
+    entries: dict[str, Any] = {}
+    for handle, label in zip(handles, labels, strict=True):
+        entries.setdefault(label, handle)
+    return entries
 
 
-def _ground_track(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> object:
-    fig = _figure((12.0, 6.2))
-    ax = fig.subplots()
-    for stage, track in tracks.items():
-        lon, lat = _broken(
-            track["longitude_deg"].to_numpy(dtype=float),
-            track["latitude_deg"].to_numpy(dtype=float),
-        )
-        orbital = stage in ("rendezvous", "transfer")
-        ax.plot(
-            lon,
-            lat,
-            color=_COLOURS[stage],
-            lw=0.4 if orbital else 1.6,
-            alpha=0.5 if orbital else 1.0,
-            label=stage,
+def _line(ax: Any, lon: np.ndarray, lat: np.ndarray, centre: float, **style: Any) -> None:
+    """A lon/lat line drawn in the frame centred on ``centre`` [deg], cut at its edges."""
+    pieces = split_at_wrap(_wrap_deg(lon - centre), lat)
+    x, y = with_breaks([(x + centre, y) for x, y in pieces])
+    ax.plot(x, y, **style)
+
+
+def _boxes(lon: float, lat: float, dlon: float, dlat: float, centre: float) -> list[list[float]]:
+    """[lon0, lon1, lat0, lat1] of a box in the frame centred on ``centre``, cut at its edges."""
+    mid = float(_wrap_deg(lon - centre))
+    lon0, lon1 = mid - dlon, mid + dlon
+    spans = [(lon0, lon1)]
+    if lon0 < -180.0:
+        spans = [(lon0 + 360.0, 180.0), (-180.0, lon1)]
+    elif lon1 > 180.0:
+        spans = [(lon0, 180.0), (-180.0, lon1 - 360.0)]
+    return [[a + centre, b + centre, lat - dlat, lat + dlat] for a, b in spans]
+
+
+def _point(lon: float, centre: float) -> float:
+    return float(_wrap_deg(lon - centre)) + centre
+
+
+def _haversine_km(lat1: float, lon1: float, lat2: float, lon2: float, radius_m: float) -> float:
+    p1, p2, dl = math.radians(lat1), math.radians(lat2), math.radians(lon2 - lon1)
+    h = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
+    return 2.0 * radius_m * math.asin(math.sqrt(min(h, 1.0))) / 1e3
+
+
+def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, centre: float) -> None:
+    """Coastlines, the phases, the entry region and the points on a lon/lat axes."""
+    draw_coastlines(ax, centre=centre)
+    for stage, phase, rows in _segments(tracks):
+        colour, label = _style(stage, phase)
+        # long coasts thin (tens of revolutions), transfers medium, the way down bold
+        weight = 0 if phase in _COASTS else 1 if stage in _ORBITAL and phase != "descent" else 2
+        _line(
+            ax,
+            rows["longitude_deg"].to_numpy(dtype=float),
+            rows["latitude_deg"].to_numpy(dtype=float),
+            centre,
+            color=colour,
+            lw=(0.5, 1.2, 1.8)[weight],
+            alpha=(0.55, 0.9, 1.0)[weight],
+            zorder=2.0 + weight,
+            label=label,
         )
     if scenario.deorbit is not None:
         entry = scenario.deorbit.entry
-        lon0 = entry.longitude_deg - entry.longitude_tolerance_deg
-        lat0 = entry.latitude_deg - entry.latitude_tolerance_deg
-        box_lon = [lon0, lon0 + 2 * entry.longitude_tolerance_deg]
-        box_lat = [lat0, lat0 + 2 * entry.latitude_tolerance_deg]
-        ax.fill(
-            [box_lon[0], box_lon[1], box_lon[1], box_lon[0]],
-            [box_lat[0], box_lat[0], box_lat[1], box_lat[1]],
-            color="C1",
-            alpha=0.2,
-            label="entry region",
+        label = (
+            f"entry region ({entry.latitude_deg:g} ± {entry.latitude_tolerance_deg:g}° lat, "
+            f"{entry.longitude_deg:g} ± {entry.longitude_tolerance_deg:g}° lon, "
+            f"{entry.altitude_km:g} km)"
         )
+        for lon0, lon1, lat0, lat1 in _boxes(
+            entry.longitude_deg,
+            entry.latitude_deg,
+            entry.longitude_tolerance_deg,
+            entry.latitude_tolerance_deg,
+            centre,
+        ):
+            ax.fill(
+                [lon0, lon1, lon1, lon0],
+                [lat0, lat0, lat1, lat1],
+                facecolor="gold",
+                edgecolor="darkgoldenrod",
+                lw=1.5,
+                alpha=0.75,
+                zorder=3.5,
+                label=label,
+            )
+            label = "_"  # one legend entry
     reentry = tracks.get("reentry")
+    site = scenario.reentry.landing_site if scenario.reentry is not None else None
+    if site is not None:
+        ax.plot(
+            _point(site.longitude_deg, centre),
+            site.latitude_deg,
+            "o",
+            ms=15,
+            mfc="none",
+            mec=_SITE,
+            mew=2.0,
+            zorder=5.0,
+            label=f"landing site: {site.name}",
+        )
     if reentry is not None:
         first, last = reentry.iloc[0], reentry.iloc[-1]
-        ax.plot(first["longitude_deg"], first["latitude_deg"], "o", color="k", label="entry point")
-        ax.plot(last["longitude_deg"], last["latitude_deg"], "x", color="k", ms=9, label="terminal")
-    if scenario.reentry is not None:
-        site = scenario.reentry.landing_site
-        ax.plot(site.longitude_deg, site.latitude_deg, "*", color="C4", ms=14, label=site.name)
-    ax.set_xlim(-180.0, 180.0)
-    ax.set_ylim(-90.0, 90.0)
-    ax.set_aspect("equal")
-    ax.set_xlabel("longitude [deg]")
+        ax.plot(
+            _point(first["longitude_deg"], centre),
+            first["latitude_deg"],
+            "^",
+            color="k",
+            ms=8,
+            zorder=6.0,
+            label="entry point",
+        )
+        label = "terminal point"
+        if site is not None:
+            miss = _haversine_km(
+                last["latitude_deg"],
+                last["longitude_deg"],
+                site.latitude_deg,
+                site.longitude_deg,
+                scenario.earth.radius,
+            )
+            label += f" ({miss:.1f} km from the site)"
+        ax.plot(
+            _point(last["longitude_deg"], centre),
+            last["latitude_deg"],
+            "D",
+            color="k",
+            mfc="yellow",
+            ms=5,
+            zorder=7.0,
+            label=label,
+        )
+    ax.set_xlabel("longitude [deg east]")
     ax.set_ylabel("geocentric latitude [deg]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="lower left", ncols=2)
-    ax.set_title("Ground track (spherical Earth)")
+    ax.grid(True, alpha=0.3, zorder=0.0)
+
+
+def _zoom_extent(
+    tracks: dict[str, pd.DataFrame], scenario: Scenario
+) -> tuple[float, list[float]] | None:
+    """(centre longitude, [lon0, lon1, lat0, lat1]) around the reentry and its targets."""
+    lon, lat = [], []
+    if "reentry" in tracks:
+        lon.extend(tracks["reentry"]["longitude_deg"])
+        lat.extend(tracks["reentry"]["latitude_deg"])
+    if scenario.reentry is not None:
+        lon.append(scenario.reentry.landing_site.longitude_deg)
+        lat.append(scenario.reentry.landing_site.latitude_deg)
+    if scenario.deorbit is not None:
+        entry = scenario.deorbit.entry
+        for s in (-1.0, 1.0):
+            lon.append(entry.longitude_deg + s * entry.longitude_tolerance_deg)
+            lat.append(entry.latitude_deg + s * entry.latitude_tolerance_deg)
+    if not lon:
+        return None
+    lon_arr = _wrap_deg(np.asarray(lon, dtype=float))
+    # centre: the circular mean, so that a region across +-180 deg stays in one piece
+    centre = math.degrees(
+        math.atan2(np.mean(np.sin(np.radians(lon_arr))), np.mean(np.cos(np.radians(lon_arr))))
+    )
+    x = _wrap_deg(lon_arr - centre) + centre
+    m = _ZOOM_MARGIN_DEG
+    return centre, [
+        float(x.min()) - m,
+        float(x.max()) + m,
+        max(float(min(lat)) - m, -90.0),
+        min(float(max(lat)) + m, 90.0),
+    ]
+
+
+def _wrapped_ticks(ax: Any) -> None:
+    from matplotlib.ticker import FuncFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{float(_wrap_deg(v)):g}"))
+
+
+def _ground_track(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> Any:
+    zoom = _zoom_extent(tracks, scenario)
+    fig = figure((12.0, 12.5 if zoom else 7.5))
+    if zoom:
+        world, near = fig.subplots(2, 1, height_ratios=[1.0, 1.15])
+    else:
+        world, near = fig.subplots(), None
+    _draw_map(world, tracks, scenario, centre=0.0)
+    world.set_xlim(-180.0, 180.0)
+    world.set_ylim(-90.0, 90.0)
+    world.set_xticks(np.arange(-180.0, 181.0, 30.0))
+    world.set_yticks(np.arange(-90.0, 91.0, 30.0))
+    world.set_aspect("equal")
+    world.set_title("Ground track (spherical Earth; coastlines: Natural Earth 1:110m)")
+    if near is not None and zoom is not None:
+        centre, (lon0, lon1, lat0, lat1) = zoom
+        for a, b, c, d in _boxes(
+            0.5 * (lon0 + lon1), 0.5 * (lat0 + lat1), 0.5 * (lon1 - lon0), 0.5 * (lat1 - lat0), 0.0
+        ):
+            world.plot([a, b, b, a, a], [c, c, d, d, c], "k--", lw=0.9, zorder=4.5)
+        _draw_map(near, tracks, scenario, centre=centre)
+        near.set_xlim(lon0, lon1)
+        near.set_ylim(lat0, lat1)
+        near.set_aspect("equal")
+        _wrapped_ticks(near)
+        near.set_title("Entry region, reentry and landing site (dashed box above)")
+    entries = _legend_entries(world)
+    entries["coastlines (Natural Earth 1:110m)"] = world.plot([], [], color="0.55", lw=0.6)[0]
+    fig.legend(
+        list(entries.values()),
+        list(entries),
+        loc="outside lower center",
+        ncols=3,
+        fontsize=8,
+    )
+    fig.suptitle(f"Ground track: {_when(scenario)}")
     return fig
 
 
@@ -245,8 +435,18 @@ def _limit_fields(
     return fields
 
 
-def _corridor(table: pd.DataFrame | None, scenario: Scenario) -> object:
-    fig = _figure((9.0, 6.2))
+def limit_labels(scenario: Scenario) -> dict[str, str]:
+    """Legend text of each reentry limit with its value and unit (``reentry.limits``)."""
+    limits = scenario.reentry.limits
+    return {
+        "q": f"dynamic pressure limit q_max = {limits.max_dynamic_pressure_kpa:g} kPa",
+        "load": f"load factor limit n_max = {limits.max_load_g:g} g",
+        "heat": f"heat-rate limit {limits.max_heat_rate_kw_m2:g} kW/m²",
+    }
+
+
+def _corridor(table: pd.DataFrame | None, scenario: Scenario) -> Any:
+    fig = figure((9.0, 6.6))
     track = None
     if _nonempty(table):
         track = pd.DataFrame(
@@ -270,36 +470,46 @@ def _corridor(table: pd.DataFrame | None, scenario: Scenario) -> object:
     altitudes = np.linspace(0.0, 1.05 * entry_m, 160)
     fields = _limit_fields(scenario, speeds, altitudes)
     limits = settings.limits
-    for key, level, colour, text in (
-        ("q", limits.max_dynamic_pressure_kpa * 1e3, "C0", "dynamic pressure limit"),
-        ("load", limits.max_load_g, "C2", "load factor limit"),
-        ("heat", limits.max_heat_rate_kw_m2 * 1e3, "C3", "heat-rate limit"),
+    labels = limit_labels(scenario)
+    for key, level, colour in (
+        ("q", limits.max_dynamic_pressure_kpa * 1e3, "C0"),
+        ("load", limits.max_load_g, "C2"),
+        ("heat", limits.max_heat_rate_kw_m2 * 1e3, "C3"),
     ):
         ax.contour(speeds, altitudes / 1e3, fields[key], levels=[level], colors=colour)
-        ax.plot([], [], color=colour, label=f"{text} (below: exceeded)")
+        ax.plot([], [], color=colour, label=labels[key])
     if track is not None:
         ax.plot(track["speed_mps"], track["altitude_m"] / 1e3, color="k", lw=1.4, label="reentry")
         ax.plot(track["speed_mps"].iloc[0], track["altitude_m"].iloc[0] / 1e3, "o", color="k")
     terminal = settings.terminal
-    ax.axvline(terminal.speed_mps, color="C4", ls="--", lw=1.0, label="terminal speed")
+    ax.axvline(
+        terminal.speed_mps,
+        color="C4",
+        ls="--",
+        lw=1.0,
+        label=f"terminal speed {terminal.speed_mps:g} m/s",
+    )
+    low = terminal.altitude_km - terminal.altitude_tolerance_km
+    high = terminal.altitude_km + terminal.altitude_tolerance_km
     ax.plot(
         [terminal.speed_mps, terminal.speed_mps],
-        [
-            terminal.altitude_km - terminal.altitude_tolerance_km,
-            terminal.altitude_km + terminal.altitude_tolerance_km,
-        ],
+        [low, high],
         color="C4",
         lw=6.0,
         alpha=0.35,
         solid_capstyle="butt",
-        label="terminal interface (altitude band)",
+        label=f"terminal interface {low:g}-{high:g} km",
     )
-    ax.axhline(entry_m / 1e3, color="C1", ls=":", lw=1.0, label="entry interface")
+    ax.axhline(
+        entry_m / 1e3, color="C1", ls=":", lw=1.0, label=f"entry interface {entry_m / 1e3:g} km"
+    )
     ax.set_xlabel("Earth-relative speed [m/s]")
     ax.set_ylabel("altitude [km]")
     ax.set_xlim(speeds[0], speeds[-1])
     ax.set_ylim(altitudes[0] / 1e3, altitudes[-1] / 1e3)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
-    ax.set_title("Reentry corridor (limits from the reentry's vehicle and atmosphere)")
+    ax.legend(
+        fontsize=8, loc="upper left", title="limits: exceeded below each line", title_fontsize=8
+    )
+    ax.set_title(f"Reentry corridor: {_when(scenario)}", fontsize=11)
     return fig
