@@ -9,7 +9,9 @@
    the budget of real evaluations is spent (``ovtraj.pipeline.run_pipeline``);
 5. plan: the picked point of the verified front becomes the mission plan (JSON, YAML,
    plots), written in the pipeline's directory;
-6. artifacts: validation table, verified front, verification table, plot paths.
+6. artifacts: validation table, parity plots, verified front, verification table, and the
+   mission plan: its files and its plots, shown in the markdown (embedded PNGs, their
+   paths as captions).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from flows.common import (
 from flows.doe import ensure_launch_fit, evaluate_run, execution
 from flows.optimize import front_table, surrogate_front
 from flows.runners import task_runner
-from flows.surrogate import fit_run_surrogates, publish_validation
+from flows.surrogate import embedded_plots, fit_run_surrogates, publish_validation
 from ovtraj.config import Scenario
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.pipeline import (
@@ -181,9 +183,8 @@ def _publish(result: PipelineResult, planned: dict[str, Any]) -> None:
     plots = sorted(str(p) for p in result.directory.glob("*.png")) + planned["plots"]
     create_markdown_artifact(
         key="mission-plan",
-        markdown="\n".join(
-            [f"- plan: `{planned['json']}`", f"- plan: `{planned['yaml']}`"]
-            + [f"- plot: `{p}`" for p in plots]
+        markdown="\n\n".join(
+            [f"- plan: `{planned['json']}`\n- plan: `{planned['yaml']}`", *embedded_plots(plots)]
         ),
         description=f"mission plan of pipeline {result.pipeline_id}",
     )

@@ -4,11 +4,14 @@
 2. fit and validate the surrogates: a task cached on the training data's hash, the
    settings and the code version (the run store keeps the fitted set too, and a cached
    result whose fit is gone from the run is fitted again);
-3. publish the validation table and the parity plots' paths as artifacts.
+3. publish the validation table and the parity plots as artifacts: the plots themselves,
+   embedded in the markdown (:func:`embedded_plots`), their paths as captions.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from prefect import flow, tags
@@ -25,6 +28,7 @@ from flows.common import (
 from ovtraj.config import Scenario
 from ovtraj.pipeline import run_scenario, training_data
 from ovtraj.pipeline.steps import MARKER
+from ovtraj.plots.embed import png_data_uri
 from ovtraj.runs import Run, RunStore
 from ovtraj.storage import location
 from ovtraj.surrogate import training_data_hash
@@ -60,6 +64,18 @@ def fit_run_surrogates(
     )
 
 
+def embedded_plots(paths: Iterable[str | Path]) -> list[str]:
+    """Markdown paragraphs that show each PNG itself, its path under it as the caption.
+
+    The image is embedded as a ``data:`` URI (``![name](data:image/png;base64,...)``), so
+    any Prefect UI shows it, one on another machine too; both UIs of Prefect 3.9 (``/``
+    and ``/v2``) render it (tests/test_prefect_ui.py, in chromium). Base64 makes the
+    markdown a third larger than the PNGs (~1 MB for a mission plan's five plots); the
+    server stores artifacts of tens of MB.
+    """
+    return [f"![{str(p).rsplit('/', 1)[-1]}]({png_data_uri(p)})\n\n`{p}`" for p in paths]
+
+
 def publish_validation(summary: dict[str, Any], run: Run) -> None:
     create_table_artifact(
         key="surrogate-validation",
@@ -70,7 +86,7 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
     plots = sorted(str(p) for p in location(summary["directory"]).glob("*.png"))
     create_markdown_artifact(
         key="surrogate-parity-plots",
-        markdown="\n".join(f"- `{p}`" for p in plots) or "no plots",
+        markdown="\n\n".join(embedded_plots(plots)) or "no plots",
         description=f"parity plots of fit {summary['fit_id']}",
     )
 
