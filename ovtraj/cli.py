@@ -8,16 +8,33 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+import typer.core
 
 from ovtraj import __version__
+from ovtraj.cli_progress import configure_logging, echo, progress_bar
 from ovtraj.config import ConfigError, Scenario, load_scenario
+from ovtraj.formatting import duration, joined, number, quantity, split_unit
 from ovtraj.records import json_text, plain
 
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     help="Whole-mission trajectory planning of a small reusable orbital vehicle.",
+    # Markdown, not rich markup: rich would take a unit such as `[m/s]` in a help text
+    # for a style tag and drop it.
+    rich_markup_mode="markdown",
 )
+
+
+def _flag_type(option: Any, ctx: Any) -> str | None:
+    """The type column of an option's help: none for a flag (typer 0.29 shows `<bool>`)."""
+    return None if getattr(option, "is_flag", False) else _OPTION_TYPE(option, ctx)
+
+
+# typer's own hook for the column; left alone by a typer that no longer has it.
+_OPTION_TYPE = getattr(typer.core.TyperOption, "display_type_rich", None)
+if _OPTION_TYPE is not None:
+    typer.core.TyperOption.display_type_rich = _flag_type
 
 ConfigArg = Annotated[
     Path | None,
@@ -26,10 +43,20 @@ ConfigArg = Annotated[
         show_default=False,
     ),
 ]
-JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
+JsonOpt = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="print one JSON object on stdout, nothing else (progress and logs on stderr)",
+    ),
+]
 TargetOpt = Annotated[
     str | None,
-    typer.Option("--target", help="TLE/OMM file or URL replacing the scenario's target"),
+    typer.Option(
+        "--target",
+        help="TLE/OMM file or URL replacing the scenario's target (default: the scenario's)",
+        show_default=False,
+    ),
 ]
 
 
@@ -44,8 +71,20 @@ def main(
     version: Annotated[
         bool, typer.Option("--version", callback=_version, is_eager=True, help="show the version")
     ] = False,
+    quiet: Annotated[
+        bool,
+        typer.Option("--quiet", "-q", help="warnings and errors only on stderr, no progress bars"),
+    ] = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="debug messages on stderr too")
+    ] = False,
 ) -> None:
-    """ovtraj command line."""
+    """ovtraj command line. Results go to stdout; progress bars (while stderr is a
+    terminal), progress messages and warnings to stderr, one line each."""
+    if quiet and verbose:
+        typer.echo("--quiet and --verbose: choose one", err=True)
+        raise typer.Exit(code=2)
+    configure_logging(quiet=quiet, verbose=verbose)
 
 
 def _load(config: Path | None, target: str | None = None) -> Scenario:
@@ -63,11 +102,103 @@ def _load(config: Path | None, target: str | None = None) -> Scenario:
 
 
 def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
+    """A title and aligned ``label  value`` lines (a value not yet text through
+    :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits)."""
     typer.echo(title)
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
-        shown = f"{value:.6g}" if isinstance(value, float) else ("-" if value is None else value)
+        shown = value if isinstance(value, str) else quantity(value)
         typer.echo(f"  {key:<{width}}  {shown}")
+
+
+# A table row of a result: (label, key of the row or function of the row, unit[, digits]);
+# the unit "s" shows a duration, "utc" an epoch (ovtraj.formatting.quantity).
+RowSpec = list[tuple[Any, ...]]
+
+
+def _rows(row: dict[str, Any], spec: RowSpec) -> list[tuple[str, str]]:
+    """``(label, text)`` of every row of ``spec`` the result has a value for."""
+    shown = []
+    for label, how, unit, *digits in spec:
+        value = how(row) if callable(how) else row.get(how)
+        if value is not None and value != "":
+            shown.append((label, quantity(value, unit, *digits)))
+    return shown
+
+
+def _keyed_rows(row: dict[str, Any], digits: int = 4) -> list[tuple[str, str]]:
+    """Every field of a flat row, labelled by its key without the unit suffix and shown
+    in that unit with ``digits`` significant digits (``min_t_total_s`` -> ``min t total
+    142.003 h``)."""
+    shown = []
+    for key, value in row.items():
+        name, unit = split_unit(key)
+        shown.append((name.replace("_", " "), quantity(value, unit, digits)))
+    return shown
+
+
+def _joined(
+    row: dict[str, Any],
+    pattern: str,
+    names: tuple[str, ...],
+    unit: str,
+    decimals: int = 3,
+    sep: str = " / ",
+) -> str | None:
+    """``a / b / c unit`` of ``row[pattern.format(name)]`` with ``decimals`` each; None
+    when the stage did not get there."""
+    values = [row.get(pattern.format(name)) for name in names]
+    if any(v is None for v in values):
+        return None
+    return joined(values, unit, sep=sep, decimals=decimals)
+
+
+def _print_json(value: Any) -> None:
+    """One JSON object, on one line of stdout."""
+    typer.echo(json_text(value, indent=None))
+
+
+def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
+    """Print a stage result (JSON or a table: feasible, the reason if any, ``rows``);
+    exit 1 when it is infeasible."""
+    row = plain(result.to_row())
+    if as_json:
+        _print_json(row)
+    else:
+        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+        if row.get("reason"):
+            shown.append(("reason", row["reason"]))
+        _print_rows(title, shown + _rows(row, rows))
+    if not result.feasible:
+        raise typer.Exit(code=1)
+
+
+_RSW = ("radial", "along_track", "cross_track")
+_MARGINS = ("heat_rate", "load", "dynamic_pressure", "bank")
+
+_RENDEZVOUS_ROWS: RowSpec = [
+    ("wait time", "wait_time_s", "s"),
+    ("burn 1 epoch", "burn1_epoch_utc", "utc"),
+    ("burn 2 epoch", "burn2_epoch_utc", "utc"),
+    ("dv1", "dv1_mps", "m/s"),
+    ("dv1 radial/along/cross", lambda row: _joined(row, "dv1_{}_mps", _RSW, "m/s"), ""),
+    ("dv2", "dv2_mps", "m/s"),
+    ("dv2 radial/along/cross", lambda row: _joined(row, "dv2_{}_mps", _RSW, "m/s"), ""),
+    ("dv total", "dv_total_mps", "m/s"),
+    (
+        "two-body dv1 + dv2",
+        lambda row: _joined(row, "dv{}_two_body_mps", ("1", "2"), "m/s", sep=" + "),
+        "",
+    ),
+    ("transfer time", "transfer_time_s", "s"),
+    ("two-body transfer time", "transfer_time_two_body_s", "s"),
+    ("lead angle J2", "lead_angle_deg", "deg", 5),
+    ("lead angle two-body", "lead_angle_two_body_deg", "deg", 5),
+    ("plane difference", "plane_difference_deg", "deg"),
+    ("miss distance", "miss_distance_m", "m"),
+    ("two-body guess miss", "initial_miss_distance_m", "m"),
+    ("iterations (trust-constr)", "iterations", ""),
+]
 
 
 @app.command()
@@ -77,76 +208,43 @@ def rendezvous(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
 
     scenario = _load(config)
     result = solve_rendezvous(rendezvous_input(scenario))
-    row = plain(result.to_row())
-    if as_json:
-        typer.echo(json_text(row, indent=None))
-        raise typer.Exit(code=0 if result.feasible else 1)
-    keys = [
-        ("feasible", "feasible"),
-        ("reason", "reason"),
-        ("wait time [s]", "wait_time_s"),
-        ("burn 1 epoch (UTC)", "burn1_epoch_utc"),
-        ("burn 2 epoch (UTC)", "burn2_epoch_utc"),
-        ("dv1 [m/s]", "dv1_mps"),
-        ("dv1 radial/along/cross [m/s]", None),
-        ("dv2 [m/s]", "dv2_mps"),
-        ("dv2 radial/along/cross [m/s]", None),
-        ("dv total [m/s]", "dv_total_mps"),
-        ("two-body dv1 + dv2 [m/s]", None),
-        ("transfer time [s]", "transfer_time_s"),
-        ("two-body transfer time [s]", "transfer_time_two_body_s"),
-        ("lead angle J2 [deg]", "lead_angle_deg"),
-        ("lead angle two-body [deg]", "lead_angle_two_body_deg"),
-        ("plane difference [deg]", "plane_difference_deg"),
-        ("miss distance [m]", "miss_distance_m"),
-        ("two-body guess miss [m]", "initial_miss_distance_m"),
-        ("iterations (trust-constr)", "iterations"),
-    ]
-    shown = []
-    for label, key in keys:
-        if key is not None:
-            if row.get(key) not in (None, ""):
-                shown.append((label, row[key]))
-        elif label.startswith("dv1") and row["dv1_radial_mps"] is not None:
-            shown.append((label, _triple(row, "dv1")))
-        elif label.startswith("dv2") and row["dv2_radial_mps"] is not None:
-            shown.append((label, _triple(row, "dv2")))
-        elif label.startswith("two-body dv") and row["dv1_two_body_mps"] is not None:
-            shown.append((label, f"{row['dv1_two_body_mps']:.3f} + {row['dv2_two_body_mps']:.3f}"))
-    _print_rows(f"rendezvous: {scenario.name} ({scenario.target.name})", shown)
-    if not result.feasible:
-        raise typer.Exit(code=1)
+    title = f"rendezvous: {scenario.name} ({scenario.target.name})"
+    _report(title, result, _RENDEZVOUS_ROWS, as_json)
 
 
-def _triple(row: dict[str, Any], name: str) -> str:
-    return " / ".join(
-        f"{row[f'{name}_{a}_mps']:.3f}" for a in ("radial", "along_track", "cross_track")
-    )
+_LOSSES = ("gravity", "aero", "steering", "back_pressure")
 
 
-LAUNCH_KEYS = [
-    ("feasible", "feasible"),
-    ("reason", "reason"),
-    ("target altitude [km]", "target_altitude_km"),
-    ("opportunity", "opportunity"),
-    ("payload [kg]", "payload_kg"),
-    ("drop epoch (UTC)", "drop_epoch_utc"),
-    ("insertion epoch (UTC)", "insertion_epoch_utc"),
-    ("insertion time from 0 h [s]", "insertion_time_s"),
-    ("flight time [s]", "flight_time_s"),
-    ("launch azimuth [deg]", "azimuth_deg"),
-    ("insertion argument of latitude [deg]", "insertion_u_deg"),
-    ("altitude error [m]", "insertion_altitude_error_m"),
-    ("speed error [m/s]", "insertion_speed_error_mps"),
-    ("flight-path angle error [deg]", "insertion_fpa_error_deg"),
-    ("inclination error (mean) [deg]", "inclination_error_deg"),
-    ("RAAN error (mean) [deg]", "raan_error_deg"),
-    ("max dynamic pressure [Pa]", "max_dynamic_pressure_pa"),
-    ("max axial load [g]", "max_axial_load_g"),
-    ("ideal dv, rocket equation [m/s]", "ideal_dv_rocket_equation_mps"),
-    ("losses: gravity/aero/steering/back-pressure [m/s]", None),
-    ("trajectories integrated", "trajectories"),
-    ("wall time [s]", "wall_time_s"),
+def _scaled(row: dict[str, Any], key: str, factor: float) -> float | None:
+    value = row.get(key)
+    return None if value is None else value * factor
+
+
+_LAUNCH_ROWS: RowSpec = [
+    ("target altitude", "target_altitude_km", "km"),
+    ("opportunity", "opportunity", ""),
+    ("payload", "payload_kg", "kg", 5),
+    ("drop epoch", "drop_epoch_utc", "utc"),
+    ("insertion epoch", "insertion_epoch_utc", "utc"),
+    ("insertion time from 0 h UTC", "insertion_time_s", "s"),
+    ("flight time", "flight_time_s", "s"),
+    ("launch azimuth", "azimuth_deg", "deg", 5),
+    ("insertion argument of latitude", "insertion_u_deg", "deg", 5),
+    ("altitude error", "insertion_altitude_error_m", "m"),
+    ("speed error", "insertion_speed_error_mps", "m/s"),
+    ("flight-path angle error", "insertion_fpa_error_deg", "deg"),
+    ("inclination error (mean)", "inclination_error_deg", "deg"),
+    ("RAAN error (mean)", "raan_error_deg", "deg"),
+    ("max dynamic pressure", lambda row: _scaled(row, "max_dynamic_pressure_pa", 1e-3), "kPa"),
+    ("max axial load", "max_axial_load_g", "g"),
+    ("ideal dv, rocket equation", "ideal_dv_rocket_equation_mps", "m/s"),
+    (
+        "losses: gravity/aero/steering/back-pressure",
+        lambda row: _joined(row, "{}_loss_mps", _LOSSES, "m/s", 1),
+        "",
+    ),
+    ("trajectories integrated", "trajectories", ""),
+    ("wall time", "wall_time_s", "s"),
 ]
 
 
@@ -155,11 +253,16 @@ def launch(
     config: ConfigArg = None,
     altitude_km: Annotated[
         float | None,
-        typer.Option("--altitude-km", help="target altitude [km], default the config's"),
+        typer.Option(
+            "--altitude-km",
+            help="target altitude [km], 150-2000 (default: the config's launch.target_altitude_km)",
+            show_default=False,
+        ),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Air launch: maximum payload to the target orbit (GA, SLSQP, then trust-constr)."""
+    """Air launch: maximum payload to the target orbit (GA, SLSQP, then trust-constr; a
+    progress bar on stderr)."""
     from ovtraj.launch import launch_input, solve_launch
 
     scenario = _load(config)
@@ -168,25 +271,23 @@ def launch(
     except (ConfigError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    result = solve_launch(inp)
+    with progress_bar("launch", enabled=not as_json) as update:
+        result = solve_launch(inp, on_progress=update)
     row = plain(result.to_row())
     if as_json:
-        typer.echo(json_text(row, indent=None))
+        _print_json(row)
         raise typer.Exit(code=0 if result.feasible else 1)
-    shown = []
-    for label, key in LAUNCH_KEYS:
-        if key is not None:
-            if row.get(key) not in (None, ""):
-                shown.append((label, row[key]))
-        elif row.get("gravity_loss_mps") is not None:
-            losses = ("gravity", "aero", "steering", "back_pressure")
-            shown.append((label, " / ".join(f"{row[f'{n}_loss_mps']:.1f}" for n in losses)))
+    shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+    if row.get("reason"):
+        shown.append(("reason", row["reason"]))
+    shown += _rows(row, _LAUNCH_ROWS)
     for phase in result.phases:
         shown.append(
             (
                 f"phase {phase.name}",
-                f"payload {phase.payload_kg:.2f} kg, residual {phase.max_residual:.3g}, "
-                f"{phase.iterations} it, {phase.trajectories} traj, {phase.wall_time_s:.1f} s"
+                f"payload {number(phase.payload_kg, 'kg', 5)}, residual "
+                f"{number(phase.max_residual, '', 3)}, {phase.iterations} iterations, "
+                f"{phase.trajectories} trajectories, {duration(phase.wall_time_s)}"
                 f"{'' if phase.accepted else ' (not kept)'}",
             )
         )
@@ -200,11 +301,18 @@ def launch_fit_command(
     config: ConfigArg = None,
     output: Annotated[
         Path | None,
-        typer.Option("--output", help="directory for coefficients.json and grid.parquet"),
+        typer.Option(
+            "--output",
+            help="directory for coefficients.json and grid.parquet (default: "
+            "launch_fit/KEY in the workspace, `ovtraj paths`)",
+            show_default=False,
+        ),
     ] = None,
     target: TargetOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
-    """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series."""
+    """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series (a
+    progress bar and a line per altitude on stderr)."""
     from ovtraj.launch import launch_input
     from ovtraj.launch.fit import fit_roots, launch_fit, launch_fit_key
 
@@ -214,41 +322,51 @@ def launch_fit_command(
     except (ConfigError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
+    key = launch_fit_key(scenario)
     try:
-        fit = launch_fit(inp, scenario.launch.fit, key=launch_fit_key(scenario))
+        with progress_bar("launch fit", enabled=not as_json) as update:
+            fit = launch_fit(inp, scenario.launch.fit, key=key, on_progress=update)
     except ValueError as err:
         typer.echo(f"launch fit failed: {err}", err=True)
         raise typer.Exit(code=1) from None
-    directory = output or fit_roots()[0] / launch_fit_key(scenario)
+    directory = Path(output or fit_roots()[0] / key).resolve()
     fit.save(directory)
     lo, hi = fit.altitude_range_km
+    series = {
+        name: {
+            "unit": s.unit,
+            "rms_residual": s.rms_residual,
+            "loo_max_error": s.loo_max_error,
+            "loo_relative_error": fit.loo_relative_error(name),
+        }
+        for name, s in fit.series.items()
+    }
+    if as_json:
+        _print_json(
+            {
+                "key": key,
+                "launcher": inp.launcher.name,
+                "grid_points": len(fit.grid),
+                "altitude_range_km": [lo, hi],
+                "saved_to": str(directory),
+                "series": series,
+            }
+        )
+        return
     rows = [
-        ("grid", f"{len(fit.grid)} altitudes, {lo:g}-{hi:g} km"),
-        ("saved to", str(Path(directory).resolve())),
+        ("grid", f"{len(fit.grid)} altitudes, {number(lo)}-{number(hi, 'km')}"),
+        ("saved to", str(directory)),
     ]
-    for name, series in fit.series.items():
+    for name, s in series.items():
         rows.append(
             (
                 f"{name} fit",
-                f"rms {series.rms_residual:.3g} {series.unit}, leave-one-out max "
-                f"{series.loo_max_error:.3g} {series.unit} "
-                f"({100 * fit.loo_relative_error(name):.2f} % of range)",
+                f"rms {number(s['rms_residual'], s['unit'], 3)}, leave-one-out max "
+                f"{number(s['loo_max_error'], s['unit'], 3)} "
+                f"({number(100 * s['loo_relative_error'], '%', 3)} of range)",
             )
         )
     _print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
-
-
-_RSW = ("radial", "along_track", "cross_track")
-_MARGINS = ("heat_rate", "load", "dynamic_pressure", "bank")
-RowSpec = list[tuple[str, Any]]  # (label, row key or function of the row)
-
-
-def _joined(row: dict[str, Any], pattern: str, names: tuple[str, ...], fmt: str) -> str | None:
-    """``a / b / c`` of ``row[pattern.format(name)]``; None when the stage did not get there."""
-    values = [row.get(pattern.format(name)) for name in names]
-    if any(v is None for v in values):
-        return None
-    return " / ".join(fmt.format(v) for v in values)
 
 
 def _stage_input(build: Any, scenario: Scenario) -> Any:
@@ -259,43 +377,25 @@ def _stage_input(build: Any, scenario: Scenario) -> Any:
         raise typer.Exit(code=2) from None
 
 
-def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
-    """Print a stage result (JSON or a table); exit 1 when it is infeasible."""
-    row = plain(result.to_row())
-    if as_json:
-        typer.echo(json_text(row))
-    else:
-        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
-        if row["reason"]:
-            shown.append(("reason", row["reason"]))
-        for label, how in rows:
-            value = how(row) if callable(how) else row[how]
-            if value is not None or not callable(how):
-                shown.append((label, value))
-        _print_rows(title, shown)
-    if not result.feasible:
-        raise typer.Exit(code=1)
-
-
-_DEORBIT_ROWS = [
-    ("burn epoch (UTC)", "burn_epoch_utc"),
-    ("wait on the preparation orbit [s]", "wait_time_s"),
-    ("impulse [m/s]", "dv_mps"),
-    ("impulse radial/along/cross [m/s]", lambda row: _joined(row, "dv_{}_mps", _RSW, "{:.3f}")),
-    ("two-body estimate [m/s]", "estimate_dv_mps"),
-    ("burn to entry [s]", "descent_time_s"),
-    ("entry epoch (UTC)", "entry_epoch_utc"),
-    ("entry latitude [deg]", "entry_lat_deg"),
-    ("entry longitude [deg]", "entry_lon_deg"),
-    ("entry error [km]", "entry_error_km"),
-    ("entry speed, inertial [m/s]", "entry_speed_mps"),
-    ("entry flight-path angle, inertial [deg]", "entry_fpa_deg"),
-    ("entry speed, Earth-relative [m/s]", "entry_relative_speed_mps"),
-    ("entry flight-path angle, Earth-relative [deg]", "entry_relative_fpa_deg"),
-    ("entry heading [deg]", "entry_heading_deg"),
-    ("SLSQP iterations", "iterations"),
-    ("propagations", "propagations"),
-    ("wall time [s]", "wall_time_s"),
+_DEORBIT_ROWS: RowSpec = [
+    ("burn epoch", "burn_epoch_utc", "utc"),
+    ("wait on the preparation orbit", "wait_time_s", "s"),
+    ("impulse", "dv_mps", "m/s"),
+    ("impulse radial/along/cross", lambda row: _joined(row, "dv_{}_mps", _RSW, "m/s"), ""),
+    ("two-body estimate", "estimate_dv_mps", "m/s"),
+    ("burn to entry", "descent_time_s", "s"),
+    ("entry epoch", "entry_epoch_utc", "utc"),
+    ("entry latitude", "entry_lat_deg", "deg", 6),
+    ("entry longitude", "entry_lon_deg", "deg", 6),
+    ("entry error", "entry_error_km", "km"),
+    ("entry speed, inertial", "entry_speed_mps", "m/s", 5),
+    ("entry flight-path angle, inertial", "entry_fpa_deg", "deg"),
+    ("entry speed, Earth-relative", "entry_relative_speed_mps", "m/s", 5),
+    ("entry flight-path angle, Earth-relative", "entry_relative_fpa_deg", "deg"),
+    ("entry heading", "entry_heading_deg", "deg", 5),
+    ("SLSQP iterations", "iterations", ""),
+    ("propagations", "propagations", ""),
+    ("wall time", "wall_time_s", "s"),
 ]
 
 
@@ -309,26 +409,26 @@ def deorbit(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     _report(f"deorbit: {scenario.name}", solve_deorbit(inp), _DEORBIT_ROWS, as_json)
 
 
-_REENTRY_ROWS = [
-    ("flags", "flags"),
-    ("miss distance [km]", "miss_distance_km"),
-    ("flight time [s]", "flight_time_s"),
-    ("terminal epoch (UTC)", "terminal_epoch_utc"),
-    ("terminal altitude [km]", "terminal_altitude_km"),
-    ("terminal speed [m/s]", "terminal_speed_mps"),
-    ("terminal latitude [deg]", "terminal_lat_deg"),
-    ("terminal longitude [deg]", "terminal_lon_deg"),
-    ("terminal flight-path angle [deg]", "terminal_fpa_deg"),
-    ("max heat rate [kW/m^2]", "max_heat_rate_kw_m2"),
-    ("max load [g]", "max_load_g"),
-    ("max dynamic pressure [kPa]", "max_dynamic_pressure_kpa"),
-    ("max |bank| [deg]", "max_bank_deg"),
-    ("margins heat/load/q/bank", lambda row: _joined(row, "{}_margin", _MARGINS, "{:.3f}")),
-    ("bank sigma_0 / sigma_1 [deg]", lambda row: _joined(row, "sigma{}_deg", ("0", "1"), "{:.2f}")),
-    ("bank reversals", "reversals"),
-    ("golden-section evaluations", "golden_evaluations"),
-    ("trajectories integrated", "trajectories"),
-    ("wall time [s]", "wall_time_s"),
+_REENTRY_ROWS: RowSpec = [
+    ("flags", "flags", ""),
+    ("miss distance", "miss_distance_km", "km"),
+    ("flight time", "flight_time_s", "s"),
+    ("terminal epoch", "terminal_epoch_utc", "utc"),
+    ("terminal altitude", "terminal_altitude_km", "km"),
+    ("terminal speed", "terminal_speed_mps", "m/s"),
+    ("terminal latitude", "terminal_lat_deg", "deg", 6),
+    ("terminal longitude", "terminal_lon_deg", "deg", 6),
+    ("terminal flight-path angle", "terminal_fpa_deg", "deg"),
+    ("max heat rate", "max_heat_rate_kw_m2", "kW/m^2"),
+    ("max load", "max_load_g", "g"),
+    ("max dynamic pressure", "max_dynamic_pressure_kpa", "kPa"),
+    ("max |bank|", "max_bank_deg", "deg"),
+    ("margins heat/load/q/bank", lambda row: _joined(row, "{}_margin", _MARGINS, ""), ""),
+    ("bank sigma_0 / sigma_1", lambda row: _joined(row, "sigma{}_deg", ("0", "1"), "deg", 2), ""),
+    ("bank reversals", "reversals", ""),
+    ("golden-section evaluations", "golden_evaluations", ""),
+    ("trajectories integrated", "trajectories", ""),
+    ("wall time", "wall_time_s", "s"),
 ]
 
 
@@ -343,59 +443,77 @@ def reentry(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     _report(title, solve_reentry(inp), _REENTRY_ROWS, as_json)
 
 
-_OPTIMAL_ENTRY_ROWS = [
-    ("reason", "reason"),
-    ("status", "status"),
-    ("objective", "objective"),
+_OPTIMAL_ENTRY_ROWS: RowSpec = [
+    ("reason", "reason", ""),
+    ("status", "status", ""),
+    ("objective", "objective", ""),
     (
         "formulation",
         lambda row: (
             f"{row['independent']}, {row['method']} {row['segments']}x{row['nodes_per_segment']}"
             f" ({row['refinements']} mesh refinements)"
         ),
+        "",
     ),
-    ("objective value", "objective_value"),
-    ("final time [s]", "final_time_s"),
-    ("range [km]", "range_km"),
-    ("cross-range [km]", "crossrange_km"),
-    ("final latitude [deg]", "final_latitude_deg"),
-    ("final altitude [km]", "final_altitude_km"),
-    ("final speed [m/s]", "final_speed_mps"),
-    ("final flight-path angle [deg]", "final_fpa_deg"),
-    ("max load [g]", "max_load_g"),
-    ("max dynamic pressure [kPa]", "max_dynamic_pressure_kpa"),
-    ("max heat rate", "max_heat_rate"),
-    ("NLP iterations", "nlp_iterations"),
-    ("solve time [s]", "solve_time_s"),
-    ("feasibility error [km]", "feasibility_error_km"),
-    ("feasibility error [deg]", "feasibility_error_deg"),
+    ("objective value", "objective_value", "", 6),
+    ("final time", "final_time_s", "s"),
+    ("range", "range_km", "km", 5),
+    ("cross-range", "crossrange_km", "km"),
+    ("final latitude", "final_latitude_deg", "deg", 6),
+    ("final altitude", "final_altitude_km", "km"),
+    ("final speed", "final_speed_mps", "m/s"),
+    ("final flight-path angle", "final_fpa_deg", "deg"),
+    ("max load", "max_load_g", "g"),
+    ("max dynamic pressure", "max_dynamic_pressure_kpa", "kPa"),
+    ("max heat rate", "max_heat_rate", "kW/m^2"),
+    ("NLP iterations", "nlp_iterations", ""),
+    ("solve time", "solve_time_s", "s"),
+    ("feasibility error", "feasibility_error_km", "km", 3),
+    ("feasibility error, angle", "feasibility_error_deg", "deg", 3),
     (
-        "re-flight, each interpolation [km]",
+        "re-flight, each interpolation",
         lambda row: (
             ", ".join(
-                f"{key[len('feasibility_') : -len('_position_km')]} {value:.3g}"
+                f"{key[len('feasibility_') : -len('_position_km')]} {number(value, 'km', 3)}"
                 for key, value in row.items()
                 if key.startswith("feasibility_") and key.endswith("_position_km")
             )
             or None
         ),
+        "",
     ),
 ]
 
-Choice = Annotated[str | None, typer.Option(help="override the config's choice")]
+IndependentOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--independent",
+        help="independent variable: energy | time (default: the config's)",
+        show_default=False,
+    ),
+]
+TranscriptionOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--transcription",
+        help="collocation: lg | lgr (default: the config's)",
+        show_default=False,
+    ),
+]
 
 
 @app.command("optimal-entry")
 def optimal_entry(
     config: Annotated[Path, typer.Argument(help="optimal-entry YAML file", show_default=False)],
     as_json: JsonOpt = False,
-    independent: Choice = None,
-    transcription: Choice = None,
+    independent: IndependentOpt = None,
+    transcription: TranscriptionOpt = None,
     out: Annotated[
         Path | None,
         typer.Option(
             help="where the histories go, in a subfolder named by their content "
-            "(default data/optimal_entry)"
+            "(default: optimal_entry in the workspace, `ovtraj paths`)",
+            show_default=False,
         ),
     ] = None,
 ) -> None:
@@ -418,40 +536,32 @@ def optimal_entry(
     paths = write_histories(result, root, content_named=True)
     row = {k: v for k, v in plain(result.to_row()).items() if v is not None}
     if as_json:
-        typer.echo(json_text(row | {k: str(v) for k, v in paths.items()}))
+        _print_json(row | {k: str(v) for k, v in paths.items()})
     else:
         shown: list[tuple[str, Any]] = [("converged", row["converged"])]
-        for label, how in _OPTIMAL_ENTRY_ROWS:
-            value = how(row) if callable(how) else row.get(how)
-            shown.append((label, value))
+        shown += _rows(row, _OPTIMAL_ENTRY_ROWS)
         shown += [(f"{name} file", str(path)) for name, path in paths.items()]
         _print_rows(f"optimal entry: {result.name}", shown)
     if not result.converged:
         raise typer.Exit(code=1)
 
 
-_MANEUVER_ROWS = [
-    ("reason", "reason"),
-    ("time of flight [s]", "time_of_flight_s"),
-    ("time of flight, impulses [s]", "impulsive_time_of_flight_s"),
-    ("impulse epochs [s]", "impulse_epochs_s"),
-    ("impulses [m/s]", "impulse_dv_mps"),
-    ("total dv, impulses [m/s]", "total_dv_mps"),
-    ("dv budget (eq. 14) [m/s]", "dv_budget_mps"),
-    ("dv capacity, burn-time limit [m/s]", "dv_capacity_mps"),
-    ("finite burns, total dv [m/s]", "finite_total_dv_mps"),
-    ("total burn time [s]", "total_burn_time_s"),
-    ("final position error [m]", "final_position_error_m"),
-    ("final velocity error [m/s]", "final_velocity_error_mps"),
-    ("DE generations / evaluations", lambda d: f"{d['generations']} / {d['evaluations']}"),
-    ("wall time [s]", "wall_time_s"),
+_MANEUVER_ROWS: RowSpec = [
+    ("reason", "reason", ""),
+    ("time of flight", "time_of_flight_s", "s"),
+    ("time of flight, impulses", "impulsive_time_of_flight_s", "s"),
+    ("impulse epochs", "impulse_epochs_s", "s"),
+    ("impulses", "impulse_dv_mps", "m/s"),
+    ("total dv, impulses", "total_dv_mps", "m/s", 5),
+    ("dv budget (eq. 14)", "dv_budget_mps", "m/s", 5),
+    ("dv capacity, burn-time limit", "dv_capacity_mps", "m/s", 5),
+    ("finite burns, total dv", "finite_total_dv_mps", "m/s", 5),
+    ("total burn time", "total_burn_time_s", "s"),
+    ("final position error", "final_position_error_m", "m", 3),
+    ("final velocity error", "final_velocity_error_mps", "m/s", 3),
+    ("DE generations / evaluations", lambda d: f"{d['generations']} / {d['evaluations']}", ""),
+    ("wall time", "wall_time_s", "s"),
 ]
-
-
-def _listed(value: Any) -> Any:
-    if isinstance(value, list):
-        return ", ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
-    return value
 
 
 @app.command()
@@ -469,20 +579,19 @@ def maneuver(
         raise typer.Exit(code=2) from None
     result = solve_maneuver(problem)
     if as_json:
-        typer.echo(result.json())
+        _print_json(result.to_json())
     else:
-        doc = result.to_json()
+        doc = plain(result.to_json())
         shown: list[tuple[str, Any]] = [("converged", doc["converged"])]
-        for label, how in _MANEUVER_ROWS:
-            value = how(doc) if callable(how) else _listed(doc.get(how))
-            if value not in (None, ""):
-                shown.append((label, value))
+        shown += _rows(doc, _MANEUVER_ROWS)
         for k, burn in enumerate(doc["burns"], start=1):
             shown.append(
                 (
-                    f"burn {k}: start, duration [s], dv [m/s], mass [kg]",
-                    f"{burn['start_s']:.1f}, {burn['duration_s']:.1f}, {burn['dv_mps']:.1f}, "
-                    f"{burn['mass_before_kg']:.1f} -> {burn['mass_after_kg']:.1f}",
+                    f"burn {k}",
+                    f"from {duration(burn['start_s'])} for {duration(burn['duration_s'])}, "
+                    f"{number(burn['dv_mps'], 'm/s', 5)}, mass "
+                    f"{number(burn['mass_before_kg'], '', 6)} -> "
+                    f"{number(burn['mass_after_kg'], 'kg', 6)}",
                 )
             )
         _print_rows(f"manoeuvre: {config.stem}", shown)
@@ -490,8 +599,8 @@ def maneuver(
         if comparison:
             typer.echo("published vs ours")
             width = max(len(q) for q, _, _ in comparison)
-            for quantity, published, ours in comparison:
-                typer.echo(f"  {quantity:<{width}}  {published:>24}  {ours}")
+            for name, published, ours in comparison:
+                typer.echo(f"  {name:<{width}}  {published:>24}  {ours}")
     if not result.converged:
         raise typer.Exit(code=1)
 
@@ -501,11 +610,24 @@ def deorbit_burn(
     config: Annotated[Path, typer.Argument(help="deorbit-burn YAML file", show_default=False)],
     as_json: JsonOpt = False,
     monte_carlo: Annotated[
-        int | None, typer.Option("--monte-carlo", min=1, help="runs of the dispersion study")
+        int | None,
+        typer.Option(
+            "--monte-carlo",
+            min=1,
+            max=100000,
+            help="also fly this many dispersed runs (default: none; a progress bar on stderr)",
+            show_default=False,
+        ),
     ] = None,
     strategy: Annotated[
         int | None,
-        typer.Option(min=1, max=2, help="cut-off: 1 argument of latitude, 2 flight-path angle"),
+        typer.Option(
+            min=1,
+            max=2,
+            help="cut-off: 1 argument of latitude, 2 flight-path angle (default: the config's "
+            "strategy; with --monte-carlo, the config's strategies)",
+            show_default=False,
+        ),
     ] = None,
 ) -> None:
     """Finite-thrust deorbit burn by osculating-element prediction (seed 004)."""
@@ -516,11 +638,14 @@ def deorbit_burn(
     except (ConfigError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    report = deorbit_burn_report(problem, strategy=strategy, monte_carlo_runs=monte_carlo)
+    with progress_bar("Monte Carlo", enabled=bool(monte_carlo) and not as_json) as update:
+        report = deorbit_burn_report(
+            problem, strategy=strategy, monte_carlo_runs=monte_carlo, on_progress=update
+        )
     if as_json:
         # The solve's fields at the top level, the history and statistics alongside.
         flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
-        typer.echo(json_text(flat, indent=None))
+        _print_json(flat)
     else:
         typer.echo(format_report(report))
     if not report["result"]["converged"]:
@@ -541,8 +666,10 @@ StoreOpt = Annotated[
     str | None,
     typer.Option(
         "--store",
-        help="run store root, a folder or s3://bucket/prefix (default: the config's, else "
-        "$OVTRAJ_HOME/runs)",
+        help="run store root, a folder or s3://bucket/prefix (default: the scenario's "
+        "mission.doe.store for a command given a scenario, else runs in the workspace, "
+        "`ovtraj paths`)",
+        show_default=False,
     ),
 ]
 
@@ -562,7 +689,7 @@ def paths(as_json: JsonOpt = False) -> None:
         "source_checkout": where.source_checkout(),
     }
     if as_json:
-        typer.echo(json.dumps(found))
+        _print_json(found)
     else:
         labels = {"workspace": "workspace (OVTRAJ_HOME)"}
         rows = [(labels.get(k, k.replace("_", " ")), v) for k, v in found.items()]
@@ -592,17 +719,41 @@ DaskAddressOpt = Annotated[
 @app.command()
 def run(
     config: ConfigArg = None,
-    samples: Annotated[int | None, typer.Option("--samples", help="number of samples")] = None,
-    seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
+    samples: Annotated[
+        int | None,
+        typer.Option(
+            "--samples",
+            min=1,
+            max=100000,
+            help="number of samples (default: the config's mission.doe.samples)",
+            show_default=False,
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(
+            "--seed",
+            min=0,
+            help="Latin hypercube seed (default: the config's mission.doe.seed)",
+            show_default=False,
+        ),
+    ] = None,
     append: Annotated[
-        str | None, typer.Option("--append", help="add the samples to this run (a child run)")
+        str | None,
+        typer.Option(
+            "--append",
+            help="add the samples to this run, a child run (default: a run of its own)",
+            show_default=False,
+        ),
     ] = None,
     store_root: StoreOpt = None,
     target: TargetOpt = None,
     runner: RunnerOpt = None,
     dask_address: DaskAddressOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
-    """DoE of the whole mission into the run store.
+    """DoE of the whole mission into the run store (a progress bar on stderr; a line per
+    batch on stdout, on stderr with --json).
 
     ``--runner`` says where the batches run (``serial`` here; a pool of ``threads`` or
     ``processes``; ``dask``: the cluster at ``--dask-address`` or a local one); each
@@ -626,17 +777,24 @@ def run(
         parent = store.run(append) if append else None
         stored = prepare_run(
             scenario,
-            samples=samples or settings.samples,
+            samples=settings.samples if samples is None else samples,
             seed=settings.seed if seed is None else seed,
             code=code_version(),
             store=store,
             parent=parent,
         )
-        run_doe(scenario, stored, fit, progress=typer.echo, **execution)
+        # a line per batch: the command's output (stdout), with --json the log's (stderr)
+        say = None if as_json else echo
+        with progress_bar("DoE samples", enabled=not as_json) as update:
+            run_doe(scenario, stored, fit, progress=say, on_progress=update, **execution)
     except (StoreError, ValueError, ClusterError, BatchesFailed) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    _print_rows(f"run {stored.id}", list(stored.summary().items()))
+    summary = stored.summary()
+    if as_json:
+        _print_json(summary | {"stored_in": str(stored.url)})
+        return
+    _print_rows(f"run {stored.id}", _keyed_rows(summary))
     typer.echo(f"stored in {stored.url}")
 
 
@@ -695,7 +853,7 @@ def show(run_id: str, store_root: StoreOpt = None) -> None:
 
 
 @app.command()
-def verify(run_id: str, store_root: StoreOpt = None) -> None:
+def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
     """Check every file of a run against its recorded size, SHA-256 and schema.
 
     Exit 0 when every covered file is intact, 1 with the list of bad files, 2 when
@@ -709,21 +867,33 @@ def verify(run_id: str, store_root: StoreOpt = None) -> None:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     report = stored.verify()
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "clean": report.clean,
+                "checked_files": report.checked_files,
+                "checked_bytes": report.checked_bytes,
+                "problems": [str(p) for p in report.problems],
+                "uncovered": [str(p) for p in report.uncovered],
+            }
+        )
+        raise typer.Exit(code=0 if report.clean else 1)
     for problem in report.problems:
         typer.echo(f"bad: {problem}")
     for path in report.uncovered:
         typer.echo(f"not covered by any marker (never read): {path}")
     verdict = "clean" if report.clean else f"{len(report.problems)} bad file(s)"
     typer.echo(
-        f"run {stored.id}: {report.checked_files} files, {report.checked_bytes} bytes checked: "
-        f"{verdict}"
+        f"run {stored.id}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
+        f"MB checked: {verdict}"
     )
     if not report.clean:
         raise typer.Exit(code=1)
 
 
 @app.command()
-def replay(run_id: str, store_root: StoreOpt = None) -> None:
+def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
     """Re-derive the mission totals from the stored stage rows (no simulation)."""
     import numpy as np
 
@@ -738,12 +908,23 @@ def replay(run_id: str, store_root: StoreOpt = None) -> None:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     merged = derived.merge(totals, on="sample_id", suffixes=("", "_stored"))
-    worst = 0.0
+    differences = {}
     for column in ("t_total_s", "dv_total_mps", "m_load_kg"):
         a, b = merged[column].to_numpy(float), merged[f"{column}_stored"].to_numpy(float)
         both = np.isfinite(a) & np.isfinite(b)
-        if both.any():
-            worst = max(worst, float(np.max(np.abs(a[both] - b[both]))))
+        differences[column] = float(np.max(np.abs(a[both] - b[both]))) if both.any() else 0.0
+    worst = max(differences.values())
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "samples": len(derived),
+                "feasible": int(derived["feasible"].sum()),
+                "largest_difference": worst,
+                "largest_differences": differences,
+            }
+        )
+        return
     rows = [
         ("samples", len(derived)),
         ("feasible", int(derived["feasible"].sum())),
@@ -778,15 +959,49 @@ def _run_scenario(stored: Any, config: Path | None) -> Scenario:
 
 
 PickIndexOpt = Annotated[
-    int | None, typer.Option("--pick", help="front index (see the front table)")
+    int | None,
+    typer.Option(
+        "--pick",
+        min=0,
+        help="front index, see the front table (default: the best by --weights)",
+        show_default=False,
+    ),
 ]
 WeightsOpt = Annotated[
     str | None,
-    typer.Option("--weights", help="T,dV,M weights on the normalised objectives, e.g. 1,1,2"),
+    typer.Option(
+        "--weights",
+        help="T,dV,M weights on the normalised objectives, e.g. 1,1,2 (default: 1,1,1)",
+        show_default=False,
+    ),
 ]
-MaxTimeOpt = Annotated[float | None, typer.Option("--max-time-h", help="limit on T_total [h]")]
-MaxDvOpt = Annotated[float | None, typer.Option("--max-dv", help="limit on dV_total [m/s]")]
-MinLoadOpt = Annotated[float | None, typer.Option("--min-payload", help="limit on M_load [kg]")]
+MaxTimeOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--max-time-h",
+        min=0.0,
+        help="pick among points with T_total <= this [h] (default: no limit)",
+        show_default=False,
+    ),
+]
+MaxDvOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--max-dv",
+        min=0.0,
+        help="pick among points with dV_total <= this [m/s] (default: no limit)",
+        show_default=False,
+    ),
+]
+MinLoadOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--min-payload",
+        min=0.0,
+        help="pick among points with M_load >= this [kg] (default: no limit)",
+        show_default=False,
+    ),
+]
 
 
 def _pick(
@@ -942,10 +1157,18 @@ def pipeline(
 def optimize(
     run_id: str,
     config: Annotated[
-        Path | None, typer.Option("--config", help="surrogate/optimisation settings from here")
+        Path | None,
+        typer.Option(
+            "--config",
+            help="surrogate/optimisation settings from this scenario YAML (default: the run's own)",
+            show_default=False,
+        ),
     ] = None,
-    refit: Annotated[bool, typer.Option("--refit", help="refit even when stored")] = False,
+    refit: Annotated[
+        bool, typer.Option("--refit", help="refit and re-optimise even when stored")
+    ] = False,
     store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
     """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation)."""
     from ovtraj.pipeline import (
@@ -973,6 +1196,23 @@ def optimize(
         raise typer.Exit(code=2) from None
     validation = fitted.surrogates.validation
     chosen = validation[validation["selected"].astype(bool)]
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "surrogates": str(fitted.directory.resolve()),
+                "loaded_from_store": fitted.reused,
+                "models": [
+                    {"model": row.model, "candidate": row.candidate}
+                    for row in chosen.itertuples(index=False)
+                ],
+                "front": str((front.directory / "front.parquet").resolve()),
+                "front_points": len(front.front),
+                "hypervolume": front.front.hypervolume,
+                "identical_to_stored_front": front.matches_stored,
+            }
+        )
+        raise typer.Exit(code=1 if front.matches_stored is False else 0)
     rows = [
         ("surrogates", str(fitted.directory.resolve())),
         ("loaded from the store", fitted.reused),
@@ -982,7 +1222,7 @@ def optimize(
     rows += [
         ("front", str((front.directory / "front.parquet").resolve())),
         ("front points", len(front.front)),
-        ("hypervolume", front.front.hypervolume),
+        ("hypervolume", number(front.front.hypervolume, "", 6)),
     ]
     if front.matches_stored is not None:
         rows.append(("identical to the stored front", front.matches_stored))
@@ -1044,12 +1284,14 @@ def fly(
         typer.Option(
             "--dispersions",
             help="dispersions YAML (default: the shipped configs/dispersions.yaml)",
+            show_default=False,
         ),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Replay a mission plan through the real dynamics from the carrier's drop: landing miss
-    and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights."""
+    and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights
+    (a progress bar on stderr)."""
     from ovtraj.mission.fly import fly_plan, format_flight_report
     from ovtraj.mission.plan import PlanError, read_plan
 
@@ -1067,7 +1309,7 @@ def fly(
     if monte_carlo:
         row["monte_carlo"] = _monte_carlo(plan, dispersions, monte_carlo, seed, as_json)
     if as_json:
-        typer.echo(json_text(row, indent=None))
+        _print_json(row)
     else:
         typer.echo(format_flight_report(report))
         if monte_carlo:
@@ -1083,16 +1325,13 @@ def _dispersions(path: Path | None) -> Any:
     return default_dispersions() if path is None else load_model(DispersionsConfig, path)
 
 
-def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool) -> dict:
-    """The dispersed runs, closed and open loop, summarised (a progress line per run on
-    stderr unless ``quiet``)."""
+def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool) -> dict:
+    """The dispersed runs, closed and open loop, summarised (a progress bar on stderr
+    unless ``as_json``)."""
     from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, path_limits, summarise
 
-    def progress(done: int, total: int) -> None:
-        if not quiet:
-            typer.echo(f"monte carlo: {done}/{total} runs", err=True)
-
-    pairs = monte_carlo(plan, dispersions, runs, seed, progress=progress)
+    with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
+        pairs = monte_carlo(plan, dispersions, runs, seed, progress=update)
     limits = path_limits(plan)
     stated = plan.terminal.stated_miss_m
     return monte_carlo_report(
@@ -1104,12 +1343,13 @@ def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, quiet: bool)
 
 
 def _format_monte_carlo(summary: dict) -> str:
-    lines = [f"monte carlo (seed {summary['seed']}): stated miss {summary['stated_miss_m']:g} m"]
+    stated_km = number(summary["stated_miss_m"] / 1e3, "km")
+    lines = [f"monte carlo (seed {summary['seed']}): stated miss {stated_km}"]
     for loop, s in (("closed loop", summary), ("open loop", summary["open_loop"])):
         miss = s["landing_miss_m"]
 
         def km(value: float | None) -> str:
-            return "a failed run" if value is None else f"{value / 1e3:.3f} km"
+            return "a failed run" if value is None else number(value / 1e3, "km")
 
         shown = (
             "no run landed"
@@ -1126,9 +1366,10 @@ def _format_monte_carlo(summary: dict) -> str:
             lines.append(f"    failed: {failed}")
         for name, margin in s["path_limit_margins"].items():
             if margin is not None:
+                stem, unit = split_unit(name)
                 lines.append(
-                    f"    {name}: smallest margin {margin['smallest_margin']:.6g} "
-                    f"(limit {margin['limit']:g})"
+                    f"    {stem}: smallest margin {number(margin['smallest_margin'], unit)} "
+                    f"(limit {number(margin['limit'], unit)})"
                 )
     return "\n".join(lines)
 
@@ -1185,7 +1426,7 @@ def export(
         row = {"format": fmt, "path": str(written), "frame": settings.ref_frame}
         if report is not None:
             row["replay_miss_distance_m"] = report.miss_distance_m
-        typer.echo(json_text(row, indent=None))
+        _print_json(row)
     else:
         typer.echo(f"{fmt}: {written}")
 
@@ -1200,10 +1441,21 @@ def target(
         typer.Option("--epoch", help="fit epoch, ISO 8601 UTC (default: the scenario's, or now)"),
     ] = None,
     span_h: Annotated[
-        float | None, typer.Option("--span-h", help="fit span [h] (default: source_settings)")
+        float | None,
+        typer.Option(
+            "--span-h",
+            help="fit span [h] (default: the scenario's target.source_settings.fit_span_h, "
+            "else configs/target_sources.yaml's, 24 h)",
+            show_default=False,
+        ),
     ] = None,
     catalog_number: Annotated[
-        int | None, typer.Option("--catalog-number", help="pick one set of several")
+        int | None,
+        typer.Option(
+            "--catalog-number",
+            help="pick one set of several (default: the only one)",
+            show_default=False,
+        ),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -1223,9 +1475,9 @@ def target(
         typer.echo(f"warning: {warning.message}", err=True)
     row = plain(fit.to_row())
     if as_json:
-        typer.echo(json_text(row, indent=None))
+        _print_json(row)
     else:
-        _print_rows(f"target: {fit.source.label()}", list(row.items()))
+        _print_rows(f"target: {fit.source.label()}", _keyed_rows(row, digits=6))
     if not fit.converged:
         raise typer.Exit(code=1)
 
@@ -1259,9 +1511,8 @@ def entry_point() -> None:
     except typer.Abort:
         code = 130
         typer.echo("interrupted", err=True)
-    except typer.exceptions.TyperException as err:  # usage errors: typer's own message
-        show = getattr(err, "show", None)
-        show() if show else typer.echo(str(err), err=True)
+    except typer.exceptions.TyperException as err:  # usage errors: one line, exit 2
+        _usage_error(err)
         code = int(getattr(err, "exit_code", 2))
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
@@ -1275,6 +1526,20 @@ def entry_point() -> None:
         typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
         code = 2
     _exit(code if isinstance(code, int) else 0)
+
+
+def _usage_error(err: Exception) -> None:
+    """A usage error as one line naming the command and the option, e.g. ``ovtraj run:
+    Invalid value for '--samples': ...``; no arguments at all still show the help."""
+    show = getattr(err, "show", None)
+    message = getattr(err, "format_message", None)
+    if type(err).__name__ == "NoArgsIsHelpError" or message is None:
+        show() if show else typer.echo(str(err), err=True)
+        return
+    ctx = getattr(err, "ctx", None)
+    command = ctx.command_path if ctx is not None else "ovtraj"
+    text = " ".join(str(message()).split())
+    typer.echo(f"{command}: {text} (see `{command} --help`)", err=True)
 
 
 def _exit(code: int) -> None:

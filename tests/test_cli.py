@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
+from io import StringIO
 from pathlib import Path
 
 import yaml
@@ -26,9 +29,18 @@ def test_rendezvous_json_is_exactly_one_object():
 
 
 def test_rendezvous_summary():
+    """Figures with their units and sensible digits: durations in hours (seconds when
+    short), epochs as ISO 8601 UTC, no raw float and no None."""
     result = runner.invoke(app, ["rendezvous", str(DEFAULT_SCENARIO)])
     assert result.exit_code == 0
-    assert "lead angle J2 [deg]" in result.stdout and "miss distance [m]" in result.stdout
+    out = result.stdout
+    assert re.search(r"^  lead angle J2 +\d+\.\d{4} deg$", out, flags=re.M)
+    assert re.search(r"^  miss distance +\S+ m$", out, flags=re.M)
+    assert re.search(r"^  wait time +\d+\.\d{3} h$", out, flags=re.M)  # 10880 s
+    assert re.search(r"^  transfer time +\d{4} s$", out, flags=re.M)  # 2430 s: short
+    epoch = r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z"
+    assert re.search(rf"^  burn 1 epoch +{epoch}$", out, flags=re.M)
+    assert not re.search(r"\d\.\d{6,}", out) and "None" not in out
 
 
 def test_bad_config_exits_2_with_the_field(tmp_path):
@@ -84,7 +96,8 @@ def test_deorbit_json_carries_the_issue_keys_and_summary_prints():
         <= deorbit["entry"]["fpa_max_deg"] + 1e-9
     )
     summary = runner.invoke(app, ["deorbit", str(DEFAULT_SCENARIO)])
-    assert summary.exit_code == 0 and "burn epoch (UTC)" in summary.stdout
+    assert summary.exit_code == 0 and "burn epoch" in summary.stdout
+    assert re.search(r"^  wait on the preparation orbit +\d+\.\d{3} h$", summary.stdout, re.M)
 
 
 def test_deorbit_infeasible_exits_1_and_bad_config_exits_2(tmp_path):
@@ -225,3 +238,101 @@ def test_deorbit_burn_bad_value_exits_2_naming_the_field(tmp_path):
     result = runner.invoke(app, ["deorbit-burn", str(path)])
     assert result.exit_code == 2
     assert "guidance.gain_ku = 1.5: out of range" in result.output
+
+
+# --------------------------------------------------------------------------- #
+# issue 24: refused values, help with units and defaults, --json, -q, progress bars
+# --------------------------------------------------------------------------- #
+OVTRAJ = Path(sys.executable).with_name("ovtraj")
+
+
+def test_samples_0_is_refused_in_one_line_naming_the_option(tmp_path):
+    """Not silently replaced by the config's 8: exit 2, one line naming --samples."""
+    done = subprocess.run(
+        [OVTRAJ, "run", "--samples", "0", "--store", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2 and done.stdout == ""
+    (line,) = done.stderr.splitlines()
+    assert line.startswith("ovtraj run: ") and "'--samples'" in line
+    assert not list(tmp_path.iterdir())
+
+
+def _help(*command: str) -> str:
+    result = runner.invoke(app, [*command, "--help"])
+    assert result.exit_code == 0, result.output
+    assert "<bool>" not in result.stdout  # flags show no type
+    return " ".join(re.sub(r"[│╭╮╰╯─]", " ", result.stdout).split())
+
+
+def test_help_shows_units_and_defaults():
+    shown = _help("plan")
+    assert "dV_total <= this [m/s] (default: no limit)" in shown
+    assert "M_load >= this [kg]" in shown and "T_total <= this [h]" in shown
+    shown = _help("launch")
+    assert "target altitude [km], 150-2000 (default: the config's" in shown
+    shown = _help("run")
+    assert "--samples <int range> [1<=x<=100000] number of samples (default:" in shown
+    assert "--json print one JSON object on stdout" in shown
+    assert "[default: 0]" in _help("fly")
+    shown = _help()
+    assert "--quiet -q" in shown and "--verbose -v" in shown
+
+
+def _one_object(stdout: str) -> dict:
+    (line,) = stdout.splitlines()
+    return json.loads(line)
+
+
+def test_json_alone_on_stdout_progress_on_stderr_and_quiet(tmp_path):
+    """``--json``: one object on stdout, the batch lines logged on stderr; ``-q``: nothing
+    on stderr; then the human summary: hours, ISO UTC, units."""
+    store = str(tmp_path / "runs")
+    args = ["run", str(DEFAULT_SCENARIO), "--samples", "1", "--store", store, "--json"]
+    done = runner.invoke(app, args)  # the config's seed: a feasible sample
+    assert done.exit_code == 0, done.output
+    row = _one_object(done.stdout)
+    assert row["samples"] == 1 and row["status"] == "complete"
+    assert re.search(r"^batch 1/1: 1 samples, 1 feasible", done.stderr, flags=re.M)
+    quiet = runner.invoke(app, ["-q", *args, "--seed", "4"])
+    assert quiet.exit_code == 0, quiet.output
+    assert _one_object(quiet.stdout)["status"] == "complete" and quiet.stderr == ""
+    rid = row["run_id"]
+    for command in (["verify", rid, "--store", store], ["replay", rid, "--store", store]):
+        result = runner.invoke(app, [*command, "--json"])
+        assert result.exit_code == 0, result.output
+        assert _one_object(result.stdout)["run_id"] == rid and result.stderr == ""
+    paths = runner.invoke(app, ["paths", "--json"])
+    assert paths.exit_code == 0 and "run_store" in _one_object(paths.stdout)
+    again = runner.invoke(app, args[:-1])  # stored: nothing evaluated
+    assert again.exit_code == 0, again.output
+    assert re.search(r"^  min t total +\d+\.\d{3} h$", again.stdout, flags=re.M)
+    assert re.search(r"^  created +\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$", again.stdout, re.M)
+    assert re.search(r"^  min dv total +\d+(\.\d+)? m/s$", again.stdout, flags=re.M)
+    assert "None" not in again.stdout
+
+
+def test_progress_bar_only_on_a_terminal_and_never_quiet(monkeypatch):
+    from rich.console import Console
+
+    from ovtraj import cli_progress
+
+    def shown(*, quiet: bool = False, enabled: bool = True, terminal: bool = True) -> str:
+        out = StringIO()
+        console = Console(file=out, force_terminal=terminal, width=100)
+        monkeypatch.setattr(cli_progress, "console", console)
+        cli_progress.configure_logging(quiet=quiet)
+        with cli_progress.progress_bar("DoE samples", enabled=enabled) as update:
+            update(0, 4, "batch 0/2")
+            update(4, 4, "batch 2/2")
+        return out.getvalue()
+
+    try:
+        assert "DoE samples: batch" in shown() and "ETA" in shown()
+        assert shown(quiet=True) == ""
+        assert shown(enabled=False) == ""  # --json
+        assert shown(terminal=False) == ""  # a pipe: debug messages only
+    finally:
+        cli_progress.configure_logging()

@@ -582,7 +582,7 @@ def test_cli_target_of_a_scenario_warns_when_stale(tmp_path):
     path = _scenario_file(tmp_path, tle_file=str(ISS_TLE))
     result = runner.invoke(app, ["target", str(path), "--span-h", "6"])
     assert result.exit_code == 0, result.output
-    assert "max_error_km" in result.stdout and "span_h              6" in result.stdout
+    assert "max error" in result.stdout and "\n  span             6 h\n" in result.stdout
     assert result.stderr == ""
     stale = runner.invoke(app, ["target", str(path), "--epoch", "2019-12-20T00:00:00Z", "--json"])
     assert stale.exit_code == 0

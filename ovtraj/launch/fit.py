@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,11 @@ from ovtraj.launch.stage import solve_launch
 from ovtraj.paths import reference_dir, workspace
 from ovtraj.products import Product
 from ovtraj.records import table_from_rows
+
+logger = logging.getLogger(__name__)
+
+Progress = Callable[[int, int, str], None]
+"""``on_progress(points solved, grid points, what is being solved now)``."""
 
 # Store layout of LaunchFit.save: the series, the solved grid, and meta.json (written last,
 # the files' digests).
@@ -76,9 +83,12 @@ def continuation_chains(altitudes_m: list[float], reference_m: float) -> tuple[l
     return up, down
 
 
-def solve_reference(inp: LaunchInput) -> LaunchResult:
-    """Full genetic + local search at the input's own target altitude."""
-    return solve_launch(inp)
+def solve_reference(
+    inp: LaunchInput, on_progress: Callable[[int, int, str], None] | None = None
+) -> LaunchResult:
+    """Full genetic + local search at the input's own target altitude (``on_progress``:
+    the optimiser's, :func:`~ovtraj.launch.stage.solve_launch`)."""
+    return solve_launch(inp, on_progress=on_progress)
 
 
 def predicted_design(
@@ -108,30 +118,72 @@ def solve_from(
     altitude_m: float,
     seed: LaunchResult,
     previous: LaunchResult | None = None,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> LaunchResult:
     """Local search at ``altitude_m`` from the chain's last optima (continuation step)."""
     target = inp.at_altitude(altitude_m)
     if not seed.feasible or not seed.design:
-        return solve_launch(target)  # nothing to continue from: search globally
+        # nothing to continue from: search globally
+        return solve_launch(target, on_progress=on_progress)
     before = None
     if previous is not None and previous.feasible and previous.design:
         before = (previous.target_altitude_m, previous.design)
     start = predicted_design(altitude_m, (seed.target_altitude_m, seed.design), before)
-    return solve_launch(target, seed_design=start, global_search=False)
+    return solve_launch(target, seed_design=start, global_search=False, on_progress=on_progress)
 
 
-def solve_grid(inp: LaunchInput, fit: FitGridConfig) -> list[LaunchResult]:
-    """Every grid altitude, serially (the flow runs the two chains in parallel)."""
-    reference = solve_reference(inp)
-    results = {inp.target_altitude_m: reference}
+def solve_grid(
+    inp: LaunchInput, fit: FitGridConfig, on_progress: Progress | None = None
+) -> list[LaunchResult]:
+    """Every grid altitude, serially (the flow runs the two chains in parallel); a log
+    line (info) per solved altitude, ``on_progress`` during each solve."""
     up, down = continuation_chains(grid_altitudes_m(fit), inp.target_altitude_m)
+    count = _GridCount(1 + len(up) + len(down), on_progress)
+    reference = count.solved(solve_reference(inp, count.solving(inp.target_altitude_m)))
+    results = {inp.target_altitude_m: reference}
     for chain in (up, down):
         previous, seed = None, reference
         for h in chain:
-            previous, seed = seed, solve_from(inp, h, seed, previous)
+            solved = solve_from(inp, h, seed, previous, count.solving(h))
+            previous, seed = seed, count.solved(solved)
             results[h] = seed
     wanted = grid_altitudes_m(fit)
     return [results[h] for h in sorted(results) if _on_grid(h, wanted)]
+
+
+class _GridCount:
+    """Grid points solved, reported to the log and to ``on_progress``."""
+
+    def __init__(self, total: int, on_progress: Progress | None) -> None:
+        self.total, self.done, self.on_progress = total, 0, on_progress
+
+    def solving(self, altitude_m: float) -> Callable[[int, int, str], None] | None:
+        """The optimiser's ``on_progress`` while ``altitude_m`` is solved."""
+        if self.on_progress is None:
+            return None
+        report = self.on_progress
+        report(self.done, self.total, f"{altitude_m / 1e3:g} km")
+
+        def step(done: int, total: int, phase: str) -> None:
+            report(self.done, self.total, f"{altitude_m / 1e3:g} km, {phase} {done}/{total}")
+
+        return step
+
+    def solved(self, result: LaunchResult) -> LaunchResult:
+        self.done += 1
+        logger.info(
+            f"launch fit: {result.target_altitude_m / 1e3:g} km solved "
+            f"({self.done}/{self.total}): "
+            + (
+                f"payload {result.payload_kg:.2f} kg"
+                if result.feasible
+                else f"infeasible ({result.reason})"
+            )
+            + f", {result.wall_time_s:.1f} s"
+        )
+        if self.on_progress is not None:
+            self.on_progress(self.done, self.total, f"{result.target_altitude_m / 1e3:g} km")
+        return result
 
 
 def _on_grid(h: float, grid: list[float]) -> bool:
@@ -281,9 +333,13 @@ def design_of(row: dict[str, Any]) -> dict[str, float]:
     return {k.removeprefix("design_"): v for k, v in row.items() if k.startswith("design_")}
 
 
-def launch_fit(inp: LaunchInput, fit: FitGridConfig, key: str = "") -> LaunchFit:
-    """Solve the grid and fit it (the library path; the flow parallelises the grid)."""
-    return fit_rows([r.to_row() for r in solve_grid(inp, fit)], fit, inp.launcher.name, key)
+def launch_fit(
+    inp: LaunchInput, fit: FitGridConfig, key: str = "", on_progress: Progress | None = None
+) -> LaunchFit:
+    """Solve the grid and fit it (the library path; the flow parallelises the grid);
+    ``on_progress`` as :func:`solve_grid`'s."""
+    rows = [r.to_row() for r in solve_grid(inp, fit, on_progress)]
+    return fit_rows(rows, fit, inp.launcher.name, key)
 
 
 def launch_fit_key(scenario: Scenario) -> str:

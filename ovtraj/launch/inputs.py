@@ -95,7 +95,8 @@ def launch_input(scenario: Scenario, *, altitude_km: float | None = None) -> Lau
         drop=settings.drop,
         launch_day=day,
         opportunity=settings.opportunity,
-        target_altitude_m=(altitude_km or settings.target_altitude_km) * 1e3,
+        target_altitude_m=(settings.target_altitude_km if altitude_km is None else altitude_km)
+        * 1e3,
         target_plane=target_plane_at(scenario, day),
         bounds=settings.design_bounds,
         tolerances=settings.insertion_tolerances,

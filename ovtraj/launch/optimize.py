@@ -20,7 +20,9 @@ outcome's ``limit`` names the limit (the stage reports the launch infeasible).
 
 from __future__ import annotations
 
+import logging
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -35,6 +37,12 @@ from ovtraj.deadline import Deadline, pymoo_termination
 from ovtraj.launch.problem import Evaluation, LaunchProblem
 
 PAYLOAD_INDEX = 9
+
+logger = logging.getLogger(__name__)
+
+Progress = Callable[[int, int, str], None]
+"""``on_progress(done, total, phase)``: generations of the GA, iterations of a local phase
+(of its iteration limit; a phase usually ends earlier, when it stalls)."""
 
 
 @dataclass(frozen=True)
@@ -214,11 +222,13 @@ def run_genetic(
     *,
     seed_x: NDArray | None = None,
     deadline: Deadline | None = None,
+    on_progress: Progress | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
     """Global search; returns the best design under the relaxed constraints.
 
     Stops after ``settings.generations`` or at ``deadline`` (default: the config's
-    ``time_limit_s`` from now), whichever comes first.
+    ``time_limit_s`` from now), whichever comes first; ``on_progress`` after each
+    generation.
     """
     start, before = time.perf_counter(), problem.trajectories
     if deadline is None:
@@ -240,12 +250,19 @@ def run_genetic(
             eliminate_duplicates=True,
         )
     pymoo_problem = _GeneticProblem(problem, settings.constraint_relaxation)
+
+    def generation_done(algorithm: object) -> None:  # reads only: the same search either way
+        if on_progress is not None:
+            total = settings.generations
+            on_progress(min(int(algorithm.n_gen), total), total, "genetic")
+
     result = pymoo_minimize(
         pymoo_problem,
         algorithm,
         pymoo_termination(settings.generations, deadline),
         seed=settings.seed,
         verbose=False,
+        callback=generation_done,
     )
     # pymoo counts the generation it would start next.
     generations = int(result.algorithm.n_gen) - 1 if deadline.reached else settings.generations
@@ -291,8 +308,10 @@ class _StallMonitor:
         settings: LocalConfig,
         x0: NDArray,
         deadline: Deadline | None = None,
+        on_progress: Callable[[int], None] | None = None,
     ) -> None:
         self.problem = problem
+        self.on_progress = on_progress
         self.deadline = deadline or Deadline.unlimited()
         self.iterations = 0
         self.oracle = oracle
@@ -316,6 +335,8 @@ class _StallMonitor:
 
     def __call__(self, intermediate_result: object) -> None:
         self.iterations += 1
+        if self.on_progress is not None:
+            self.on_progress(self.iterations)
         x = np.asarray(getattr(intermediate_result, "x", intermediate_result), dtype=float)
         payload = self._admissible_payload(x)
         if payload > self.best_payload:
@@ -379,12 +400,31 @@ def _local_deadline(settings: LocalConfig) -> Deadline:
     return Deadline(settings.time_limit_s, "launch.local.time_limit_s")
 
 
+def _iterations(
+    on_progress: Progress | None, limit: int, name: str
+) -> Callable[[int], None] | None:
+    if on_progress is None:
+        return None
+    return lambda done: on_progress(min(done, limit), limit, name)
+
+
 def run_slsqp(
-    problem: LaunchProblem, x0: NDArray, settings: LocalConfig, deadline: Deadline | None = None
+    problem: LaunchProblem,
+    x0: NDArray,
+    settings: LocalConfig,
+    deadline: Deadline | None = None,
+    on_progress: Progress | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings, x0, deadline or _local_deadline(settings))
+    monitor = _StallMonitor(
+        problem,
+        oracle,
+        settings,
+        x0,
+        deadline or _local_deadline(settings),
+        _iterations(on_progress, settings.slsqp_max_iterations, "slsqp"),
+    )
     result = minimize(
         oracle.objective,
         x0,
@@ -404,11 +444,22 @@ def run_slsqp(
 
 
 def run_trust_constr(
-    problem: LaunchProblem, x0: NDArray, settings: LocalConfig, deadline: Deadline | None = None
+    problem: LaunchProblem,
+    x0: NDArray,
+    settings: LocalConfig,
+    deadline: Deadline | None = None,
+    on_progress: Progress | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
     oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(problem, oracle, settings, x0, deadline or _local_deadline(settings))
+    monitor = _StallMonitor(
+        problem,
+        oracle,
+        settings,
+        x0,
+        deadline or _local_deadline(settings),
+        _iterations(on_progress, settings.trust_constr_max_iterations, "trust-constr"),
+    )
     n = len(x0)
     result = minimize(
         oracle.objective,
@@ -443,14 +494,20 @@ def optimise_launch(
     *,
     seed_x: NDArray | None = None,
     global_search: bool = True,
+    on_progress: Progress | None = None,
 ) -> OptimisationOutcome:
-    """GA (unless ``global_search`` is off and a seed is given) -> SLSQP -> trust-constr."""
+    """GA (unless ``global_search`` is off and a seed is given) -> SLSQP -> trust-constr.
+
+    ``on_progress(done, total, phase)`` after each generation or iteration; what each
+    phase reached is logged (debug)."""
     start, before = time.perf_counter(), problem.trajectories
     phases: list[PhaseRecord] = []
     limit = None
     if global_search or seed_x is None:
         deadline = Deadline(genetic.time_limit_s, "launch.genetic.time_limit_s")
-        x, record = run_genetic(problem, genetic, seed_x=seed_x, deadline=deadline)
+        x, record = run_genetic(
+            problem, genetic, seed_x=seed_x, deadline=deadline, on_progress=on_progress
+        )
         if deadline.reached:
             limit = f"genetic search stopped: {deadline.reason(record.iterations, 'generations')}"
     else:
@@ -466,15 +523,17 @@ def optimise_launch(
             message="given start",
         )
     phases.append(record)
+    _log_phase(record)
     best = record.standing
     converged = local.converged_residual
     for run in (run_slsqp, run_trust_constr):
         if limit is not None:
             break
         deadline = _local_deadline(local)
-        x_new, record = run(problem, x, local, deadline)
+        x_new, record = run(problem, x, local, deadline, on_progress)
         accepted = is_better(record.standing, best, converged)
         phases.append(PhaseRecord(**(record.as_dict() | {"accepted": accepted})))
+        _log_phase(phases[-1])
         if accepted:
             x, best = x_new, record.standing
         if deadline.reached:
@@ -488,4 +547,12 @@ def optimise_launch(
         trajectories=problem.trajectories - before,
         wall_time_s=time.perf_counter() - start,
         limit=limit,
+    )
+
+
+def _log_phase(record: PhaseRecord) -> None:
+    logger.debug(
+        f"launch {record.name}: payload {record.payload_kg:.2f} kg, residual "
+        f"{record.max_residual:.3g}, {record.iterations} iterations, "
+        f"{record.wall_time_s:.1f} s{'' if record.accepted else ' (not kept)'}"
     )

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
@@ -133,13 +134,15 @@ def solve_launch(
     *,
     seed_design: dict[str, float] | None = None,
     global_search: bool = True,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> LaunchResult:
     """Maximum-payload ascent to ``inp.target_altitude_m`` in the target plane.
 
     ``seed_design`` (configuration units, keys of ``DESIGN_VARIABLES``) starts the
     search from a known design: inside the GA's first population, or as the local
     phases' start when ``global_search`` is off. Never raises on a numerical
-    failure: the result comes back infeasible with the reason.
+    failure: the result comes back infeasible with the reason. ``on_progress(done, total,
+    phase)`` follows the optimiser (:func:`~ovtraj.launch.optimize.optimise_launch`).
     """
     start = time.perf_counter()
     try:
@@ -153,7 +156,12 @@ def solve_launch(
     try:
         with np.errstate(all="ignore"):
             outcome = optimise_launch(
-                problem, inp.genetic, inp.local, seed_x=seed_x, global_search=global_search
+                problem,
+                inp.genetic,
+                inp.local,
+                seed_x=seed_x,
+                global_search=global_search,
+                on_progress=on_progress,
             )
             return _finish(inp, problem, outcome, time.perf_counter() - start)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:

@@ -52,6 +52,7 @@ from scipy.integrate import solve_ivp
 from ovtraj.astro.frames import ecef_to_eci, ecef_to_eci_state, spherical_to_ecef_state
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.formatting import duration, number, utc
 from ovtraj.launch.ascent import simulate
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import launch_input
@@ -852,10 +853,12 @@ def _arrival_miss(
 
 
 def format_flight_report(report: FlightReport) -> str:
-    """A few lines for the command line."""
+    """A few lines for the command line (:mod:`ovtraj.formatting`: units, "-" for a value
+    not reached)."""
+    km = 1e-3
 
-    def num(value: float | None, fmt: str, scale: float = 1.0) -> str:
-        return "-" if value is None else format(value * scale, fmt)
+    def scaled(value: float | None, factor: float) -> float | None:
+        return None if value is None else value * factor
 
     verdict = (
         "LANDED within the stated miss"
@@ -871,51 +874,55 @@ def format_flight_report(report: FlightReport) -> str:
     if report.insertion:
         i = report.insertion
         lines.append(
-            f"  insertion vs plan: {i['position_difference_m']:.3g} m, "
-            f"{i['velocity_difference_mps']:.3g} m/s, {i['time_difference_s']:.3g} s "
-            f"(altitude {i['altitude_difference_m']:.3g} m, "
-            f"speed {i['speed_difference_mps']:.3g} m/s)"
+            f"  insertion vs plan: {number(i['position_difference_m'], 'm', 3)}, "
+            f"{number(i['velocity_difference_mps'], 'm/s', 3)}, "
+            f"{number(i['time_difference_s'], 's', 3)} "
+            f"(altitude {number(i['altitude_difference_m'], 'm', 3)}, "
+            f"speed {number(i['speed_difference_mps'], 'm/s', 3)})"
         )
     lines.append(
-        f"  miss from the landing site: {num(report.miss_distance_m, '.3f', 1e-3)} km "
-        f"(stated {num(report.stated_miss_m, '.3f', 1e-3)} km; plan predicted "
-        f"{num(report.predicted_miss_distance_m, '.3f', 1e-3)} km)"
+        f"  miss from the landing site: {number(scaled(report.miss_distance_m, km), 'km')} "
+        f"(stated {number(scaled(report.stated_miss_m, km), 'km')}; plan predicted "
+        f"{number(scaled(report.predicted_miss_distance_m, km), 'km')})"
     )
     lines.append(
         f"  distance from the predicted terminal point: "
-        f"{num(report.prediction_distance_m, '.1f')} m "
-        f"(tolerance {num(report.prediction_tolerance_m, '.0f')} m)"
+        f"{number(report.prediction_distance_m, 'm')} "
+        f"(tolerance {number(report.prediction_tolerance_m, 'm')})"
     )
     if report.terminal:
         t = report.terminal
         lines.append(
-            f"  terminal: {t['epoch_utc']}  {t['latitude_deg']:.4f} deg, "
-            f"{t['longitude_deg']:.4f} deg, {t['altitude_m'] / 1e3:.2f} km, "
-            f"{t['speed_mps']:.1f} m/s, fpa {t['fpa_deg']:.2f} deg ({report.terminal_status})"
+            f"  terminal: {utc(t['epoch_utc'])}  {number(t['latitude_deg'], 'deg', 6)}, "
+            f"{number(t['longitude_deg'], 'deg', 6)}, {number(t['altitude_m'] * km, 'km')}, "
+            f"{number(t['speed_mps'], 'm/s')}, fpa {number(t['fpa_deg'], 'deg', 3)} "
+            f"({report.terminal_status})"
         )
     if report.entry:
         e = report.entry
         lines.append(
-            f"  entry: {e['epoch_utc']}  {e['latitude_deg']:.4f} deg, "
-            f"{e['longitude_deg']:.4f} deg, {e['speed_mps']:.1f} m/s relative, "
-            f"inertial fpa {e['inertial_fpa_deg']:.4f} deg; vs plan "
-            f"{num(report.entry_time_difference_s, '.2e')} s, "
-            f"{num(report.entry_position_difference_m, '.2e')} m"
+            f"  entry: {utc(e['epoch_utc'])}  {number(e['latitude_deg'], 'deg', 6)}, "
+            f"{number(e['longitude_deg'], 'deg', 6)}, {number(e['speed_mps'], 'm/s')} "
+            f"relative, inertial fpa {number(e['inertial_fpa_deg'], 'deg')}; vs plan "
+            f"{number(report.entry_time_difference_s, 's', 3)}, "
+            f"{number(report.entry_position_difference_m, 'm', 3)}"
         )
     lines.append(
-        f"  rendezvous arrival miss: {num(report.rendezvous_arrival_miss_m, '.3g')} m "
-        f"(plan {num(report.planned_arrival_miss_m, '.3g')} m, "
-        f"tolerance {num(report.arrival_miss_tolerance_m, 'g')} m)"
+        f"  rendezvous arrival miss: {number(report.rendezvous_arrival_miss_m, 'm', 3)} "
+        f"(plan {number(report.planned_arrival_miss_m, 'm', 3)}, "
+        f"tolerance {number(report.arrival_miss_tolerance_m, 'm')})"
     )
     for name, check in report.checks.items():
         lines.append(
-            f"  {'ok  ' if check.ok else 'FAIL'} {name}: {num(check.value, '.6g')} "
-            f"(limit {check.limit:g} {check.unit})"
+            f"  {'ok  ' if check.ok else 'FAIL'} {name}: "
+            f"{number(check.value, check.unit.split(' ')[0], 6)} "
+            f"(limit {number(check.limit, check.unit, 6)})"
         )
     for burn in report.burns:
         lines.append(
-            f"  burn {burn.name}: {burn.dv_mps:.3f} m/s at {burn.t_s:.1f} s "
-            f"(local frame vs plan {burn.local_frame_difference_mps:.1e} m/s)"
+            f"  burn {burn.name}: {number(burn.dv_mps, 'm/s')} at {duration(burn.t_s)} "
+            f"from the launch day's 0 h UTC (local frame vs plan "
+            f"{number(burn.local_frame_difference_mps, 'm/s', 2)})"
         )
-    lines.append(f"  replay time {report.wall_time_s:.2f} s")
+    lines.append(f"  replay time {duration(report.wall_time_s)}")
     return "\n".join(lines)

@@ -49,6 +49,7 @@ raises out of a run: a stage that fails ends it with the stage and the reason.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -87,6 +88,8 @@ from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
 from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
 from ovtraj.targets import target_state
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "RUN_SCHEMA",
@@ -658,12 +661,18 @@ def monte_carlo(
     progress: Any = None,
 ) -> list[tuple[RunOutcome, RunOutcome]]:
     """``runs`` draws, each flown closed and open loop (serially, in this process);
-    ``progress(done, total)`` after each run."""
+    ``progress(done, total)`` after each run (and a debug log line)."""
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     pairs = []
     for run in range(runs):
         draw = draw_run(config, seed, run, len(plan.impulses()))
         pairs.append((fly_closed_loop(plan, draw, config, scenario), fly_open_loop(plan, draw)))
+        logger.debug(
+            "run %d/%d: closed loop %s, open loop %s",
+            run + 1,
+            runs,
+            *("landed" if o.landed else f"failed ({o.failed_stage})" for o in pairs[-1]),
+        )
         if progress is not None:
             progress(run + 1, runs)
     return pairs

@@ -26,6 +26,7 @@ and must give the same front; a different result is refused, never written over.
 from __future__ import annotations
 
 import datetime
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,6 +61,8 @@ from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_fra
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
 from ovtraj.storage import location
+
+logger = logging.getLogger(__name__)
 
 MARKER = "pipeline.json"
 FRONT_FILE = "front.parquet"
@@ -148,7 +151,7 @@ def run_pipeline(
     """The loop of the module notes; see there."""
     if scenario.mission is None:
         raise PipelineError("the scenario has no mission section")
-    say = progress or (lambda _message: None)
+    say = progress or logger.info  # a line per iteration: the callback's, else the log's
     verify = scenario.mission.verify
     normalisation = Normalisation.mission(scenario.mission.optimize)
     span = normalisation.span()
@@ -319,6 +322,8 @@ def _finish(
             samples=totals[totals["feasible"].astype(bool)],
             verified=front.to_pandas(),
             title=f"verified front: pipeline {pid}, run {run.id}",
+            scenario=scenario.name,
+            date=f"epoch {scenario.epoch_utc}",
         )
 
     _store(directory, front, verification, summary, plot)

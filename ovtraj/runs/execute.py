@@ -6,6 +6,7 @@ from __future__ import annotations
 import concurrent.futures
 import hashlib
 import json
+import logging
 import time
 from collections.abc import Callable
 from contextlib import nullcontext
@@ -22,6 +23,8 @@ from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionR
 from ovtraj.runs.doe import latin_hypercube
 from ovtraj.runs.runners import BatchPool, ClusterError, batch_pool
 from ovtraj.runs.store import Run, RunStore, StoreError
+
+logger = logging.getLogger(__name__)
 
 # Counts mission evaluations in this process (tests assert that a re-run makes none).
 EVALUATIONS = {"count": 0}
@@ -226,6 +229,7 @@ def run_doe(
     time_limit_s: float | None = None,
     on_batch: Callable[[dict[str, Any]], None] | None = None,
     pool: BatchPool | None = None,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> Run:
     """Evaluate every batch the run does not hold yet and finish the manifest.
 
@@ -239,15 +243,20 @@ def run_doe(
     (``mission.doe.claim_wait_s``); one whose process died is computed again. A complete
     run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches;
     ``on_batch`` receives each finished batch's summary (:func:`store_batch_job`).
+    Messages (a line per batch) go to ``progress`` when given, else to this module's
+    logger (info); ``on_progress(samples done, samples of the run, label)`` is called
+    before the first batch and after each one (a progress bar's update).
 
     Raises :class:`ClusterError` (the manifest ends ``failed``) when the Dask cluster is
     unusable or loses every worker for ``dask.no_worker_timeout_s``, and
     :class:`BatchesFailed` (``incomplete``, the errors in ``failures``) when batches raised.
     """
-    say = progress or (lambda _: None)
+    say = progress or logger.info
     batches = run.batches(batch_size)
-    if not [k for k, _ in batches if not run.is_stored(k)]:
+    todo = [k for k, _ in batches if not run.is_stored(k)]
+    if not todo:
         return finish(run)
+    counted = _SampleCount(batches, todo, on_progress)
     settings = dask or load_orchestration().dask
     failures: dict[int, str] = {}
     try:
@@ -261,7 +270,9 @@ def run_doe(
                 else batch_pool(runner, workers, dask_address, settings)
             )
             with started as pool:
-                jobs = _BatchJobs(run, scenario, launch_fit, batches, pool, say, settings, on_batch)
+                jobs = _BatchJobs(
+                    run, scenario, launch_fit, batches, pool, say, settings, on_batch, counted
+                )
                 todo = [k for k, _ in batches if not run.is_stored(k)]
                 waiting = jobs.evaluate(todo, 0.0, time_limit_s)
                 for k in waiting:
@@ -283,6 +294,32 @@ def run_doe(
     return run
 
 
+class _SampleCount:
+    """Samples done of the run's, for ``run_doe``'s ``on_progress``."""
+
+    def __init__(
+        self,
+        batches: list[tuple[int, pd.DataFrame]],
+        todo: list[int],
+        on_progress: Callable[[int, int, str], None] | None,
+    ) -> None:
+        self.sizes = {k: len(batch) for k, batch in batches}
+        self.total = sum(self.sizes.values())
+        self.done = self.total - sum(self.sizes[k] for k in todo)
+        self.batches, self.finished = len(batches), len(batches) - len(todo)
+        self.on_progress = on_progress
+        self.report()
+
+    def report(self) -> None:
+        if self.on_progress is not None:
+            self.on_progress(self.done, self.total, f"batch {self.finished}/{self.batches}")
+
+    def batch_done(self, k: int) -> None:
+        self.done += self.sizes[k]
+        self.finished += 1
+        self.report()
+
+
 class _BatchJobs:
     """Submits batch jobs to a pool and collects their summaries as they end."""
 
@@ -296,12 +333,13 @@ class _BatchJobs:
         say: Callable[[str], None],
         settings: DaskSettings,
         on_batch: Callable[[dict[str, Any]], None] | None = None,
+        counted: _SampleCount | None = None,
     ) -> None:
         self.run, self.pool, self.say, self.settings = run, pool, say, settings
         self.batches = dict(batches)
         self.resolved, self.coefficients = scenario.resolved(), launch_fit.to_dict()
         self.failures: dict[int, str] = {}
-        self.on_batch = on_batch
+        self.on_batch, self.counted = on_batch, counted
 
     def _job(self, k: int, wait_s: float) -> tuple[Any, ...]:
         records = self.batches[k].to_dict(orient="records")
@@ -313,6 +351,8 @@ class _BatchJobs:
             return False
         if self.on_batch is not None:
             self.on_batch(summary)
+        if self.counted is not None:
+            self.counted.batch_done(k)
         self.say(
             f"batch {k + 1}/{len(self.batches)}: {summary['samples']} samples, "
             f"{summary['feasible']} feasible, {summary['wall_time_s']:.1f} s"

@@ -24,9 +24,10 @@ u; strategy 2: predicted entry flight-path angle). Every strategy flies the same
 
 from __future__ import annotations
 
+import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +43,8 @@ from ovtraj.deorbit.burn.powered import ThrustSettings
 from ovtraj.deorbit.burn.problem import DeorbitBurnProblem
 from ovtraj.deorbit.burn.result import DeorbitBurnResult
 from ovtraj.deorbit.burn.solve import BurnSolver
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "RUN_SCHEMA",
@@ -277,12 +280,20 @@ def _frame(rows: list[dict[str, Any]], entry_radius_m: float) -> pd.DataFrame:
 
 
 def simulate_runs(
-    context: MonteCarloContext, runs: Sequence[int], strategies: Sequence[int], seed: int
+    context: MonteCarloContext,
+    runs: Sequence[int],
+    strategies: Sequence[int],
+    seed: int,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> pd.DataFrame:
-    """Rows (``RUN_SCHEMA``) of the given run numbers, every strategy, sorted by run."""
+    """Rows (``RUN_SCHEMA``) of the given run numbers, every strategy, sorted by run;
+    ``on_progress(runs done, runs, "runs")`` after each run (and a debug log line)."""
     rows: list[dict[str, Any]] = []
-    for run in runs:
+    for done, run in enumerate(runs, start=1):
         rows.extend(context.simulate(int(run), strategies, seed))
+        logger.debug("deorbit-burn Monte Carlo run %d (%d/%d) flown", run, done, len(runs))
+        if on_progress is not None:
+            on_progress(done, len(runs), "runs")
     return _frame(rows, context.problem.entry.radius_m)
 
 
@@ -294,17 +305,19 @@ def run_monte_carlo(
     *,
     first_run: int = 0,
     context: MonteCarloContext | None = None,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> pd.DataFrame:
     """``n`` dispersed runs (numbers ``first_run`` ...) flown with the cut-off ``strategy``.
 
     ``strategy`` may be a list: every run then flies each strategy on the same draws. One
     row per run and strategy, columns of ``RUN_SCHEMA`` (errors actual minus target; the
     along-track error is the u error times r_E). A failed run keeps its row (``ok`` False,
-    ``reason``); nothing is raised for it.
+    ``reason``); nothing is raised for it. ``on_progress`` as :func:`simulate_runs`'s.
     """
     strategies = [strategy] if isinstance(strategy, int) else list(strategy)
     context = context or MonteCarloContext(problem)
-    return simulate_runs(context, range(first_run, first_run + n), strategies, seed)
+    runs = range(first_run, first_run + n)
+    return simulate_runs(context, runs, strategies, seed, on_progress)
 
 
 def monte_carlo_summary(frame: pd.DataFrame) -> pd.DataFrame:

@@ -6,12 +6,14 @@ as text. The CLI only loads the problem (``ConfigError`` -> exit 2) and prints o
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ovtraj.deorbit.burn.montecarlo import MonteCarloContext, monte_carlo_summary, run_monte_carlo
 from ovtraj.deorbit.burn.problem import DeorbitBurnProblem
 from ovtraj.deorbit.burn.published import published_comparison
 from ovtraj.deorbit.burn.solve import BurnSolver
+from ovtraj.formatting import number, quantity, split_unit
 from ovtraj.records import plain
 
 __all__ = ["REPORT_KEYS", "deorbit_burn_report", "format_report"]
@@ -41,8 +43,10 @@ def deorbit_burn_report(
     *,
     strategy: int | None = None,
     monte_carlo_runs: int | None = None,
+    on_progress: Callable[[int, int, str], None] | None = None,
 ) -> dict[str, Any]:
-    """Solve (and with ``monte_carlo_runs``, run the Monte Carlo in this process).
+    """Solve (and with ``monte_carlo_runs``, run the Monte Carlo in this process;
+    ``on_progress(runs done, runs, label)`` after each run).
 
     Returns ``{"result": to_row(), "history": [...], "monte_carlo": [per-strategy
     statistics] | None, "published": [...]}``. The Monte Carlo flies ``strategy`` if given,
@@ -65,6 +69,7 @@ def deorbit_burn_report(
             strategies,
             config.seed,
             context=MonteCarloContext(problem),
+            on_progress=on_progress,
         )
         summary = monte_carlo_summary(frame)
         report["monte_carlo"] = [plain(row) for row in summary.to_dict(orient="records")]
@@ -74,27 +79,25 @@ def deorbit_burn_report(
     return report
 
 
-def _fmt(value: float | None, spec: str) -> str:
-    return "n/a" if value is None else format(value, spec)
-
-
 def format_report(report: dict[str, Any]) -> str:
-    """Text for a terminal: the solve's fields, then the Monte Carlo statistics."""
+    """Text for a terminal: the solve's fields (their units from the key names; a reason
+    only when there is one), then the Monte Carlo statistics."""
     row = report["result"]
     lines = [f"deorbit burn: {row['name']}"]
-    width = max(len(k) for k in REPORT_KEYS)
-    for key in REPORT_KEYS:
-        value = row.get(key)
-        shown = f"{value:.6g}" if isinstance(value, float) else str(value)
-        lines.append(f"  {key:<{width}}  {shown}")
+    shown = [
+        (*split_unit(key), row.get(key)) for key in REPORT_KEYS if key != "reason" or row.get(key)
+    ]
+    width = max(len(name) for name, _, _ in shown)
+    for name, unit, value in shown:
+        lines.append(f"  {name.replace('_', ' '):<{width}}  {quantity(value, unit)}")
     for stats in report.get("monte_carlo") or []:
         lines.append(
             f"  Monte Carlo strategy {stats['strategy']}: {stats['runs']} runs, "
             f"{stats['failed']} failed; along-track max |err| "
-            f"{_fmt(stats['along_track_error_km_max_abs'], '.3f')} km (std "
-            f"{_fmt(stats['along_track_error_km_std'], '.3f')}); fpa max |err| "
-            f"{_fmt(stats['entry_fpa_error_deg_max_abs'], '.2e')} deg (std "
-            f"{_fmt(stats['entry_fpa_error_deg_std'], '.2e')}); dv mean "
-            f"{_fmt(stats['dv_mps_mean'], '.2f')} m/s"
+            f"{number(stats['along_track_error_km_max_abs'], 'km')} (std "
+            f"{number(stats['along_track_error_km_std'], 'km')}); fpa max |err| "
+            f"{number(stats['entry_fpa_error_deg_max_abs'], 'deg', 3)} (std "
+            f"{number(stats['entry_fpa_error_deg_std'], 'deg', 3)}); dv mean "
+            f"{number(stats['dv_mps_mean'], 'm/s', 5)}"
         )
     return "\n".join(lines)

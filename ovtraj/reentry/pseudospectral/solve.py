@@ -66,8 +66,8 @@ def solve_optimal_entry(
     :class:`~ovtraj.config.ConfigError` when the energy formulation is asked for a problem
     it cannot pose; every outcome of the optimisation itself is a result.
     """
-    independent = independent or problem.independent
-    method = transcription or problem.method
+    independent = problem.independent if independent is None else independent
+    method = problem.method if transcription is None else transcription
     if independent not in ("energy", "time"):
         raise ValueError(f"independent must be 'energy' or 'time', got {independent!r}")
     if method not in ("lg", "lgr"):

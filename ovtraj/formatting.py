@@ -1,0 +1,182 @@
+"""Numbers, epochs and durations as text for people: the human-readable output of the
+``ovtraj`` commands (``--json`` keeps every digit; this is for reading).
+
+- :func:`number`: significant digits, never fewer than the integer part, no exponent
+  except for tiny values, the unit after it (``35.58 m/s``);
+- :func:`duration`: seconds below an hour (``263.8 s``), hours above (``3.022 h``);
+- :func:`utc`: an epoch as ISO 8601 UTC with a ``Z`` and milliseconds;
+- :func:`quantity`: any value of a result row, by its unit (``"s"`` a duration,
+  ``"utc"`` an epoch), lists joined, ``None`` and NaN shown as ``-``;
+- :func:`split_unit`: a row key's name and the unit of its suffix
+  (``min_t_total_s`` -> ``min_t_total``, ``"s"``), for rows printed by key.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+from collections.abc import Iterable
+from typing import Any
+
+__all__ = ["MISSING", "duration", "joined", "number", "quantity", "split_unit", "utc"]
+
+MISSING = "-"
+"""What a missing value (``None``, NaN) is shown as."""
+
+HOUR_S = 3600.0
+
+
+def _missing(value: Any) -> bool:
+    return value is None or (isinstance(value, float) and not math.isfinite(value))
+
+
+def _with_unit(text: str, unit: str) -> str:
+    return f"{text} {unit}" if unit else text
+
+
+def number(
+    value: float | int | None, unit: str = "", digits: int = 4, *, decimals: int | None = None
+) -> str:
+    """``value`` to ``digits`` significant digits (all of its integer part, trailing zeros
+    dropped), then ``unit``; below 1e-3 in magnitude with an exponent (``1.023e-07 m``).
+    ``decimals``: that many decimals instead (components of a vector, ``-0.020``)."""
+    if _missing(value):
+        return MISSING
+    if isinstance(value, bool) or isinstance(value, int):
+        return _with_unit(str(value), unit)
+    x = float(value)
+    if decimals is not None:
+        text = f"{x:.{decimals}f}"
+        return _with_unit("0" if float(text) == 0.0 else text, unit)
+    if x == 0.0:
+        return _with_unit("0", unit)
+    if abs(x) < 1e-3:
+        return _with_unit(f"{x:.{max(digits - 1, 0)}e}", unit)
+    decimals = max(digits - 1 - math.floor(math.log10(abs(x))), 0)
+    text = f"{x:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    if text in ("-0", ""):
+        text = "0"
+    return _with_unit(text, unit)
+
+
+def duration(seconds: float | None) -> str:
+    """A duration: seconds below an hour (``0 s``, ``4.27 s``, ``263.8 s``, ``2430 s``),
+    hours with three decimals from an hour on (``3.022 h``, ``142.003 h``)."""
+    if _missing(seconds):
+        return MISSING
+    s = float(seconds)
+    if abs(s) >= HOUR_S:
+        return f"{s / HOUR_S:.3f} h"
+    if abs(s) < 5e-3:
+        return "0 s"
+    return number(s, "s", digits=4)
+
+
+def utc(value: Any) -> str:
+    """An epoch (ISO 8601 text, :class:`datetime.datetime` or
+    :class:`~ovtraj.astro.epoch.Epoch`) as ISO 8601 UTC, ``2026-12-01T03:01:20.291Z``
+    (whole seconds when it has no fraction); text that is not an epoch as it is."""
+    if _missing(value) or value == "":
+        return MISSING
+    if hasattr(value, "to_datetime"):
+        value = value.to_datetime()
+    if isinstance(value, str):
+        try:
+            value = datetime.datetime.fromisoformat(value.strip())
+        except ValueError:
+            return value
+    if not isinstance(value, datetime.datetime):
+        return str(value)
+    if value.tzinfo is not None:
+        value = value.astimezone(datetime.UTC)
+    milliseconds = round(value.microsecond / 1e3)
+    value = value.replace(microsecond=0, tzinfo=None) + datetime.timedelta(
+        milliseconds=milliseconds
+    )
+    text = value.strftime("%Y-%m-%dT%H:%M:%S")
+    if value.microsecond:
+        text += f".{value.microsecond // 1000:03d}"
+    return text + "Z"
+
+
+def quantity(value: Any, unit: str = "", digits: int = 4) -> str:
+    """Any value of a result: by ``unit`` (``"s"`` :func:`duration`, ``"utc"``
+    :func:`utc`, else :func:`number` with the unit), a list or tuple joined by commas
+    (the unit once, at the end), text as it is, ``None`` and NaN as ``-``."""
+    if _missing(value):
+        return MISSING
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, str):
+        return utc(value) if unit == "utc" else (value or MISSING)
+    if isinstance(value, (list, tuple)):
+        return _joined(value, unit, digits, ", ")
+    if unit == "s":
+        return duration(value)
+    if unit == "utc":
+        return utc(value)
+    if isinstance(value, (int, float)):
+        return number(value, unit, digits)
+    if hasattr(value, "item"):  # a numpy scalar
+        return quantity(value.item(), unit, digits)
+    return str(value)
+
+
+def joined(
+    values: Iterable[Any],
+    unit: str = "",
+    digits: int = 4,
+    sep: str = " / ",
+    *,
+    decimals: int | None = None,
+) -> str:
+    """Several values of one unit, ``11.575 / 31.477 / 11.874 m/s`` (``decimals`` or
+    ``digits`` each; durations and epochs each with its own unit; a missing value ``-``)."""
+    values = list(values)
+    if decimals is None or unit in ("s", "utc"):
+        return _joined(values, unit, digits, sep)
+    return _with_unit(sep.join(number(v, "", decimals=decimals) for v in values), unit)
+
+
+def _joined(values: list[Any], unit: str, digits: int, sep: str) -> str:
+    if not values:
+        return MISSING
+    if unit in ("s", "utc"):
+        return sep.join(quantity(v, unit, digits) for v in values)
+    return _with_unit(sep.join(quantity(v, "", digits) for v in values), unit)
+
+
+# Key suffixes of the project's result rows (units in the key names, docs/conventions.md)
+# and the unit each is shown in.
+_SUFFIXES = {
+    "_utc": "utc",
+    "_s": "s",
+    "_h": "h",
+    "_days": "d",
+    "_m": "m",
+    "_km": "km",
+    "_mps": "m/s",
+    "_mps2": "m/s^2",
+    "_deg": "deg",
+    "_rad": "rad",
+    "_kg": "kg",
+    "_pa": "Pa",
+    "_kpa": "kPa",
+    "_g": "g",
+    "_kw_m2": "kW/m^2",
+    "_w_m2": "W/m^2",
+    "_n": "N",
+    "_kn": "kN",
+}
+
+
+def split_unit(key: str) -> tuple[str, str]:
+    """A row key's name without its unit suffix, and the unit (``""`` when it has none):
+    ``wait_time_s`` -> ``("wait_time", "s")``, ``insertion_epoch_utc`` -> ``(...,
+    "utc")``."""
+    for suffix in sorted(_SUFFIXES, key=len, reverse=True):
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return key[: -len(suffix)], _SUFFIXES[suffix]
+    return key, ""
