@@ -73,10 +73,12 @@ def deorbit_monte_carlo_flow(
     settings = problem.config.monte_carlo
     chosen_runner = runner or settings.task_runner
     check_runner(chosen_runner, dask_address)
-    n = runs or settings.runs
-    chosen = [int(s) for s in (strategies or settings.strategies)]
+    n = settings.runs if runs is None else runs
+    chosen = [int(s) for s in (settings.strategies if strategies is None else strategies)]
     seed = settings.seed if seed is None else int(seed)
-    size = batch_size or settings.batch_size
+    size = settings.batch_size if batch_size is None else batch_size
+    if n < 1 or size < 1:
+        raise ValueError(f"runs and batch_size must be >= 1; got runs {n}, batch_size {size}")
     resolved = problem.resolved()
     run = MonteCarloRun.create(
         store_root_of(settings.store, Path(config).resolve().parent, store_root),

@@ -45,6 +45,7 @@ from ovtraj.pipeline import (
     pipeline_doe_run,
     run_pipeline,
 )
+from ovtraj.pipeline.report import stop_explanation
 from ovtraj.runs import Run, RunStore
 from ovtraj.storage import location
 from ovtraj.target_sources import load_scenario_with_target
@@ -152,7 +153,10 @@ def mission_flow(
             scenario, doe_run, store=store, code=code, steps=steps, progress=logger.info
         )
     planned = mission_plan(scenario, store, result, pick_index, weights)
-    _publish(result, planned)
+    verdict = stop_explanation(result.summary, scenario.mission.verify)
+    logger.info(verdict)
+    logger.info("picked %s; report %s", planned.get("pick"), planned.get("report"))
+    _publish(result, planned, verdict)
     return {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
@@ -164,10 +168,12 @@ def mission_flow(
         "real_evaluations": result.summary["real_evaluations"],
         "plan_json": planned["json"],
         "plan_yaml": planned["yaml"],
+        "report": planned.get("report"),
+        "converged": result.summary["converged"],
     }
 
 
-def _publish(result: PipelineResult, planned: dict[str, Any]) -> None:
+def _publish(result: PipelineResult, planned: dict[str, Any], verdict: str = "") -> None:
     create_table_artifact(
         key="verified-front",
         table=front_table(result.front),
@@ -184,7 +190,13 @@ def _publish(result: PipelineResult, planned: dict[str, Any]) -> None:
     create_markdown_artifact(
         key="mission-plan",
         markdown="\n\n".join(
-            [f"- plan: `{planned['json']}`\n- plan: `{planned['yaml']}`", *embedded_plots(plots)]
+            [
+                *([f"**{verdict}**"] if verdict else []),
+                *([f"Picked {planned['pick']}."] if planned.get("pick") else []),
+                f"- plan: `{planned['json']}`\n- plan: `{planned['yaml']}`"
+                + (f"\n- report: `{planned['report']}`" if planned.get("report") else ""),
+                *embedded_plots(plots),
+            ]
         ),
         description=f"mission plan of pipeline {result.pipeline_id}",
     )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -13,7 +14,7 @@ import typer.core
 from ovtraj import __version__
 from ovtraj.cli_progress import configure_logging, echo, progress_bar
 from ovtraj.config import ConfigError, Scenario, load_scenario
-from ovtraj.formatting import duration, joined, number, quantity, split_unit
+from ovtraj.formatting import byte_size, duration, joined, number, quantity, split_unit, utc
 from ovtraj.records import json_text, plain
 
 app = typer.Typer(
@@ -823,24 +824,72 @@ def _doe_execution(settings: Any, runner: str | None, dask_address: str | None) 
 
 
 @app.command()
-def runs(store_root: StoreOpt = None) -> None:
-    """List the stored runs with their key figures."""
-    catalog = _store(store_root).catalog()
-    if not catalog:
-        typer.echo("no runs")
+def runs(store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+    """List the stored runs by family: each DoE run, then the runs that extend it (a
+    pipeline's infill rounds, `run --append`), with their pipeline results and sizes."""
+    from ovtraj.pipeline.catalog import store_catalog
+    from ovtraj.runs import StoreError
+
+    store = _store(store_root)
+    try:
+        entries = store_catalog(store)
+    except (StoreError, OSError) as err:
+        typer.echo(f"{store.root}: {err}", err=True)
+        raise typer.Exit(code=2) from None
+    if as_json:
+        _print_json({"store": str(store.root), "runs": [e.to_json() for e in entries]})
         return
-    for row in catalog:
-        dv = row.get("min_dv_total_mps")
-        typer.echo(
-            f"{row['run_id']}  {row.get('created_utc') or '-':25}  {row.get('status') or '-':10}  "
-            f"{row.get('scenario') or '-':20}  samples {row.get('samples')}  feasible "
-            f"{row.get('feasible')}  min dV {'-' if dv is None else f'{dv:.1f} m/s'}"
+    if not entries:
+        typer.echo(f"no runs in {store.root}")
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"runs in {store.root}", title_justify="left", box=None, pad_edge=False)
+    for column, justify in (
+        ("run", "left"),
+        ("created (UTC)", "left"),
+        ("scenario", "left"),
+        ("origin", "left"),
+        ("samples", "right"),
+        ("feasible", "right"),
+        ("status", "left"),
+        ("pipeline results", "left"),
+        ("size", "right"),
+    ):
+        table.add_column(column, justify=justify, no_wrap=column == "run")
+    for e in entries:
+        indent = "  " * e.depth + ("└ " if e.depth else "")
+        if e.error is not None:
+            table.add_row(indent + e.run_id, "-", "-", "-", "-", "-", f"error: {e.error}")
+            continue
+        table.add_row(
+            indent + e.run_id,
+            utc(e.created_utc),
+            e.scenario or "-",
+            e.origin or "-",
+            str(e.samples),
+            f"{e.feasible}/{e.evaluated}",
+            e.status or "-",
+            ", ".join(e.pipelines) or "-",
+            "-" if e.size_bytes is None else byte_size(e.size_bytes),
         )
+    # On a terminal the table fits its width; elsewhere (a pipe, a file) every row is whole.
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console = Console(highlight=False, width=10_000)
+    console.print(table)
+    families = sum(1 for e in entries if e.depth == 0)
+    total = sum(e.size_bytes or 0 for e in entries)
+    typer.echo(
+        f"{len(entries)} runs in {families} families, {byte_size(total)} on disk "
+        "(a file shared by hard link counted once); `ovtraj prune` lists what can go"
+    )
 
 
 @app.command()
 def show(run_id: str, store_root: StoreOpt = None) -> None:
-    """Print a run's manifest and summary."""
+    """Print a run's manifest and summary as one JSON object."""
     from ovtraj.runs import StoreError
 
     try:
@@ -850,6 +899,75 @@ def show(run_id: str, store_root: StoreOpt = None) -> None:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     typer.echo(json.dumps({"manifest": manifest, "summary": summary}, indent=2, default=str))
+
+
+PruneKinds = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--only",
+        help="what to prune: children (superseded child runs), fits (surrogate fits and "
+        "fronts of another code version), prefect-results (Prefect's local task results); "
+        "repeat the option for several (default: all three)",
+        show_default=False,
+    ),
+]
+
+
+@app.command()
+def prune(
+    store_root: StoreOpt = None,
+    only: PruneKinds = None,
+    yes: Annotated[
+        bool, typer.Option("--yes", help="delete (without it: only list what would go)")
+    ] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """List, and with --yes delete, what the store can lose without losing a result:
+    child runs whose samples a later complete run holds (never a family's DoE run nor a
+    pipeline's final run), surrogate fits and fronts no longer loaded by this code
+    version, and Prefect's task results (a cache). See docs/mission.md."""
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.pipeline.prune import KINDS, prunable, remove
+    from ovtraj.runs import StoreError
+    from ovtraj.version import code_version
+
+    kinds = tuple(only) if only else KINDS
+    unknown = sorted(set(kinds) - set(KINDS))
+    if unknown:
+        typer.echo(f"--only: {', '.join(unknown)} is not one of {', '.join(KINDS)}", err=True)
+        raise typer.Exit(code=2)
+    store = _store(store_root)
+    results = load_orchestration().results.location()
+    try:
+        items = prunable(
+            store,
+            code_version(),
+            kinds=kinds,
+            prefect_results=None if "://" in results else Path(results),
+        )
+        removed = [item for item in items if yes and remove(item)]
+    except (StoreError, OSError) as err:
+        typer.echo(f"prune: {err}", err=True)
+        raise typer.Exit(code=2) from None
+    freed = sum(item.size_bytes for item in removed)
+    if as_json:
+        _print_json(
+            {
+                "store": str(store.root),
+                "deleted": yes,
+                "items": [i.to_json() | {"removed": i in removed} for i in items],
+                "freed_bytes": freed,
+            }
+        )
+        return
+    for item in items:
+        done = "deleted" if item in removed else "would delete" if not yes else "kept (in use)"
+        typer.echo(f"{done}: {item.path} ({byte_size(item.size_bytes)}): {item.reason}")
+    total = sum(item.size_bytes for item in items)
+    if yes:
+        typer.echo(f"{len(removed)} of {len(items)} items deleted, {byte_size(freed)} freed")
+    else:
+        typer.echo(f"{len(items)} items, {byte_size(total)}: nothing deleted (add --yes to delete)")
 
 
 @app.command()
@@ -1037,13 +1155,34 @@ def _print_front(front: Any) -> None:
             f"{row.t_total_s / 3600:6.1f}  {row.dv_total_mps:8.2f}  {row.m_load_kg:6.1f}  "
             f"{row.origin}"
         )
+    typer.echo(
+        "  H_P0: parking (launch insertion) altitude, H_dp: preparation orbit altitude, "
+        "t_dsp: separation delay after docking; T, dV lower and M (payload) higher is better"
+    )
 
 
 @app.command()
 def pipeline(
     config: ConfigArg = None,
-    samples: Annotated[int | None, typer.Option("--samples", help="DoE samples")] = None,
-    seed: Annotated[int | None, typer.Option("--seed", help="Latin hypercube seed")] = None,
+    samples: Annotated[
+        int | None,
+        typer.Option(
+            "--samples",
+            min=1,
+            max=100000,
+            help="DoE samples (default: the config's mission.doe.samples)",
+            show_default=False,
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(
+            "--seed",
+            min=0,
+            help="Latin hypercube seed (default: the config's mission.doe.seed)",
+            show_default=False,
+        ),
+    ] = None,
     from_run: Annotated[
         str | None, typer.Option("--run", help="start from this stored DoE run (no new DoE)")
     ] = None,
@@ -1059,8 +1198,18 @@ def pipeline(
     target: TargetOpt = None,
     runner: RunnerOpt = None,
     dask_address: DaskAddressOpt = None,
+    require_converged: Annotated[
+        bool,
+        typer.Option(
+            "--require-converged",
+            help="exit 1 when the verification loop stops before its tolerance is met "
+            "(the front, plan and report are stored all the same)",
+        ),
+    ] = False,
+    as_json: JsonOpt = False,
 ) -> None:
-    """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan."""
+    """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan
+    and its HTML report. Says whether the verification loop converged and why it stopped."""
     from functools import partial
 
     from ovtraj.pipeline import (
@@ -1073,6 +1222,7 @@ def pipeline(
         run_pipeline,
     )
     from ovtraj.pipeline.planning import write_mission_plan
+    from ovtraj.pipeline.report import stop_explanation
     from ovtraj.runs import StoreError, run_doe
     from ovtraj.runs.execute import BatchesFailed
     from ovtraj.runs.runners import ClusterError, batch_pool
@@ -1089,8 +1239,13 @@ def pipeline(
     store = _store(store_root, scenario, config)
     code = code_version()
 
+    say = logging.getLogger("ovtraj.pipeline").info if as_json else echo
+
     def evaluate(run: Any) -> Any:
-        return run_doe(scenario, run, fit, progress=typer.echo, pool=pool, **execution)
+        with progress_bar(f"run {run.id}", enabled=not as_json) as update:
+            return run_doe(
+                scenario, run, fit, progress=say, on_progress=update, pool=pool, **execution
+            )
 
     try:
         # One pool for the DoE and every infill run: its processes keep their mission
@@ -1112,7 +1267,7 @@ def pipeline(
             from_run=from_run,
             config=config if from_run else None,
         )
-        typer.echo(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
+        say(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
         evaluate(doe_run)
         steps = PipelineSteps(
             evaluate=evaluate,
@@ -1125,9 +1280,7 @@ def pipeline(
             ),
             front=partial(front_step, refit=refit),
         )
-        result = run_pipeline(
-            scenario, doe_run, store=store, code=code, steps=steps, progress=typer.echo
-        )
+        result = run_pipeline(scenario, doe_run, store=store, code=code, steps=steps, progress=say)
         exits.close()
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, fit, store, result, chosen)
@@ -1146,11 +1299,39 @@ def pipeline(
         raise typer.Exit(code=2) from None
     finally:
         exits.close()
-    typer.echo(f"verified front of run {doe_run.id} (pipeline {result.pipeline_id}):")
-    _print_front(result.front)
-    typer.echo(f"front: {Path(result.front_path).resolve()}")
-    typer.echo(f"plan: {planned['json'].resolve()}")
-    typer.echo(f"plan: {planned['yaml'].resolve()}")
+    verdict = stop_explanation(result.summary, scenario.mission.verify)
+    converged = bool(result.summary["converged"])
+    front_plot = Path(result.directory / "front.png").resolve()
+    if as_json:
+        _print_plan(
+            planned,
+            True,
+            {
+                "doe_run": doe_run.id,
+                "final_run": result.final_run,
+                "pipeline_id": result.pipeline_id,
+                "converged": converged,
+                "stop_reason": result.summary["stop_reason"],
+                "verdict": verdict,
+                "real_evaluations": result.summary["real_evaluations"],
+                "hypervolume": result.summary["hypervolume"],
+                "front_points": len(result.front),
+                "front": str(Path(result.front_path).resolve()),
+                "front_plot": str(front_plot),
+            },
+        )
+    else:
+        typer.echo(
+            f"verified front of DoE run {doe_run.id} (pipeline {result.pipeline_id}, final "
+            f"run {result.final_run}):"
+        )
+        _print_front(result.front)
+        typer.echo(verdict)
+        typer.echo(f"front: {Path(result.front_path).resolve()}")
+        typer.echo(f"plot: {front_plot}")
+        _print_plan(planned, False, {})
+    if require_converged and not converged:
+        raise typer.Exit(code=1)
 
 
 @app.command()
@@ -1233,7 +1414,13 @@ def optimize(
 
 @app.command()
 def plan(
-    run_id: str,
+    run_id: Annotated[
+        str,
+        typer.Argument(
+            help="any run of a pipeline family: its DoE run, an infill run (also a pruned "
+            "one) or the final run"
+        ),
+    ],
     pick: PickIndexOpt = None,
     weights: WeightsOpt = None,
     max_time_h: MaxTimeOpt = None,
@@ -1243,16 +1430,19 @@ def plan(
         str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
     ] = None,
     store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
 ) -> None:
-    """Write the mission plan (JSON and YAML) of a point of a run's verified front."""
+    """Write the mission plan (JSON and YAML), its plots and its HTML report, of a point
+    of the verified front of a run's pipeline result."""
     from ovtraj.mission.plan import PlanError
     from ovtraj.pipeline import PipelineError
+    from ovtraj.pipeline.catalog import family_root
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
     from ovtraj.runs import StoreError
 
     try:
         store = _store(store_root)
-        stored = store.run(run_id)
+        stored = family_root(store, run_id)
         scenario = _run_scenario(stored, None)
         result = find_pipeline(stored, pipeline_id)
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
@@ -1260,10 +1450,26 @@ def plan(
     except (StoreError, PipelineError, PlanError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    typer.echo(f"plan: {planned['json'].resolve()}")
-    typer.echo(f"plan: {planned['yaml'].resolve()}")
-    for path in planned["plots"]:
-        typer.echo(f"plot: {path.resolve()}")
+    _print_plan(planned, as_json, {"doe_run": stored.id, "pipeline_id": result.pipeline_id})
+
+
+def _print_plan(planned: dict[str, Any], as_json: bool, extra: dict[str, Any]) -> None:
+    """The written plan's paths (absolute) and why its point was picked."""
+    paths = {
+        "plan_json": str(planned["json"].resolve()),
+        "plan_yaml": str(planned["yaml"].resolve()),
+        "report": str(planned["report"].resolve()),
+        "plots": [str(p.resolve()) for p in planned["plots"]],
+    }
+    if as_json:
+        _print_json(extra | {"pick": planned["pick"]} | paths)
+        return
+    typer.echo(f"picked {planned['pick']}")
+    typer.echo(f"plan: {paths['plan_json']}")
+    typer.echo(f"plan: {paths['plan_yaml']}")
+    for path in paths["plots"]:
+        typer.echo(f"plot: {path}")
+    typer.echo(f"report: {paths['report']}")
 
 
 @app.command()

@@ -18,7 +18,7 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["MISSING", "duration", "joined", "number", "quantity", "split_unit", "utc"]
+__all__ = ["MISSING", "byte_size", "duration", "joined", "number", "quantity", "split_unit", "utc"]
 
 MISSING = "-"
 """What a missing value (``None``, NaN) is shown as."""
@@ -59,6 +59,18 @@ def number(
     if text in ("-0", ""):
         text = "0"
     return _with_unit(text, unit)
+
+
+def byte_size(size: int | None) -> str:
+    """A size in bytes with binary multiples (``812 B``, ``4.2 MiB``, ``1.07 GiB``)."""
+    if _missing(size):
+        return MISSING
+    value = float(size)
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(value) < 1024.0 or unit == "GiB":
+            return f"{int(value)} B" if unit == "B" else f"{number(value, digits=3)} {unit}"
+        value /= 1024.0
+    return MISSING  # unreachable: the loop returns at GiB
 
 
 def duration(seconds: float | None) -> str:

@@ -129,4 +129,6 @@ def plan_task(
         "json": str(planned["json"]),
         "yaml": str(planned["yaml"]),
         "plots": [str(p) for p in planned["plots"]],
+        "report": str(planned["report"]),
+        "pick": planned["pick"],
     }

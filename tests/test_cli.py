@@ -9,6 +9,7 @@ import sys
 from io import StringIO
 from pathlib import Path
 
+import pytest
 import yaml
 from typer.testing import CliRunner
 
@@ -246,17 +247,18 @@ def test_deorbit_burn_bad_value_exits_2_naming_the_field(tmp_path):
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
 
-def test_samples_0_is_refused_in_one_line_naming_the_option(tmp_path):
+@pytest.mark.parametrize("command", ["run", "pipeline"])
+def test_samples_0_is_refused_in_one_line_naming_the_option(tmp_path, command):
     """Not silently replaced by the config's 8: exit 2, one line naming --samples."""
     done = subprocess.run(
-        [OVTRAJ, "run", "--samples", "0", "--store", str(tmp_path)],
+        [OVTRAJ, command, "--samples", "0", "--store", str(tmp_path)],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert done.returncode == 2 and done.stdout == ""
     (line,) = done.stderr.splitlines()
-    assert line.startswith("ovtraj run: ") and "'--samples'" in line
+    assert line.startswith(f"ovtraj {command}: ") and "'--samples'" in line
     assert not list(tmp_path.iterdir())
 
 

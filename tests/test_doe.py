@@ -263,6 +263,7 @@ def test_append_makes_a_child_run_that_reuses_the_parent_batches(tmp_path, scena
 
 def test_cli_run_runs_show_and_replay(tmp_path):
     import json
+    import re
 
     from typer.testing import CliRunner
 
@@ -276,7 +277,10 @@ def test_cli_run_runs_show_and_replay(tmp_path):
     assert done.exit_code == 0, done.output
     (rid,) = [p.name for p in (tmp_path / "runs").iterdir()]
     listed = runner.invoke(app, ["runs", "--store", store])
-    assert listed.exit_code == 0 and rid in listed.stdout and "samples 2" in listed.stdout
+    assert listed.exit_code == 0, listed.output
+    (row,) = [line for line in listed.stdout.splitlines() if line.startswith(rid)]
+    # one row, every column whole: id, created, scenario, origin, samples, feasible/evaluated
+    assert re.search(r"latin hypercube +2 +\d/2 +complete +- +\d+(\.\d+)? KiB$", row), row
     shown = runner.invoke(app, ["show", rid, "--store", store])
     manifest = json.loads(shown.stdout)["manifest"]
     assert manifest["run_id"] == rid and manifest["status"] == "complete"

@@ -225,8 +225,13 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     plan_path = Path(plan_json)
     assert plan_path.is_absolute()
     marker = json.loads(plan_path.with_name(f"{plan_path.stem}.files.json").read_text())
-    written = {Path(line.split(": ", 1)[1]).name for line in done.output.splitlines()}
-    assert set(marker["files"]) == written and len(written) >= 4
+    written = {
+        Path(line.split(": ", 1)[1]).name
+        for line in done.output.splitlines()
+        if line.startswith(("plan: ", "plot: ", "report: "))
+    }
+    assert set(marker["files"]) == written and len(written) >= 5
+    assert done.output.startswith("picked front point 0 (") and "--pick 0" in done.output
     checked = small["doe"].verify()
     assert checked.clean and not checked.uncovered, (checked.problems, checked.uncovered)
     # Bad inputs: clear errors, nothing written.
@@ -651,9 +656,103 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
         Path(line.split(": ", 1)[1]) for line in lines if line.startswith(("front:", "plan:"))
     ]
     assert len(written) == 3 and all(p.is_absolute() and p.is_file() for p in written)
+    # It says whether the loop converged and why it stopped (one infill round of 2 points:
+    # the budget or the round limit ends it unless the 2 % tolerance is met).
+    verdict = next(line for line in lines if re.match(r"(not )?converged: ", line))
+    report = Path(next(line for line in lines if line.startswith("report: ")).split(": ", 1)[1])
+    assert report.is_absolute() and report.is_file()
+    page = report.read_text(encoding="utf-8")
+    assert verdict in page and page.count("src='data:image/png;base64,") >= 5
     runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
     assert len(runs) == 2  # the DoE and its infill child
-    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    # Again, as JSON: nothing evaluated, one object on stdout, the same verdict and report.
+    again = subprocess.run(
+        [*command, "--json"], cwd=tmp_path, capture_output=True, text=True, timeout=600
+    )
     assert again.returncode == 0, again.stderr
-    assert not [line for line in again.stdout.splitlines() if re.match(r"batch \d+/", line)]
+    assert not re.search(r"^batch \d+/", again.stdout + again.stderr, flags=re.MULTILINE)
+    summary = json.loads(again.stdout)
+    assert summary["verdict"] == verdict and summary["converged"] == (not verdict.startswith("not"))
+    assert summary["report"] == str(report) and report.read_text(encoding="utf-8") == page
     assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == runs
+
+
+def _copied_store(small, tmp_path) -> RunStore:
+    import shutil
+
+    shutil.copytree(small["store"].root, tmp_path / "runs")
+    return RunStore(tmp_path / "runs")
+
+
+def test_runs_lists_families_and_plan_takes_any_run_of_one(small, tmp_path):
+    """``ovtraj runs`` groups the infill runs under their DoE run, with its pipeline result;
+    ``ovtraj plan`` accepts any run of the family; the report is the same bytes again."""
+    store = _copied_store(small, tmp_path)
+    result, doe = small["result"], small["doe"].id
+    runner = CliRunner()
+    listed = runner.invoke(app, ["runs", "--store", str(store.root), "--json"])
+    assert listed.exit_code == 0, listed.output
+    entries = json.loads(listed.stdout)["runs"]
+    assert entries[0]["run_id"] == doe and entries[0]["depth"] == 0
+    assert entries[0]["pipelines"] == [result.pipeline_id]
+    children = entries[1:]
+    infill = {i["infill_run"] for i in result.summary["iterations"] if "infill_run" in i}
+    assert {e["run_id"] for e in children} == infill and result.final_run in infill
+    assert all(e["family"] == doe and e["depth"] >= 1 for e in children)
+    assert all(e["origin"].startswith("infill ") and e["size_bytes"] > 0 for e in children)
+    table = runner.invoke(app, ["runs", "--store", str(store.root)])
+    assert table.exit_code == 0 and "pipeline results" in table.stdout
+    assert f"└ {result.final_run}" in table.stdout and result.pipeline_id in table.stdout
+    pages = []
+    for rid in (result.final_run, doe):
+        done = runner.invoke(app, ["plan", rid, "--pick", "0", "--store", str(store.root)])
+        assert done.exit_code == 0, done.output
+        report = Path(done.stdout.split("report: ", 1)[1].strip())
+        pages.append(report.read_bytes())
+    assert pages[0] == pages[1] and b"Verification rounds" in pages[0]
+
+
+def test_prune_removes_superseded_runs_and_stale_fits_and_keeps_every_result(small, tmp_path):
+    from ovtraj.pipeline.planning import find_pipeline
+    from ovtraj.pipeline.prune import prunable, remove
+
+    store = _copied_store(small, tmp_path)
+    result = small["result"]
+    runner = CliRunner()
+    rounds = [i["infill_run"] for i in result.summary["iterations"] if "infill_run" in i]
+    superseded = set(rounds) - {result.final_run}
+    assert superseded, "the fixture's loop ran one round only: nothing superseded"
+    listed = runner.invoke(
+        app, ["prune", "--store", str(store.root), "--only", "children", "--json"]
+    )
+    assert listed.exit_code == 0, listed.output
+    items = json.loads(listed.stdout)["items"]
+    assert {Path(i["path"]).name for i in items} == superseded
+    assert all((store.root / rid).is_dir() for rid in superseded)  # a dry run by default
+    done = runner.invoke(app, ["prune", "--store", str(store.root), "--only", "children", "--yes"])
+    assert done.exit_code == 0, done.output
+    assert all(not (store.root / rid).exists() for rid in superseded)
+    assert not [p for p in store.root.iterdir() if p.name.startswith(".pruned-")]
+    for rid in (small["doe"].id, result.final_run):
+        checked = store.run(rid).verify()
+        assert checked.clean and not checked.uncovered, (checked.problems, checked.uncovered)
+    # a removed run's id still leads to its family's result
+    pruned = sorted(superseded)[0]
+    planned = runner.invoke(app, ["plan", pruned, "--pick", "0", "--store", str(store.root)])
+    assert planned.exit_code == 0, planned.output
+    # Fits and fronts of this code are kept; of another code version they are stale.
+    assert prunable(store, small["code"], kinds=("fits",)) == []
+    stale = prunable(store, "another-code-version", kinds=("fits",))
+    kinds = {item.path.parent.name for item in stale}
+    assert kinds == {"surrogates", "fronts"} and all(remove(item) for item in stale)
+    again = find_pipeline(store.run(small["doe"].id))
+    assert again.front.equals(result.front)
+    # Prefect's local results: a cache, listed and removed file by file.
+    results = tmp_path / "prefect-results"
+    results.mkdir()
+    (results / "a").write_bytes(b"x" * 10)
+    cached = prunable(store, small["code"], kinds=("prefect-results",), prefect_results=results)
+    assert [(i.path.name, i.size_bytes) for i in cached] == [("a", 10)]
+    assert remove(cached[0]) and not (results / "a").exists()
+    refused = runner.invoke(app, ["prune", "--store", str(store.root), "--only", "everything"])
+    assert refused.exit_code == 2 and "--only" in refused.output

@@ -119,7 +119,7 @@ def pipeline_doe_run(
     settings = scenario.mission.doe
     run = prepare_run(
         scenario,
-        samples=samples or settings.samples,
+        samples=settings.samples if samples is None else samples,
         seed=settings.seed if seed is None else seed,
         code=code,
         store=store,

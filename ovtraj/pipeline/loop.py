@@ -211,7 +211,8 @@ def run_pipeline(
         record.update(verified_points=len(picks), max_error=worst, infill_run=child.id)
         say(
             f"  verified {len(picks)} front points in run {child.id}: "
-            f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.3%}"
+            f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.1%} of the "
+            f"objective span (tolerance {verify.tolerance:.1%}; an infeasible point counts 100 %)"
         )
         run = child
         if bool(verified["real_feasible"].all()) and worst < verify.tolerance:
@@ -321,7 +322,7 @@ def _finish(
             normalisation,
             samples=totals[totals["feasible"].astype(bool)],
             verified=front.to_pandas(),
-            title=f"verified front: pipeline {pid}, run {run.id}",
+            title=f"verified front of DoE run {doe_run.id} (pipeline {pid})",
             scenario=scenario.name,
             date=f"epoch {scenario.epoch_utc}",
         )

@@ -2,44 +2,32 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest, read_json, write_json
+from ovtraj.files import file_digest, write_json
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
+from ovtraj.pipeline.catalog import pipeline_summaries
 from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
+from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.products import digests_json
-from ovtraj.runs import Run, RunStore
+from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.storage import location
 
 PLAN_MARKER_SUFFIX = ".files.json"
 
 
-def _stored_pipelines(run: Run) -> list[tuple[Path, dict[str, Any]]]:
-    """(directory, ``pipeline.json``) of every complete pipeline result, oldest first."""
-    folder = run.directory / "pipeline"
-    found = []
-    for directory in sorted(folder.iterdir()) if folder.is_dir() else []:
-        marker = directory / "pipeline.json"
-        if marker.is_file():
-            summary = read_json(marker)
-            if isinstance(summary, dict):
-                found.append((directory, summary))
-    return sorted(found, key=lambda item: item[1].get("created_utc") or "")
-
-
 def pipeline_results(run: Run) -> list[PipelineResult]:
     """The pipeline results stored in a DoE run, oldest first (every file checked)."""
-    return [load_pipeline(directory) for directory, _ in _stored_pipelines(run)]
+    return [load_pipeline(directory) for directory, _ in pipeline_summaries(run)]
 
 
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
     """The run's pipeline result: the one named, else the newest (its files checked)."""
-    stored = _stored_pipelines(run)
+    stored = pipeline_summaries(run)
     if not stored:
         raise PipelineError(
             f"run {run.id} has no pipeline result: run `ovtraj pipeline` (or the mission "
@@ -106,7 +94,19 @@ def write_mission_plan(
             date=f"epoch {scenario.epoch_utc}",
         )
     )
-    paths = [json_path, yaml_path, *(location(p) for p in plots)]
+    report = write_report(
+        directory / f"{name}-report.html",
+        scenario_name=scenario.name,
+        normalisation=normalisation,
+        summary=result.summary,
+        verify=scenario.mission.verify,
+        front=result.front,
+        plan=plan,
+        pick_text=pick_explanation(result.front, normalisation, pick, row),
+        validation=_last_validation(store, result),
+        plots=[result.directory / "front.png", *(location(p) for p in plots)],
+    )
+    paths = [json_path, yaml_path, *(location(p) for p in plots), report]
     files = {path.name: file_digest(path) for path in paths}
     write_json(
         directory / f"{name}{PLAN_MARKER_SUFFIX}",
@@ -118,4 +118,24 @@ def write_mission_plan(
         "json": json_path,
         "yaml": yaml_path,
         "plots": [location(p) for p in plots],
+        "report": report,
+        "pick": pick_explanation(result.front, normalisation, pick, row),
     }
+
+
+def _last_validation(store: RunStore, result: PipelineResult) -> Any:
+    """The validation table of the pipeline's last surrogate fit; None when it is no longer
+    stored (pruned as stale)."""
+    from ovtraj.pipeline.features import load_surrogates
+    from ovtraj.surrogate import SurrogateError
+
+    rounds = result.summary.get("iterations") or []
+    if not rounds:
+        return None
+    last = rounds[-1]
+    try:
+        return load_surrogates(
+            store.root / last["run_id"] / "surrogates" / last["fit_id"]
+        ).validation
+    except (SurrogateError, StoreError, OSError):
+        return None

@@ -74,6 +74,8 @@ def prepare_run(
     """
     if scenario.mission is None:
         raise ValueError("the scenario has no mission section")
+    if int(samples) < 1 or int(seed) < 0:
+        raise ValueError(f"samples must be >= 1 and seed >= 0; got samples {samples}, seed {seed}")
     bounds = scenario.mission.design_bounds
     if parent is None:
         resolved = scenario.resolved()
@@ -119,6 +121,7 @@ def extend_run(
         code=code,
         parent=parent.id,
         origin=origin,
+        lineage=[*parent.lineage(), parent.id],
     )
     child.adopt(parent)
     return child

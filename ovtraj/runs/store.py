@@ -227,6 +227,22 @@ class Run:
             path, self._file_digest("samples.parquet"), DATASETS["samples"]
         ).to_pandas()
 
+    def lineage(self) -> list[str]:
+        """The run's ancestors, the root (a DoE run) first: recorded in the manifest when
+        the run was created, else found by following the stored parents."""
+        manifest = self.manifest
+        if "lineage" in manifest:
+            return list(manifest["lineage"])
+        chain: list[str] = []
+        parent = manifest.get("parent")
+        while parent and parent not in chain:
+            chain.insert(0, parent)
+            try:
+                parent = Run(self.directory.parent / parent).manifest.get("parent")
+            except (StoreError, OSError):
+                break  # a removed ancestor ends what can be followed
+        return chain
+
     def update_manifest(self, **changes: Any) -> bool:
         """Merge ``changes`` into the manifest; returns False (writes nothing) if none differ."""
         if all(self.manifest.get(k) == v for k, v in changes.items()):
@@ -544,6 +560,7 @@ class Run:
         summary = {
             "run_id": self.id,
             "parent": manifest.get("parent"),
+            "origin": manifest.get("origin"),
             "created_utc": manifest.get("created_utc"),
             "status": self.status(),
             "scenario": manifest.get("scenario"),
@@ -692,8 +709,12 @@ class RunStore:
         code: str,
         parent: str | None = None,
         origin: str = "latin hypercube",
+        lineage: list[str] | None = None,
     ) -> Run:
-        """The run of these inputs: created, or the stored one if it exists (same id)."""
+        """The run of these inputs: created, or the stored one if it exists (same id).
+
+        ``lineage``: the parent's ancestors and the parent, root first (kept in the
+        manifest so that a family is known when intermediate runs are pruned)."""
         rid = run_id(resolved, seed, samples, code, parent)
         directory = self.root / rid
         samples = samples.reset_index(drop=True)
@@ -715,6 +736,7 @@ class RunStore:
                 "run_id": rid,
                 "schema_version": SCHEMA_VERSION,
                 "parent": parent,
+                "lineage": list(lineage or ([parent] if parent else [])),
                 "created_utc": _utc_now(),
                 "scenario": resolved.get("name"),
                 "results_hash": results_hash(resolved),

@@ -1,0 +1,281 @@
+"""What a pipeline result means, in words and in one self-contained HTML report.
+
+:func:`stop_explanation` says whether the verification loop converged and why it stopped;
+:func:`pick_explanation` why the planned point was chosen; :func:`write_report` writes
+``<plan>-report.html`` next to the plan: the verdict, the rounds, the surrogates'
+validation, the verified front, the plan's key figures and every plot, embedded
+(``data:`` URIs), so the file can be mailed or opened on another machine. The report holds
+only stored results (no wall clock, no host): the same plan gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ovtraj.files import write_bytes
+from ovtraj.formatting import number, utc
+from ovtraj.optimize import Normalisation
+from ovtraj.pipeline.pick import Pick
+from ovtraj.plots.embed import png_data_uri
+
+__all__ = ["pick_explanation", "stop_explanation", "write_report"]
+
+_STOPS = {
+    "converged": "converged: every front point verified in the last round is feasible and "
+    "its predicted objectives are within {tolerance:.1%} of the objective span of the real "
+    "chain's values",
+    "front already evaluated": "converged: every point of the surrogate front has already "
+    "been evaluated with the real chain",
+    "max_iterations": "not converged: stopped after {max_iterations} rounds "
+    "(mission.verify.max_iterations) with a largest error of {error} on the front (the "
+    "tolerance is {tolerance:.1%} of the objective span; an infeasible point counts 100 %). "
+    "The verified front holds real values only, but the surrogates may still miss part of "
+    "it",
+    "budget": "not converged: the budget of {budget} real infill evaluations "
+    "(mission.verify.budget) is spent, largest error {error} on the front (tolerance "
+    "{tolerance:.1%})",
+    "empty surrogate front": "not converged: NSGA-II found no surrogate point predicted "
+    "feasible; the verified front comes from the DoE samples only",
+}
+
+
+def stop_explanation(summary: dict[str, Any], verify: Any) -> str:
+    """One sentence: converged or not, and why the loop stopped (``verify``: the
+    scenario's ``mission.verify`` settings)."""
+    errors = [i["max_error"] for i in summary.get("iterations", []) if "max_error" in i]
+    template = _STOPS.get(summary["stop_reason"], "stopped: {reason}")
+    return template.format(
+        tolerance=verify.tolerance,
+        max_iterations=verify.max_iterations,
+        budget=verify.budget,
+        error=f"{errors[-1]:.1%}" if errors else "-",
+        reason=summary["stop_reason"],
+    )
+
+
+def _objective_text(normalisation: Normalisation, row: pd.Series) -> str:
+    return ", ".join(
+        f"{o.label} {number(float(row[o.name]) * o.report_scale, digits=4)} {o.report_unit}"
+        for o in normalisation.objectives
+    )
+
+
+def pick_explanation(
+    front: pd.DataFrame, normalisation: Normalisation, pick: Pick, row: pd.Series
+) -> str:
+    """Why ``row`` (the result of ``pick_front_point``) is the planned point."""
+    chosen = f"front point {int(row['front_index'])} ({_objective_text(normalisation, row)})"
+    if pick.index is not None:
+        return f"{chosen}: picked by its index on the front (--pick {pick.index})"
+    weights = np.array(pick.weights if pick.weights is not None else (1.0, 1.0, 1.0), float)
+    limits = [
+        f"{label} {sign} {value:g} {unit}"
+        for label, sign, value, unit in (
+            ("T_total", "<=", pick.max_t_total_h, "h"),
+            ("dV_total", "<=", pick.max_dv_total_mps, "m/s"),
+            ("M_load", ">=", pick.min_m_load_kg, "kg"),
+        )
+        if value is not None
+    ]
+    values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
+    scores = values @ (weights / weights.sum())
+    among = f"among the {len(front)} points of the verified front"
+    if limits:
+        among += f" that meet {' and '.join(limits)}"
+    shown = ", ".join(f"{w:g}" for w in weights)
+    return (
+        f"{chosen}: the lowest weighted sum of the normalised objectives (weights T, dV, M = "
+        f"{shown}; 0 is the ideal point, 1 the reference point) {among}, score "
+        f"{scores[int(row['front_index'])]:.4f}"
+    )
+
+
+def _table(frame: pd.DataFrame) -> str:
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in frame.columns)
+    rows = []
+    for values in frame.itertuples(index=False):
+        cells = []
+        for value in values:
+            if value is None or (np.ndim(value) == 0 and pd.isna(value)):
+                text = "-"
+            elif isinstance(value, float | np.floating):
+                text = number(float(value), digits=4)
+            else:
+                text = str(value)
+            cells.append(f"<td>{html.escape(text)}</td>")
+        rows.append(f"<tr>{''.join(cells)}</tr>")
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+
+
+def _front_frame(front: pd.DataFrame, normalisation: Normalisation) -> pd.DataFrame:
+    shown = front[["front_index", "sample_id", "origin"]].copy()
+    for column, unit in (
+        ("parking_altitude_km", "km"),
+        ("preparation_altitude_km", "km"),
+        ("separation_delay_h", "h"),
+    ):
+        shown[f"{column.removesuffix('_' + unit)} [{unit}]"] = front[column]
+    for o in normalisation.objectives:
+        shown[f"{o.label} [{o.report_unit}]"] = front[o.name] * o.report_scale
+    return shown
+
+
+def _rounds_frame(summary: dict[str, Any]) -> pd.DataFrame:
+    rows = [
+        {
+            "round": i["iteration"],
+            "training samples": i["samples"],
+            "feasible": i["feasible"],
+            "surrogate front points": i["surrogate_front_points"],
+            "surrogate hypervolume": i["surrogate_hypervolume"],
+            "verified points": i.get("verified_points"),
+            "largest error": (f"{i['max_error']:.1%}" if "max_error" in i else None),
+            "infill run": i.get("infill_run"),
+        }
+        for i in summary.get("iterations", [])
+    ]
+    return pd.DataFrame(rows)
+
+
+def _totals_rows(plan: Any) -> list[tuple[str, str]]:
+    """The plan's totals beside the front's values of the same design: the plan flies from
+    the launch solved at its altitude, the front's evaluation from the launch fit, so
+    they differ a little (and more where a stage's solver found another local optimum)."""
+    front = plan.source.get("front_objectives", {})
+    rows = []
+    for label, name, scale, unit in (
+        ("T_total", "t_total_s", 1 / 3600.0, "h"),
+        ("dV_total", "dv_total_mps", 1.0, "m/s"),
+        ("M_load", "m_load_kg", 1.0, "kg"),
+    ):
+        value = getattr(plan.totals, name) * scale
+        text = f"{number(value, digits=4)} {unit}"
+        if name in front:
+            stored = front[name] * scale
+            text += (
+                f" (front: {number(stored, digits=4)} {unit}, "
+                f"difference {number(value - stored, digits=3)} {unit})"
+            )
+        rows.append((label, text))
+    return rows
+
+
+def _plan_rows(plan: Any) -> pd.DataFrame:
+    rows = [
+        ("launch day", utc(plan.launch_day_utc)),
+        ("drop", utc(plan.launch.drop_epoch_utc)),
+        ("payload in orbit", f"{number(plan.launch.payload_kg, digits=4)} kg"),
+        ("rendezvous wait", f"{number(plan.rendezvous.wait_time_s / 3600.0, digits=4)} h"),
+        ("docking", utc(plan.stay.docking_epoch_utc)),
+        ("separation", utc(plan.stay.separation_epoch_utc)),
+        (
+            "deorbit burn",
+            f"{utc(plan.deorbit.burn.epoch_utc)}, {number(plan.deorbit.burn.dv_mps, digits=4)} m/s",
+        ),
+        ("entry interface", utc(plan.deorbit.entry_epoch_utc)),
+        (
+            "landing",
+            f"{utc(plan.terminal.epoch_utc)} at {plan.terminal.landing_site_name}, "
+            f"miss {number(plan.terminal.miss_distance_m / 1000.0, digits=3)} km",
+        ),
+        *_totals_rows(plan),
+        ("peak heat rate", f"{number(plan.reentry.max_heat_rate_w_m2 / 1000.0, digits=4)} kW/m²"),
+        ("peak load factor", f"{number(plan.reentry.max_load_g, digits=3)} g"),
+        (
+            "peak dynamic pressure",
+            f"{number(plan.reentry.max_dynamic_pressure_pa / 1000.0, digits=4)} kPa",
+        ),
+    ]
+    return pd.DataFrame(rows, columns=["quantity", "value"])
+
+
+_VALIDATION_COLUMNS = (
+    "model",
+    "kind",
+    "candidate",
+    "n_train",
+    "n_heldout",
+    "cv_rmse",
+    "cv_q2",
+    "heldout_rmse",
+    "heldout_r2",
+    "cv_accuracy",
+    "heldout_accuracy",
+)
+
+_STYLE = """
+body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#222}
+h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ccc}
+table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
+td,th{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}
+.verdict{padding:.6em 1em;border-left:.4em solid}.ok{border-color:#2a2;background:#efe}
+.no{border-color:#d80;background:#fff6e6}figure{margin:1em 0}img{max-width:100%}
+figcaption{font-size:.8em;color:#555}
+"""
+
+
+def write_report(
+    path: Path,
+    *,
+    scenario_name: str,
+    normalisation: Normalisation,
+    summary: dict[str, Any],
+    verify: Any,
+    front: pd.DataFrame,
+    plan: Any,
+    pick_text: str,
+    validation: pd.DataFrame | None,
+    plots: list[Path],
+) -> Path:
+    """The HTML report of a planned pipeline result at ``path`` (rewritten with the plan:
+    it is a view of stored results); returns ``path``."""
+    converged = bool(summary.get("converged"))
+    evaluations = summary["real_evaluations"]
+    title = f"ovtraj mission report: {scenario_name}"
+    parts = [
+        f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p>pipeline {html.escape(summary['pipeline_id'])} of DoE run "
+        f"{html.escape(summary['doe_run'])} (final run {html.escape(summary['final_run'])}), "
+        f"stored {html.escape(utc(summary.get('created_utc')))}; code "
+        f"{html.escape(str(summary.get('code')))}</p>",
+        f"<p class='verdict {'ok' if converged else 'no'}'>"
+        f"{html.escape(stop_explanation(summary, verify))}.</p>",
+        f"<p>real evaluations: {evaluations['doe']} (DoE) + {evaluations['infill']} (infill); "
+        f"verified front: {len(front)} points, hypervolume {summary['hypervolume']:.4f} "
+        "(normalised objectives, reference point 1).</p>",
+        "<h2>The plan</h2>",
+        f"<p>{html.escape(pick_text)}.</p>",
+        _table(_plan_rows(plan)),
+        "<h2>Verification rounds</h2>",
+        _table(_rounds_frame(summary)),
+        "<h2>Verified front (real chain)</h2>",
+        "<p>T_total and dV_total: lower is better; M_load: higher is better.</p>",
+        _table(_front_frame(front, normalisation)),
+        "<h2>Surrogates of the last round (selected models)</h2>",
+    ]
+    if validation is None:
+        parts.append("<p>the last round's surrogate fit is no longer stored.</p>")
+    else:
+        chosen = validation[validation["selected"].astype(bool)]
+        shown = [c for c in _VALIDATION_COLUMNS if c in chosen and chosen[c].notna().any()]
+        parts.append(
+            "<p>k-fold cross-validation (cv_) and held-out (heldout_) figures of each output's "
+            "selected model, in the output's unit (times in s).</p>"
+        )
+        parts.append(_table(chosen[shown]))
+    parts.append("<h2>Plots</h2>")
+    for plot in plots:
+        parts.append(
+            f"<figure><img alt='{html.escape(plot.name)}' src='{png_data_uri(plot)}'>"
+            f"<figcaption>{html.escape(plot.name)}</figcaption></figure>"
+        )
+    parts.append("</body></html>\n")
+    write_bytes(path, "\n".join(parts).encode("utf-8"), replace=True)
+    return path
