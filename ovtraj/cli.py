@@ -837,15 +837,17 @@ def runs(store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
         typer.echo(f"{store.root}: {err}", err=True)
         raise typer.Exit(code=2) from None
     if as_json:
-        _print_json({"store": str(store.root), "runs": [e.to_json() for e in entries]})
+        _print_json({"store": str(store.root.resolve()), "runs": [e.to_json() for e in entries]})
         return
     if not entries:
-        typer.echo(f"no runs in {store.root}")
+        typer.echo(f"no runs in {store.root.resolve()}")
         return
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"runs in {store.root}", title_justify="left", box=None, pad_edge=False)
+    table = Table(
+        title=f"runs in {store.root.resolve()}", title_justify="left", box=None, pad_edge=False
+    )
     for column, justify in (
         ("run", "left"),
         ("created (UTC)", "left"),
@@ -953,7 +955,7 @@ def prune(
     if as_json:
         _print_json(
             {
-                "store": str(store.root),
+                "store": str(store.root.resolve()),
                 "deleted": yes,
                 "items": [i.to_json() | {"removed": i in removed} for i in items],
                 "freed_bytes": freed,

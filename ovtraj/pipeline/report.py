@@ -243,8 +243,7 @@ def write_report(
         f"<h1>{html.escape(title)}</h1>",
         f"<p>pipeline {html.escape(summary['pipeline_id'])} of DoE run "
         f"{html.escape(summary['doe_run'])} (final run {html.escape(summary['final_run'])}), "
-        f"stored {html.escape(utc(summary.get('created_utc')))}; code "
-        f"{html.escape(str(summary.get('code')))}</p>",
+        f"code {html.escape(str(summary.get('code')))}</p>",
         f"<p class='verdict {'ok' if converged else 'no'}'>"
         f"{html.escape(stop_explanation(summary, verify))}.</p>",
         f"<p>real evaluations: {evaluations['doe']} (DoE) + {evaluations['infill']} (infill); "
