@@ -600,6 +600,27 @@ def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
     assert set(fallback.validation.query("model == 't_h'")["candidate"]) == set(settings.regressors)
 
 
+def test_a_shortlist_compares_the_first_fits_best_candidates_only(fitted, settings):
+    """``selection: shortlist``: each output's two lowest-CV-RMSE candidates of a fit, and
+    its classifier; a fit given them compares only those, with the same figures."""
+    from ovtraj.surrogate.fit import shortlist
+
+    fit = fitted[0]
+    kept = shortlist(fit.validation, 2)
+    for name in ("t_h", "dv_mps"):
+        rows = fit.validation.query("model == @name").dropna(subset=["cv_rmse"])
+        assert kept[name] == rows.nsmallest(2, "cv_rmse")["candidate"].tolist()
+        assert kept[name][0] == fit.selected[name]  # the selection's own criterion first
+    assert kept["feasible"] == fit.selected["feasible"]
+    again = _fit_again(fitted, settings, candidates=kept)
+    compared = again.validation.groupby("model")["candidate"].apply(set).to_dict()
+    assert compared == {name: set(k) if isinstance(k, list) else {k} for name, k in kept.items()}
+    assert again.selected == fit.selected  # the best of the two is still the best
+    full = fit.validation.set_index(["model", "candidate"])["cv_rmse"]
+    for row in again.validation.query("kind == 'regressor'").itertuples():
+        assert row.cv_rmse == full.loc[(row.model, row.candidate)]
+
+
 def test_candidates_scored_in_processes_give_the_fit_of_this_process(fitted, settings):
     """On a pool of two spawned processes (the pipeline's ``processes`` runner): the same
     selection, figures and predictions; only the measured fit times differ."""

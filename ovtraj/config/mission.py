@@ -89,9 +89,13 @@ class SurrogateSettings(StrictModel):
     phase_input: bool = Field(
         description="model dV_total by parts on the phase of the rendezvous wait (docs/optimize.md)"
     )
-    selection: Literal["every_fit", "first_fit"] = Field(
-        description="candidates compared by CV on every fit, or on a pipeline's first fit and "
-        "refitted unchanged on its later ones"
+    selection: Literal["every_fit", "first_fit", "shortlist"] = Field(
+        description="candidates compared by CV on every fit; on a pipeline's first fit and "
+        "refitted unchanged on its later ones; or all on the first fit and, on the later ones, "
+        "only the shortlist_size best of the first fit"
+    )
+    shortlist_size: int = bounded(
+        ge=1, le=20, description="selection: shortlist: regressor candidates kept per output"
     )
     floor_softness_h: float = bounded(
         unit="h", gt=0, le=1000, description="T_total's predictions: softplus scale above its floor"

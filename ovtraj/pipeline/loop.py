@@ -61,6 +61,7 @@ from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_fra
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
 from ovtraj.storage import location
+from ovtraj.surrogate.fit import shortlist
 
 logger = logging.getLogger(__name__)
 
@@ -158,12 +159,15 @@ def run_pipeline(
     names = normalisation.names
     run, spent, rows, iterations = doe_run, 0, [], []
     stop = "max_iterations"
-    kept: dict[str, str] | None = None  # the first fit's models (surrogate.selection)
+    kept: dict[str, Any] | None = None  # the first fit's models (surrogate.selection)
     for iteration in range(1, verify.max_iterations + 1):
         data = training_data(run)
         fit = steps.fit(run, data, scenario, code, candidates=kept)
-        if scenario.mission.surrogate.selection == "first_fit" and kept is None:
+        settings = scenario.mission.surrogate
+        if kept is None and settings.selection == "first_fit":
             kept = dict(fit.surrogates.selected)
+        elif kept is None and settings.selection == "shortlist":
+            kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
         front = steps.front(run, fit, scenario, code).front
         record = {
             "iteration": iteration,

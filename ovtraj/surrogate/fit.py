@@ -29,7 +29,7 @@ import pickle
 import platform
 import threading
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor
 from contextlib import contextmanager
 from pathlib import Path
@@ -582,7 +582,7 @@ def fit_surrogates(
     *,
     input_names: tuple[str, ...],
     sample_ids: np.ndarray | None = None,
-    candidates: Mapping[str, str] | None = None,
+    candidates: Mapping[str, str | Sequence[str]] | None = None,
     executor: Executor | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
@@ -606,9 +606,10 @@ def fit_surrogates(
 
     ``candidates`` (output name -> candidate, ``"feasible"`` -> classifier; e.g. an earlier
     fit's ``selected``) restricts the models named there to that one candidate: it is still
-    cross-validated and checked on the hold-out, but not compared with the others. If it
-    cannot be fitted on these data (or the earlier set was all feasible and this one is
-    not), every configured candidate is tried as without the restriction.
+    cross-validated and checked on the hold-out, but not compared with the others. A
+    regressor may be given a list (a shortlist, :func:`shortlist`): those candidates are
+    compared. If none can be fitted on these data (or the earlier set was all feasible and
+    this one is not), every configured candidate is tried as without the restriction.
 
     With ``settings.holdout_refit`` the selected models are then fitted again on every
     sample, the held-out ones included: the held-out figures describe the model fitted
@@ -674,7 +675,7 @@ def _fit_regressors(
     ids: np.ndarray,
     held: np.ndarray,
     settings: SurrogateSettings,
-    candidates: dict[str, str],
+    candidates: dict[str, str | list[str]],
     executor: Executor | None = None,
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
     """CV, selection and final fit of every output's regressor (feasible samples only)."""
@@ -707,10 +708,7 @@ def _fit_regressors(
             out[name].append(score)
         return out
 
-    first = {
-        name: [candidates[name]] if candidates.get(name) in configured else configured
-        for name in values
-    }
+    first = {name: _shortlisted(candidates.get(name), configured) for name in values}
     all_scores = scored(first)
     # A kept candidate that cannot be fitted on these data: every candidate is compared.
     retry = {
@@ -768,6 +766,29 @@ def _refitted(scored: Any, refit: Any) -> Any:
         return refit()
     except CandidateError:
         return scored
+
+
+def shortlist(validation: pd.DataFrame, size: int) -> dict[str, str | list[str]]:
+    """From a fit's validation table: each regressed output's ``size`` candidates of lowest
+    CV RMSE (the selection's own criterion, :func:`select_regressor`), and the selected
+    classifier: the ``candidates`` of a later fit that compares only these."""
+    kept: dict[str, str | list[str]] = {}
+    regressors = validation[(validation["kind"] == "regressor") & validation["cv_rmse"].notna()]
+    for model, rows in regressors.groupby("model", sort=True):
+        ranked = rows.sort_values("cv_rmse", kind="stable")["candidate"].tolist()
+        kept[str(model)] = ranked[:size]
+    chosen = validation["selected"].astype(bool)
+    classifiers = validation[(validation["kind"] == "classifier") & chosen]
+    for row in classifiers.itertuples(index=False):
+        kept[str(row.model)] = str(row.candidate)  # the last set's (the main model's)
+    return kept
+
+
+def _shortlisted(kept: str | Sequence[str] | None, configured: list[str]) -> list[str]:
+    """The configured candidates among ``kept`` (one name or several), in config order; all
+    of them when none is kept."""
+    listed = [kept] if isinstance(kept, str) else list(kept or ())
+    return [c for c in configured if c in listed] or configured
 
 
 def _fit_classifier(
