@@ -11,7 +11,7 @@ import concurrent.futures
 import contextvars
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -19,6 +19,7 @@ from typing import Any
 from prefect import get_run_logger
 
 from flows.runners import ClusterError, count_workers, task_runner
+from ovtraj.plots.embed import png_data_uri
 from tasks.common import ORCHESTRATION
 
 FLOW_TIMEOUTS = ORCHESTRATION.flows
@@ -73,6 +74,18 @@ def prune_expired_results() -> int:
         except OSError:
             continue  # another flow removed it, or it is not ours to remove
     return removed
+
+
+def embedded_plots(paths: Iterable[str | Path]) -> list[str]:
+    """Markdown paragraphs that show each PNG itself, its path under it as the caption.
+
+    The image is embedded as a ``data:`` URI (``![name](data:image/png;base64,...)``), so
+    any Prefect UI shows it, one on another machine too; both UIs of Prefect 3.9 (``/``
+    and ``/v2``) render it (tests/test_prefect_ui.py, in chromium). Base64 makes the
+    markdown a third larger than the PNGs (~1 MB for a mission plan's five plots); the
+    server stores artifacts of tens of MB.
+    """
+    return [f"![{str(p).rsplit('/', 1)[-1]}]({png_data_uri(p)})\n\n`{p}`" for p in paths]
 
 
 def prepared(task: Any, *, timeout_s: float | None = None, **options: Any) -> Any:

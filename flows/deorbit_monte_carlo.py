@@ -18,10 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
-from prefect.artifacts import create_table_artifact
+from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
+    embedded_plots,
     label_flow_run,
     prune_expired_results,
     run_name,
@@ -155,6 +156,11 @@ def deorbit_monte_carlo_flow(
             for row in report["statistics"]
         ],
         description=f"Deorbit-burn Monte Carlo {run.id} of {problem.name} ({n} runs)",
+    )
+    create_markdown_artifact(
+        key="deorbit-monte-carlo-plots",
+        markdown="\n\n".join(embedded_plots(plots)) or "no plots",
+        description=f"entry errors of the Monte Carlo {run.id} (scatter, histograms)",
     )
     if failures:
         text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())

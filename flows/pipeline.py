@@ -25,6 +25,7 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
+    embedded_plots,
     label_flow_run,
     prepared,
     prune_expired_results,
@@ -34,7 +35,7 @@ from flows.common import (
 from flows.doe import ensure_launch_fit, evaluate_run, execution
 from flows.optimize import front_table, surrogate_front
 from flows.runners import task_runner
-from flows.surrogate import embedded_plots, fit_run_surrogates, publish_validation
+from flows.surrogate import fit_run_surrogates, publish_validation
 from ovtraj.config import Scenario
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.pipeline import (

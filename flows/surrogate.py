@@ -10,8 +10,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from pathlib import Path
 from typing import Any
 
 from prefect import flow, tags
@@ -19,6 +17,7 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
+    embedded_plots,
     label_flow_run,
     prepared,
     prune_expired_results,
@@ -28,7 +27,6 @@ from flows.common import (
 from ovtraj.config import Scenario
 from ovtraj.pipeline import run_scenario, training_data
 from ovtraj.pipeline.steps import MARKER
-from ovtraj.plots.embed import png_data_uri
 from ovtraj.runs import Run, RunStore
 from ovtraj.storage import location
 from ovtraj.surrogate import training_data_hash
@@ -62,18 +60,6 @@ def fit_run_surrogates(
         data_hash=data_hash,
         candidates=candidates,
     )
-
-
-def embedded_plots(paths: Iterable[str | Path]) -> list[str]:
-    """Markdown paragraphs that show each PNG itself, its path under it as the caption.
-
-    The image is embedded as a ``data:`` URI (``![name](data:image/png;base64,...)``), so
-    any Prefect UI shows it, one on another machine too; both UIs of Prefect 3.9 (``/``
-    and ``/v2``) render it (tests/test_prefect_ui.py, in chromium). Base64 makes the
-    markdown a third larger than the PNGs (~1 MB for a mission plan's five plots); the
-    server stores artifacts of tens of MB.
-    """
-    return [f"![{str(p).rsplit('/', 1)[-1]}]({png_data_uri(p)})\n\n`{p}`" for p in paths]
 
 
 def publish_validation(summary: dict[str, Any], run: Run) -> None:

@@ -427,6 +427,24 @@ def ten_runs(prefect_server, tmp_path_factory):
     }
 
 
+def test_monte_carlo_flow_publishes_its_plots_themselves(ten_runs):
+    """The plots artifact carries every PNG as a data URI (a remote UI shows it)."""
+    from prefect.client.orchestration import get_client
+    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterKey
+
+    from ovtraj.plots.embed import png_data_uri
+
+    plots = ten_runs["first"]["plots"]
+    assert plots
+    with get_client(sync_client=True) as client:
+        found = client.read_artifacts(
+            artifact_filter=ArtifactFilter(
+                key=ArtifactFilterKey(any_=["deorbit-monte-carlo-plots"])
+            )
+        )
+    assert any(all(png_data_uri(p) in (a.data or "") for p in plots) for a in found)
+
+
 def test_monte_carlo_flow_stores_every_run_with_the_schema(ten_runs):
     first = ten_runs["first"]
     run = MonteCarloRun(Path(first["directory"]))
