@@ -14,6 +14,9 @@ import typer.core
 from ovtraj import __version__
 from ovtraj.cli_progress import configure_logging, echo, progress_bar
 from ovtraj.config import ConfigError, Scenario, load_scenario
+from ovtraj.config.deorbit_burn import MonteCarloConfig
+from ovtraj.config.dispersions import MonteCarloExecution
+from ovtraj.config.mission import DoeSettings
 from ovtraj.formatting import byte_size, duration, joined, number, quantity, split_unit, utc
 from ovtraj.records import json_text, plain
 
@@ -614,8 +617,7 @@ def deorbit_burn(
         int | None,
         typer.Option(
             "--monte-carlo",
-            min=1,
-            max=100000,
+            **_limits(MonteCarloConfig, "runs"),
             help="also fly this many dispersed runs (default: none; a progress bar on stderr)",
             show_default=False,
         ),
@@ -717,28 +719,43 @@ DaskAddressOpt = Annotated[
 ]
 
 
+def _limits(model: Any, name: str) -> dict[str, Any]:
+    """A config field's bounds as typer's ``min``/``max``: the command refuses what the
+    config would (one definition of each range, in ``ovtraj.config``)."""
+    limits: dict[str, Any] = {}
+    for constraint in model.model_fields[name].metadata:
+        if getattr(constraint, "ge", None) is not None:
+            limits["min"] = constraint.ge
+        if getattr(constraint, "le", None) is not None:
+            limits["max"] = constraint.le
+    return limits
+
+
+SamplesOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--samples",
+        **_limits(DoeSettings, "samples"),
+        help="DoE samples (default: the config's mission.doe.samples)",
+        show_default=False,
+    ),
+]
+SeedOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--seed",
+        **_limits(DoeSettings, "seed"),
+        help="Latin hypercube seed (default: the config's mission.doe.seed)",
+        show_default=False,
+    ),
+]
+
+
 @app.command()
 def run(
     config: ConfigArg = None,
-    samples: Annotated[
-        int | None,
-        typer.Option(
-            "--samples",
-            min=1,
-            max=100000,
-            help="number of samples (default: the config's mission.doe.samples)",
-            show_default=False,
-        ),
-    ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(
-            "--seed",
-            min=0,
-            help="Latin hypercube seed (default: the config's mission.doe.seed)",
-            show_default=False,
-        ),
-    ] = None,
+    samples: SamplesOpt = None,
+    seed: SeedOpt = None,
     append: Annotated[
         str | None,
         typer.Option(
@@ -1166,25 +1183,8 @@ def _print_front(front: Any) -> None:
 @app.command()
 def pipeline(
     config: ConfigArg = None,
-    samples: Annotated[
-        int | None,
-        typer.Option(
-            "--samples",
-            min=1,
-            max=100000,
-            help="DoE samples (default: the config's mission.doe.samples)",
-            show_default=False,
-        ),
-    ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(
-            "--seed",
-            min=0,
-            help="Latin hypercube seed (default: the config's mission.doe.seed)",
-            show_default=False,
-        ),
-    ] = None,
+    samples: SamplesOpt = None,
+    seed: SeedOpt = None,
     from_run: Annotated[
         str | None, typer.Option("--run", help="start from this stored DoE run (no new DoE)")
     ] = None,
@@ -1482,7 +1482,7 @@ def fly(
         typer.Option(
             "--monte-carlo",
             min=0,
-            max=100000,
+            max=_limits(MonteCarloExecution, "runs")["max"],
             help="also fly this many dispersed runs, closed loop and open loop (0: none)",
         ),
     ] = 0,

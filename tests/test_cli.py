@@ -276,7 +276,7 @@ def test_help_shows_units_and_defaults():
     shown = _help("launch")
     assert "target altitude [km], 150-2000 (default: the config's" in shown
     shown = _help("run")
-    assert "--samples <int range> [1<=x<=100000] number of samples (default:" in shown
+    assert "--samples <int range> [1<=x<=100000] DoE samples (default:" in shown
     assert "--json print one JSON object on stdout" in shown
     assert "[default: 0]" in _help("fly")
     shown = _help()

@@ -154,3 +154,13 @@ def test_top_level_must_be_a_mapping(tmp_path: Path):
     path.write_text("- 1\n- 2\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="expected a mapping"):
         load_scenario(path)
+
+
+def test_a_config_stored_before_shortlist_size_existed_still_reads(scenario_data):
+    """Runs keep their resolved config: a key added later must not make them unreadable."""
+    surrogate = scenario_data["mission"]["surrogate"]
+    del surrogate["shortlist_size"]
+    assert build_scenario(scenario_data).mission.surrogate.shortlist_size is None
+    surrogate["selection"] = "shortlist"
+    with pytest.raises(ConfigError, match="shortlist_size"):
+        build_scenario(scenario_data)

@@ -15,6 +15,7 @@ The ovtraj workspace of the flow runs (``OVTRAJ_HOME``) is a temporary folder to
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
 import os
@@ -24,6 +25,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -127,13 +129,15 @@ def _tail(path: Path, lines: int = 40) -> str:
     return "\n".join(path.read_text(encoding="utf-8", errors="replace").splitlines()[-lines:])
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """A real Prefect server with the work pool and every deployment of prefect.yaml."""
-    root = tmp_path_factory.mktemp("prefect-server")
+@contextlib.contextmanager
+def prefect_server(root: Path, **settings: str) -> Iterator[tuple[str, dict[str, str], Path]]:
+    """``prefect server start`` on a free port of 127.0.0.1 with its own PREFECT_HOME in
+    ``root`` (and ``settings`` in its environment); yields (address, environment, log)
+    once its API answers, and stops its process group afterwards."""
     port = _free_port()
-    api = f"http://127.0.0.1:{port}/api"
-    env = _environment(root, api)
+    address = f"http://127.0.0.1:{port}"
+    env = _environment(root, f"{address}/api")
+    env.update(settings)
     log = root / "server.log"
     command = [str(PREFECT), "server", "start", "--host", "127.0.0.1", "--port", str(port)]
     process = _start(command, env, log, root)
@@ -142,7 +146,7 @@ def server(tmp_path_factory):
         while True:
             assert process.poll() is None, f"the server exited {process.returncode}:\n{_tail(log)}"
             try:
-                if httpx.get(f"{api}/health", timeout=2).status_code == 200:
+                if httpx.get(f"{address}/api/health", timeout=2).status_code == 200:
                     break
             except httpx.HTTPError:
                 pass
@@ -150,12 +154,20 @@ def server(tmp_path_factory):
             assert waited < SERVER_START_TIMEOUT_S, f"no server after {waited:.0f} s:\n{_tail(log)}"
             time.sleep(0.5)
         print(f"\nserver up in {time.monotonic() - started:.1f} s")
-        running = Server(api=api, env=env, log=log, root=root, deployed_at=0.0)
+        yield address, env, log
+    finally:
+        _stop(process, signal.SIGTERM)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """A real Prefect server with the work pool and every deployment of prefect.yaml."""
+    root = tmp_path_factory.mktemp("prefect-server")
+    with prefect_server(root) as (address, env, log):
+        running = Server(api=f"{address}/api", env=env, log=log, root=root, deployed_at=0.0)
         running.prefect("work-pool", "create", POOL, "--type", "process")
         running.prefect("--no-prompt", "deploy", "--all")
         yield dataclasses.replace(running, deployed_at=time.monotonic())
-    finally:
-        _stop(process, signal.SIGTERM)
     assert (root / "prefect-home" / "prefect.db").is_file()  # its own PREFECT_HOME
 
 

@@ -36,14 +36,13 @@ import pytest
 
 from ovtraj.plots.embed import png_data_uri
 from tests.conftest import REPO
-from tests.test_deployments import PREFECT, _environment, _free_port, _start, _stop, _tail
+from tests.test_deployments import _stop, _tail, prefect_server
 
 CHROMIUM = shutil.which("chromium")
 pytestmark = pytest.mark.skipif(
     CHROMIUM is None, reason="no chromium on PATH (.ci/run installs it: apt-get install chromium)"
 )
 
-SERVER_START_TIMEOUT_S = 120.0
 PUBLISH_TIMEOUT_S = 120.0
 CHROMIUM_TIMEOUT_S = 60.0
 RENDER_BUDGET_MS = 15000  # chromium's virtual time for the page's scripts and API calls
@@ -101,35 +100,15 @@ class Published:
 def ui_server(tmp_path_factory):
     """A real Prefect server that serves its UI, in a temporary folder of its own."""
     root = tmp_path_factory.mktemp("prefect-ui")
-    port = _free_port()
-    address = f"http://127.0.0.1:{port}"
-    env = _environment(root, f"{address}/api")
-    env.update(PREFECT_SERVER_UI_ENABLED="true", PREFECT_UI_STATIC_DIRECTORY=str(root / "ui"))
-    log = root / "server.log"
-    command = [str(PREFECT), "server", "start", "--host", "127.0.0.1", "--port", str(port)]
-    process = _start(command, env, log, root)
-    try:
-        started = time.monotonic()
-        while True:
-            assert process.poll() is None, f"the server exited {process.returncode}:\n{_tail(log)}"
-            try:
-                if httpx.get(f"{address}/api/health", timeout=2).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            waited = time.monotonic() - started
-            assert waited < SERVER_START_TIMEOUT_S, f"no server after {waited:.0f} s:\n{_tail(log)}"
-            time.sleep(0.5)
-        for ui in UIS.values():
-            page = httpx.get(f"{address}{ui}/artifacts", headers=HTML, timeout=10)
+    ui = {"PREFECT_SERVER_UI_ENABLED": "true", "PREFECT_UI_STATIC_DIRECTORY": str(root / "ui")}
+    with prefect_server(root, **ui) as (address, env, log):
+        for path in UIS.values():
+            page = httpx.get(f"{address}{path}/artifacts", headers=HTML, timeout=10)
             assert page.status_code == 200 and "<script" in page.text, (
-                f"no UI at {address}{ui}/ (HTTP {page.status_code}): is the UI's static build "
-                f"in the installed prefect?\n{_tail(log)}"
+                f"no UI at {address}{path}/ (HTTP {page.status_code}): is the UI's static "
+                f"build in the installed prefect?\n{_tail(log)}"
             )
-        print(f"\nserver with its UI up in {time.monotonic() - started:.1f} s")
         yield UIServer(address=address, env=env, root=root)
-    finally:
-        _stop(process, signal.SIGTERM)
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal, get_args
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ovtraj.config.base import StrictModel, bounded
 from ovtraj.config.launch import Bound
@@ -94,8 +94,13 @@ class SurrogateSettings(StrictModel):
         "refitted unchanged on its later ones; or all on the first fit and, on the later ones, "
         "only the shortlist_size best of the first fit"
     )
-    shortlist_size: int = bounded(
-        ge=1, le=20, description="selection: shortlist: regressor candidates kept per output"
+    # Optional (null when absent): the configs stored with runs made before it existed
+    # still read; `selection: shortlist` requires it.
+    shortlist_size: int | None = bounded(
+        ge=1,
+        le=20,
+        default=None,
+        description="selection: shortlist: regressor candidates kept per output",
     )
     floor_softness_h: float = bounded(
         unit="h", gt=0, le=1000, description="T_total's predictions: softplus scale above its floor"
@@ -119,6 +124,12 @@ class SurrogateSettings(StrictModel):
     gpc_length_scale_bounds: Bound  # of the GP classifier's length scale, unit-cube inputs
     gpc_amplitude_bounds: Bound  # variance of the GP classifier's latent function
     seed: int = bounded(ge=0, le=2**32 - 1)
+
+    @model_validator(mode="after")
+    def _shortlist_sized(self) -> SurrogateSettings:
+        if self.selection == "shortlist" and self.shortlist_size is None:
+            raise ValueError("selection: shortlist needs shortlist_size (candidates per output)")
+        return self
 
 
 class ObjectivePoint(StrictModel):

@@ -400,6 +400,21 @@ def _local_deadline(settings: LocalConfig) -> Deadline:
     return Deadline(settings.time_limit_s, "launch.local.time_limit_s")
 
 
+def _watched(
+    problem: LaunchProblem,
+    settings: LocalConfig,
+    x0: NDArray,
+    deadline: Deadline | None,
+    on_iteration: Callable[[int], None] | None,
+) -> tuple[_Oracle, _StallMonitor]:
+    """A local phase's oracle and the monitor that stops it (stall, time limit, progress)."""
+    oracle = _Oracle(problem, settings.finite_difference_step)
+    monitor = _StallMonitor(
+        problem, oracle, settings, x0, deadline or _local_deadline(settings), on_iteration
+    )
+    return oracle, monitor
+
+
 def _iterations(
     on_progress: Progress | None, limit: int, name: str
 ) -> Callable[[int], None] | None:
@@ -416,13 +431,11 @@ def run_slsqp(
     on_progress: Progress | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
-    oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(
+    oracle, monitor = _watched(
         problem,
-        oracle,
         settings,
         x0,
-        deadline or _local_deadline(settings),
+        deadline,
         _iterations(on_progress, settings.slsqp_max_iterations, "slsqp"),
     )
     result = minimize(
@@ -451,13 +464,11 @@ def run_trust_constr(
     on_progress: Progress | None = None,
 ) -> tuple[NDArray, PhaseRecord]:
     start, before = time.perf_counter(), problem.trajectories
-    oracle = _Oracle(problem, settings.finite_difference_step)
-    monitor = _StallMonitor(
+    oracle, monitor = _watched(
         problem,
-        oracle,
         settings,
         x0,
-        deadline or _local_deadline(settings),
+        deadline,
         _iterations(on_progress, settings.trust_constr_max_iterations, "trust-constr"),
     )
     n = len(x0)

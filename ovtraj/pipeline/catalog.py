@@ -15,16 +15,17 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.files import read_json
+from ovtraj.pipeline.loop import MARKER as PIPELINE_MARKER
 from ovtraj.runs import Run, RunStore, StoreError
+from ovtraj.runs.store import MANIFEST
 from ovtraj.storage import S3Path
-
-PIPELINE_MARKER = "pipeline.json"
 
 __all__ = [
     "CatalogEntry",
     "family_root",
     "pipeline_summaries",
     "store_catalog",
+    "stored_runs",
     "tree_bytes",
 ]
 
@@ -87,11 +88,12 @@ def tree_bytes(directory: Path | S3Path, seen: set[tuple[int, int]] | None = Non
     return total
 
 
-def _run_directories(store: RunStore) -> list[Run]:
+def stored_runs(store: RunStore) -> list[Run]:
+    """Every run directory of ``store`` (one with a manifest), in name order."""
     root = store.root
     if not root.is_dir():
         return []
-    return [Run(d) for d in sorted(root.iterdir()) if (d / "manifest.json").is_file()]
+    return [Run(d) for d in sorted(root.iterdir()) if (d / MANIFEST).is_file()]
 
 
 def store_catalog(store: RunStore, *, sizes: bool = True) -> list[CatalogEntry]:
@@ -99,7 +101,7 @@ def store_catalog(store: RunStore, *, sizes: bool = True) -> list[CatalogEntry]:
     lineage order. ``size_bytes`` counts a file shared with an earlier-listed run of the
     store (hard-linked batches) once; an unreadable run is listed with its error."""
     entries: dict[str, CatalogEntry] = {}
-    for run in _run_directories(store):
+    for run in stored_runs(store):
         try:
             summary = run.summary()
             lineage = run.lineage()
@@ -144,17 +146,17 @@ def family_root(store: RunStore, run_id: str) -> Run:
 
     Raises :class:`StoreError` naming the id when no run or pipeline result knows it."""
     directory = store.root / run_id
-    if (directory / "manifest.json").is_file():
+    if (directory / MANIFEST).is_file():
         run = store.run(run_id)
         for rid in [run_id, *reversed(run.lineage())]:
             candidate = store.root / rid
-            if (candidate / "manifest.json").is_file():
+            if (candidate / MANIFEST).is_file():
                 ancestor = store.run(rid)
                 if pipeline_summaries(ancestor):
                     return ancestor
         lineage = run.lineage()
         return store.run(lineage[0]) if lineage and (store.root / lineage[0]).is_dir() else run
-    for run in _run_directories(store):
+    for run in stored_runs(store):
         for _, summary in pipeline_summaries(run):
             members = {summary.get("doe_run"), summary.get("final_run")}
             members |= {i.get("run_id") for i in summary.get("iterations", [])}

@@ -47,11 +47,24 @@ def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pi
             asked.append(f"{label} = {limit:g}")
     if not keep.any():
         raise PipelineError(f"no front point meets {', '.join(asked)}")
-    weights = np.array(pick.weights if pick.weights is not None else (1.0, 1.0, 1.0), float)
+    weights = pick_weights(pick)
     if weights.shape != (3,) or np.any(weights < 0) or not np.any(weights > 0):
         raise PipelineError(
             f"weights must be three non-negative numbers, not all zero; got {pick.weights}"
         )
-    values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
-    score = np.where(keep, values @ (weights / weights.sum()), np.inf)
+    score = np.where(keep, weighted_scores(front, normalisation, weights), np.inf)
     return front.iloc[int(np.argmin(score))]
+
+
+def pick_weights(pick: Pick) -> np.ndarray:
+    """The pick's weights on (T_total, dV_total, M_load); equal when none are given."""
+    return np.array(pick.weights if pick.weights is not None else (1.0, 1.0, 1.0), float)
+
+
+def weighted_scores(
+    front: pd.DataFrame, normalisation: Normalisation, weights: np.ndarray
+) -> np.ndarray:
+    """Each front point's weighted mean of its normalised objectives (0 the ideal point,
+    1 the reference point): the lowest is picked."""
+    values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
+    return values @ (weights / weights.sum())

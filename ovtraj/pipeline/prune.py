@@ -29,7 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.files import read_json
-from ovtraj.pipeline.catalog import pipeline_summaries, tree_bytes
+from ovtraj.pipeline.catalog import pipeline_summaries, stored_runs, tree_bytes
+from ovtraj.pipeline.steps import MARKER
 from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.storage import S3Path
 
@@ -47,11 +48,6 @@ class PruneItem:
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self) | {"path": str(self.path)}
-
-
-def _runs(store: RunStore) -> list[Run]:
-    root = store.root
-    return [Run(d) for d in sorted(root.iterdir()) if (d / "manifest.json").is_file()]
 
 
 def _superseded_children(runs: list[Run]) -> list[PruneItem]:
@@ -107,7 +103,7 @@ def _stale_products(runs: list[Run], code: str) -> list[PruneItem]:
         for folder, what in (("surrogates", "surrogate fit"), ("fronts", "surrogate front")):
             base = run.directory / folder
             for directory in sorted(base.iterdir()) if base.is_dir() else []:
-                marker = directory / "meta.json"
+                marker = directory / MARKER
                 try:
                     stored_code = read_json(marker).get("code") if marker.is_file() else None
                 except (StoreError, OSError, AttributeError):
@@ -151,7 +147,7 @@ def prunable(
             f"{store.root}: prune works on a local store; on object storage use the "
             "bucket's lifecycle rules"
         )
-    runs = _runs(store) if store.root.is_dir() else []
+    runs = stored_runs(store)
     items: list[PruneItem] = []
     if "children" in kinds:
         items += _superseded_children(runs)

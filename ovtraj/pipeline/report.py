@@ -20,7 +20,7 @@ import pandas as pd
 from ovtraj.files import write_bytes
 from ovtraj.formatting import number, utc
 from ovtraj.optimize import Normalisation
-from ovtraj.pipeline.pick import Pick
+from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.plots.embed import png_data_uri
 
 __all__ = ["pick_explanation", "stop_explanation", "write_report"]
@@ -72,7 +72,7 @@ def pick_explanation(
     chosen = f"front point {int(row['front_index'])} ({_objective_text(normalisation, row)})"
     if pick.index is not None:
         return f"{chosen}: picked by its index on the front (--pick {pick.index})"
-    weights = np.array(pick.weights if pick.weights is not None else (1.0, 1.0, 1.0), float)
+    weights = pick_weights(pick)
     limits = [
         f"{label} {sign} {value:g} {unit}"
         for label, sign, value, unit in (
@@ -82,8 +82,7 @@ def pick_explanation(
         )
         if value is not None
     ]
-    values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
-    scores = values @ (weights / weights.sum())
+    scores = weighted_scores(front, normalisation, weights)
     among = f"among the {len(front)} points of the verified front"
     if limits:
         among += f" that meet {' and '.join(limits)}"

@@ -82,27 +82,7 @@ def front_figure(
     return fig
 
 
-def front_plot(
-    path: Path,
-    normalisation: Normalisation,
-    *,
-    surrogate: pd.DataFrame | None = None,
-    samples: pd.DataFrame | None = None,
-    verified: pd.DataFrame | None = None,
-    chosen: pd.DataFrame | None = None,
-    title: str = "",
-    scenario: str = "",
-    date: str = "",
-) -> Path:
-    """Write :func:`front_figure` as one PNG at ``path`` (atomically); returns the path."""
-    fig = front_figure(
-        normalisation,
-        surrogate=surrogate,
-        samples=samples,
-        verified=verified,
-        chosen=chosen,
-        title=title,
-        scenario=scenario,
-        date=date,
-    )
-    return write_png(fig, path)
+def front_plot(path: Path, normalisation: Normalisation, **layers: Any) -> Path:
+    """Write :func:`front_figure` (its keyword arguments: the tables, title, scenario,
+    date) as one PNG at ``path`` (atomically); returns the path."""
+    return write_png(front_figure(normalisation, **layers), path)
