@@ -729,8 +729,14 @@ def test_prune_removes_superseded_runs_and_stale_fits_and_keeps_every_result(sma
     items = json.loads(listed.stdout)["items"]
     assert {Path(i["path"]).name for i in items} == superseded
     assert all((store.root / rid).is_dir() for rid in superseded)  # a dry run by default
+    stopped = store.root / ".pruned-0123456789abcdef"  # what a prune killed mid-way leaves
+    (stopped / "totals").mkdir(parents=True)
+    (stopped / "totals" / "part-00000.parquet").write_bytes(b"x" * 100)
+    (stopped / "manifest.json").write_bytes((small["doe"].directory / "manifest.json").read_bytes())
+    assert stopped.name not in {r["run_id"] for r in store.catalog()}  # not a run any more
     done = runner.invoke(app, ["prune", "--store", str(store.root), "--only", "children", "--yes"])
     assert done.exit_code == 0, done.output
+    assert "left by a stopped prune" in done.output
     assert all(not (store.root / rid).exists() for rid in superseded)
     assert not [p for p in store.root.iterdir() if p.name.startswith(".pruned-")]
     for rid in (small["doe"].id, result.final_run):

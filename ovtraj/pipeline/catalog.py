@@ -89,11 +89,8 @@ def tree_bytes(directory: Path | S3Path, seen: set[tuple[int, int]] | None = Non
 
 
 def stored_runs(store: RunStore) -> list[Run]:
-    """Every run directory of ``store`` (one with a manifest), in name order."""
-    root = store.root
-    if not root.is_dir():
-        return []
-    return [Run(d) for d in sorted(root.iterdir()) if (d / MANIFEST).is_file()]
+    """Every run of ``store`` (:meth:`RunStore.run_directories`), in name order."""
+    return [Run(d) for d in store.run_directories()]
 
 
 def store_catalog(store: RunStore, *, sizes: bool = True) -> list[CatalogEntry]:

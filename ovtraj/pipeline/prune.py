@@ -17,14 +17,15 @@ Three kinds, each safe by construction:
   when no flow is running.
 
 A removal renames the directory to a hidden ``.pruned-*`` name first (atomic: readers
-either see the whole product or none of it), then deletes it. Local stores only.
+either see the whole product or none of it), then deletes it; one left by a stopped prune
+is listed and removed by the next. Local stores only.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +38,7 @@ from ovtraj.storage import S3Path
 __all__ = ["PruneItem", "prunable", "remove"]
 
 KINDS = ("children", "fits", "prefect-results")
+HIDDEN = ".pruned-"  # a directory being removed; a stopped prune leaves it, the next removes it
 
 
 @dataclass
@@ -102,6 +104,7 @@ def _stale_products(runs: list[Run], code: str) -> list[PruneItem]:
     for run in runs:
         for folder, what in (("surrogates", "surrogate fit"), ("fronts", "surrogate front")):
             base = run.directory / folder
+            items += [replace(item, kind="fits") for item in _leftovers(base)]
             for directory in sorted(base.iterdir()) if base.is_dir() else []:
                 marker = directory / MARKER
                 try:
@@ -119,6 +122,16 @@ def _stale_products(runs: list[Run], code: str) -> list[PruneItem]:
                     )
                 )
     return items
+
+
+def _leftovers(folder: Path) -> list[PruneItem]:
+    """Directories a prune renamed and was stopped before deleting (``.pruned-*``)."""
+    found = sorted(folder.glob(f"{HIDDEN}*")) if folder.is_dir() else []
+    return [
+        PruneItem("children", path.resolve(), tree_bytes(path) or 0, "left by a stopped prune")
+        for path in found
+        if path.is_dir()
+    ]
 
 
 def _prefect_results(folder: Path | None) -> list[PruneItem]:
@@ -150,6 +163,7 @@ def prunable(
     runs = stored_runs(store)
     items: list[PruneItem] = []
     if "children" in kinds:
+        items += _leftovers(store.root)
         items += _superseded_children(runs)
     if "fits" in kinds:
         items += _stale_products(runs, code)
@@ -168,7 +182,10 @@ def remove(item: PruneItem) -> bool:
     if path.is_file():
         path.unlink(missing_ok=True)
         return True
-    hidden = path.with_name(f".pruned-{path.name}")
+    if path.name.startswith(HIDDEN):
+        shutil.rmtree(path)
+        return True
+    hidden = path.with_name(f"{HIDDEN}{path.name}")
     os.replace(path, hidden)
     shutil.rmtree(hidden)
     return True

@@ -692,6 +692,17 @@ class RunStore:
         base = paths.resolve(config, None).parent if config is not None else None
         return cls(paths.store_root(configured, base, override))
 
+    def run_directories(self) -> list[Path | S3Path]:
+        """Every run's directory (one with a manifest), in name order; a hidden one (a
+        prune's ``.pruned-*`` being deleted) is not a run."""
+        if not self.root.is_dir():
+            return []
+        return [
+            d
+            for d in sorted(self.root.iterdir())
+            if not d.name.startswith(".") and (d / MANIFEST).is_file()
+        ]
+
     def run(self, run_id: str) -> Run:
         directory = self.root / run_id
         if not (directory / MANIFEST).is_file():
@@ -760,7 +771,7 @@ class RunStore:
         scenario, seed and code: a hypercube run or one extended by further hypercubes."""
         wanted = {"results_hash": results_hash(resolved), "seed": seed, "code_version": code}
         best: tuple[int, str, Run] | None = None
-        for directory in sorted(self.root.iterdir()) if self.root.is_dir() else []:
+        for directory in self.run_directories():
             try:
                 manifest = Run(directory).manifest
             except StoreError:
@@ -787,9 +798,7 @@ class RunStore:
         if not self.root.is_dir():
             return []
         rows = []
-        for directory in sorted(self.root.iterdir()):
-            if not (directory / MANIFEST).is_file():
-                continue
+        for directory in self.run_directories():
             try:
                 rows.append(Run(directory).summary())
             except StoreError as err:
