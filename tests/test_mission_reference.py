@@ -2,7 +2,10 @@
 
 The reference values were stored from main before any change to the chain's speed
 (``tools/mission_reference.py``, ``data/reference/mission_chain/``, the code version in
-its marker); the tolerances are ``configs/mission_reference.yaml``'s.
+its marker) and stored again once, for a deliberate change of the physics: the
+rendezvous's multi-start (the values before it are kept in
+``data/reference/mission_chain_single_start/``; tests/test_rendezvous_local_optima.py
+compares the two). The tolerances are ``configs/mission_reference.yaml``'s.
 """
 
 from __future__ import annotations

@@ -3,8 +3,10 @@
 Evaluates the reference designs of ``configs/mission_reference.yaml`` with the shipped
 scenario and stores the totals, each stage's impulse and the landing miss, with the code
 version that computed them. Run it once, before speed work on the chain; again only for a
-deliberate change of the physics, after removing the stored reference (it never
-overwrites). ``tests/test_mission_reference.py`` compares the chain with these values.
+deliberate change of the physics, after moving the stored reference aside (it never
+overwrites) to ``data/reference/mission_chain_<what it held>/``, where it stays as the
+record of what changed (``mission_chain_single_start``: the chain before the rendezvous's
+multi-start). ``tests/test_mission_reference.py`` compares the chain with these values.
 
 Run: ``python tools/mission_reference.py`` (prints the path it wrote).
 """

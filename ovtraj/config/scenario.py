@@ -87,6 +87,16 @@ class RendezvousSettings(StrictModel):
     start_transfer_fractions: tuple[float, ...] = Field(
         min_length=1, description="transfer times (fractions of Hohmann) tried for the start"
     )
+    # Optional (null when absent): the configs stored with runs made before it existed
+    # still read, and mean what they meant then (the cheapest start only).
+    multi_start_fractions: tuple[float, ...] | None = Field(
+        default=None,
+        min_length=1,
+        description=(
+            "rendezvous only: transfer times (fractions of Hohmann) whose shots each start "
+            "the interior point; the cheapest optimum is kept"
+        ),
+    )
     max_iterations: int = bounded(ge=1, le=100000, description="trust-constr iteration limit")
     time_limit_s: float = bounded(
         unit="s", gt=0, le=86400, description="wall time of one rendezvous or transfer solve"
@@ -109,12 +119,12 @@ class RendezvousSettings(StrictModel):
     @model_validator(mode="after")
     def _starts_inside_bounds(self) -> RendezvousSettings:
         lo, hi = self.transfer_time_bounds
-        outside = [f for f in self.start_transfer_fractions if not lo <= f <= hi]
-        if outside:
-            raise ValueError(
-                f"start_transfer_fractions {outside} lie outside transfer_time_bounds "
-                f"[{lo:g}, {hi:g}]"
-            )
+        for name in ("start_transfer_fractions", "multi_start_fractions"):
+            outside = [f for f in getattr(self, name) or () if not lo <= f <= hi]
+            if outside:
+                raise ValueError(
+                    f"{name} {outside} lie outside transfer_time_bounds [{lo:g}, {hi:g}]"
+                )
         return self
 
 

@@ -23,7 +23,11 @@ Start: a transfer angle of exactly 180 deg cannot remove an out-of-plane miss
 difference J2 creates during phasing the optimum sits on either side of the
 Hohmann time. A few Newton shots of dv1 on the miss at fixed transfer times
 (a J2 Lambert solve, 2-3 propagations each) give feasible candidates; the
-cheapest one starts the interior-point solve.
+cheapest one starts the interior-point solve. With a plane difference the NLP
+has several local optima (transfer-time fractions near 0.65, 1.0 and 1.25 on
+the default scenario) and the cheapest shot is often not in the best one's
+basin, so ``solve_every_start`` runs the interior point from every shot and
+keeps the cheapest optimum (docs/rendezvous.md, "Local optima").
 """
 
 from __future__ import annotations
@@ -69,6 +73,10 @@ class CorrectionProblem:
     deadline: Deadline = field(default_factory=Deadline.unlimited)
     # Config key of max_iterations, for the reason when the limit stops the solver.
     iterations_key: str = "max_iterations"
+    # True: the interior point runs from every start shot (a failed shot: from the
+    # Hohmann guess) and the cheapest converged optimum is kept; False: from the
+    # cheapest shot only.
+    solve_every_start: bool = False
 
 
 @dataclass(frozen=True)
@@ -312,28 +320,14 @@ def _interior_point(
     )
 
 
-def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
-    """Solve the J2 correction NLP; never raises on non-convergence (``converged`` says).
-
-    It stops at ``max_iterations`` or at ``problem.deadline``; either makes the result
-    unconverged, with ``limit`` naming the limit.
-    """
-    transfer = _Transfer(problem)
-    guess = transfer.at(transfer.x_at(problem.dv_guess_eci, 1.0))
-    initial_miss = float(np.linalg.norm(guess.miss))
-    shots = [transfer.newton_shot(f) for f in problem.start_fractions]
-    feasible = [s for s in shots if s is not None]
-    start = min(feasible, key=lambda s: s.cost) if feasible else guess
-    tol = problem.miss_tolerance_m
-    scale = transfer.miss_scale
-
-    constraint = NonlinearConstraint(
-        lambda x: transfer.at(x).miss / scale,
-        0.0,
-        0.0,
-        jac=lambda x: transfer.at(x).d_miss / scale,
-        hess=lambda x, v: np.einsum("i,ijk->jk", v, transfer.hessians(x)[1]) / scale,
-    )
+def _solve_from(
+    transfer: _Transfer,
+    start: _Point,
+    guess: _Point,
+    constraint: NonlinearConstraint,
+    problem: CorrectionProblem,
+) -> tuple[_Point, object]:
+    """The interior point from ``start``: its optimum (or the start, if that is better)."""
     with warnings.catch_warnings():
         # trust-constr warns about its own internal choices (e.g. delta_grad == 0).
         warnings.simplefilter("ignore", UserWarning)
@@ -344,8 +338,57 @@ def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
             solution = _Stopped(start.x, 0, f"interior point stopped: {err}")
     best = transfer.at(solution.x)
     # The interior-point iterate is accepted only if it is at least as good as its start.
+    tol = problem.miss_tolerance_m
     if start is not guess and not (np.linalg.norm(best.miss) <= tol and best.cost <= start.cost):
         best = start
+    return best, solution
+
+
+def _rank(point: _Point, tolerance_m: float) -> tuple[bool, float]:
+    """Order of the solves' optima: within the miss tolerance first, then the cheapest."""
+    miss = float(np.linalg.norm(point.miss))
+    return (not (np.isfinite(miss) and miss <= tolerance_m), point.cost)
+
+
+def _distinct(points: list[_Point]) -> list[_Point]:
+    """``points`` without repeats (two failed shots both fall back to the guess)."""
+    kept: list[_Point] = []
+    for point in points:
+        if not any(point is other for other in kept):
+            kept.append(point)
+    return kept
+
+
+def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
+    """Solve the J2 correction NLP; never raises on non-convergence (``converged`` says).
+
+    It stops at ``max_iterations`` (per interior-point solve) or at ``problem.deadline``
+    (all of them); either makes the result unconverged, with ``limit`` naming the limit.
+    """
+    transfer = _Transfer(problem)
+    guess = transfer.at(transfer.x_at(problem.dv_guess_eci, 1.0))
+    initial_miss = float(np.linalg.norm(guess.miss))
+    shots = [transfer.newton_shot(f) for f in problem.start_fractions]
+    feasible = [s for s in shots if s is not None]
+    if problem.solve_every_start:
+        starts = _distinct([guess if s is None else s for s in shots])
+    else:
+        starts = [min(feasible, key=lambda s: s.cost) if feasible else guess]
+    scale = transfer.miss_scale
+
+    constraint = NonlinearConstraint(
+        lambda x: transfer.at(x).miss / scale,
+        0.0,
+        0.0,
+        jac=lambda x: transfer.at(x).d_miss / scale,
+        hess=lambda x, v: np.einsum("i,ijk->jk", v, transfer.hessians(x)[1]) / scale,
+    )
+    solves = []
+    for start in starts:
+        solves.append(_solve_from(transfer, start, guess, constraint, problem))
+        if problem.deadline.expired():
+            break
+    best, solution = min(solves, key=lambda s: _rank(s[0], problem.miss_tolerance_m))
     miss = float(np.linalg.norm(best.miss))
     iterations = int(solution.nit)
     limit = None
@@ -354,7 +397,7 @@ def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
     elif getattr(solution, "status", None) == _ITERATION_LIMIT:
         limit = f"{problem.iterations_key} = {problem.max_iterations} reached"
     return CorrectionResult(
-        converged=bool(np.isfinite(miss) and miss <= tol) and limit is None,
+        converged=bool(np.isfinite(miss) and miss <= problem.miss_tolerance_m) and limit is None,
         burn_time_s=best.burn_time,
         transfer_time_s=best.transfer_time,
         dv1_eci=best.dv1,

@@ -250,6 +250,11 @@ def _solve(
     )
     chaser_b = plan.chaser_coast.dense(plan.burn_time_s)
     direction = chaser_b[3:] / np.linalg.norm(chaser_b[3:])
+    # Only the rendezvous has a plane difference, hence optima on both sides of 180 deg;
+    # the transfer's virtual target lies in the chaser's own plane.
+    multi = inp.settings.multi_start_fractions
+    multi_start = isinstance(inp, RendezvousInput) and multi is not None
+    starts = multi if multi_start else inp.settings.start_transfer_fractions
     correction = correct_transfer(
         CorrectionProblem(
             propagator=prop,
@@ -260,7 +265,7 @@ def _solve(
             dv_guess_eci=plan.hohmann.dv1_mps * direction,
             miss_tolerance_m=inp.miss_tolerance_m,
             transfer_time_bounds=inp.settings.transfer_time_bounds,
-            start_fractions=inp.settings.start_transfer_fractions,
+            start_fractions=starts,
             burn_window_s=plan.burn_window_s,
             max_iterations=inp.settings.max_iterations,
             optimality_tol=inp.settings.optimality_tol,
@@ -268,6 +273,7 @@ def _solve(
             initial_trust_radius=inp.settings.initial_trust_radius,
             deadline=deadline,
             iterations_key="rendezvous.max_iterations",
+            solve_every_start=multi_start,
         )
     )
     return plan, correction
