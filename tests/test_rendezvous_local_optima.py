@@ -2,7 +2,7 @@
 
 With a plane difference between the insertion orbit and the target's, the J2 correction
 NLP has optima on both sides of the 180-degree transfer. The reference: the interior
-point run from every one of seven start shots spread over the transfer-time bounds, each
+point run from every one of ten start shots spread over the transfer-time bounds, each
 on its own; the stage's multi-start must find the cheapest of them. The rendezvous
 problems are the ones the mission chain poses for its first reference designs.
 """
@@ -19,7 +19,7 @@ from ovtraj.mission import evaluate, reference
 from ovtraj.rendezvous.correction import CorrectionProblem, correct_transfer
 
 # Transfer-time fractions of the independent reference: the default bounds are [0.5, 1.5].
-REFERENCE_STARTS = (0.6, 0.7, 0.85, 1.0, 1.15, 1.3, 1.4)
+REFERENCE_STARTS = (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15, 1.25, 1.35, 1.45)
 DESIGNS = 6  # the first reference designs: two of them end in a worse optimum from one start
 DV_TOLERANCE_MPS = 0.01  # configs/mission_reference.yaml's dv tolerance
 
@@ -57,7 +57,7 @@ def test_the_chain_solves_its_rendezvous_from_every_configured_start(rendezvous_
         assert problem.start_fractions == settings.multi_start_fractions
 
 
-def test_the_multi_start_finds_the_cheapest_of_seven_single_starts(rendezvous_problems):
+def test_the_multi_start_finds_the_cheapest_of_ten_single_starts(rendezvous_problems):
     improved = 0
     for problem in rendezvous_problems:
         kept = correct_transfer(problem)
@@ -103,9 +103,10 @@ def test_the_stored_reference_only_lowered_the_rendezvous_cost():
     assert before_marker["code_version"] != after_marker["code_version"]
     assert before[list(reference.DESIGN_NAMES)].equals(after[list(reference.DESIGN_NAMES)])
     assert before["feasible"].equals(after["feasible"])
-    lowered = before["rendezvous_dv_mps"] - after["rendezvous_dv_mps"]
+    feasible = after["feasible"]
+    lowered = (before["rendezvous_dv_mps"] - after["rendezvous_dv_mps"])[feasible]
     assert (lowered >= -settings.tolerances.dv_mps).all()
     assert int((lowered > 5.0).sum()) >= 5
     # The rest of the chain follows the new arrival: dV_total falls with the rendezvous.
-    total_lowered = before["dv_total_mps"] - after["dv_total_mps"]
+    total_lowered = (before["dv_total_mps"] - after["dv_total_mps"])[feasible]
     assert (total_lowered[lowered > 5.0] > 5.0).all()
