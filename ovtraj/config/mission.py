@@ -69,6 +69,17 @@ RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET"]
 ClassifierName = Literal["svc", "gpc", "logistic"]
 
 
+class PassForecastSettings(StrictModel):
+    """The low-fidelity T_total of the phase-input surrogates (ovtraj/pipeline/pass_model.py)."""
+
+    rendezvous_transfer_fraction: float = bounded(
+        gt=0, le=10, description="the rendezvous transfer's time, in Hohmann times"
+    )
+    transfer_fraction: float = bounded(
+        gt=0, le=10, description="the transfer to H_dp's time, in Hohmann times"
+    )
+
+
 class SurrogateSettings(StrictModel):
     """Surrogate candidates and how they are selected and validated (issue 7)."""
 
@@ -93,6 +104,13 @@ class SurrogateSettings(StrictModel):
         description="candidates compared by CV on every fit; on a pipeline's first fit and "
         "refitted unchanged on its later ones; or all on the first fit and, on the later ones, "
         "only the shortlist_size best of the first fit"
+    )
+    # Optional (null when absent, and then off): the configs stored with runs made before
+    # it existed still read.
+    pass_forecast: PassForecastSettings | None = Field(
+        default=None,
+        description="T_total as the low-fidelity pass forecast plus a regressed residual "
+        "(phase_input only)",
     )
     # Optional (null when absent): the configs stored with runs made before it existed
     # still read; `selection: shortlist` requires it.

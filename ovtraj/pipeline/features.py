@@ -43,23 +43,24 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.j2_elements import secular_rates, state_to_mean
+from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.config import Scenario
 from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.launch.fourier import FourierSeries
 from ovtraj.mission import DESIGN_NAMES
+from ovtraj.pipeline.pass_model import PassModel, target_mean_elements
 from ovtraj.products import Product
 from ovtraj.rendezvous import hohmann
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
-from ovtraj.targets import target_state
 
-KIND = "mission-phase-surrogates/2"
+KIND = "mission-phase-surrogates/3"
 WAIT = "rendezvous_wait_s"
 DV_PARTS = ("dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps")
 PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
 PAYLOAD = "payload_kg"
+PASS_MODEL = "pass model"  # T_total's model when it is the pass model (no regressor)
 MARKER = "meta.json"
 PARTS = ("wait", "main")
 
@@ -77,9 +78,7 @@ def above(floor: np.ndarray, value: np.ndarray, softness: float) -> np.ndarray:
 
 def _target_mean_orbit(scenario: Scenario) -> tuple[float, float, float]:
     """The target's mean semi-major axis [m], eccentricity and inclination [rad] under J2."""
-    earth = scenario.earth
-    state = target_state(scenario.target.orbit, scenario)
-    mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
+    mean = target_mean_elements(scenario)
     return float(mean.a), math.hypot(float(mean.ex), float(mean.ey)), float(mean.i)
 
 
@@ -169,8 +168,10 @@ class MissionSurrogates:
         stay_s: float,
         softness_s: float,
         softness_mps: float,
+        pass_model: PassModel | None = None,
     ) -> None:
         self.wait, self._main, self.period_s = wait, main, float(period_s)
+        self.pass_model = pass_model
         self.payload, self.floors = payload, floors
         self.stay_s, self.softness_s, self.softness_mps = stay_s, softness_s, softness_mps
         self.input_names = tuple(DESIGN_NAMES)
@@ -188,7 +189,8 @@ class MissionSurrogates:
 
     @property
     def selected(self) -> dict[str, str]:
-        return {**self.wait.selected, **self.main.selected}
+        passes = {} if self.pass_model is None else {"t_total_s": PASS_MODEL}
+        return {**self.wait.selected, **self.main.selected, **passes}
 
     @property
     def validation(self) -> pd.DataFrame:
@@ -205,7 +207,7 @@ class MissionSurrogates:
     def features(self, designs: np.ndarray) -> np.ndarray:
         """Designs (m, 3) -> the main model's inputs (m, 5)."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        wait = self.wait.predict(designs[:, :1])[WAIT]
+        wait = self.waits(designs)
         phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
         return np.column_stack([designs, np.sin(phase), np.cos(phase)])
 
@@ -223,13 +225,21 @@ class MissionSurrogates:
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         return self.stay_s + 3600.0 * designs[:, 2]
 
+    def waits(self, designs: np.ndarray) -> np.ndarray:
+        """The wait model's phasing waits [s] of designs (m, 3)."""
+        return composed_waits(self.wait, designs)
+
     def predict_parts(self, designs: np.ndarray) -> dict[str, np.ndarray]:
         """T_total [s] and the three dV parts [m/s], each above its floor."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
         raw = self.main.predict(self.features(designs))
         floors = self.floors(designs)
+        if self.pass_model is None:
+            t_total = raw["t_total_s"]
+        else:
+            t_total = self.pass_model.t_total_s(designs, self.waits(designs))
         return {
-            "t_total_s": above(self.time_floor(designs), raw["t_total_s"], self.softness_s),
+            "t_total_s": above(self.time_floor(designs), t_total, self.softness_s),
             **{name: above(floors[name], raw[name], self.softness_mps) for name in DV_PARTS},
         }
 
@@ -258,6 +268,7 @@ class MissionSurrogates:
             "stay_s": self.stay_s,
             "softness_s": self.softness_s,
             "softness_mps": self.softness_mps,
+            "pass_model": None if self.pass_model is None else self.pass_model.to_dict(),
             "lower": self.cube.lower.tolist(),
             "upper": self.cube.upper.tolist(),
             "selected": self.selected,
@@ -292,6 +303,8 @@ class MissionSurrogates:
             payload = FourierSeries.from_dict(meta["payload_series"])
             floors = DvFloors(**meta["floors"])
             float(meta["stay_s"]), float(meta["softness_s"]), float(meta["softness_mps"])
+            passes = meta["pass_model"]
+            pass_model = None if passes is None else PassModel.from_dict(passes)
         except (KeyError, TypeError, ValueError) as err:
             raise SurrogateError(f"{product.marker_path}: {err}") from None
         return cls(
@@ -305,6 +318,7 @@ class MissionSurrogates:
             stay_s=float(meta["stay_s"]),
             softness_s=float(meta["softness_s"]),
             softness_mps=float(meta["softness_mps"]),
+            pass_model=pass_model,
         )
 
 
@@ -340,6 +354,11 @@ def launch_payload(scenario: Scenario, data: Any) -> FourierSeries:
                 "evaluated with another launch fit"
             )
     return payload
+
+
+def composed_waits(wait: SurrogateSet, designs: np.ndarray) -> np.ndarray:
+    """The wait model's waits [s] of designs (m, 3) (as :meth:`MissionSurrogates.waits`)."""
+    return wait.predict(np.atleast_2d(np.asarray(designs, dtype=float))[:, :1])[WAIT]
 
 
 def fit_mission_surrogates(
@@ -385,6 +404,13 @@ def fit_mission_surrogates(
         candidates=candidates,
         executor=executor,
     )
+    pass_model = None
+    if settings.pass_forecast is not None:
+        series = find_launch_fit(scenario).series
+        pass_model = PassModel.of(scenario, series["insertion_time_s"], series["flight_time_s"])
+        pass_model = pass_model.calibrated(
+            data.designs, composed_waits(wait_set, data.designs), data.outputs["t_total_s"]
+        )
     period = target_draconic_period(scenario)
     bounds = {
         "payload": payload,
@@ -392,10 +418,12 @@ def fit_mission_surrogates(
         "stay_s": 3600.0 * scenario.mission.stay_h,
         "softness_s": 3600.0 * settings.floor_softness_h,
         "softness_mps": settings.floor_softness_mps,
+        "pass_model": pass_model,
     }
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
+    time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
     outputs = {
-        "t_total_s": data.outputs["t_total_s"],
+        **time,
         **{name: np.where(data.feasible, data.components[name], np.nan) for name in DV_PARTS},
     }
     main = fit_surrogates(

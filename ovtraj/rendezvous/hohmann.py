@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import ArrayLike
+
 
 @dataclass(frozen=True)
 class HohmannTransfer:
@@ -49,9 +52,16 @@ def hohmann(r1_m: float, r2_m: float, mu: float) -> HohmannTransfer:
         r2_m=r2_m,
         dv1_mps=dv1,
         dv2_mps=dv2,
-        transfer_time_s=math.pi * math.sqrt(a_t**3 / mu),
+        transfer_time_s=float(hohmann_time_s(r1_m, r2_m, mu)),
         transfer_sma_m=a_t,
     )
+
+
+def hohmann_time_s(r1_m: ArrayLike, r2_m: ArrayLike, mu: float) -> np.ndarray:
+    """Hohmann transfer time [s] between circular radii [m] (arrays broadcast):
+    T = pi sqrt(a_t^3 / mu), a_t = (r1 + r2) / 2 (as :func:`hohmann`)."""
+    a_t = 0.5 * (np.asarray(r1_m, dtype=float) + np.asarray(r2_m, dtype=float))
+    return math.pi * np.sqrt(a_t**3 / mu)
 
 
 def lead_angle(transfer: HohmannTransfer, target_rate_rad_s: float) -> float:

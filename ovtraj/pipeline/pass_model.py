@@ -1,0 +1,162 @@
+"""A low-fidelity T_total: the deorbit's pass predicted from the design (issue 21, point 2).
+
+T_total moves in whole days: the deorbit waits for a pass of the ground track through the
+entry region, and which pass comes first depends on when the OV reaches its preparation
+orbit and where it is on it. A regressor smears those steps; this model places them. From
+a design (H_P0, H_dp, t_dsp), with no integration:
+
+1. the launch fit gives the drop and insertion times at H_P0 (the chain's own series);
+2. the rendezvous arrives after the phasing wait (the surrogates' wait model, a function of
+   H_P0 alone) plus ``rendezvous_transfer_fraction`` of the Hohmann time to the target;
+3. the OV leaves the target after the stay and t_dsp, on the target's orbit (J2 secular
+   mean elements), and reaches H_dp ``transfer_fraction`` of a Hohmann time later, half a
+   revolution on, in the target's plane;
+4. :func:`ovtraj.deorbit.pass_estimate.first_pass_s` gives the first usable pass there.
+
+``T_lf = pass - drop + offset``; the offset (the descent and the entry after the pass,
+~0.5 h) is the median of the chain's samples' ``T_total - (pass - drop)``. Measured on 71
+designs of the default scenario (docs/optimize.md): that difference is 0.46-0.50 h on 63,
+and a whole number of days more on the others (a pass the chain's deorbit did not take).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ovtraj.astro.constants import EarthModel
+from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.epoch import Epoch
+from ovtraj.astro.j2_elements import secular_rates, state_to_mean
+from ovtraj.config import Scenario
+from ovtraj.deorbit.inputs import EntryRegion, deorbit_input
+from ovtraj.deorbit.pass_estimate import first_pass_s
+from ovtraj.launch.fourier import FourierSeries
+from ovtraj.rendezvous.hohmann import hohmann_time_s
+from ovtraj.targets import target_state
+
+
+def target_mean_elements(scenario: Scenario) -> NonsingularElements:
+    """The target's Brouwer mean elements (J2) at the scenario epoch."""
+    earth = scenario.earth
+    state = target_state(scenario.target.orbit, scenario)
+    return state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
+
+
+@dataclass(frozen=True)
+class PassModel:
+    """Everything the low-fidelity T_total needs; times in s from the launch day's 0 h."""
+
+    earth: dict[str, float]
+    entry: dict[str, Any]
+    insertion_time: dict[str, Any]  # launch fit series [s] against H_P0 [m]
+    flight_time: dict[str, Any]  # launch fit series [s] against H_P0 [m]
+    target_a_m: float
+    target_inclination_rad: float
+    target_u0_rad: float  # mean argument of latitude at t = 0
+    target_raan0_rad: float
+    target_u_rate: float  # rad/s, J2 secular
+    target_raan_rate: float
+    earth_angle_at_zero_rad: float
+    stay_s: float
+    horizon_s: float
+    burn_window_s: float
+    rendezvous_transfer_fraction: float
+    transfer_fraction: float
+    # After the pass: the descent and the entry to the terminal point, learned from the
+    # chain's samples (:meth:`calibrated`); 0 until then.
+    offset_s: float = 0.0
+
+    @classmethod
+    def of(
+        cls, scenario: Scenario, insertion_time: FourierSeries, flight_time: FourierSeries
+    ) -> PassModel:
+        """The model of a scenario with its launch fit's series."""
+        settings = scenario.mission.surrogate.pass_forecast
+        earth = scenario.earth
+        day = Epoch.from_iso(scenario.launch.launch_date_utc)
+        mean = target_mean_elements(scenario)
+        e = math.hypot(float(mean.ex), float(mean.ey))
+        raan_rate, argp_rate, m_rate = secular_rates(
+            float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
+        )
+        offset = day.seconds_since(scenario.epoch)  # the target's state is at the epoch
+        u_rate = float(argp_rate) + float(m_rate)
+        deorbit = deorbit_input(scenario, state0=np.zeros(6), epoch=day)
+        return cls(
+            earth=earth.model_dump(mode="json"),
+            entry=asdict(deorbit.entry),
+            insertion_time=insertion_time.to_dict(),
+            flight_time=flight_time.to_dict(),
+            target_a_m=float(mean.a),
+            target_inclination_rad=float(mean.i),
+            target_u0_rad=float(mean.u) + u_rate * offset,
+            target_raan0_rad=float(mean.raan) + float(raan_rate) * offset,
+            target_u_rate=u_rate,
+            target_raan_rate=float(raan_rate),
+            earth_angle_at_zero_rad=day.gmst_rad(),
+            stay_s=3600.0 * scenario.mission.stay_h,
+            horizon_s=deorbit.horizon_s,
+            burn_window_s=deorbit.solver.burn_window_s,
+            rendezvous_transfer_fraction=settings.rendezvous_transfer_fraction,
+            transfer_fraction=settings.transfer_fraction,
+        )
+
+    def calibrated(
+        self, designs: np.ndarray, wait_s: np.ndarray, t_total_s: np.ndarray
+    ) -> PassModel:
+        """This model with ``offset_s`` the median of the samples' T_total minus the
+        model's: the median, because where the model takes another pass than the chain
+        the difference is a whole number of days, which a mean or a regressor would spread
+        over the others (measured, docs/optimize.md)."""
+        base = replace(self, offset_s=0.0)
+        residual = np.asarray(t_total_s, dtype=float) - base.t_total_s(designs, wait_s)
+        known = np.isfinite(residual)
+        if not known.any():
+            raise ValueError("no sample with a T_total to calibrate the pass model on")
+        return replace(self, offset_s=float(np.median(residual[known])))
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PassModel:
+        return cls(**data)
+
+    def t_total_s(self, designs: np.ndarray, wait_s: np.ndarray) -> np.ndarray:
+        """Low-fidelity T_total [s] of designs (m, 3) whose phasing waits are ``wait_s``
+        (m,): to the pass, plus ``offset_s``. Where no usable pass lies in the deorbit's
+        horizon (the chain's deorbit finds none either: infeasible), the horizon's end."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        earth = EarthModel(**self.earth)
+        mu = earth.mu
+        parking = 1e3 * designs[:, 0]
+        insertion = np.asarray(FourierSeries.from_dict(self.insertion_time)(parking), float)
+        drop = insertion - np.asarray(FourierSeries.from_dict(self.flight_time)(parking), float)
+        arrival = (
+            insertion
+            + np.asarray(wait_s, dtype=float)
+            + self.rendezvous_transfer_fraction
+            * hohmann_time_s(earth.radius + parking, self.target_a_m, mu)
+        )
+        separation = arrival + self.stay_s + 3600.0 * designs[:, 2]
+        preparation_radius = earth.radius + 1e3 * designs[:, 1]
+        transfer = self.transfer_fraction * hohmann_time_s(self.target_a_m, preparation_radius, mu)
+        start = separation + transfer
+        passes = first_pass_s(
+            start,
+            self.target_u0_rad + self.target_u_rate * separation + math.pi,
+            self.target_raan0_rad + self.target_raan_rate * start,
+            self.target_inclination_rad,
+            preparation_radius,
+            entry=EntryRegion(**self.entry),
+            earth=earth,
+            earth_angle_at_zero_rad=self.earth_angle_at_zero_rad,
+            horizon_s=self.horizon_s,
+            burn_window_s=self.burn_window_s,
+        )
+        reached = np.where(np.isfinite(passes), passes, start + self.horizon_s)
+        return reached - drop + self.offset_s
