@@ -502,8 +502,11 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     predicted = surrogates.predict(designs)
     assert np.allclose(predicted["dv_total_mps"], sum(parts[name] for name in DV_PARTS))
     time_floor = 3600.0 * (scenario.mission.stay_h + designs[:, 2])
+    # T_total is the pass model's (surrogate.pass_forecast), not a regressor's.
+    assert surrogates.selected["t_total_s"] == "pass model" and "t_total_s" not in raw
+    low_fidelity = surrogates.pass_model.t_total_s(designs, wait)
     assert np.allclose(
-        predicted["t_total_s"], above(time_floor, raw["t_total_s"], surrogates.softness_s)
+        predicted["t_total_s"], above(time_floor, low_fidelity, surrogates.softness_s)
     )
     # M_load is the launch fit's payload itself: the run's values exactly.
     known = np.isfinite(data.outputs["m_load_kg"][:7])
@@ -528,6 +531,24 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     )
     direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
+    # Without the pass model: T_total regressed like the other outputs.
+    regressed = scenario.model_copy(
+        update={
+            "mission": scenario.mission.model_copy(
+                update={
+                    "surrogate": scenario.mission.surrogate.model_copy(
+                        update={"pass_forecast": None}
+                    )
+                }
+            )
+        }
+    )
+    whole = fit_step(doe, data, regressed, small["code"]).surrogates
+    assert whole.pass_model is None and whole.selected["t_total_s"] != "pass model"
+    raw = whole.main.predict(whole.features(designs))
+    assert np.allclose(
+        whole.predict(designs)["t_total_s"], above(time_floor, raw["t_total_s"], whole.softness_s)
+    )
 
 
 def test_no_prediction_leaves_its_physical_range_on_a_dense_grid(small):

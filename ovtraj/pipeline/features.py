@@ -12,8 +12,11 @@ wait it is smooth. So, instead of one model per objective on the design variable
 - ``main``: on (H_P0, H_dp, t_dsp, sin phi, cos phi), with
   phi = 2 pi (wait mod P) / P and P the target's draconic period under J2 (secular
   argument-of-latitude rate, Brouwer 1959 via :func:`ovtraj.astro.j2_elements.secular_rates`):
-  T_total, M_load, the three parts of dV_total (rendezvous, transfer, deorbit) and the
-  feasibility classifier;
+  the three parts of dV_total (rendezvous, transfer, deorbit), the feasibility classifier,
+  and T_total unless ``surrogate.pass_forecast`` is set;
+- T_total, with ``pass_forecast``: the deorbit's pass predicted in closed form from the
+  design and the wait model's wait (:mod:`ovtraj.pipeline.pass_model`), plus the samples'
+  median offset: it moves in whole days, which a regressor smears;
 - dV_total is the sum of its three parts' predictions.
 
 Every prediction stays in its physical range by construction (issue 21):
