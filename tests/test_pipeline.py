@@ -684,6 +684,8 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     assert report.is_absolute() and report.is_file()
     page = report.read_text(encoding="utf-8")
     assert verdict in page and page.count("src='data:image/png;base64,") >= 5
+    # T_total is the pass model's: the report says so instead of CV figures.
+    assert "t_total_s: pass model, not a regressor" in page
     runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
     assert len(runs) == 2  # the DoE and its infill child
     # Again, as JSON: nothing evaluated, one object on stdout, the same verdict and report.

@@ -103,7 +103,7 @@ def write_mission_plan(
         front=result.front,
         plan=plan,
         pick_text=pick_explanation(result.front, normalisation, pick, row),
-        validation=_last_validation(store, result),
+        surrogates=_last_surrogates(store, result),
         plots=[result.directory / "front.png", *(location(p) for p in plots)],
     )
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
@@ -123,9 +123,9 @@ def write_mission_plan(
     }
 
 
-def _last_validation(store: RunStore, result: PipelineResult) -> Any:
-    """The validation table of the pipeline's last surrogate fit; None when it is no longer
-    stored (pruned as stale)."""
+def _last_surrogates(store: RunStore, result: PipelineResult) -> Any:
+    """The pipeline's last surrogate fit; None when it is no longer stored (pruned as
+    stale)."""
     from ovtraj.pipeline.features import load_surrogates
     from ovtraj.surrogate import SurrogateError
 
@@ -134,8 +134,6 @@ def _last_validation(store: RunStore, result: PipelineResult) -> Any:
         return None
     last = rounds[-1]
     try:
-        return load_surrogates(
-            store.root / last["run_id"] / "surrogates" / last["fit_id"]
-        ).validation
+        return load_surrogates(store.root / last["run_id"] / "surrogates" / last["fit_id"])
     except (SurrogateError, StoreError, OSError):
         return None

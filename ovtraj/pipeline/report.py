@@ -20,10 +20,17 @@ import pandas as pd
 from ovtraj.files import write_bytes
 from ovtraj.formatting import number, utc
 from ovtraj.optimize import Normalisation
+from ovtraj.pipeline.features import PASS_MODEL
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.plots.embed import png_data_uri
 
 __all__ = ["pick_explanation", "stop_explanation", "write_report"]
+
+# Outputs the surrogates model without a regressor, and how (ovtraj/pipeline/features.py).
+_UNREGRESSED = {
+    PASS_MODEL: " (the deorbit's pass predicted in closed form from the design, plus the "
+    "samples' median offset; docs/optimize.md)"
+}
 
 _STOPS = {
     "converged": "converged: every front point verified in the last round is feasible and "
@@ -228,7 +235,7 @@ def write_report(
     front: pd.DataFrame,
     plan: Any,
     pick_text: str,
-    validation: pd.DataFrame | None,
+    surrogates: Any,
     plots: list[Path],
 ) -> Path:
     """The HTML report of a planned pipeline result at ``path`` (rewritten with the plan:
@@ -258,9 +265,10 @@ def write_report(
         _table(_front_frame(front, normalisation)),
         "<h2>Surrogates of the last round (selected models)</h2>",
     ]
-    if validation is None:
+    if surrogates is None:
         parts.append("<p>the last round's surrogate fit is no longer stored.</p>")
     else:
+        validation = surrogates.validation
         chosen = validation[validation["selected"].astype(bool)]
         shown = [c for c in _VALIDATION_COLUMNS if c in chosen and chosen[c].notna().any()]
         parts.append(
@@ -268,6 +276,17 @@ def write_report(
             "selected model, in the output's unit (times in s).</p>"
         )
         parts.append(_table(chosen[shown]))
+        unregressed = {
+            output: model
+            for output, model in surrogates.selected.items()
+            if output not in set(validation["model"])
+        }
+        for output, model in unregressed.items():
+            why = _UNREGRESSED.get(model, "")
+            parts.append(
+                f"<p>{html.escape(output)}: {html.escape(model)}, not a regressor{why}: "
+                "no cross-validation figures.</p>"
+            )
     parts.append("<h2>Plots</h2>")
     for plot in plots:
         parts.append(
