@@ -1361,6 +1361,7 @@ def optimize(
         front_step,
         training_data,
     )
+    from ovtraj.pipeline.features import unregressed
     from ovtraj.runs import StoreError
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
@@ -1386,8 +1387,14 @@ def optimize(
                 "surrogates": str(fitted.directory.resolve()),
                 "loaded_from_store": fitted.reused,
                 "models": [
-                    {"model": row.model, "candidate": row.candidate}
-                    for row in chosen.itertuples(index=False)
+                    *(
+                        {"model": row.model, "candidate": row.candidate}
+                        for row in chosen.itertuples(index=False)
+                    ),
+                    *(
+                        {"model": output, "candidate": model}
+                        for output, model in unregressed(fitted.surrogates).items()
+                    ),
                 ],
                 "front": str((front.directory / "front.parquet").resolve()),
                 "front_points": len(front.front),
@@ -1402,6 +1409,8 @@ def optimize(
     ]
     for row in chosen.itertuples(index=False):
         rows.append((f"{row.model} model", row.candidate))
+    for output, model in unregressed(fitted.surrogates).items():
+        rows.append((f"{output} model", model))
     rows += [
         ("front", str((front.directory / "front.parquet").resolve())),
         ("front points", len(front.front)),

@@ -211,6 +211,10 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     assert done.exit_code == 0, done.output
     assert re.search(r"identical to the stored front +True", done.output)
     assert execute.EVALUATIONS["count"] == before
+    # Every output's model is listed, T_total's pass model too (it has no CV row).
+    assert re.search(r"t_total_s model +pass model", done.output)
+    listed = json.loads(runner.invoke(app, ["optimize", doe, "--store", root, "--json"]).output)
+    assert {"model": "t_total_s", "candidate": "pass model"} in listed["models"]
     # A plan of the first front point, then its replay through the dynamics.
     done = runner.invoke(app, ["plan", doe, "--pick", "0", "--store", root])
     assert done.exit_code == 0, done.output

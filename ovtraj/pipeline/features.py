@@ -359,6 +359,13 @@ def launch_payload(scenario: Scenario, data: Any) -> FourierSeries:
     return payload
 
 
+def unregressed(surrogates: SurrogateSet | MissionSurrogates) -> dict[str, str]:
+    """The outputs a fitted set models without a regressor (so without CV figures), each
+    with how: T_total by the pass model (:data:`PASS_MODEL`)."""
+    fitted = set(surrogates.validation["model"])
+    return {out: model for out, model in surrogates.selected.items() if out not in fitted}
+
+
 def composed_waits(wait: SurrogateSet, designs: np.ndarray) -> np.ndarray:
     """The wait model's waits [s] of designs (m, 3) (as :meth:`MissionSurrogates.waits`)."""
     return wait.predict(np.atleast_2d(np.asarray(designs, dtype=float))[:, :1])[WAIT]

@@ -20,7 +20,7 @@ import pandas as pd
 from ovtraj.files import write_bytes
 from ovtraj.formatting import number, utc
 from ovtraj.optimize import Normalisation
-from ovtraj.pipeline.features import PASS_MODEL
+from ovtraj.pipeline.features import PASS_MODEL, unregressed
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.plots.embed import png_data_uri
 
@@ -276,12 +276,7 @@ def write_report(
             "selected model, in the output's unit (times in s).</p>"
         )
         parts.append(_table(chosen[shown]))
-        unregressed = {
-            output: model
-            for output, model in surrogates.selected.items()
-            if output not in set(validation["model"])
-        }
-        for output, model in unregressed.items():
+        for output, model in unregressed(surrogates).items():
             why = _UNREGRESSED.get(model, "")
             parts.append(
                 f"<p>{html.escape(output)}: {html.escape(model)}, not a regressor{why}: "
