@@ -21,8 +21,7 @@ from scipy.integrate import solve_ivp
 
 from ovtraj.config import ConfigError
 from ovtraj.deorbit import deorbit_input, solve_deorbit
-from ovtraj.deorbit.forecast import forecast_passes
-from ovtraj.deorbit.stage import propagator_for
+from ovtraj.deorbit.stage import forecast_of
 from tests.conftest import DEORBIT_KEYS as REQUIRED_KEYS
 from tests.conftest import build_scenario
 
@@ -233,13 +232,7 @@ def test_reported_burn_reaches_the_region_under_independent_propagation(inp, sol
 
 
 def test_forecast_matches_a_brute_force_ground_track_scan(inp, scan):
-    forecast = forecast_passes(
-        propagator_for(inp),
-        inp.state0,
-        inp.horizon_s,
-        inp.entry,
-        time_tolerance_s=inp.solver.nearest_point_tolerance_s,
-    )
+    forecast = forecast_of(inp)
     entry, radius = inp.entry, inp.earth.radius
     t, lat, lon = scan["t"], scan["lat"], scan["lon"]
 

@@ -14,10 +14,9 @@ import pytest
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config import load_scenario
-from ovtraj.deorbit.forecast import forecast_passes
 from ovtraj.deorbit.inputs import deorbit_input
 from ovtraj.deorbit.pass_estimate import first_pass_s
-from ovtraj.deorbit.stage import burn_estimate, first_burn_time_s, propagator_for
+from ovtraj.deorbit.stage import burn_estimate, first_burn_time_s, forecast_of
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission import evaluate, reference
 from ovtraj.paths import config_path
@@ -37,13 +36,7 @@ def scenario():
 def _stage_first_pass(scenario, state0, epoch):
     """The first pass the deorbit stage would try: in the region, burn not too early."""
     inp = deorbit_input(scenario, state0=state0, epoch=epoch)
-    forecast = forecast_passes(
-        propagator_for(inp),
-        inp.state0,
-        inp.horizon_s,
-        inp.entry,
-        time_tolerance_s=inp.solver.nearest_point_tolerance_s,
-    )
+    forecast = forecast_of(inp)
     for track_pass in forecast.in_region:
         estimate = burn_estimate(inp, track_pass.state, inp.entry.fpa_target_rad)
         if first_burn_time_s(track_pass, estimate) + inp.solver.burn_window_s >= 0.0:

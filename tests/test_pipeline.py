@@ -477,6 +477,13 @@ def test_target_draconic_period_against_the_propagated_orbit(scenario):
     assert target_draconic_period(scenario) == pytest.approx(2 * np.pi / rate, rel=2e-4)
 
 
+def _with_surrogate(scenario, **settings):
+    """``scenario`` with these ``mission.surrogate`` settings replaced."""
+    surrogate = scenario.mission.surrogate.model_copy(update=settings)
+    mission = scenario.mission.model_copy(update={"surrogate": surrogate})
+    return scenario.model_copy(update={"mission": mission})
+
+
 def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     from ovtraj.pipeline.features import (
         DV_PARTS,
@@ -522,31 +529,11 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
         assert np.array_equal(again.predict(designs)[name], values)
     assert np.array_equal(again.feasibility(designs), surrogates.feasibility(designs))
     # Without the phase input: one plain set of the three objectives.
-    plain = scenario.model_copy(
-        update={
-            "mission": scenario.mission.model_copy(
-                update={
-                    "surrogate": scenario.mission.surrogate.model_copy(
-                        update={"phase_input": False}
-                    )
-                }
-            )
-        }
-    )
+    plain = _with_surrogate(scenario, phase_input=False)
     direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
     # Without the pass model: T_total regressed like the other outputs.
-    regressed = scenario.model_copy(
-        update={
-            "mission": scenario.mission.model_copy(
-                update={
-                    "surrogate": scenario.mission.surrogate.model_copy(
-                        update={"pass_forecast": None}
-                    )
-                }
-            )
-        }
-    )
+    regressed = _with_surrogate(scenario, pass_forecast=None)
     whole = fit_step(doe, data, regressed, small["code"]).surrogates
     assert whole.pass_model is None and whole.selected["t_total_s"] != "pass model"
     raw = whole.main.predict(whole.features(designs))

@@ -21,7 +21,7 @@ from ovtraj.rendezvous.correction import CorrectionProblem, correct_transfer
 # Transfer-time fractions of the independent reference: the default bounds are [0.5, 1.5].
 REFERENCE_STARTS = (0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15, 1.25, 1.35, 1.45)
 DESIGNS = 6  # the first reference designs: two of them end in a worse optimum from one start
-DV_TOLERANCE_MPS = 0.01  # configs/mission_reference.yaml's dv tolerance
+DV_TOLERANCE_MPS = reference.load_settings().tolerances.dv_mps  # the chain reference's
 
 
 def _total(result) -> float:

@@ -46,6 +46,18 @@ def propagator_for(inp: DeorbitInput) -> OrbitPropagator:
     return OrbitPropagator(inp.earth, tol=inp.integrator_tol, earth_angle0_rad=inp.earth_angle0_rad)
 
 
+def forecast_of(inp: DeorbitInput, propagator: OrbitPropagator | None = None) -> Forecast:
+    """The ground-track forecast of the stage's problem: passes by the entry point over its
+    horizon (:func:`~ovtraj.deorbit.forecast.forecast_passes`)."""
+    return forecast_passes(
+        propagator or propagator_for(inp),
+        inp.state0,
+        inp.horizon_s,
+        inp.entry,
+        time_tolerance_s=inp.solver.nearest_point_tolerance_s,
+    )
+
+
 def burn_estimate(inp: DeorbitInput, state: np.ndarray, fpa_rad: float) -> TangentialDeorbit:
     """Two-body tangential impulse from the radius of ``state`` for the entry angle."""
     earth = inp.earth
@@ -73,13 +85,7 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     start = time.perf_counter()
     deadline = Deadline(inp.solver.time_limit_s, "deorbit.solver.time_limit_s")
     propagator = propagator_for(inp)
-    forecast = forecast_passes(
-        propagator,
-        inp.state0,
-        inp.horizon_s,
-        inp.entry,
-        time_tolerance_s=inp.solver.nearest_point_tolerance_s,
-    )
+    forecast = forecast_of(inp, propagator)
     candidates = forecast.in_region
     if not candidates:
         return DeorbitResult(False, forecast.reason, inp.epoch, wall_time_s=_since(start))

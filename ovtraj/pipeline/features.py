@@ -207,10 +207,11 @@ class MissionSurrogates:
     def data_hash(self) -> str:
         return f"{self.wait.data_hash}-{self.main.data_hash}"
 
-    def features(self, designs: np.ndarray) -> np.ndarray:
-        """Designs (m, 3) -> the main model's inputs (m, 5)."""
+    def features(self, designs: np.ndarray, wait: np.ndarray | None = None) -> np.ndarray:
+        """Designs (m, 3) -> the main model's inputs (m, 5); ``wait``: their waits [s],
+        when already predicted."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        wait = self.waits(designs)
+        wait = self.waits(designs) if wait is None else wait
         phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
         return np.column_stack([designs, np.sin(phase), np.cos(phase)])
 
@@ -235,12 +236,13 @@ class MissionSurrogates:
     def predict_parts(self, designs: np.ndarray) -> dict[str, np.ndarray]:
         """T_total [s] and the three dV parts [m/s], each above its floor."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        raw = self.main.predict(self.features(designs))
+        wait = self.waits(designs)
+        raw = self.main.predict(self.features(designs, wait))
         floors = self.floors(designs)
         if self.pass_model is None:
             t_total = raw["t_total_s"]
         else:
-            t_total = self.pass_model.t_total_s(designs, self.waits(designs))
+            t_total = self.pass_model.t_total_s(designs, wait)
         return {
             "t_total_s": above(self.time_floor(designs), t_total, self.softness_s),
             **{name: above(floors[name], raw[name], self.softness_mps) for name in DV_PARTS},

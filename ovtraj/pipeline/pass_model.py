@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -119,6 +120,21 @@ class PassModel:
             raise ValueError("no sample with a T_total to calibrate the pass model on")
         return replace(self, offset_s=float(np.median(residual[known])))
 
+    # Built once per model, not on each call (NSGA-II predicts every generation).
+    @cached_property
+    def _earth(self) -> EarthModel:
+        return EarthModel(**self.earth)
+
+    @cached_property
+    def _entry(self) -> EntryRegion:
+        return EntryRegion(**self.entry)
+
+    @cached_property
+    def _series(self) -> tuple[FourierSeries, FourierSeries]:
+        return FourierSeries.from_dict(self.insertion_time), FourierSeries.from_dict(
+            self.flight_time
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
@@ -131,11 +147,12 @@ class PassModel:
         (m,): to the pass, plus ``offset_s``. Where no usable pass lies in the deorbit's
         horizon (the chain's deorbit finds none either: infeasible), the horizon's end."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        earth = EarthModel(**self.earth)
+        earth = self._earth
         mu = earth.mu
         parking = 1e3 * designs[:, 0]
-        insertion = np.asarray(FourierSeries.from_dict(self.insertion_time)(parking), float)
-        drop = insertion - np.asarray(FourierSeries.from_dict(self.flight_time)(parking), float)
+        insertion_series, flight_series = self._series
+        insertion = np.asarray(insertion_series(parking), float)
+        drop = insertion - np.asarray(flight_series(parking), float)
         arrival = (
             insertion
             + np.asarray(wait_s, dtype=float)
@@ -152,7 +169,7 @@ class PassModel:
             self.target_raan0_rad + self.target_raan_rate * start,
             self.target_inclination_rad,
             preparation_radius,
-            entry=EntryRegion(**self.entry),
+            entry=self._entry,
             earth=earth,
             earth_angle_at_zero_rad=self.earth_angle_at_zero_rad,
             horizon_s=self.horizon_s,
