@@ -105,6 +105,14 @@ class SurrogateSettings(StrictModel):
         "refitted unchanged on its later ones; or all on the first fit and, on the later ones, "
         "only the shortlist_size best of the first fit"
     )
+    # Optional (false when absent): the configs stored with runs made before it existed
+    # still read.
+    burn_phase: bool = Field(
+        default=False,
+        description="phase_input: the phase of the rendezvous's first burn in closed form "
+        "(twice its argument of latitude, ovtraj/pipeline/burn_phase.py) instead of the "
+        "wait model's wait in the target's period",
+    )
     # Optional (null when absent, and then off): the configs stored with runs made before
     # it existed still read.
     pass_forecast: PassForecastSettings | None = Field(

@@ -11,9 +11,13 @@ wait it is smooth. So, instead of one model per objective on the design variable
 - ``wait``: the phasing wait as a function of H_P0 alone (smooth, monotone here);
 - ``main``: on (H_P0, H_dp, t_dsp, sin phi, cos phi), with
   phi = 2 pi (wait mod P) / P and P the target's draconic period under J2 (secular
-  argument-of-latitude rate, Brouwer 1959 via :func:`ovtraj.astro.j2_elements.secular_rates`):
-  the three parts of dV_total (rendezvous, transfer, deorbit), the feasibility classifier,
-  and T_total unless ``surrogate.pass_forecast`` is set;
+  argument-of-latitude rate, Brouwer 1959 via :func:`ovtraj.astro.j2_elements.secular_rates`),
+  or, with ``surrogate.burn_phase``, phi = 2 u_burn: twice the chaser's argument of
+  latitude at the first burn, from the design in closed form
+  (:mod:`ovtraj.pipeline.burn_phase`; the plane change the rendezvous pays follows it
+  with half a revolution's period): the three parts of dV_total (rendezvous, transfer,
+  deorbit), the feasibility classifier, and T_total unless ``surrogate.pass_forecast`` is
+  set;
 - T_total, with ``pass_forecast``: the deorbit's pass predicted in closed form from the
   design and the wait model's wait (:mod:`ovtraj.pipeline.pass_model`), plus the samples'
   median offset: it moves in whole days, which a regressor smears;
@@ -52,16 +56,20 @@ from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.launch.fourier import FourierSeries
 from ovtraj.mission import DESIGN_NAMES
+from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import PassModel, target_mean_elements
 from ovtraj.products import Product
 from ovtraj.rendezvous import hohmann
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 
-KIND = "mission-phase-surrogates/3"
+KIND = "mission-phase-surrogates/4"
+# Stored by earlier versions and still read: /3 had no burn phase.
+READABLE_KINDS = ("mission-phase-surrogates/3",)
 WAIT = "rendezvous_wait_s"
 DV_PARTS = ("dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps")
 PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
+BURN_PHASE_INPUTS = ("sin_2u_burn", "cos_2u_burn")
 PAYLOAD = "payload_kg"
 PASS_MODEL = "pass model"  # T_total's model when it is the pass model (no regressor)
 MARKER = "meta.json"
@@ -172,9 +180,10 @@ class MissionSurrogates:
         softness_s: float,
         softness_mps: float,
         pass_model: PassModel | None = None,
+        burn_phase: BurnPhaseModel | None = None,
     ) -> None:
         self.wait, self._main, self.period_s = wait, main, float(period_s)
-        self.pass_model = pass_model
+        self.pass_model, self.burn_phase = pass_model, burn_phase
         self.payload, self.floors = payload, floors
         self.stay_s, self.softness_s, self.softness_mps = stay_s, softness_s, softness_mps
         self.input_names = tuple(DESIGN_NAMES)
@@ -211,9 +220,17 @@ class MissionSurrogates:
         """Designs (m, 3) -> the main model's inputs (m, 5); ``wait``: their waits [s],
         when already predicted."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        wait = self.waits(designs) if wait is None else wait
-        phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
+        if self.burn_phase is not None:
+            phase = self.burn_phase.phase_rad(designs)
+        else:
+            wait = self.waits(designs) if wait is None else wait
+            phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
         return np.column_stack([designs, np.sin(phase), np.cos(phase)])
+
+    @property
+    def phase_inputs(self) -> tuple[str, str]:
+        """The names of the main model's two phase inputs."""
+        return BURN_PHASE_INPUTS if self.burn_phase is not None else PHASE_INPUTS
 
     def predict(self, designs: np.ndarray) -> dict[str, np.ndarray]:
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
@@ -274,6 +291,7 @@ class MissionSurrogates:
             "softness_s": self.softness_s,
             "softness_mps": self.softness_mps,
             "pass_model": None if self.pass_model is None else self.pass_model.to_dict(),
+            "burn_phase": None if self.burn_phase is None else self.burn_phase.to_dict(),
             "lower": self.cube.lower.tolist(),
             "upper": self.cube.upper.tolist(),
             "selected": self.selected,
@@ -299,7 +317,7 @@ class MissionSurrogates:
             digests = {name: product.digest(f"{name}/{MARKER}", meta) for name in PARTS}
         except StoreError as err:
             raise SurrogateError(str(err)) from None
-        if meta.get("kind") != KIND:
+        if meta.get("kind") not in (KIND, *READABLE_KINDS):
             raise SurrogateError(
                 f"{product.marker_path}: kind {meta.get('kind')!r}, not {KIND!r} "
                 "(a set of another version: fit again with --refit)"
@@ -310,6 +328,9 @@ class MissionSurrogates:
             float(meta["stay_s"]), float(meta["softness_s"]), float(meta["softness_mps"])
             passes = meta["pass_model"]
             pass_model = None if passes is None else PassModel.from_dict(passes)
+            # Absent from sets of the kind before it (always the wait's phase there).
+            burn = meta.get("burn_phase")
+            burn_phase = None if burn is None else BurnPhaseModel.from_dict(burn)
         except (KeyError, TypeError, ValueError) as err:
             raise SurrogateError(f"{product.marker_path}: {err}") from None
         return cls(
@@ -324,6 +345,7 @@ class MissionSurrogates:
             softness_s=float(meta["softness_s"]),
             softness_mps=float(meta["softness_mps"]),
             pass_model=pass_model,
+            burn_phase=burn_phase,
         )
 
 
@@ -423,6 +445,12 @@ def fit_mission_surrogates(
         pass_model = pass_model.calibrated(
             data.designs, composed_waits(wait_set, data.designs), data.outputs["t_total_s"]
         )
+    burn_phase = None
+    if settings.burn_phase:
+        series = find_launch_fit(scenario).series
+        burn_phase = BurnPhaseModel.of(
+            scenario, series["insertion_time_s"], series["insertion_u_deg"]
+        )
     period = target_draconic_period(scenario)
     bounds = {
         "payload": payload,
@@ -431,6 +459,7 @@ def fit_mission_surrogates(
         "softness_s": 3600.0 * settings.floor_softness_h,
         "softness_mps": settings.floor_softness_mps,
         "pass_model": pass_model,
+        "burn_phase": burn_phase,
     }
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
@@ -445,7 +474,7 @@ def fit_mission_surrogates(
         np.concatenate([lower, [-1.0, -1.0]]),
         np.concatenate([upper, [1.0, 1.0]]),
         settings,
-        input_names=(*DESIGN_NAMES, *PHASE_INPUTS),
+        input_names=(*DESIGN_NAMES, *composed.phase_inputs),
         sample_ids=data.sample_ids,
         candidates=candidates,
         executor=executor,

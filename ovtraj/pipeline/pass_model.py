@@ -48,6 +48,40 @@ def target_mean_elements(scenario: Scenario) -> NonsingularElements:
 
 
 @dataclass(frozen=True)
+class TargetMeanMotion:
+    """The target's J2 secular mean orbit from the launch day's 0 h: a [m], angles [rad],
+    rates [rad/s] (Brouwer 1959 via :func:`ovtraj.astro.j2_elements.secular_rates`)."""
+
+    a_m: float
+    inclination_rad: float
+    u0_rad: float  # mean argument of latitude at the launch day's 0 h
+    raan0_rad: float
+    u_rate: float
+    raan_rate: float
+
+
+def target_mean_motion(scenario: Scenario) -> TargetMeanMotion:
+    """:class:`TargetMeanMotion` of the scenario's target, from its mean elements."""
+    earth = scenario.earth
+    day = Epoch.from_iso(scenario.launch.launch_date_utc)
+    mean = target_mean_elements(scenario)
+    e = math.hypot(float(mean.ex), float(mean.ey))
+    raan_rate, argp_rate, m_rate = secular_rates(
+        float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
+    )
+    offset = day.seconds_since(scenario.epoch)  # the target's state is at the epoch
+    u_rate = float(argp_rate) + float(m_rate)
+    return TargetMeanMotion(
+        a_m=float(mean.a),
+        inclination_rad=float(mean.i),
+        u0_rad=float(mean.u) + u_rate * offset,
+        raan0_rad=float(mean.raan) + float(raan_rate) * offset,
+        u_rate=u_rate,
+        raan_rate=float(raan_rate),
+    )
+
+
+@dataclass(frozen=True)
 class PassModel:
     """Everything the low-fidelity T_total needs; times in s from the launch day's 0 h."""
 
@@ -77,27 +111,20 @@ class PassModel:
     ) -> PassModel:
         """The model of a scenario with its launch fit's series."""
         settings = scenario.mission.surrogate.pass_forecast
-        earth = scenario.earth
         day = Epoch.from_iso(scenario.launch.launch_date_utc)
-        mean = target_mean_elements(scenario)
-        e = math.hypot(float(mean.ex), float(mean.ey))
-        raan_rate, argp_rate, m_rate = secular_rates(
-            float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
-        )
-        offset = day.seconds_since(scenario.epoch)  # the target's state is at the epoch
-        u_rate = float(argp_rate) + float(m_rate)
+        target = target_mean_motion(scenario)
         deorbit = deorbit_input(scenario, state0=np.zeros(6), epoch=day)
         return cls(
-            earth=earth.model_dump(mode="json"),
+            earth=scenario.earth.model_dump(mode="json"),
             entry=asdict(deorbit.entry),
             insertion_time=insertion_time.to_dict(),
             flight_time=flight_time.to_dict(),
-            target_a_m=float(mean.a),
-            target_inclination_rad=float(mean.i),
-            target_u0_rad=float(mean.u) + u_rate * offset,
-            target_raan0_rad=float(mean.raan) + float(raan_rate) * offset,
-            target_u_rate=u_rate,
-            target_raan_rate=float(raan_rate),
+            target_a_m=target.a_m,
+            target_inclination_rad=target.inclination_rad,
+            target_u0_rad=target.u0_rad,
+            target_raan0_rad=target.raan0_rad,
+            target_u_rate=target.u_rate,
+            target_raan_rate=target.raan_rate,
             earth_angle_at_zero_rad=day.gmst_rad(),
             stay_s=3600.0 * scenario.mission.stay_h,
             horizon_s=deorbit.horizon_s,

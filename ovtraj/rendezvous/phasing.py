@@ -6,9 +6,10 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ovtraj.astro.constants import EarthModel
-from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.elements import FloatOrArray, NonsingularElements
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.astro.vectors import cross
 from ovtraj.rendezvous.hohmann import wrap_angle
@@ -43,14 +44,17 @@ def mean_argument_of_latitude_rate(mean: NonsingularElements, earth: EarthModel)
     return float(argp_dot + m_dot)
 
 
-def first_wait(phase0: float, lead: float, relative_rate: float) -> float:
+def first_wait(phase0: ArrayLike, lead: ArrayLike, relative_rate: ArrayLike) -> FloatOrArray:
     """Smallest t >= 0 with phase0 - relative_rate * t = lead (mod 2 pi).
 
     ``relative_rate`` is the chaser's angular rate minus the target's [rad/s];
-    the target's lead over the chaser decreases at that rate.
+    the target's lead over the chaser decreases at that rate. Floats or arrays
+    (broadcast); a float for floats.
     """
-    gap = (phase0 - lead) if relative_rate > 0 else (lead - phase0)
-    return (gap % (2.0 * math.pi)) / abs(relative_rate)
+    phase0, lead, rate = (np.asarray(v, dtype=float) for v in (phase0, lead, relative_rate))
+    gap = np.where(rate > 0, phase0 - lead, lead - phase0)
+    wait = np.mod(gap, 2.0 * math.pi) / np.abs(rate)
+    return float(wait) if wait.ndim == 0 else wait
 
 
 def refine_wait(
