@@ -505,8 +505,10 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     designs = data.designs[:7]
     features = surrogates.features(designs)
     wait = surrogates.wait.predict(designs[:, :1])[WAIT]
-    phase = 2 * np.pi * np.mod(wait, surrogates.period_s) / surrogates.period_s
-    assert np.allclose(features[:, 3:], np.column_stack([np.sin(phase), np.cos(phase)]))
+    # The phase input: twice the first burn's argument of latitude (surrogate.burn_phase).
+    burn = 2.0 * surrogates.burn_phase.burn(designs[:, 0])[1]
+    assert np.allclose(features[:, 3:], np.column_stack([np.sin(burn), np.cos(burn)]))
+    assert surrogates.main.input_names[3:] == ("sin_2u_burn", "cos_2u_burn")
     raw = surrogates.main.predict(features)
     floors = surrogates.floors(designs)
     parts = {name: above(floors[name], raw[name], surrogates.softness_mps) for name in DV_PARTS}
@@ -532,10 +534,16 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     plain = _with_surrogate(scenario, phase_input=False)
     direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
-    # Without the pass model: T_total regressed like the other outputs.
-    regressed = _with_surrogate(scenario, pass_forecast=None)
+    # Without the pass model and the burn phase: T_total regressed like the other outputs,
+    # on the phase of the wait model's wait in the target's period.
+    regressed = _with_surrogate(scenario, pass_forecast=None, burn_phase=False)
     whole = fit_step(doe, data, regressed, small["code"]).surrogates
     assert whole.pass_model is None and whole.selected["t_total_s"] != "pass model"
+    assert whole.burn_phase is None
+    phase = 2 * np.pi * np.mod(wait, whole.period_s) / whole.period_s
+    features = whole.features(designs)
+    assert np.allclose(features[:, 3:], np.column_stack([np.sin(phase), np.cos(phase)]))
+    assert whole.main.input_names[3:] == ("sin_wait_phase", "cos_wait_phase")
     raw = whole.main.predict(whole.features(designs))
     assert np.allclose(
         whole.predict(designs)["t_total_s"], above(time_floor, raw["t_total_s"], whole.softness_s)
