@@ -22,7 +22,9 @@ Goals (issue 21): hypervolume_ratio >= 0.99, evaluation_ratio <= 0.05 (30 of 600
 wall_ratio <= 0.25.
 
 Run: ``python benchmarks/surrogate_vs_direct.py [--seeds 2026 2027 2028] [--doe-samples 24]
-[--population 24] [--generations 25] [--workers 2] [--json]``.
+[--population 24] [--generations 25] [--workers 2] [--keep-stores DIR] [--json]``. The
+pipelines' run stores are temporary and removed at the end; ``--keep-stores DIR`` keeps
+them in ``DIR/seed-<seed>`` (the path is printed) for inspection.
 """
 
 from __future__ import annotations
@@ -95,13 +97,21 @@ def direct(scenario, normalisation, pool, population: int, generations: int) -> 
     }
 
 
-def pipeline(scenario, fit, seed: int, doe_samples: int, workers: int) -> dict:
+def pipeline(scenario, fit, seed: int, doe_samples: int, workers: int, keep: Path | None) -> dict:
+    """One pipeline in a run store of its own: temporary, or ``keep/seed-<seed>``."""
+    if keep is not None:
+        return _pipeline(scenario, fit, seed, doe_samples, workers, keep / f"seed-{seed}")
+    with tempfile.TemporaryDirectory(prefix=f"ovtraj-svd-{seed}-") as folder:
+        return _pipeline(scenario, fit, seed, doe_samples, workers, Path(folder))
+
+
+def _pipeline(scenario, fit, seed: int, doe_samples: int, workers: int, folder: Path) -> dict:
     from ovtraj.config.orchestration import load_orchestration
     from ovtraj.pipeline import PipelineSteps, fit_step, front_step, run_pipeline
     from ovtraj.runs import RunStore, prepare_run, run_doe
     from ovtraj.runs.runners import batch_pool
 
-    store = RunStore(Path(tempfile.mkdtemp(prefix=f"ovtraj-svd-{seed}-")))
+    store = RunStore(folder)
     spent = {"evaluate": 0.0, "fit": 0.0, "front": 0.0}
 
     def timed(name, step):
@@ -165,8 +175,12 @@ def main() -> None:
     parser.add_argument("--population", type=int, default=24)
     parser.add_argument("--generations", type=int, default=25)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--keep-stores", type=Path, default=None, help="keep the pipelines' run stores here"
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON object")
     args = parser.parse_args()
+    keep = None if args.keep_stores is None else args.keep_stores.resolve()
     say = (lambda *_: None) if args.json else print
 
     scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
@@ -174,7 +188,9 @@ def main() -> None:
     fit = find_launch_fit(scenario)
     with ProcessPoolExecutor(args.workers, initializer=_init) as pool:
         reference = direct(scenario, normalisation, pool, args.population, args.generations)
-    seeds = [pipeline(scenario, fit, seed, args.doe_samples, args.workers) for seed in args.seeds]
+    seeds = [
+        pipeline(scenario, fit, seed, args.doe_samples, args.workers, keep) for seed in args.seeds
+    ]
     for row in seeds:
         row["hypervolume_ratio"] = row["hypervolume"] / reference["hypervolume"]
         row["evaluation_ratio"] = row["evaluations"] / reference["evaluations"]
@@ -210,6 +226,8 @@ def main() -> None:
         f"evaluation ratio {figures['evaluation_ratio']:.3f} (goal <= 0.05), wall ratio "
         f"{figures['wall_ratio']:.2f} (goal <= 0.25)"
     )
+    if keep is not None:
+        say(f"run stores kept in {keep}")
     print(json.dumps(figures))
 
 
