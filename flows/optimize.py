@@ -36,13 +36,16 @@ def front_table(frame: Any) -> list[dict[str, Any]]:
     ]
 
 
-def surrogate_front(scenario: Scenario, run: Run, fit_id: str) -> dict[str, Any]:
+def surrogate_front(
+    scenario: Scenario, run: Run, fit_id: str, *, views: bool = True
+) -> dict[str, Any]:
     """The front task on the run's fit (run again when its cached front is not stored)."""
     return call_stored(
         prepared(surrogate_front_task),
         resolved_scenario=scenario.resolved(),
         run_url=run.url,
         fit_id=fit_id,
+        views=views,
     )
 
 

@@ -60,15 +60,20 @@ def _steps(runner: Any, scenario: Scenario, fit: LaunchFit, deadline: float) -> 
     """The pipeline's steps as tasks: batches on the runner, fit and front cached."""
 
     def fit_surrogates(
-        run: Run, data: Any, scenario: Scenario, code: str, candidates: Any = None
+        run: Run,
+        data: Any,
+        scenario: Scenario,
+        code: str,
+        candidates: Any = None,
+        views: bool = True,
     ) -> Any:
-        publish_validation(fit_run_surrogates(scenario, run, candidates), run)
+        publish_validation(fit_run_surrogates(scenario, run, candidates, views=views), run)
         # loads what the task stored
-        return fit_step(run, data, scenario, code, candidates=candidates)
+        return fit_step(run, data, scenario, code, candidates=candidates, views=views)
 
-    def front(run: Run, fitted: Any, scenario: Scenario, code: str) -> Any:
-        surrogate_front(scenario, run, fitted.fit_id)
-        return front_step(run, fitted, scenario, code)
+    def front(run: Run, fitted: Any, scenario: Scenario, code: str, views: bool = True) -> Any:
+        surrogate_front(scenario, run, fitted.fit_id, views=views)
+        return front_step(run, fitted, scenario, code, views=views)
 
     def evaluate(run: Run) -> Run:
         return evaluate_run(scenario, run, fit, deadline=deadline, limit=LIMIT, runner=runner)

@@ -49,7 +49,11 @@ def call_stored(task: Any, **parameters: Any) -> dict[str, Any]:
 
 
 def fit_run_surrogates(
-    scenario: Scenario, run: Run, candidates: dict[str, str] | None = None
+    scenario: Scenario,
+    run: Run,
+    candidates: dict[str, str] | None = None,
+    *,
+    views: bool = True,
 ) -> dict[str, Any]:
     data = training_data(run)
     data_hash = training_data_hash(data.designs, data.outputs, data.feasible)
@@ -59,6 +63,7 @@ def fit_run_surrogates(
         run_url=run.url,
         data_hash=data_hash,
         candidates=candidates,
+        views=views,
     )
 
 
@@ -70,6 +75,8 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
         "and held-out metrics; `selected` marks the model used",
     )
     plots = sorted(str(p) for p in location(summary["directory"]).glob("*.png"))
+    if not plots:
+        return  # a pipeline round's fit: its views are drawn once, with the pipeline's result
     create_markdown_artifact(
         key="surrogate-parity-plots",
         markdown="\n\n".join(embedded_plots(plots)) or "no plots",

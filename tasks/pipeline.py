@@ -50,14 +50,17 @@ def fit_surrogates_task(
     run_url: str,
     data_hash: str,
     candidates: dict[str, str] | None = None,
+    views: bool = True,
 ) -> dict[str, Any]:
     """Fit (or load) the run's surrogates; ``data_hash`` keys the cache on the samples.
 
-    ``candidates``: the models an earlier fit of the pipeline selected, refitted unchanged.
+    ``candidates``: the models an earlier fit of the pipeline selected, refitted unchanged;
+    ``views``: with its parity plots (a pipeline's rounds: without).
     """
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
-    outcome = fit_step(run, training_data(run), scenario, code_version(), candidates=candidates)
+    code = code_version()
+    outcome = fit_step(run, training_data(run), scenario, code, candidates=candidates, views=views)
     return {
         "fit_id": outcome.fit_id,
         "directory": str(outcome.directory),
@@ -76,16 +79,16 @@ def fit_surrogates_task(
     **cached(),
 )
 def surrogate_front_task(
-    resolved_scenario: dict[str, Any], run_url: str, fit_id: str
+    resolved_scenario: dict[str, Any], run_url: str, fit_id: str, views: bool = True
 ) -> dict[str, Any]:
-    """NSGA-II on the fitted surrogates (loaded from the run)."""
+    """NSGA-II on the fitted surrogates (loaded from the run); ``views``: with its plot."""
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
     code = code_version()
-    fit = fit_step(run, training_data(run), scenario, code)
+    fit = fit_step(run, training_data(run), scenario, code, views=views)
     if fit.fit_id != fit_id:
         raise RuntimeError(f"run {run.id}: surrogates {fit_id} expected, found {fit.fit_id}")
-    outcome = front_step(run, fit, scenario, code)
+    outcome = front_step(run, fit, scenario, code, views=views)
     return {
         "front_id": outcome.front_id,
         "directory": str(outcome.directory),

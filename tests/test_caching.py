@@ -269,11 +269,16 @@ def test_surrogate_flow_recomputes_after_a_code_change_only(pipeline, monkeypatc
     run_id = pipeline["first"]["doe_run"]
     calls = _counted(monkeypatch)
     _set_code(monkeypatch, CODE_A)
-    served = surrogate_flow(run_id, pipeline["config"], store)  # the mission flow's fit
-    assert calls["fit_step"] == 0
+    # The mission flow's rounds stored their fits without plots (issue 21): the surrogate
+    # flow, which shows the parity plots, fits once with them, then is served.
+    drawn = surrogate_flow(run_id, pipeline["config"], store)
+    assert calls["fit_step"] == 1
+    assert sorted(p.name for p in Path(drawn["directory"]).glob("parity-*.png"))
+    served = surrogate_flow(run_id, pipeline["config"], store)
+    assert calls["fit_step"] == 1 and served == drawn
     _set_code(monkeypatch, CODE_B)
     refitted = surrogate_flow(run_id, pipeline["config"], store)
-    assert calls["fit_step"] == 1 and refitted["fit_id"] != served["fit_id"]
+    assert calls["fit_step"] == 2 and refitted["fit_id"] != served["fit_id"]
 
 
 def test_optimize_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch):
@@ -283,8 +288,11 @@ def test_optimize_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch
     run_id = pipeline["first"]["doe_run"]
     calls = _counted(monkeypatch)
     _set_code(monkeypatch, CODE_A)
+    drawn = optimize_flow(run_id, pipeline["config"], store)  # with its plot: computed once
+    computed = dict(calls)
     served = optimize_flow(run_id, pipeline["config"], store)
-    assert calls["fit_step"] == calls["front_step"] == 0
+    assert calls == computed and served == drawn
     _set_code(monkeypatch, CODE_B)
     changed = optimize_flow(run_id, pipeline["config"], store)
-    assert calls["front_step"] == 1 and changed["front_id"] != served["front_id"]
+    assert calls["front_step"] > computed["front_step"]
+    assert changed["front_id"] != served["front_id"]

@@ -149,12 +149,20 @@ def test_replay_refits_and_reoptimises_without_simulation_and_gives_the_same_fro
     assert execute.EVALUATIONS["count"] == before
     pd.testing.assert_frame_equal(again.front, result.front)
     assert again.final_run == result.final_run
-    # Refitting the DoE run's surrogates reproduces its stored front exactly.
-    doe = small["doe"]
-    fitted = fit_step(doe, training_data(doe), small["scenario"], small["code"], refit=True)
+    # Refitting the DoE run's surrogates reproduces its stored front exactly (the rounds
+    # store them without views).
+    doe, scenario, code = small["doe"], small["scenario"], small["code"]
+    fitted = fit_step(doe, training_data(doe), scenario, code, refit=True, views=False)
     assert not fitted.reused
-    refront = front_step(doe, fitted, small["scenario"], small["code"], refit=True)
+    refront = front_step(doe, fitted, scenario, code, refit=True, views=False)
     assert refront.matches_stored is True
+    assert not list(refront.directory.glob("*.png")) and not list(fitted.directory.glob("*.png"))
+    # The pipeline drew the last round's views once, in its own directory.
+    drawn = sorted(p.name for p in result.directory.glob("*.png"))
+    assert "surrogate-front.png" in drawn and "front.png" in drawn
+    assert any(name.startswith("parity-dv_rendezvous_mps") for name in drawn)
+    files = json.loads((result.directory / "pipeline.json").read_text())["files"]
+    assert set(drawn) <= set(files)
 
 
 def _digest(directory) -> dict[str, str]:
@@ -205,8 +213,11 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     runner = CliRunner()
     root = str(small["store"].root)
     doe = small["doe"].id
-    # Re-optimising the stored samples: no simulation, the stored front again.
+    # Optimising the stored samples, then again with --refit: no simulation, the stored
+    # front again. (The pipeline's rounds stored theirs without plots: another product.)
     before = execute.EVALUATIONS["count"]
+    first = runner.invoke(app, ["optimize", doe, "--store", root])
+    assert first.exit_code == 0, first.output
     done = runner.invoke(app, ["optimize", doe, "--refit", "--store", root])
     assert done.exit_code == 0, done.output
     assert re.search(r"identical to the stored front +True", done.output)
@@ -431,18 +442,20 @@ def test_any_verification_or_front_is_stored_with_the_declared_schema(tmp_path):
     )
     summary = {"pipeline_id": "p", "doe_run": "d", "final_run": "f"}
 
-    def plot(path):
-        path.write_bytes(b"not really a plot")
-        return path
-
     for name, rows in (("some", verification), ("none", verification.iloc[:0])):
         directory = tmp_path / name
+
+        def views(directory=directory):
+            path = directory / "front.png"
+            path.write_bytes(b"not really a plot")
+            return [path]
+
         loop._store(
             directory,
             table_from_frame(front, loop.FRONT_SCHEMA, "front"),
             table_from_frame(rows, loop.VERIFICATION_SCHEMA, "verification"),
             summary,
-            plot,
+            views,
         )
         assert pq.read_schema(directory / "front.parquet").equals(loop.FRONT_SCHEMA)
         stored = pq.read_table(directory / "verification.parquet")

@@ -17,7 +17,10 @@ The verified front is the non-dominated set of every feasible real evaluation (D
 and infill): real values only, each row saying where it comes from. Outputs go to
 ``<DoE run>/pipeline/<pipeline_id>/``: ``front.parquet`` (verified front),
 ``verification.parquet`` (each verified point: predicted, real, errors),
-``pipeline.json`` and ``front.png``. The pipeline id hashes the DoE run, the
+``pipeline.json``, ``front.png`` and the last round's views: its surrogates' parity plots
+(``parity-*.png``) and its surrogate front (``surrogate-front.png``). The rounds store
+their fits and fronts without plots (``views=False``): plots are drawn once, at the end
+(issue 21). The pipeline id hashes the DoE run, the
 surrogate, optimisation and verification settings and the code version; every step
 is deterministic, so running it again reuses the stored child runs (no simulation)
 and must give the same front; a different result is refused, never written over.
@@ -54,6 +57,8 @@ from ovtraj.pipeline.steps import (
     content_id,
     fit_step,
     front_step,
+    front_view,
+    parity_views,
     unit_designs,
 )
 from ovtraj.products import Product
@@ -108,8 +113,9 @@ class PipelineSteps:
     """How each step runs: the library calls by default; the flow passes tasks."""
 
     evaluate: Callable[[Run], Run]  # evaluate a run's pending batches, return it finished
-    fit: Callable[..., FitOutcome] = fit_step  # (run, data, scenario, code, *, candidates)
-    front: Callable[[Run, FitOutcome, Scenario, str], FrontOutcome] = front_step
+    # (run, data, scenario, code, *, candidates, views)
+    fit: Callable[..., FitOutcome] = fit_step
+    front: Callable[..., FrontOutcome] = front_step  # (run, fit, scenario, code, *, views)
 
 
 @dataclass
@@ -160,15 +166,17 @@ def run_pipeline(
     run, spent, rows, iterations = doe_run, 0, [], []
     stop = "max_iterations"
     kept: dict[str, Any] | None = None  # the first fit's models (surrogate.selection)
+    last: tuple[FitOutcome, FrontOutcome, Run] | None = None  # the last round's models
     for iteration in range(1, verify.max_iterations + 1):
         data = training_data(run)
-        fit = steps.fit(run, data, scenario, code, candidates=kept)
+        fit = steps.fit(run, data, scenario, code, candidates=kept, views=False)
         settings = scenario.mission.surrogate
         if kept is None and settings.selection == "first_fit":
             kept = dict(fit.surrogates.selected)
         elif kept is None and settings.selection == "shortlist":
             kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
-        front = steps.front(run, fit, scenario, code).front
+        outcome = steps.front(run, fit, scenario, code, views=False)
+        front, last = outcome.front, (fit, outcome, run)
         record = {
             "iteration": iteration,
             "run_id": run.id,
@@ -222,7 +230,9 @@ def run_pipeline(
         if bool(verified["real_feasible"].all()) and worst < verify.tolerance:
             stop = "converged"
             break
-    return _finish(scenario, doe_run, run, code, normalisation, rows, iterations, stop, spent, say)
+    return _finish(
+        scenario, doe_run, run, code, normalisation, rows, iterations, stop, spent, say, last
+    )
 
 
 def _picks(scenario: Scenario, front: Any, data: Any, count: int) -> list[int]:
@@ -286,6 +296,7 @@ def _finish(
     stop: str,
     spent: int,
     say: Callable[[str], None],
+    last: tuple[FitOutcome, FrontOutcome, Run] | None,
 ) -> PipelineResult:
     pid = pipeline_id(doe_run, scenario, code)
     directory = doe_run.directory / "pipeline" / pid
@@ -318,20 +329,37 @@ def _finish(
     }
     totals = run.totals()
 
-    def plot(path: Path) -> Path:
+    def views() -> list[Path]:
+        """front.png (verified), then the last round's parity plots and surrogate front."""
         from ovtraj.plots.front import front_plot
 
-        return front_plot(
-            path,
-            normalisation,
-            samples=totals[totals["feasible"].astype(bool)],
-            verified=front.to_pandas(),
-            title=f"verified front of DoE run {doe_run.id} (pipeline {pid})",
-            scenario=scenario.name,
-            date=f"epoch {scenario.epoch_utc}",
-        )
+        paths = [
+            front_plot(
+                directory / "front.png",
+                normalisation,
+                samples=totals[totals["feasible"].astype(bool)],
+                verified=front.to_pandas(),
+                title=f"verified front of DoE run {doe_run.id} (pipeline {pid})",
+                scenario=scenario.name,
+                date=f"epoch {scenario.epoch_utc}",
+            )
+        ]
+        if last is not None:
+            fitted, surrogate, fitted_run = last
+            paths += parity_views(fitted.surrogates, directory)
+            title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
+            paths.append(
+                front_view(
+                    directory / "surrogate-front.png",
+                    surrogate.front,
+                    fitted_run,
+                    scenario,
+                    title,
+                )
+            )
+        return paths
 
-    _store(directory, front, verification, summary, plot)
+    _store(directory, front, verification, summary, views)
     hv = summary["hypervolume"]
     say(f"verified front: {front.num_rows} points, hypervolume {hv:.4f} ({stop})")
     return PipelineResult(
@@ -368,7 +396,7 @@ def _store(
     front: Any,
     verification: Any,
     summary: dict[str, Any],
-    plot: Callable[[Path], Path],
+    views: Callable[[], list[Path]],
 ) -> bool:
     """Write the outputs, ``pipeline.json`` last; returns False when they were stored.
 
@@ -395,8 +423,8 @@ def _store(
             return False
         out.write_table(FRONT_FILE, front, FRONT_SCHEMA)
         out.write_table(VERIFICATION_FILE, verification, VERIFICATION_SCHEMA)
-        path = plot(directory / "front.png")
-        out.add(path.name, file_digest(path))
+        for path in views():
+            out.add(path.name, file_digest(path))
         created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         out.finish(summary | {"created_utc": created})
     return True

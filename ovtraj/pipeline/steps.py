@@ -11,6 +11,10 @@ Layout inside a run's directory::
 Each ``meta.json`` is written last and lists the size and SHA-256 of every file of its
 directory (:mod:`ovtraj.products`); readers check them and the declared schemas.
 
+The plots (``parity-*.png``, ``front.png``) are views: with ``views=False`` a step stores
+its data without them (the pipeline's rounds do: it draws the last round's views in its
+own directory at the end, issue 21), and that choice is part of the product's id.
+
 ``fit_id`` hashes the training data (:func:`ovtraj.surrogate.training_data_hash`),
 the design bounds, the surrogate settings and the code version; ``front_id`` the
 fit id, the optimisation settings and the code version. A stored result is loaded
@@ -102,12 +106,14 @@ def fit_step(
     refit: bool = False,
     candidates: dict[str, str] | None = None,
     executor: Executor | None = None,
+    views: bool = True,
 ) -> FitOutcome:
     """Surrogates of the run's samples: loaded when stored, else fitted and stored.
 
     ``candidates``: an earlier fit's ``selected``, refitted without comparing the
     candidates again (``surrogate.selection: first_fit``); part of the fit's id.
     ``executor``: processes that score the candidates (the same fit; not part of its id).
+    ``views``: draw and store the parity plots (see the module notes).
     """
     settings = scenario.mission.surrogate
     lower, upper = bounds_arrays(scenario.mission.design_bounds)
@@ -120,6 +126,8 @@ def fit_step(
     }
     if candidates:
         content["candidates"] = dict(sorted(candidates.items()))
+    if not views:
+        content["views"] = False  # absent when drawn: the ids stored before stay valid
     fit_id = content_id(content)
     directory = run.directory / "surrogates" / fit_id
     stored = (directory / "meta.json").is_file()
@@ -129,7 +137,6 @@ def fit_step(
         surrogates = fit_mission_surrogates(
             data, scenario, lower, upper, candidates=candidates, executor=executor
         )
-        parts = surrogates.parts
     else:
         surrogates = fit_surrogates(
             data.designs,
@@ -143,11 +150,8 @@ def fit_step(
             candidates=candidates,
             executor=executor,
         )
-        parts = (surrogates,)
     if not stored:
-        from ovtraj.plots.surrogate import parity_plots
-
-        plots = [path for part in parts for path in parity_plots(part, directory)]
+        plots = parity_views(surrogates, directory) if views else []
         surrogates.save(
             directory,
             meta={"run_id": run.id, "fit_id": fit_id, "code": code},
@@ -156,15 +160,47 @@ def fit_step(
     return FitOutcome(surrogates, directory, fit_id, reused=False)
 
 
+def parity_views(surrogates: Any, directory: Path) -> list[Path]:
+    """The parity plots of a fitted set (each of its parts) in ``directory``."""
+    from ovtraj.plots.surrogate import parity_plots
+
+    parts = surrogates.parts if hasattr(surrogates, "parts") else (surrogates,)
+    return [path for part in parts for path in parity_plots(part, directory)]
+
+
+def front_view(path: Path, front: Any, run: Run, scenario: Scenario, title: str) -> Path:
+    """The plot of a surrogate front (predicted) over the run's feasible samples."""
+    from ovtraj.plots.front import front_plot
+
+    return front_plot(
+        path,
+        Normalisation.mission(scenario.mission.optimize),
+        surrogate=front.predicted,
+        samples=_feasible_totals(run),
+        title=title,
+        scenario=scenario.name,
+        date=f"epoch {scenario.epoch_utc}",
+    )
+
+
 def front_step(
-    run: Run, fit: FitOutcome, scenario: Scenario, code: str, *, refit: bool = False
+    run: Run,
+    fit: FitOutcome,
+    scenario: Scenario,
+    code: str,
+    *,
+    refit: bool = False,
+    views: bool = True,
 ) -> FrontOutcome:
-    """NSGA-II on the surrogates: loaded when stored, else optimised and stored."""
+    """NSGA-II on the surrogates: loaded when stored, else optimised and stored.
+
+    ``views``: draw and store ``front.png`` (see the module notes)."""
     settings = scenario.mission.optimize
     normalisation = Normalisation.mission(settings)
-    front_id = content_id(
-        {"fit": fit.fit_id, "settings": settings.model_dump(mode="json"), "code": code}
-    )
+    content = {"fit": fit.fit_id, "settings": settings.model_dump(mode="json"), "code": code}
+    if not views:
+        content["views"] = False
+    front_id = content_id(content)
     product = Product(run.directory / "fronts" / front_id, MARKER)
     directory = product.directory
     if product.exists() and not refit:
@@ -187,23 +223,15 @@ def front_step(
         "nsga2": front.info,
         "settings": settings.model_dump(mode="json"),
     }
-    from ovtraj.plots.front import front_plot
-
     with product.writing() as out:
         if out.complete:  # stored meanwhile by another process: compare with it
             same = _front_table(product).equals(table)
             return FrontOutcome(front, directory, front_id, False, matches_stored=same)
         out.write_table(FRONT_FILE, table, FRONT_SCHEMA)
-        plot = front_plot(
-            directory / "front.png",
-            normalisation,
-            surrogate=front.predicted,
-            samples=_feasible_totals(run),
-            title=f"surrogate front {front_id} (run {run.id})",
-            scenario=scenario.name,
-            date=f"epoch {scenario.epoch_utc}",
-        )
-        out.add(plot.name, file_digest(plot))
+        if views:
+            title = f"surrogate front {front_id} (run {run.id})"
+            plot = front_view(directory / "front.png", front, run, scenario, title)
+            out.add(plot.name, file_digest(plot))
         out.finish(meta)
     return FrontOutcome(front, directory, front_id, reused=False)
 
