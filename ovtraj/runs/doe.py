@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.stats import qmc
 
 from ovtraj.config.mission import MissionBoundsConfig
 from ovtraj.mission import DESIGN_NAMES
@@ -26,6 +25,10 @@ def latin_hypercube(
     draws a further hypercube with the seed advanced by the number of samples
     already drawn, so every sample of a run is reproducible from (seed, position).
     """
+    # Imported here: scipy.stats costs ~0.6 s to import, and the processes that only
+    # evaluate batches (pool and Dask workers) never draw samples.
+    from scipy.stats import qmc
+
     if n < 1:
         raise ValueError(f"samples must be >= 1, got {n}")
     lower, upper = bounds_arrays(bounds)
