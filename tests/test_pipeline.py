@@ -47,6 +47,9 @@ OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
 def _data(**verify) -> dict:
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    # The loop runs its rounds to the budget here (the stop on a stable front is tested
+    # on its own, below).
+    data["mission"]["verify"]["hypervolume_tolerance"] = None
     data["mission"]["verify"].update(verify)
     # Two regressors, one classifier, 3 folds: the candidates' mechanics are tested in
     # test_surrogate.py; here the pipeline around them (keeps the suite in budget).
@@ -133,6 +136,49 @@ def test_front_points_are_verified_with_the_real_chain(small):
     assert (
         stored["final_run"] == result.final_run and (result.directory / "front.png").stat().st_size
     )
+
+
+def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small):
+    from ovtraj.pipeline.loop import real_hypervolume
+    from ovtraj.pipeline.report import stop_explanation
+
+    scenario, store = small["scenario"], small["store"]
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    rounds = small["result"].summary["iterations"]
+    # Each verified round records the real front's hypervolume and its relative gain.
+    parent = small["doe"]
+    for record in rounds:
+        child = store.run(record["infill_run"])
+        before = real_hypervolume(parent, normalisation)
+        after = real_hypervolume(child, normalisation)
+        assert record["real_hypervolume"] == pytest.approx(after, rel=1e-12)
+        assert record["hypervolume_gain"] == pytest.approx((after - before) / before, rel=1e-9)
+        parent = child
+    first_gain = rounds[0]["hypervolume_gain"]
+    assert first_gain >= 0.0
+    # A tolerance above the first round's gain stops the loop there, converged: the same
+    # picks, so the stored child run is reused and nothing is simulated.
+    verify = scenario.mission.verify.model_copy(update={"hypervolume_tolerance": 1.0})
+    stable = scenario.model_copy(
+        update={"mission": scenario.mission.model_copy(update={"verify": verify})}
+    )
+    before = execute.EVALUATIONS["count"]
+    result = run_pipeline(
+        stable,
+        small["doe"],
+        store=store,
+        code=small["code"],
+        steps=PipelineSteps(evaluate=small["evaluate_run"]),
+    )
+    assert execute.EVALUATIONS["count"] == before
+    summary = result.summary
+    assert summary["stop_reason"] == "front stable" and summary["converged"] is True
+    assert len(summary["iterations"]) == 1 and summary["final_run"] == rounds[0]["infill_run"]
+    text = stop_explanation(summary, verify)
+    assert text.startswith("converged") and f"{first_gain:.2%}" in text and "100.00%" in text
+    # Off (null, as in configs stored before it): the budget or max_iterations decide.
+    assert scenario.mission.verify.hypervolume_tolerance is None
+    assert small["result"].summary["stop_reason"] != "front stable"
 
 
 def test_replay_refits_and_reoptimises_without_simulation_and_gives_the_same_front(small):

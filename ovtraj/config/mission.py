@@ -198,6 +198,15 @@ class VerifySettings(StrictModel):
     min_distance: float = bounded(
         ge=0, le=1, description="unit-cube distance under which a point counts as evaluated"
     )
+    # Optional (null when absent, and then off): the configs stored before it existed
+    # still read.
+    hypervolume_tolerance: float | None = bounded(
+        gt=0,
+        le=1,
+        default=None,
+        description="stop when a round adds less than this fraction to the verified front's "
+        "hypervolume",
+    )
 
 
 class PlanSettings(StrictModel):

@@ -10,8 +10,11 @@ For a DoE run, repeat up to ``verify.max_iterations`` times:
    adopted, only the new points are simulated) and compare: the error of each
    objective as a fraction of its ideal-to-reference span;
 5. stop when every picked point is feasible and every error is below
-   ``verify.tolerance``, when ``verify.budget`` real evaluations are spent, or when
-   the front holds no design that is not already evaluated.
+   ``verify.tolerance``; when the round added less than ``verify.hypervolume_tolerance``
+   (relative) to the verified front's hypervolume (the front is stable: more infill of
+   this kind no longer improves the real front); when ``verify.budget`` real
+   evaluations are spent; or when the front holds no design that is not already
+   evaluated.
 
 The verified front is the non-dominated set of every feasible real evaluation (DoE
 and infill): real values only, each row saying where it comes from. Outputs go to
@@ -226,9 +229,22 @@ def run_pipeline(
             f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.1%} of the "
             f"objective span (tolerance {verify.tolerance:.1%}; an infeasible point counts 100 %)"
         )
+        before = real_hypervolume(run, normalisation)
+        after = real_hypervolume(child, normalisation)
+        # Relative gain of the real front in this round; none when there was no front.
+        gain = (after - before) / before if before > 0 else None
+        record.update(real_hypervolume=after, hypervolume_gain=gain)
         run = child
         if bool(verified["real_feasible"].all()) and worst < verify.tolerance:
             stop = "converged"
+            break
+        tolerance = verify.hypervolume_tolerance
+        if tolerance is not None and gain is not None and gain < tolerance:
+            say(
+                f"  the verified front's hypervolume rose by {gain:.2%} "
+                f"(hypervolume_tolerance {tolerance:.2%}): front stable"
+            )
+            stop = "front stable"
             break
     return _finish(
         scenario, doe_run, run, code, normalisation, rows, iterations, stop, spent, say, last
@@ -315,7 +331,7 @@ def _finish(
         "scenario": scenario.name,
         "code": code,
         "stop_reason": stop,
-        "converged": stop in ("converged", "front already evaluated"),
+        "converged": stop in CONVERGED,
         "real_evaluations": {"doe": len(doe_run.samples()), "infill": spent},
         "front_points": front.num_rows,
         "hypervolume": hypervolume(
@@ -365,6 +381,21 @@ def _finish(
     return PipelineResult(
         pid, directory, doe_run.id, run.id, front.to_pandas(), verification.to_pandas(), summary
     )
+
+
+# Stop reasons that count as converged: the surrogates agree with the chain on the front,
+# the front holds nothing new, or the real front no longer improves.
+CONVERGED = ("converged", "front already evaluated", "front stable")
+
+
+def real_hypervolume(run: Run, normalisation: Normalisation) -> float:
+    """Hypervolume of a run's feasible real evaluations (0 when none is feasible)."""
+    totals = run.totals()
+    feasible = totals[totals["feasible"].astype(bool)]
+    if len(feasible) == 0:
+        return 0.0
+    values = normalisation.normalise(feasible[list(normalisation.names)].to_numpy(dtype=float))
+    return float(hypervolume(values[non_dominated(values)]))
 
 
 def verified_front(

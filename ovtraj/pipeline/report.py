@@ -38,6 +38,10 @@ _STOPS = {
     "chain's values",
     "front already evaluated": "converged: every point of the surrogate front has already "
     "been evaluated with the real chain",
+    "front stable": "converged: the last round added {gain} to the verified front's "
+    "hypervolume, under mission.verify.hypervolume_tolerance ({hypervolume_tolerance}): "
+    "more infill no longer improves the real front (largest error on the front {error}, "
+    "tolerance {tolerance:.1%})",
     "max_iterations": "not converged: stopped after {max_iterations} rounds "
     "(mission.verify.max_iterations) with a largest error of {error} on the front (the "
     "tolerance is {tolerance:.1%} of the objective span; an infeasible point counts 100 %). "
@@ -54,9 +58,14 @@ _STOPS = {
 def stop_explanation(summary: dict[str, Any], verify: Any) -> str:
     """One sentence: converged or not, and why the loop stopped (``verify``: the
     scenario's ``mission.verify`` settings)."""
-    errors = [i["max_error"] for i in summary.get("iterations", []) if "max_error" in i]
+    rounds = summary.get("iterations", [])
+    errors = [i["max_error"] for i in rounds if "max_error" in i]
+    gains = [i["hypervolume_gain"] for i in rounds if i.get("hypervolume_gain") is not None]
     template = _STOPS.get(summary["stop_reason"], "stopped: {reason}")
+    tolerance = getattr(verify, "hypervolume_tolerance", None)
     return template.format(
+        gain=f"{gains[-1]:.2%}" if gains else "-",
+        hypervolume_tolerance="-" if tolerance is None else f"{tolerance:.2%}",
         tolerance=verify.tolerance,
         max_iterations=verify.max_iterations,
         budget=verify.budget,
