@@ -138,15 +138,18 @@ def test_front_points_are_verified_with_the_real_chain(small):
     )
 
 
-def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small):
+def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small, tmp_path):
     from ovtraj.pipeline.loop import real_hypervolume
     from ovtraj.pipeline.report import stop_explanation
 
-    scenario, store = small["scenario"], small["store"]
+    # A copy: the pipeline below stores a result of its own, which the other tests of the
+    # shared fixture must not see.
+    scenario, store = small["scenario"], _copied_store(small, tmp_path)
     normalisation = Normalisation.mission(scenario.mission.optimize)
     rounds = small["result"].summary["iterations"]
     # Each verified round records the real front's hypervolume and its relative gain.
-    parent = small["doe"]
+    doe = store.run(small["doe"].id)
+    parent = doe
     for record in rounds:
         child = store.run(record["infill_run"])
         before = real_hypervolume(parent, normalisation)
@@ -165,7 +168,7 @@ def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small):
     before = execute.EVALUATIONS["count"]
     result = run_pipeline(
         stable,
-        small["doe"],
+        doe,
         store=store,
         code=small["code"],
         steps=PipelineSteps(evaluate=small["evaluate_run"]),
