@@ -1304,6 +1304,10 @@ def pipeline(
     verdict = stop_explanation(result.summary, scenario.mission.verify)
     converged = bool(result.summary["converged"])
     front_plot = Path(result.directory / "front.png").resolve()
+    # The last round's views, drawn with the result: parity plots and the surrogate front.
+    views = sorted(
+        path.resolve() for path in Path(result.directory).glob("*.png") if path.name != "front.png"
+    )
     if as_json:
         _print_plan(
             planned,
@@ -1320,6 +1324,7 @@ def pipeline(
                 "front_points": len(result.front),
                 "front": str(Path(result.front_path).resolve()),
                 "front_plot": str(front_plot),
+                "views": [str(p) for p in views],
             },
         )
     else:
@@ -1331,6 +1336,8 @@ def pipeline(
         typer.echo(verdict)
         typer.echo(f"front: {Path(result.front_path).resolve()}")
         typer.echo(f"plot: {front_plot}")
+        for path in views:
+            typer.echo(f"plot: {path}")
         _print_plan(planned, False, {})
     if require_converged and not converged:
         raise typer.Exit(code=1)

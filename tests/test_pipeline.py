@@ -738,6 +738,12 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
         Path(line.split(": ", 1)[1]) for line in lines if line.startswith(("front:", "plan:"))
     ]
     assert len(written) == 3 and all(p.is_absolute() and p.is_file() for p in written)
+    # The plots it drew, once: the verified front, the last round's parity plots and its
+    # surrogate front, each printed with its absolute path.
+    plots = [Path(line.split(": ", 1)[1]) for line in lines if line.startswith("plot:")]
+    names = {p.name for p in plots if p.parent == written[0].parent}
+    assert {"front.png", "surrogate-front.png", "parity-dv_rendezvous_mps.png"} <= names
+    assert all(p.is_absolute() and p.is_file() for p in plots)
     # It says whether the loop converged and why it stopped (one infill round of 2 points:
     # the budget or the round limit ends it unless the 2 % tolerance is met).
     verdict = next(line for line in lines if re.match(r"(not )?converged: ", line))
@@ -758,6 +764,7 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     summary = json.loads(again.stdout)
     assert summary["verdict"] == verdict and summary["converged"] == (not verdict.startswith("not"))
     assert summary["report"] == str(report) and report.read_text(encoding="utf-8") == page
+    assert {Path(p).name for p in summary["views"]} == names - {"front.png"}
     assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == runs
 
 
