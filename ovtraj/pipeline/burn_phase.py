@@ -8,7 +8,7 @@ the burns fall relative to the line where the planes cross, i.e. on the chaser's
 argument of latitude at the burn modulo half a revolution. Measured on 760 chain
 rendezvous over H_P0 = 250-340 km (docs/optimize.md): ``dV - Hohmann`` ranges over
 24-72 m/s, and within 5-degree bins of that angle at the burn epoch given here its
-spread is 4.0 m/s (3.5 m/s at the stage's refined epoch; 6.6 m/s at the corrected one).
+spread is 4.1 m/s (3.5 m/s at the stage's refined epoch; 6.6 m/s at the corrected one).
 
 From a design's H_P0 alone, with no integration (the same steps as the stage's phasing,
 :mod:`ovtraj.rendezvous.phasing`, on J2 secular mean elements):

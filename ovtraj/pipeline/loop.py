@@ -170,6 +170,7 @@ def run_pipeline(
     stop = "max_iterations"
     kept: dict[str, Any] | None = None  # the first fit's models (surrogate.selection)
     last: tuple[FitOutcome, FrontOutcome, Run] | None = None  # the last round's models
+    real = real_hypervolume(run, normalisation)  # of the current run's real front
     for iteration in range(1, verify.max_iterations + 1):
         data = training_data(run)
         fit = steps.fit(run, data, scenario, code, candidates=kept, views=False)
@@ -229,10 +230,10 @@ def run_pipeline(
             f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.1%} of the "
             f"objective span (tolerance {verify.tolerance:.1%}; an infeasible point counts 100 %)"
         )
-        before = real_hypervolume(run, normalisation)
         after = real_hypervolume(child, normalisation)
         # Relative gain of the real front in this round; none when there was no front.
-        gain = (after - before) / before if before > 0 else None
+        gain = (after - real) / real if real > 0 else None
+        real = after
         record.update(real_hypervolume=after, hypervolume_gain=gain)
         run = child
         if bool(verified["real_feasible"].all()) and worst < verify.tolerance:

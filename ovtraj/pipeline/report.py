@@ -62,7 +62,7 @@ def stop_explanation(summary: dict[str, Any], verify: Any) -> str:
     errors = [i["max_error"] for i in rounds if "max_error" in i]
     gains = [i["hypervolume_gain"] for i in rounds if i.get("hypervolume_gain") is not None]
     template = _STOPS.get(summary["stop_reason"], "stopped: {reason}")
-    tolerance = getattr(verify, "hypervolume_tolerance", None)
+    tolerance = verify.hypervolume_tolerance
     return template.format(
         gain=f"{gains[-1]:.2%}" if gains else "-",
         hypervolume_tolerance="-" if tolerance is None else f"{tolerance:.2%}",
