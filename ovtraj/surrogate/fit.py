@@ -68,12 +68,15 @@ from ovtraj.surrogate.candidates import (
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
     ClassifierScore,
+    RegressorFit,
     RegressorScore,
     classification_folds,
     evaluate_classifier,
-    evaluate_regressor,
     holdout_mask,
     regression_folds,
+    regressor_fit,
+    regressor_fit_arguments,
+    regressor_score,
     select_classifier,
     select_regressor,
 )
@@ -690,22 +693,20 @@ def _fit_regressors(
 
     def scored(names: dict[str, list[str]]) -> dict[str, list[RegressorScore]]:
         jobs = [(name, candidate) for name, listed in names.items() for candidate in listed]
-        arguments = [
-            (
-                candidate,
-                u[reg_train],
-                values[name][reg_train],
-                u[reg_held],
-                values[name][reg_held],
-                folds,
-                settings,
+        # Every fold of every candidate is a job of its own: ~6 similar Kriging fits per
+        # candidate keep a pool's processes evenly busy where whole candidates did not.
+        pieces = [
+            regressor_fit_arguments(
+                candidate, u[reg_train], values[name][reg_train], u[reg_held], folds, settings
             )
             for name, candidate in jobs
         ]
-        results = _mapped(_evaluate_regressor, arguments, executor)
+        fits = iter(_mapped(_regressor_fit, [a for p in pieces for a in p], executor))
         out: dict[str, list[RegressorScore]] = {name: [] for name in names}
-        for (name, _), score in zip(jobs, results, strict=True):
-            out[name].append(score)
+        for (name, candidate), arguments in zip(jobs, pieces, strict=True):
+            mine = [next(fits) for _ in arguments]
+            y = values[name]
+            out[name].append(regressor_score(candidate, y[reg_train], y[reg_held], folds, mine))
         return out
 
     first = {name: _shortlisted(candidates.get(name), configured) for name in values}
@@ -746,10 +747,10 @@ def _fit_regressors(
     return regressors, selected, rows, tables
 
 
-def _evaluate_regressor(*arguments: Any) -> RegressorScore:
-    """:func:`evaluate_regressor` with one BLAS thread, wherever it runs."""
+def _regressor_fit(*arguments: Any) -> RegressorFit:
+    """:func:`regressor_fit` with one BLAS thread, wherever it runs."""
     with threadpool_limits(limits=1, user_api="blas"):
-        return evaluate_regressor(*arguments)
+        return regressor_fit(*arguments)
 
 
 def _mapped(function: Any, arguments: list[tuple], executor: Executor | None) -> list[Any]:

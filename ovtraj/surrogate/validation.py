@@ -65,6 +65,9 @@ __all__ = [
     "q2",
     "r2",
     "regression_folds",
+    "regressor_fit",
+    "regressor_fit_arguments",
+    "regressor_score",
     "rmse",
     "select_classifier",
     "select_regressor",
@@ -178,6 +181,93 @@ class RegressorScore:
     model: Regressor | None = field(default=None, repr=False)
 
 
+@dataclass(frozen=True)
+class RegressorFit:
+    """One fit of a candidate and its predictions: on a CV fold's fitting part (predicting
+    the fold) or on the whole training part (predicting the hold-out; ``model`` kept)."""
+
+    predictions: np.ndarray | None
+    model: Regressor | None = field(default=None, repr=False)
+    error: str | None = None
+    seconds: float = 0.0
+
+
+def regressor_fit(
+    name: str,
+    u_fit: np.ndarray,
+    y_fit: np.ndarray,
+    u_predict: np.ndarray,
+    settings: SurrogateSettings,
+    keep_model: bool = False,
+) -> RegressorFit:
+    """Fit candidate ``name`` on (``u_fit``, ``y_fit``) and predict ``u_predict``.
+
+    The pieces of :func:`evaluate_regressor` (each fold, then the whole training part):
+    independent, so a process pool may run them in any order with the same result.
+    """
+    start = time.perf_counter()
+    try:
+        model = fit_regressor(name, u_fit, y_fit, settings)
+        predictions = model.predict(u_predict) if len(u_predict) else np.empty(0)
+    except CandidateError as err:
+        return RegressorFit(None, error=str(err), seconds=time.perf_counter() - start)
+    return RegressorFit(
+        predictions, model if keep_model else None, seconds=time.perf_counter() - start
+    )
+
+
+def regressor_fit_arguments(
+    name: str,
+    u_train: np.ndarray,
+    y_train: np.ndarray,
+    u_held: np.ndarray,
+    folds: Folds,
+    settings: SurrogateSettings,
+) -> list[tuple]:
+    """The :func:`regressor_fit` arguments of candidate ``name``: every fold, then the
+    whole training part (the model kept)."""
+    pieces = [
+        (name, u_train[fit_idx], y_train[fit_idx], u_train[test_idx], settings, False)
+        for fit_idx, test_idx in folds
+    ]
+    return [*pieces, (name, u_train, y_train, u_held, settings, True)]
+
+
+def regressor_score(
+    name: str, y_train: np.ndarray, y_held: np.ndarray, folds: Folds, fits: list[RegressorFit]
+) -> RegressorScore:
+    """The candidate's score from its fits (:func:`regressor_fit_arguments`' order).
+
+    The first failure in that order is the candidate's ``error``: a fold's, the CV
+    predictions' (non-finite), the whole fit's, the held-out predictions' (non-finite).
+    """
+    score = RegressorScore(name, n_train=y_train.size, n_heldout=y_held.size)
+    score.fit_time_s = sum(f.seconds for f in fits)
+    *fold_fits, whole = fits
+    cv_pred = np.empty_like(y_train, dtype=float)
+    for k, ((_, test_idx), fit) in enumerate(zip(folds, fold_fits, strict=True)):
+        if fit.error is not None:
+            score.error = f"CV fold {k + 1}/{len(folds)}: {fit.error}"
+            return score
+        cv_pred[test_idx] = fit.predictions
+    if not np.all(np.isfinite(cv_pred)):
+        score.error = f"{name} gives non-finite cross-validation predictions"
+    elif whole.error is not None:
+        score.error = whole.error
+    elif not np.all(np.isfinite(whole.predictions)):
+        score.error = f"{name} gives non-finite held-out predictions"
+    if score.error is not None:
+        return score
+    score.cv_pred = cv_pred
+    score.cv_rmse = rmse(y_train, cv_pred)
+    score.cv_q2 = q2(y_train, cv_pred)
+    score.heldout_pred = whole.predictions
+    score.heldout_rmse = rmse(y_held, whole.predictions)
+    score.heldout_r2 = r2(y_held, whole.predictions)
+    score.model = whole.model
+    return score
+
+
 def evaluate_regressor(
     name: str,
     u_train: np.ndarray,
@@ -192,35 +282,9 @@ def evaluate_regressor(
     The held-out samples only get predicted by the final model; they never enter a fit.
     A failure in any fold or in the final fit is recorded in ``error``.
     """
-    score = RegressorScore(name, n_train=y_train.size, n_heldout=y_held.size)
-    start = time.perf_counter()
-    try:
-        cv_pred = np.empty_like(y_train, dtype=float)
-        for k, (fit_idx, test_idx) in enumerate(folds):
-            try:
-                fold_model = fit_regressor(name, u_train[fit_idx], y_train[fit_idx], settings)
-            except CandidateError as err:
-                raise CandidateError(f"CV fold {k + 1}/{len(folds)}: {err}") from err
-            cv_pred[test_idx] = fold_model.predict(u_train[test_idx])
-        if not np.all(np.isfinite(cv_pred)):
-            raise CandidateError(f"{name} gives non-finite cross-validation predictions")
-        model = fit_regressor(name, u_train, y_train, settings)
-        held_pred = model.predict(u_held) if y_held.size else np.empty(0)
-        if not np.all(np.isfinite(held_pred)):
-            raise CandidateError(f"{name} gives non-finite held-out predictions")
-    except CandidateError as err:
-        score.error = str(err)
-        score.fit_time_s = time.perf_counter() - start
-        return score
-    score.fit_time_s = time.perf_counter() - start
-    score.cv_pred = cv_pred
-    score.cv_rmse = rmse(y_train, cv_pred)
-    score.cv_q2 = q2(y_train, cv_pred)
-    score.heldout_pred = held_pred
-    score.heldout_rmse = rmse(y_held, held_pred)
-    score.heldout_r2 = r2(y_held, held_pred)
-    score.model = model
-    return score
+    arguments = regressor_fit_arguments(name, u_train, y_train, u_held, folds, settings)
+    fits = [regressor_fit(*a) for a in arguments]
+    return regressor_score(name, y_train, y_held, folds, fits)
 
 
 @dataclass
