@@ -1218,6 +1218,7 @@ def pipeline(
         OptimiserStopped,
         PipelineError,
         PipelineSteps,
+        draw_views,
         fit_step,
         front_step,
         pipeline_doe_run,
@@ -1271,16 +1272,14 @@ def pipeline(
         )
         say(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
         evaluate(doe_run)
+        # the pool's processes score the surrogate candidates and draw the plots too (not
+        # threads: those would only share this process's core)
+        processes = pool.executor if execution["runner"] in ("processes", "dask") else None
         steps = PipelineSteps(
             evaluate=evaluate,
-            # the pool's processes score the surrogate candidates too (not threads: those
-            # would only share this process's core)
-            fit=partial(
-                fit_step,
-                refit=refit,
-                executor=pool.executor if execution["runner"] in ("processes", "dask") else None,
-            ),
+            fit=partial(fit_step, refit=refit, executor=processes),
             front=partial(front_step, refit=refit),
+            draw=partial(draw_views, executor=processes),
         )
         result = run_pipeline(scenario, doe_run, store=store, code=code, steps=steps, progress=say)
         exits.close()

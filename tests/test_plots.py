@@ -327,3 +327,27 @@ def test_parity_plot_of_a_wait_in_seconds_is_drawn_in_hours():
     assert points[:, 0].max() == pytest.approx(72.0) and ax.get_xlim()[1] < 100.0
     assert "held-out R² = n/a" in ax.get_title()
     assert png_bytes(fig)[:8] == PNG
+
+
+def test_views_drawn_on_spawned_processes_are_the_files_drawn_here(normalisation, tmp_path):
+    """The pipeline's plots drawn side by side on its pool (``draw_views`` with an
+    executor) are the same bytes, written by this process under the views' names."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ovtraj.pipeline import View, draw_views
+
+    table = _table(20, 3)
+    views = [
+        View("front.png", front_figure, (normalisation,), {"samples": table, "title": "a"}),
+        View("parity-wait.png", parity_figure, (_Fitted("wait_s", table["t_total_s"]), "wait_s")),
+        View("other.png", front_figure, (normalisation,), {"verified": table, "title": "b"}),
+    ]
+    here = draw_views(views, tmp_path / "here")
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        there = draw_views(views, tmp_path / "pool", executor=pool)
+    assert [p.name for p in there] == ["front.png", "parity-wait.png", "other.png"]
+    assert all(p.parent == tmp_path / "pool" for p in there)
+    for a, b in zip(here, there, strict=True):
+        assert a.read_bytes()[:8] == PNG and a.read_bytes() == b.read_bytes(), a.name
+    assert here[0].read_bytes() != here[2].read_bytes()

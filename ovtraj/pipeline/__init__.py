@@ -14,6 +14,8 @@ from ovtraj.pipeline.steps import (
     FrontOutcome,
     OptimiserStopped,
     PipelineError,
+    View,
+    draw_views,
     fit_step,
     front_step,
 )
@@ -27,6 +29,8 @@ __all__ = [
     "PipelineResult",
     "PipelineSteps",
     "TrainingData",
+    "View",
+    "draw_views",
     "fit_step",
     "front_step",
     "pick_front_point",

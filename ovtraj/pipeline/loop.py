@@ -57,7 +57,9 @@ from ovtraj.pipeline.steps import (
     FitOutcome,
     FrontOutcome,
     PipelineError,
+    View,
     content_id,
+    draw_views,
     fit_step,
     front_step,
     front_view,
@@ -119,6 +121,8 @@ class PipelineSteps:
     # (run, data, scenario, code, *, candidates, views)
     fit: Callable[..., FitOutcome] = fit_step
     front: Callable[..., FrontOutcome] = front_step  # (run, fit, scenario, code, *, views)
+    # (views, directory) -> paths: the plots of the result, e.g. on the pool's processes
+    draw: Callable[[list[View], Path], list[Path]] = draw_views
 
 
 @dataclass
@@ -248,7 +252,18 @@ def run_pipeline(
             stop = "front stable"
             break
     return _finish(
-        scenario, doe_run, run, code, normalisation, rows, iterations, stop, spent, say, last
+        scenario,
+        doe_run,
+        run,
+        code,
+        normalisation,
+        rows,
+        iterations,
+        stop,
+        spent,
+        say,
+        last,
+        steps.draw,
     )
 
 
@@ -314,6 +329,7 @@ def _finish(
     spent: int,
     say: Callable[[str], None],
     last: tuple[FitOutcome, FrontOutcome, Run] | None,
+    draw: Callable[[list[View], Path], list[Path]],
 ) -> PipelineResult:
     pid = pipeline_id(doe_run, scenario, code)
     directory = doe_run.directory / "pipeline" / pid
@@ -348,33 +364,30 @@ def _finish(
 
     def views() -> list[Path]:
         """front.png (verified), then the last round's parity plots and surrogate front."""
-        from ovtraj.plots.front import front_plot
+        from ovtraj.plots.front import front_figure
 
-        paths = [
-            front_plot(
-                directory / "front.png",
-                normalisation,
-                samples=totals[totals["feasible"].astype(bool)],
-                verified=front.to_pandas(),
-                title=f"verified front of DoE run {doe_run.id} (pipeline {pid})",
-                scenario=scenario.name,
-                date=f"epoch {scenario.epoch_utc}",
+        jobs = [
+            View(
+                "front.png",
+                front_figure,
+                (normalisation,),
+                {
+                    "samples": totals[totals["feasible"].astype(bool)],
+                    "verified": front.to_pandas(),
+                    "title": f"verified front of DoE run {doe_run.id} (pipeline {pid})",
+                    "scenario": scenario.name,
+                    "date": f"epoch {scenario.epoch_utc}",
+                },
             )
         ]
         if last is not None:
             fitted, surrogate, fitted_run = last
-            paths += parity_views(fitted.surrogates, directory)
+            jobs += parity_views(fitted.surrogates)
             title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
-            paths.append(
-                front_view(
-                    directory / "surrogate-front.png",
-                    surrogate.front,
-                    fitted_run,
-                    scenario,
-                    title,
-                )
+            jobs.append(
+                front_view("surrogate-front.png", surrogate.front, fitted_run, scenario, title)
             )
-        return paths
+        return draw(jobs, directory)
 
     _store(directory, front, verification, summary, views)
     hv = summary["hypervolume"]

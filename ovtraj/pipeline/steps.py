@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,7 @@ import pandas as pd
 import pyarrow as pa
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest
+from ovtraj.files import file_digest, write_bytes
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
@@ -50,6 +51,7 @@ from ovtraj.products import Product
 from ovtraj.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.runs import Run
 from ovtraj.runs.doe import bounds_arrays
+from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash
 
 OBJECTIVE_NAMES = tuple(o.name for o in MISSION_OBJECTIVES)
@@ -151,7 +153,7 @@ def fit_step(
             executor=executor,
         )
     if not stored:
-        plots = parity_views(surrogates, directory) if views else []
+        plots = draw_views(parity_views(surrogates), directory) if views else []
         surrogates.save(
             directory,
             meta={"run_id": run.id, "fit_id": fit_id, "code": code},
@@ -160,27 +162,67 @@ def fit_step(
     return FitOutcome(surrogates, directory, fit_id, reused=False)
 
 
-def parity_views(surrogates: Any, directory: Path) -> list[Path]:
-    """The parity plots of a fitted set (each of its parts) in ``directory``."""
-    from ovtraj.plots.surrogate import parity_plots
+@dataclass(frozen=True)
+class View:
+    """A plot of a product: its file name and the call that draws its Figure (a
+    module-level function and picklable arguments, so any process can draw it)."""
+
+    file: str
+    draw: Callable[..., Any]
+    arguments: tuple[Any, ...] = ()
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def view_png(view: View) -> bytes:
+    """The view drawn, as PNG bytes (:func:`ovtraj.plots.render.png_bytes`)."""
+    from ovtraj.plots.render import png_bytes
+
+    return png_bytes(view.draw(*view.arguments, **view.options))
+
+
+def draw_views(views: list[View], directory: Path, executor: Executor | None = None) -> list[Path]:
+    """Draw ``views`` and write each into ``directory`` (atomically); returns the paths.
+
+    ``executor``: processes that draw them side by side (the pipeline's pool; the files
+    are the same bytes); this process writes every file, so the directory may be one the
+    processes cannot reach (object storage, another machine's disk).
+    """
+    if executor is not None and len(views) > 1:
+        images = list(executor.map(view_png, views))
+    else:
+        images = [view_png(view) for view in views]
+    paths = []
+    for view, image in zip(views, images, strict=True):
+        path = location(directory) / view.file
+        write_bytes(path, image, replace=True)
+        paths.append(path)
+    return paths
+
+
+def parity_views(surrogates: Any) -> list[View]:
+    """The parity plots of a fitted set (each of its parts)."""
+    from ovtraj.plots.surrogate import parity_figure, parity_file_names
 
     parts = surrogates.parts if hasattr(surrogates, "parts") else (surrogates,)
-    return [path for part in parts for path in parity_plots(part, directory)]
+    return [
+        View(name, parity_figure, (part, output))
+        for part in parts
+        for output, name in parity_file_names(part).items()
+    ]
 
 
-def front_view(path: Path, front: Any, run: Run, scenario: Scenario, title: str) -> Path:
+def front_view(file: str, front: Any, run: Run, scenario: Scenario, title: str) -> View:
     """The plot of a surrogate front (predicted) over the run's feasible samples."""
-    from ovtraj.plots.front import front_plot
+    from ovtraj.plots.front import front_figure
 
-    return front_plot(
-        path,
-        Normalisation.mission(scenario.mission.optimize),
-        surrogate=front.predicted,
-        samples=_feasible_totals(run),
-        title=title,
-        scenario=scenario.name,
-        date=f"epoch {scenario.epoch_utc}",
-    )
+    options = {
+        "surrogate": front.predicted,
+        "samples": _feasible_totals(run),
+        "title": title,
+        "scenario": scenario.name,
+        "date": f"epoch {scenario.epoch_utc}",
+    }
+    return View(file, front_figure, (Normalisation.mission(scenario.mission.optimize),), options)
 
 
 def front_step(
@@ -230,7 +272,7 @@ def front_step(
         out.write_table(FRONT_FILE, table, FRONT_SCHEMA)
         if views:
             title = f"surrogate front {front_id} (run {run.id})"
-            plot = front_view(directory / "front.png", front, run, scenario, title)
+            (plot,) = draw_views([front_view("front.png", front, run, scenario, title)], directory)
             out.add(plot.name, file_digest(plot))
         out.finish(meta)
     return FrontOutcome(front, directory, front_id, reused=False)

@@ -107,6 +107,12 @@ def parity_figure(surrogates: SurrogateSet, output: str) -> Any:
     return fig
 
 
+def parity_file_names(surrogates: SurrogateSet) -> dict[str, str]:
+    """``parity-<output>.png`` of every output of ``surrogates`` (distinct names)."""
+    taken: set[str] = set()
+    return {output: _file_name(output, taken) for output in surrogates.output_names}
+
+
 def parity_plots(surrogates: SurrogateSet, directory: Path) -> list[Path]:
     """Write ``parity-<output>.png`` for every output of ``surrogates``; return the paths.
 
@@ -114,8 +120,7 @@ def parity_plots(surrogates: SurrogateSet, directory: Path) -> list[Path]:
     """
     directory = location(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    taken: set[str] = set()
     return [
-        write_png(parity_figure(surrogates, output), directory / _file_name(output, taken))
-        for output in surrogates.output_names
+        write_png(parity_figure(surrogates, output), directory / name)
+        for output, name in parity_file_names(surrogates).items()
     ]
