@@ -54,16 +54,18 @@ _CONTEXT = None
 
 def _init(threads: int | None) -> None:
     """A worker ready for both methods: thread pools limited as the pipeline's runner
-    sets them, the mission context built, the surrogate and plotting libraries loaded."""
+    sets them, the mission context built (the one its batches use), the surrogate and
+    plotting libraries loaded."""
     global _CONTEXT
     from ovtraj.config import load_scenario
     from ovtraj.launch.fit import find_launch_fit
-    from ovtraj.mission import MissionContext
+    from ovtraj.runs.execute import mission_context
     from ovtraj.runs.runners import limit_threads
 
     limit_threads(threads)
     scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
-    _CONTEXT = MissionContext(scenario, find_launch_fit(scenario))
+    # The context a worker keeps for the pipeline's batches of this scenario, the same one.
+    _CONTEXT = mission_context(scenario.resolved(), find_launch_fit(scenario).to_dict())
     # loaded here, not in the first timed call: SMT, scikit-learn, pymoo, matplotlib
     import ovtraj.pipeline
     import ovtraj.plots.front
