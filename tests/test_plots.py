@@ -351,3 +351,33 @@ def test_views_drawn_on_spawned_processes_are_the_files_drawn_here(normalisation
     for a, b in zip(here, there, strict=True):
         assert a.read_bytes()[:8] == PNG and a.read_bytes() == b.read_bytes(), a.name
     assert here[0].read_bytes() != here[2].read_bytes()
+
+
+def _die() -> None:
+    import os
+
+    os._exit(1)  # a worker killed mid-task (out of memory, a signal)
+
+
+def test_views_are_drawn_here_when_the_pool_broke(normalisation, tmp_path, caplog):
+    """A pool whose worker died (``BrokenProcessPool``) draws nothing; this process draws
+    the views instead, the same bytes, and says so in the log."""
+    import logging
+    import multiprocessing
+    from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
+
+    from ovtraj.pipeline import View, draw_views
+
+    table = _table(12, 4)
+    views = [
+        View("front.png", front_figure, (normalisation,), {"samples": table}),
+        View("other.png", front_figure, (normalisation,), {"verified": table}),
+    ]
+    here = draw_views(views, tmp_path / "here")
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        with pytest.raises(BrokenExecutor):
+            pool.submit(_die).result()
+        with caplog.at_level(logging.WARNING, logger="ovtraj.parallel"):
+            drawn = draw_views(views, tmp_path / "broken", executor=pool)
+    assert [a.read_bytes() for a in here] == [b.read_bytes() for b in drawn]
+    assert "the pool broke" in caplog.text and "view_png runs in this process" in caplog.text

@@ -41,6 +41,7 @@ from ovtraj.files import file_digest, write_bytes
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
+from ovtraj.parallel import mapped
 from ovtraj.pipeline.data import TrainingData
 from ovtraj.pipeline.features import (
     MissionSurrogates,
@@ -187,10 +188,7 @@ def draw_views(views: list[View], directory: Path, executor: Executor | None = N
     are the same bytes); this process writes every file, so the directory may be one the
     processes cannot reach (object storage, another machine's disk).
     """
-    if executor is not None and len(views) > 1:
-        images = list(executor.map(view_png, views))
-    else:
-        images = [view_png(view) for view in views]
+    images = mapped(view_png, [(view,) for view in views], executor)
     paths = []
     for view, image in zip(views, images, strict=True):
         path = location(directory) / view.file

@@ -45,6 +45,7 @@ from threadpoolctl import threadpool_limits
 
 from ovtraj.config.mission import SurrogateSettings
 from ovtraj.files import Digest, StoreError, read_json
+from ovtraj.parallel import mapped
 from ovtraj.products import Product
 from ovtraj.records import (
     BOOL,
@@ -701,7 +702,7 @@ def _fit_regressors(
             )
             for name, candidate in jobs
         ]
-        fits = iter(_mapped(_regressor_fit, [a for p in pieces for a in p], executor))
+        fits = iter(mapped(_regressor_fit, [a for p in pieces for a in p], executor))
         out: dict[str, list[RegressorScore]] = {name: [] for name in names}
         for (name, candidate), arguments in zip(jobs, pieces, strict=True):
             mine = [next(fits) for _ in arguments]
@@ -751,14 +752,6 @@ def _regressor_fit(*arguments: Any) -> RegressorFit:
     """:func:`regressor_fit` with one BLAS thread, wherever it runs."""
     with threadpool_limits(limits=1, user_api="blas"):
         return regressor_fit(*arguments)
-
-
-def _mapped(function: Any, arguments: list[tuple], executor: Executor | None) -> list[Any]:
-    """``function(*a)`` for each ``a`` of ``arguments``, in order: on ``executor`` (e.g.
-    the pipeline's process pool, whose processes are already started) or in this process."""
-    if executor is None or len(arguments) <= 1:
-        return [function(*a) for a in arguments]
-    return list(executor.map(function, *zip(*arguments, strict=True)))
 
 
 def _refitted(scored: Any, refit: Any) -> Any:
