@@ -59,7 +59,7 @@ from ovtraj.mission import DESIGN_NAMES
 from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import PassModel, target_mean_elements
 from ovtraj.products import Product
-from ovtraj.rendezvous import hohmann
+from ovtraj.rendezvous.hohmann import hohmann_impulses_mps
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 
@@ -146,10 +146,13 @@ class DvFloors:
         parking = self.earth_radius_m + designs[:, 0] * 1e3
         preparation = self.earth_radius_m + designs[:, 1] * 1e3
         target, entry, mu = self.target_perigee_radius_m, self.entry_radius_m, self.mu
+        rendezvous = hohmann_impulses_mps(parking, target, mu)
+        transfer = hohmann_impulses_mps(target, preparation, mu)
+        deorbit, _ = hohmann_impulses_mps(preparation, entry, mu)
         return {
-            "dv_rendezvous_mps": np.array([hohmann(r, target, mu).total_dv_mps for r in parking]),
-            "dv_transfer_mps": np.array([hohmann(target, r, mu).total_dv_mps for r in preparation]),
-            "dv_deorbit_mps": np.array([abs(hohmann(r, entry, mu).dv1_mps) for r in preparation]),
+            "dv_rendezvous_mps": np.abs(rendezvous[0]) + np.abs(rendezvous[1]),
+            "dv_transfer_mps": np.abs(transfer[0]) + np.abs(transfer[1]),
+            "dv_deorbit_mps": np.abs(deorbit),
         }
 
     def to_dict(self) -> dict[str, float]:

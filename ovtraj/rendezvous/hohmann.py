@@ -42,19 +42,28 @@ def hohmann(r1_m: float, r2_m: float, mu: float) -> HohmannTransfer:
     """
     if not (r1_m > 0 and r2_m > 0 and mu > 0):
         raise ValueError(f"r1_m, r2_m and mu must be positive, got {r1_m}, {r2_m}, {mu}")
-    a_t = 0.5 * (r1_m + r2_m)
-    v1 = math.sqrt(mu / r1_m)
-    v2 = math.sqrt(mu / r2_m)
-    dv1 = v1 * (math.sqrt(r2_m / a_t) - 1.0)
-    dv2 = v2 * (1.0 - math.sqrt(r1_m / a_t))
+    dv1, dv2 = hohmann_impulses_mps(r1_m, r2_m, mu)
     return HohmannTransfer(
         r1_m=r1_m,
         r2_m=r2_m,
-        dv1_mps=dv1,
-        dv2_mps=dv2,
+        dv1_mps=float(dv1),
+        dv2_mps=float(dv2),
         transfer_time_s=float(hohmann_time_s(r1_m, r2_m, mu)),
-        transfer_sma_m=a_t,
+        transfer_sma_m=0.5 * (r1_m + r2_m),
     )
+
+
+def hohmann_impulses_mps(
+    r1_m: ArrayLike, r2_m: ArrayLike, mu: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The signed impulses (dv1, dv2) [m/s] of :func:`hohmann` (arrays broadcast):
+    dv1 = sqrt(mu/r1) (sqrt(r2/a_t) - 1), dv2 = sqrt(mu/r2) (1 - sqrt(r1/a_t)),
+    a_t = (r1 + r2) / 2. Radii in m, ``mu`` in m^3/s^2; no check of their signs."""
+    r1, r2 = np.asarray(r1_m, dtype=float), np.asarray(r2_m, dtype=float)
+    a_t = 0.5 * (r1 + r2)
+    dv1 = np.sqrt(mu / r1) * (np.sqrt(r2 / a_t) - 1.0)
+    dv2 = np.sqrt(mu / r2) * (1.0 - np.sqrt(r1 / a_t))
+    return dv1, dv2
 
 
 def hohmann_time_s(r1_m: ArrayLike, r2_m: ArrayLike, mu: float) -> np.ndarray:
