@@ -8,7 +8,9 @@ is a process group of its own, stopped by its PID. The DoE runs through ``ovtraj
 server, which the workers reach through the settings the tasks carry).
 
 1. a config with a relative store: every sample lands in the store the command names,
-   none in the workers' folders, and no evaluation in this process;
+   none in the workers' folders, and no evaluation in this process; ``ovtraj pipeline``
+   fits its surrogates' candidates and draws its plots there too, and stores the files of
+   the same pipeline run serially;
 2. a worker killed (SIGKILL, its whole process group) after the first stored batch:
    its batch is run again on the other worker, the run completes with every sample and
    each batch stored once;
@@ -240,6 +242,70 @@ def test_every_sample_lands_in_the_store_the_command_names(prefect_server, clust
         assert f"{run.id}/batch-" in workers_log  # the batches ran there (task run names)
     else:
         assert "batch 1/2" in done.stdout and "batch 2/2" in done.stdout
+
+
+def _pipeline_config(folder: Path) -> Path:
+    """A small pipeline (12-sample DoE, one round of 2 infill points), store ``runs``."""
+    config = _config(folder, batch_size=6)
+    data = yaml.safe_load(config.read_text(encoding="utf-8"))
+    data["mission"]["verify"].update(
+        points_per_iteration=2, max_iterations=1, budget=2, hypervolume_tolerance=None
+    )
+    data["mission"]["surrogate"].update(
+        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
+    )
+    data["mission"]["optimize"].update(population=32, generations=40)
+    build_scenario(copy.deepcopy(data))
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return config
+
+
+def _loaded_on_workers(address: str, module: str) -> list[bool]:
+    from distributed import Client
+
+    with Client(address, timeout=30) as client:
+        return list(client.run(lambda: module in sys.modules).values())
+
+
+def test_the_pipeline_fits_and_draws_on_the_cluster_the_files_of_a_serial_run(cluster, tmp_path):
+    """``ovtraj pipeline --runner dask``: the DoE and infill batches, the surrogate
+    candidates' CV fits and the final plots run on the cluster's workers; this process
+    writes every file, byte for byte those of the same pipeline run serially."""
+    cluster.wait_for_workers(2)  # before any test stops one
+    assert not any(_loaded_on_workers(cluster.address, "ovtraj.plots.front"))
+    stored = {}
+    for runner in ("dask", "serial"):
+        config = _pipeline_config(tmp_path / runner)
+        command = [str(OVTRAJ), "pipeline", str(config), "--samples", "12", "--runner", runner]
+        if runner == "dask":
+            command += ["--dask-address", cluster.address]
+        done = subprocess.run(
+            command,
+            cwd=config.parent,
+            env=_environment(),
+            capture_output=True,
+            text=True,
+            timeout=RUN_TIMEOUT_S,
+        )
+        assert done.returncode == 0, done.stdout + done.stderr
+        line = next(x for x in done.stdout.splitlines() if x.startswith("front: "))
+        front = Path(line.split(": ", 1)[1])
+        assert front.is_absolute() and front.is_relative_to(tmp_path / runner / "runs")
+        stored[runner] = {
+            p.name: p.read_bytes()
+            for p in front.parent.iterdir()
+            if p.is_file() and p.name != "pipeline.json"  # it holds the creation time
+        }
+    names = set(stored["serial"])
+    assert {"front.parquet", "verification.parquet", "front.png", "surrogate-front.png"} <= names
+    assert any(name.startswith("parity-") for name in names)
+    assert stored["dask"] == stored["serial"]
+    # The fits and the plots ran there (the DoE batches import neither), and no file did.
+    assert any(_loaded_on_workers(cluster.address, "ovtraj.surrogate.fit"))
+    assert any(_loaded_on_workers(cluster.address, "ovtraj.plots.front"))
+    for name, folder in cluster.folders.items():
+        if name != "scheduler":
+            assert not _files(folder), name
 
 
 @pytest.mark.parametrize("via", VIAS)
