@@ -1214,6 +1214,7 @@ def pipeline(
     and its HTML report. Says whether the verification loop converged and why it stopped."""
     from functools import partial
 
+    from ovtraj.parallel import Bounded
     from ovtraj.pipeline import (
         OptimiserStopped,
         PipelineError,
@@ -1275,6 +1276,9 @@ def pipeline(
         # the pool's processes score the surrogate candidates and draw the plots too (not
         # threads: those would only share this process's core)
         processes = pool.executor if execution["runner"] in ("processes", "dask") else None
+        if execution["runner"] == "dask":
+            # A cluster that lost every worker keeps tasks pending: bounded, then done here.
+            processes = Bounded(processes, execution["dask"].side_work_timeout_s)
         steps = PipelineSteps(
             evaluate=evaluate,
             fit=partial(fit_step, refit=refit, executor=processes),

@@ -2,18 +2,20 @@
 
 The pipeline's pool (``concurrent.futures`` processes or a Dask client's executor) scores
 the surrogate candidates and draws the plots as well as evaluating batches. That work is
-deterministic, so when the pool breaks under it (a worker killed, e.g. out of memory)
-this process does it instead: the same result, later, rather than none.
+deterministic, so when the pool breaks under it (a worker killed, e.g. out of memory) or
+leaves it waiting past a bound (a Dask cluster that lost every worker keeps tasks
+pending), this process does it instead: the same result, later, rather than none or a
+hang.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
-from concurrent.futures import BrokenExecutor, Executor
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import BrokenExecutor, Executor, Future
 from typing import Any
 
-__all__ = ["mapped"]
+__all__ = ["Bounded", "mapped"]
 
 logger = logging.getLogger(__name__)
 
@@ -23,11 +25,38 @@ def mapped(
 ) -> list[Any]:
     """``function(*a)`` for each ``a`` of ``arguments``, in order: on ``executor`` when
     given (and there is more than one), else in this process; in this process too when
-    the executor breaks (``BrokenExecutor``: a worker process died), with a warning."""
+    the executor breaks (``BrokenExecutor``: a worker process died) or its results do not
+    come within its bound (:class:`Bounded`), with a warning."""
     if executor is None or len(arguments) <= 1:
         return [function(*a) for a in arguments]
     try:
         return list(executor.map(function, *zip(*arguments, strict=True)))
-    except BrokenExecutor as err:
-        logger.warning("the pool broke (%s): %s runs in this process", err, function.__name__)
+    except (BrokenExecutor, TimeoutError) as err:
+        reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+        logger.warning("the pool failed (%s): %s runs in this process", reason, function.__name__)
         return [function(*a) for a in arguments]
+
+
+class Bounded(Executor):
+    """``executor`` whose ``map`` raises ``TimeoutError`` when its results are not all in
+    ``timeout_s`` after the call (``concurrent.futures.Executor.map``'s own timeout)."""
+
+    def __init__(self, executor: Executor, timeout_s: float) -> None:
+        self.executor = executor
+        self.timeout_s = timeout_s
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        return self.executor.submit(fn, *args, **kwargs)
+
+    def map(
+        self,
+        fn: Callable[..., Any],
+        *iterables: Iterable[Any],
+        timeout: float | None = None,
+        chunksize: int = 1,
+    ) -> Iterator[Any]:
+        bound = self.timeout_s if timeout is None else timeout
+        return self.executor.map(fn, *iterables, timeout=bound)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        pass  # the pool is its owner's to shut down

@@ -65,6 +65,13 @@ class DaskSettings(StrictModel):
     no_worker_timeout_s: float = bounded(
         unit="s", gt=0, le=86400, description="batches waiting on a cluster with no worker"
     )
+    side_work_timeout_s: float = bounded(
+        unit="s",
+        gt=0,
+        le=86400,
+        description="the pipeline's surrogate scoring and plots on the cluster: past this, "
+        "this process does them",
+    )
     threads_per_worker: int = bounded(ge=1, le=256, description="of a local cluster")
     worker_threads: int | None = bounded(
         ge=1,
