@@ -201,7 +201,7 @@ _RENDEZVOUS_ROWS: RowSpec = [
     ("plane difference", "plane_difference_deg", "deg"),
     ("miss distance", "miss_distance_m", "m"),
     ("two-body guess miss", "initial_miss_distance_m", "m"),
-    ("iterations (trust-constr)", "iterations", ""),
+    ("iterations (interior point)", "iterations", ""),
 ]
 
 
