@@ -205,7 +205,7 @@ def minimize_interior_point(
         return _Jacobian(matrix)
 
     def residuals(c_value: np.ndarray, x_value: np.ndarray, s_value: np.ndarray) -> np.ndarray:
-        return np.r_[c_value, bounds(x_value) - s_value]
+        return np.concatenate((c_value, bounds(x_value) - s_value))
 
     def kkt_error(mu_value: float) -> float:
         """KKT error of the barrier problem; with ``mu_value = 0``, of the problem."""
@@ -225,7 +225,7 @@ def minimize_interior_point(
 
     def least_squares_multipliers() -> np.ndarray:
         # Of the equalities and of h(x) - s = 0; the bound multipliers are their negatives.
-        return factors.least_squares_transpose(-np.r_[g, -mu * np.ones(k)])
+        return factors.least_squares_transpose(np.concatenate((-g, np.full(k, mu))))
 
     factors = scaled_jacobian()
     multipliers = least_squares_multipliers()
@@ -247,7 +247,7 @@ def minimize_interior_point(
         iteration += 1
 
         # The scaled problem in (x, S^-1 s): gradient, Hessian (barrier block mu I).
-        gradient = np.r_[g, -mu * np.ones(k)]
+        gradient = np.concatenate((g, np.full(k, -mu)))
         hessian = np.zeros((n + k, n + k))
         hessian[:n, :n] = lagrangian_hessian(x, multipliers[:m])
         hessian[n:, n:] = mu * np.eye(k)
