@@ -24,6 +24,7 @@ changed file. Pickles execute code when loaded: load only stores this project wr
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import pickle
 import platform
@@ -41,7 +42,7 @@ import pyarrow as pa
 import sklearn
 import smt
 from pydantic import ValidationError
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from ovtraj.config.mission import SurrogateSettings
 from ovtraj.files import Digest, StoreError, read_json
@@ -562,6 +563,17 @@ def _failures(scores: list[RegressorScore] | list[ClassifierScore]) -> str:
 _FIT_LOCK = threading.Lock()
 
 
+@functools.cache
+def _thread_pools() -> ThreadpoolController:
+    # Found once per process: threadpoolctl's library search (reading /proc/self/maps)
+    # cost ~4 ms a fit when each call searched again, ~10 % of the pipeline's fitting.
+    return ThreadpoolController()
+
+
+def _one_blas_thread() -> Any:
+    return _thread_pools().limit(limits=1, user_api="blas")
+
+
 @contextmanager
 def _serial_blas() -> Iterator[None]:
     """One BLAS thread while fitting, one fit at a time in the process.
@@ -572,7 +584,7 @@ def _serial_blas() -> Iterator[None]:
     threads of one process (a threaded task runner) from restoring each other's limits
     out of order.
     """
-    with _FIT_LOCK, threadpool_limits(limits=1, user_api="blas"):
+    with _FIT_LOCK, _one_blas_thread():
         yield
 
 
@@ -750,7 +762,7 @@ def _fit_regressors(
 
 def _regressor_fit(*arguments: Any) -> RegressorFit:
     """:func:`regressor_fit` with one BLAS thread, wherever it runs."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _one_blas_thread():
         return regressor_fit(*arguments)
 
 
