@@ -97,11 +97,15 @@ class RendezvousSettings(StrictModel):
             "the interior point; the cheapest optimum is kept"
         ),
     )
-    max_iterations: int = bounded(ge=1, le=100000, description="interior-point iteration limit, per solve")
+    max_iterations: int = bounded(
+        ge=1, le=100000, description="interior-point iteration limit, per solve"
+    )
     time_limit_s: float = bounded(
         unit="s", gt=0, le=86400, description="wall time of one rendezvous or transfer solve"
     )
-    optimality_tol: float = bounded(gt=0, lt=1, description="interior-point KKT tolerance, scaled problem")
+    optimality_tol: float = bounded(
+        gt=0, lt=1, description="interior-point KKT tolerance, scaled problem"
+    )
     initial_barrier_parameter: float = bounded(gt=0, lt=1)
     initial_trust_radius: float = bounded(
         gt=0, le=1000, description="interior point's first trust radius, scaled variables"
