@@ -121,6 +121,22 @@ def test_iso_format_and_round_trip() -> None:
     assert Epoch.from_iso(odd.iso()) == odd
 
 
+def test_iso_with_nanoseconds_rounds_at_its_own_digit() -> None:
+    """The CCSDS export's epochs (9 digits): the same instant as the microsecond text,
+    rounded at the ninth digit, carrying into the next second and day."""
+    day = Epoch.from_iso("2026-12-01T00:00:00Z")
+    assert day.plus_seconds(298949.45367543).iso(digits=9) == "2026-12-04T11:02:29.453675430Z"
+    assert day.plus_seconds(298949.45367543).iso() == "2026-12-04T11:02:29.453675Z"
+    assert day.plus_seconds(86399.9999999996).iso(digits=9) == "2026-12-02T00:00:00.000000000Z"
+    assert day.plus_seconds(59.4).iso(digits=0) == "2026-12-01T00:00:59Z"
+    rng = np.random.default_rng(3)
+    for seconds in rng.uniform(-1e7, 1e7, 2000):
+        epoch = day.plus_seconds(float(seconds))
+        assert epoch.iso() == epoch.to_datetime().strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        nano = epoch.iso(digits=9)
+        assert abs(Epoch.from_iso(nano).seconds_since(epoch)) <= 1e-6  # from_iso: microseconds
+
+
 def test_datetime_round_trip_is_aware_utc() -> None:
     dt = datetime(2024, 2, 29, 6, 7, 8, 123456, tzinfo=timezone(timedelta(hours=-3)))
     back = Epoch.from_datetime(dt).to_datetime()

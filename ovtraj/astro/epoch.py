@@ -246,9 +246,15 @@ class Epoch:
             days=round(days_from_2000), microseconds=microseconds
         )
 
-    def iso(self) -> str:
-        """ISO 8601 UTC text with microseconds, e.g. ``'2026-03-01T12:00:00.000000Z'``."""
-        return self.to_datetime().strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    def iso(self, digits: int = 6) -> str:
+        """ISO 8601 UTC text with ``digits`` decimals of the second (rounded), e.g.
+        ``'2026-03-01T12:00:00.000000Z'`` (6, microseconds: :meth:`to_datetime`'s)."""
+        units = 10**digits
+        ticks = round(self.jd2 * SECONDS_PER_DAY * units)  # jd2: the day's fraction
+        seconds, fraction = divmod(ticks, units)
+        midnight = _DATETIME_2000_MIDNIGHT + timedelta(days=round(self.jd1 - _JD_2000_MIDNIGHT))
+        whole = (midnight + timedelta(seconds=seconds)).strftime("%Y-%m-%dT%H:%M:%S")
+        return f"{whole}.{fraction:0{digits}d}Z" if digits else f"{whole}Z"
 
     def plus_seconds(self, seconds: float) -> Epoch:
         """The epoch ``seconds`` [s] later (earlier if negative), leap seconds ignored."""

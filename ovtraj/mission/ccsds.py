@@ -55,8 +55,13 @@ VERSION = "2.0"
 
 
 def _epoch_text(day: Epoch, t_s: float) -> str:
-    """CCSDS ASCII time (CCSDS 301.0-B-4 code A, UTC) with microseconds, no zone letter."""
-    return day.plus_seconds(t_s).iso().removesuffix("Z")
+    """CCSDS ASCII time (CCSDS 301.0-B-4 code A, UTC) with nanoseconds, no zone letter.
+
+    Microseconds were not enough: a sample 9 s after the one before (a segment's short
+    last interval), its epoch off by up to 0.5 us (4 mm along the track), put the
+    reader's degree-7 Hermite interpolation 3-5 cm off mid-interval; with nanoseconds
+    0.8 cm (tests/test_ccsds_export.py)."""
+    return day.plus_seconds(t_s).iso(digits=9).removesuffix("Z")
 
 
 def _julian_dates(day: Epoch, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
