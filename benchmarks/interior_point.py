@@ -26,7 +26,7 @@ import time
 import warnings
 
 import numpy as np
-from scipy.optimize import NonlinearConstraint, minimize
+from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
 import ovtraj.rendezvous.correction as correction
 from ovtraj.deadline import Deadline
@@ -57,7 +57,7 @@ def _trust_constr(transfer, start, problem) -> InteriorPointResult:
             hess=lambda x: transfer.hessians(x)[0],
             method="trust-constr",
             constraints=[constraint],
-            bounds=transfer.bounds(),
+            bounds=Bounds(*transfer.bounds()),
             options={
                 "maxiter": problem.max_iterations,
                 "gtol": problem.optimality_tol,
