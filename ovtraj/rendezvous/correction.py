@@ -281,24 +281,44 @@ class _Transfer:
         h_con = 0.5 * (h_con + h_con.transpose(0, 2, 1))
         self._hessians = (base.x.tobytes(), h_obj, h_con)
 
-    def newton_shot(self, fraction: float) -> _Point | None:
-        """dv1 that meets the target at a fixed transfer time (J2 Lambert by Newton)."""
-        x = self.x_at(self.p.dv_guess_eci, fraction)
+    def newton_shots(self, fractions: tuple[float, ...]) -> list[_Point | None]:
+        """dv1 that meets the target at each fixed transfer time (J2 Lambert by Newton).
+
+        The shots run in lockstep, each step's arcs in one batch propagation (issue 20);
+        a shot is dropped (None) when it needs more than ``_START_NEWTON_STEPS`` steps,
+        its impulse grows past ``_START_MAX_IMPULSE_RATIO`` or its arc cannot be flown.
+        """
+        xs = [self.x_at(self.p.dv_guess_eci, f) for f in fractions]
+        shots: list[_Point | None] = [None] * len(xs)
+        active = list(range(len(xs)))
         for _ in range(_START_NEWTON_STEPS):
-            if self.p.deadline.expired():
-                return None
+            if not active or self.p.deadline.expired():
+                break
             try:
-                point = self.at(x)
+                points: list[_Point | None] = list(self._evaluate_many([xs[k] for k in active]))
             except FloatingPointError:
-                return None
-            if np.linalg.norm(point.miss) <= self.p.miss_tolerance_m:
-                return point
-            # Least squares: at 180 deg the cross-track column is (nearly) zero.
-            x = x.copy()
-            x[:3] -= np.linalg.lstsq(point.d_miss[:, :3], point.miss, rcond=1e-10)[0]
-            if np.linalg.norm(x[:3]) > _START_MAX_IMPULSE_RATIO:
-                return None
-        return None
+                points = [self._flown(xs[k]) for k in active]
+            still = []
+            for k, point in zip(active, points, strict=True):
+                if point is None:
+                    continue
+                if np.linalg.norm(point.miss) <= self.p.miss_tolerance_m:
+                    shots[k] = point
+                    continue
+                # Least squares: at 180 deg the cross-track column is (nearly) zero.
+                x = xs[k].copy()
+                x[:3] -= np.linalg.lstsq(point.d_miss[:, :3], point.miss, rcond=1e-10)[0]
+                if np.linalg.norm(x[:3]) <= _START_MAX_IMPULSE_RATIO:
+                    xs[k] = x
+                    still.append(k)
+            active = still
+        return shots
+
+    def _flown(self, x: np.ndarray) -> _Point | None:
+        try:
+            return self._evaluate(x)
+        except FloatingPointError:
+            return None
 
 
 def _smooth_norm(v: np.ndarray) -> float:
@@ -376,7 +396,7 @@ def correct_transfer(problem: CorrectionProblem) -> CorrectionResult:
     transfer = _Transfer(problem)
     guess = transfer.at(transfer.x_at(problem.dv_guess_eci, 1.0))
     initial_miss = float(np.linalg.norm(guess.miss))
-    shots = [transfer.newton_shot(f) for f in problem.start_fractions]
+    shots = transfer.newton_shots(problem.start_fractions)
     feasible = [s for s in shots if s is not None]
     if problem.solve_every_start:
         starts = _distinct([guess if s is None else s for s in shots])
