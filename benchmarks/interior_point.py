@@ -71,8 +71,13 @@ def _trust_constr(transfer, start, problem) -> InteriorPointResult:
     return InteriorPointResult(solution.x, np.zeros(3), int(solution.nit), status, np.nan)
 
 
-def collect_problems() -> list[correction.CorrectionProblem]:
-    """Every correction problem of the reference designs' chains."""
+def collect_problems(extra_designs: int, seed: int) -> list[correction.CorrectionProblem]:
+    """Every correction problem of the reference designs' chains, and of ``extra_designs``
+    more from a Latin hypercube over the design bounds (``seed``)."""
+    from ovtraj.mission import MissionDesign
+    from ovtraj.mission.chain import DESIGN_NAMES
+    from ovtraj.runs.doe import latin_hypercube
+
     problems: list[correction.CorrectionProblem] = []
     solve = correction.correct_transfer
 
@@ -88,7 +93,15 @@ def collect_problems() -> list[correction.CorrectionProblem]:
     try:
         settings = reference.load_settings()
         context = reference.context(settings)
-        for design in reference.designs(context.scenario, settings):
+        designs = reference.designs(context.scenario, settings)
+        if extra_designs:
+            bounds = context.scenario.mission.design_bounds
+            table = latin_hypercube(bounds, extra_designs, seed)
+            designs += [
+                MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
+                for row in table.itertuples(index=False)
+            ]
+        for design in designs:
             evaluate(context, design)
     finally:
         correction.correct_transfer = solve
@@ -113,11 +126,15 @@ def solve_all(problems, solver) -> tuple[list[float], list[correction.Correction
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--extra-designs", type=int, default=0, help="hypercube designs beyond the reference"
+    )
+    parser.add_argument("--seed", type=int, default=1, help="of the extra designs' hypercube")
     parser.add_argument("--json", action="store_true", help="print only the JSON object")
     args = parser.parse_args()
     say = (lambda *_: None) if args.json else print
 
-    problems = collect_problems()
+    problems = collect_problems(args.extra_designs, args.seed)
     runs: dict[str, list[list[float]]] = {"interior point": [], "trust-constr": []}
     results: dict[str, list] = {}
     for _ in range(args.repeats):
@@ -151,8 +168,9 @@ def main() -> None:
     }
     speedup = figures["trust-constr"]["total_ms"] / figures["interior point"]["total_ms"]
     say(
-        f"J2 corrections of the {len(problems)} problems the reference designs' chains pose "
-        f"(rendezvous and transfers), medians of {args.repeats} alternating rounds"
+        f"J2 corrections of the {len(problems)} problems the chains of the reference designs "
+        f"and {args.extra_designs} more pose (rendezvous and transfers), medians of "
+        f"{args.repeats} alternating rounds"
     )
     say(f"  {'':16}{'median [ms]':>12}{'total [ms]':>12}{'iterations':>12}{'converged':>11}")
     for name, row in figures.items():
@@ -170,6 +188,7 @@ def main() -> None:
         json.dumps(
             {
                 "problems": len(problems),
+                "extra_designs": args.extra_designs,
                 "repeats": args.repeats,
                 "solvers": figures,
                 "speedup": round(speedup, 3),
