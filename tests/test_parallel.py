@@ -39,3 +39,20 @@ def test_a_bounded_pool_that_answers_in_time_gives_its_results():
         assert bounded.submit(pow, 2, 5).result() == 32
         bounded.shutdown()  # the owner's pool stays usable
         assert pool.submit(pow, 3, 3).result() == 27
+
+
+def test_blas_threads_limits_every_blas_pool_and_restores_them():
+    """The cached lookup limits the same pools threadpoolctl finds afresh."""
+    from threadpoolctl import threadpool_info
+
+    from ovtraj.parallel import blas_threads
+
+    before = {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+    assert before  # numpy's and scipy's BLAS
+    with blas_threads(1):
+        inside = {
+            p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"
+        }
+    after = {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+    assert set(inside) == set(before) and set(inside.values()) == {1}
+    assert after == before

@@ -59,7 +59,6 @@ import pandas as pd
 import pyarrow as pa
 from numpy.typing import NDArray
 from scipy.optimize import brentq
-from threadpoolctl import threadpool_limits
 
 from ovtraj.astro.frames import great_circle_distance
 from ovtraj.astro.propagation import OrbitPropagator
@@ -80,6 +79,7 @@ from ovtraj.mission.fly import (
     fly_plan,
 )
 from ovtraj.mission.plan import MissionPlan
+from ovtraj.parallel import blas_threads
 from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry import dynamics as dyn
@@ -307,7 +307,7 @@ class RunOutcome:
 
 def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
     """The plan flown as stored with the draw's errors (the replay, no correction)."""
-    with threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"):
+    with blas_threads(EVALUATION_BLAS_THREADS):
         report: FlightReport = fly_plan(plan, perturbation=DispersedFlight(draw))
     maxima = {
         name: float(report.checks[name].value)
@@ -346,7 +346,7 @@ def fly_closed_loop(
     try:
         with (
             np.errstate(all="ignore"),
-            threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"),
+            blas_threads(EVALUATION_BLAS_THREADS),
         ):
             _closed_loop(plan, scenario, draw, config, outcome)
         outcome.landed = True

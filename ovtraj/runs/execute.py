@@ -14,12 +14,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
 
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.parallel import blas_threads
 from ovtraj.runs.doe import latin_hypercube
 from ovtraj.runs.runners import BatchPool, ClusterError, batch_pool
 from ovtraj.runs.store import Run, RunStore, StoreError
@@ -46,7 +46,7 @@ EVALUATION_BLAS_THREADS = 1
 def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
     """Every sample of a batch; a failing sample is recorded, never raised."""
     records = []
-    with threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"):
+    with blas_threads(EVALUATION_BLAS_THREADS):
         for row in batch.itertuples(index=False):
             EVALUATIONS["count"] += 1
             design = MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})

@@ -219,14 +219,13 @@ def batch_pool(
     if runner == "serial":
         yield BatchPool(runner, None)
     elif runner == "threads":
-        from threadpoolctl import threadpool_limits
-
+        from ovtraj.parallel import blas_threads
         from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
 
         # process-wide, so set for the pool's life: a batch's own limit, restored when it
         # ends, would otherwise lift it under a batch still running in another thread
         with (
-            threadpool_limits(limits=EVALUATION_BLAS_THREADS, user_api="blas"),
+            blas_threads(EVALUATION_BLAS_THREADS),
             concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool,
         ):
             yield BatchPool(runner, pool)

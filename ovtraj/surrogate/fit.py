@@ -24,7 +24,6 @@ changed file. Pickles execute code when loaded: load only stores this project wr
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import pickle
 import platform
@@ -42,11 +41,10 @@ import pyarrow as pa
 import sklearn
 import smt
 from pydantic import ValidationError
-from threadpoolctl import ThreadpoolController
 
 from ovtraj.config.mission import SurrogateSettings
 from ovtraj.files import Digest, StoreError, read_json
-from ovtraj.parallel import mapped
+from ovtraj.parallel import blas_threads, mapped
 from ovtraj.products import Product
 from ovtraj.records import (
     BOOL,
@@ -563,15 +561,8 @@ def _failures(scores: list[RegressorScore] | list[ClassifierScore]) -> str:
 _FIT_LOCK = threading.Lock()
 
 
-@functools.cache
-def _thread_pools() -> ThreadpoolController:
-    # Found once per process: threadpoolctl's library search (reading /proc/self/maps)
-    # cost ~4 ms a fit when each call searched again, ~10 % of the pipeline's fitting.
-    return ThreadpoolController()
-
-
 def _one_blas_thread() -> Any:
-    return _thread_pools().limit(limits=1, user_api="blas")
+    return blas_threads(1)
 
 
 @contextmanager
