@@ -19,6 +19,7 @@ from ovtraj.deadline import Deadline
 from ovtraj.rendezvous.interior_point import (
     CONVERGED,
     ITERATION_LIMIT,
+    SINGULAR,
     TIME_LIMIT,
     minimize_interior_point,
     trust_region_step,
@@ -226,3 +227,22 @@ def test_trust_region_step_hard_case():
     assert u[1] == pytest.approx(-1.0 / 3.0)
     assert abs(u[0]) == pytest.approx(math.sqrt(4.0 - 1.0 / 9.0))
     _check_trust_region_optimality(hessian, gradient, radius, u)
+
+
+def test_dependent_constraints_end_with_a_status_not_an_exception():
+    """Two copies of one constraint: the Jacobian has rank 1, no step is defined."""
+
+    def evaluate(x):
+        c = np.array([x[0] + x[1] - 1.0, 2.0 * (x[0] + x[1] - 1.0)])
+        return float(x @ x), 2.0 * x, c, np.array([[1.0, 1.0], [2.0, 2.0]])
+
+    result = minimize_interior_point(
+        evaluate,
+        lambda x, y: 2.0 * np.eye(2),
+        np.array([0.3, 0.2]),
+        np.array([-INF, -INF]),
+        np.array([INF, INF]),
+        **SOLVER,
+    )
+    assert (result.status, result.iterations) == (SINGULAR, 0)
+    np.testing.assert_array_equal(result.x, [0.3, 0.2])  # where it was, not a wild step

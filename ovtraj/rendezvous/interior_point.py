@@ -61,12 +61,15 @@ _ETA = 1e-8  # smallest accepted ratio of actual to predicted reduction
 _GOOD_RATIO = 0.75
 _SHRINK = 0.25
 _MAX_RADIUS = 1e3  # scaled variables: far beyond any useful step
+# Dependent constraints: a pivot of the Jacobian's QR below this share of the largest.
+_RANK_TOLERANCE = 1e-12
 _SECULAR_ITERATIONS = 100  # safeguarded Newton on the secular equation (converges in <10)
 
 CONVERGED = "converged"
 STEP_TOLERANCE = "step below tolerance"
 ITERATION_LIMIT = "iteration limit"
 TIME_LIMIT = "time limit"
+SINGULAR = "singular constraint Jacobian"
 
 Evaluation = tuple[float, np.ndarray, np.ndarray, np.ndarray]  # f, grad f, c, dc/dx
 
@@ -76,7 +79,7 @@ class InteriorPointResult:
     x: np.ndarray
     multipliers: np.ndarray  # of the equality constraints
     iterations: int
-    status: str  # CONVERGED, STEP_TOLERANCE, ITERATION_LIMIT or TIME_LIMIT
+    status: str  # CONVERGED, STEP_TOLERANCE, ITERATION_LIMIT, TIME_LIMIT or SINGULAR
     optimality: float  # the KKT error at x (max norm)
 
     @property
@@ -109,6 +112,9 @@ class _Jacobian:
     def __init__(self, jacobian: np.ndarray) -> None:
         m = jacobian.shape[0]
         q, r = np.linalg.qr(jacobian.T, mode="complete")
+        pivots = np.abs(np.diag(r[:m]))
+        if m and not pivots.min() > _RANK_TOLERANCE * pivots.max():
+            raise np.linalg.LinAlgError("the constraint Jacobian is rank-deficient")
         self.matrix = jacobian
         self.range, self.null, self.r = q[:, :m], q[:, m:], r[:m]
 
@@ -231,83 +237,89 @@ def minimize_interior_point(
         # Of the equalities and of h(x) - s = 0; the bound multipliers are their negatives.
         return factors.least_squares_transpose(np.concatenate((-g, np.full(k, mu))))
 
-    factors = scaled_jacobian()
-    multipliers = least_squares_multipliers()
+    multipliers = np.zeros(m + k)
     iteration = 0
-    while True:
-        error = kkt_error(0.0)
-        if error <= tol:
-            return InteriorPointResult(x, multipliers[:m], iteration, CONVERGED, error)
-        if radius < tol * 1e-4:
-            return InteriorPointResult(x, multipliers[:m], iteration, STEP_TOLERANCE, error)
-        if iteration >= max_iterations:
-            return InteriorPointResult(x, multipliers[:m], iteration, ITERATION_LIMIT, error)
-        if deadline.expired():
-            return InteriorPointResult(x, multipliers[:m], iteration, TIME_LIMIT, error)
-        while mu > mu_floor and kkt_error(mu) <= _KAPPA_EPS * mu:
-            mu = max(mu_floor, min(_KAPPA_MU * mu, mu**_THETA_MU))
-            multipliers = least_squares_multipliers()
-        tau = max(_TAU_MIN, 1.0 - mu)
-        iteration += 1
-
-        # The scaled problem in (x, S^-1 s): gradient, Hessian (barrier block mu I).
-        gradient = np.concatenate((g, np.full(k, -mu)))
-        hessian = np.zeros((n + k, n + k))
-        hessian[:n, :n] = lagrangian_hessian(x, multipliers[:m])
-        hessian[n:, n:] = mu * np.eye(k)
-        residual = residuals(c, x, slack)
-        # Normal step: the least-norm Gauss-Newton step to feasibility, within zeta *
-        # radius and keeping half the fraction to the boundary for the tangential step.
-        normal = factors.least_norm(-residual)
-        normal *= min(1.0, _ZETA * radius / max(float(np.linalg.norm(normal)), 1e-300))
-        normal *= _fraction_to_boundary(normal[n:], 0.5 * tau)
-        # Tangential step in the null space, exact in its n - m dimensions.
-        basis = factors.null
-        rest = math.sqrt(max(radius**2 - float(normal @ normal), 0.0))
-        step = normal
-        if basis.shape[1] and rest > 0.0:
-            u = trust_region_step(
-                basis.T @ hessian @ basis, basis.T @ (gradient + hessian @ normal), rest
-            )
-            step = normal + basis @ u
-        step = step * _fraction_to_boundary(step[n:], tau)
-
-        # Predicted reductions of the quadratic model and of the linearised infeasibility.
-        model = float(gradient @ step + 0.5 * step @ hessian @ step)
-        residual_norm = float(np.linalg.norm(residual))
-        infeasibility_drop = residual_norm - float(np.linalg.norm(residual + factors.matrix @ step))
-        if infeasibility_drop > 0.0:
-            penalty = max(penalty, model / ((1.0 - _RHO) * infeasibility_drop))
-        predicted = -model + penalty * infeasibility_drop
-        current = merit(f, slack, residual)
-
-        accepted = None
-        for attempt in range(2):
-            trial_x, trial_s = x + step[:n], slack * (1.0 + step[n:])
-            trial = _try(evaluate, trial_x)
-            if trial is None:
-                break
-            trial_residual = residuals(trial[2], trial_x, trial_s)
-            ratio = _ratio(current, merit(trial[0], trial_s, trial_residual), predicted)
-            if ratio >= _ETA:
-                accepted = trial_x, trial_s, trial, ratio
-                break
-            if attempt == 1:
-                break
-            # Second-order correction: back onto the constraints' curvature.
-            corrected = step + factors.least_norm(-trial_residual)
-            if float(np.linalg.norm(corrected)) > 2.0 * radius:
-                break
-            step = corrected * _fraction_to_boundary(corrected[n:], tau)
-        step_norm = float(np.linalg.norm(step))
-        if accepted is None:
-            radius = _SHRINK * step_norm if step_norm > 0.0 else _SHRINK * radius
-            continue
-        x, slack, (f, g, c, jac), ratio = accepted
-        if ratio >= _GOOD_RATIO:
-            radius = min(max(radius, 2.0 * step_norm), _MAX_RADIUS)
+    try:
         factors = scaled_jacobian()
         multipliers = least_squares_multipliers()
+        while True:
+            error = kkt_error(0.0)
+            if error <= tol:
+                return InteriorPointResult(x, multipliers[:m], iteration, CONVERGED, error)
+            if radius < tol * 1e-4:
+                return InteriorPointResult(x, multipliers[:m], iteration, STEP_TOLERANCE, error)
+            if iteration >= max_iterations:
+                return InteriorPointResult(x, multipliers[:m], iteration, ITERATION_LIMIT, error)
+            if deadline.expired():
+                return InteriorPointResult(x, multipliers[:m], iteration, TIME_LIMIT, error)
+            while mu > mu_floor and kkt_error(mu) <= _KAPPA_EPS * mu:
+                mu = max(mu_floor, min(_KAPPA_MU * mu, mu**_THETA_MU))
+                multipliers = least_squares_multipliers()
+            tau = max(_TAU_MIN, 1.0 - mu)
+            iteration += 1
+
+            # The scaled problem in (x, S^-1 s): gradient, Hessian (barrier block mu I).
+            gradient = np.concatenate((g, np.full(k, -mu)))
+            hessian = np.zeros((n + k, n + k))
+            hessian[:n, :n] = lagrangian_hessian(x, multipliers[:m])
+            hessian[n:, n:] = mu * np.eye(k)
+            residual = residuals(c, x, slack)
+            # Normal step: the least-norm Gauss-Newton step to feasibility, within zeta *
+            # radius and keeping half the fraction to the boundary for the tangential step.
+            normal = factors.least_norm(-residual)
+            normal *= min(1.0, _ZETA * radius / max(float(np.linalg.norm(normal)), 1e-300))
+            normal *= _fraction_to_boundary(normal[n:], 0.5 * tau)
+            # Tangential step in the null space, exact in its n - m dimensions.
+            basis = factors.null
+            rest = math.sqrt(max(radius**2 - float(normal @ normal), 0.0))
+            step = normal
+            if basis.shape[1] and rest > 0.0:
+                u = trust_region_step(
+                    basis.T @ hessian @ basis, basis.T @ (gradient + hessian @ normal), rest
+                )
+                step = normal + basis @ u
+            step = step * _fraction_to_boundary(step[n:], tau)
+
+            # Predicted reductions of the quadratic model and of the linearised infeasibility.
+            model = float(gradient @ step + 0.5 * step @ hessian @ step)
+            residual_norm = float(np.linalg.norm(residual))
+            linearised = float(np.linalg.norm(residual + factors.matrix @ step))
+            infeasibility_drop = residual_norm - linearised
+            if infeasibility_drop > 0.0:
+                penalty = max(penalty, model / ((1.0 - _RHO) * infeasibility_drop))
+            predicted = -model + penalty * infeasibility_drop
+            current = merit(f, slack, residual)
+
+            accepted = None
+            for attempt in range(2):
+                trial_x, trial_s = x + step[:n], slack * (1.0 + step[n:])
+                trial = _try(evaluate, trial_x)
+                if trial is None:
+                    break
+                trial_residual = residuals(trial[2], trial_x, trial_s)
+                ratio = _ratio(current, merit(trial[0], trial_s, trial_residual), predicted)
+                if ratio >= _ETA:
+                    accepted = trial_x, trial_s, trial, ratio
+                    break
+                if attempt == 1:
+                    break
+                # Second-order correction: back onto the constraints' curvature.
+                corrected = step + factors.least_norm(-trial_residual)
+                if float(np.linalg.norm(corrected)) > 2.0 * radius:
+                    break
+                step = corrected * _fraction_to_boundary(corrected[n:], tau)
+            step_norm = float(np.linalg.norm(step))
+            if accepted is None:
+                radius = _SHRINK * step_norm if step_norm > 0.0 else _SHRINK * radius
+                continue
+            x, slack, (f, g, c, jac), ratio = accepted
+            if ratio >= _GOOD_RATIO:
+                radius = min(max(radius, 2.0 * step_norm), _MAX_RADIUS)
+            factors = scaled_jacobian()
+            multipliers = least_squares_multipliers()
+    except np.linalg.LinAlgError:
+        # A singular constraint Jacobian (dependent constraints): no step is defined.
+        return InteriorPointResult(x, multipliers[:m], iteration, SINGULAR, math.nan)
 
 
 def _fraction_to_boundary(scaled_slack_step: np.ndarray, tau: float) -> float:
