@@ -396,22 +396,27 @@ class OrbitPropagator:
         t1 = np.broadcast_to(np.asarray(t1, dtype=float), (n,))
         ta = self._variational_batch_integrator()
         size = ta.batch_size
-        identity = np.eye(6).ravel()
+        # Lane-independent columns, broadcast over the lanes (no per-call tiling: this runs
+        # ~36 times per mission evaluation).
+        identity = np.eye(6).reshape(36, 1)
+        pars = np.asarray(self.shared_parameters[: ta.pars.shape[0]], dtype=float)[:, None]
         out = np.empty((n, 42))
         for start in range(0, n, size):
-            rows = np.arange(start, min(start + size, n))
+            stop = min(start + size, n)
             # Pad the last chunk by repeating its first row.
-            lanes = np.r_[rows, np.full(size - len(rows), rows[0])]
+            lanes = np.arange(start, start + size)
+            lanes[stop - start :] = start
             ta.set_time(t0[lanes])
-            ta.state[:] = np.hstack([states0[lanes], np.tile(identity, (size, 1))]).T
-            n_par = ta.pars.shape[0]
-            ta.pars[:] = np.tile(np.asarray(self.shared_parameters[:n_par])[:, None], (1, size))
+            state = ta.state
+            state[:6] = states0[lanes].T
+            state[6:] = identity
+            ta.pars[:] = pars
             ta.propagate_until(t1[lanes])
-            outcomes = [o for o, *_ in ta.propagate_res[: len(rows)]]
+            outcomes = [o for o, *_ in ta.propagate_res[: stop - start]]
             failed = [o for o in outcomes if o != hy.taylor_outcome.time_limit]
             if failed:
                 raise FloatingPointError(f"variational propagation failed: {failed[0]}")
-            out[rows] = np.array(ta.state).T[: len(rows)]
+            out[start:stop] = np.array(ta.state).T[: stop - start]
         return out[:, :6], out[:, 6:].reshape(n, 6, 6)
 
     def _variational_batch_integrator(self) -> Any:
