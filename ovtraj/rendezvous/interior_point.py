@@ -63,6 +63,15 @@ _SHRINK = 0.25
 _MAX_RADIUS = 1e3  # scaled variables: far beyond any useful step
 # Dependent constraints: a pivot of the Jacobian's QR below this share of the largest.
 _RANK_TOLERANCE = 1e-12
+# The stop on a vanishing step: the radius below tol times this (scipy's xtol for
+# trust-constr as the correction set it, optimality_tol * 1e-4).
+_STEP_TOLERANCE_FACTOR = 1e-4
+# Slacks start at least this far inside (scaled variables): a start on a bound.
+_MIN_SLACK = 1e-8
+# Trust-region subproblem: relative size below which an eigenvalue gap or a gradient
+# component counts as zero (the hard case), and the boundary's relative tolerance.
+_HARD_CASE_TOLERANCE = 1e-12
+_BOUNDARY_TOLERANCE = 1e-10
 _SECULAR_ITERATIONS = 100  # safeguarded Newton on the secular equation (converges in <10)
 
 CONVERGED = "converged"
@@ -144,8 +153,9 @@ def trust_region_step(hessian: np.ndarray, gradient: np.ndarray, radius: float) 
             return vectors @ u
     lam_lo = max(0.0, -lowest)
     g_norm = float(np.linalg.norm(g))
-    at_lowest = values - lowest <= 1e-12 * max(1.0, abs(lowest))
-    if lowest <= 0.0 and np.all(np.abs(g[at_lowest]) <= 1e-12 * max(g_norm, 1e-300)):
+    at_lowest = values - lowest <= _HARD_CASE_TOLERANCE * max(1.0, abs(lowest))
+    hard = np.abs(g[at_lowest]) <= _HARD_CASE_TOLERANCE * max(g_norm, 1e-300)
+    if lowest <= 0.0 and np.all(hard):
         u = np.zeros_like(g)
         u[~at_lowest] = -g[~at_lowest] / (values[~at_lowest] + lam_lo)
         fill = radius**2 - float(u @ u)
@@ -157,7 +167,7 @@ def trust_region_step(hessian: np.ndarray, gradient: np.ndarray, radius: float) 
     for _ in range(_SECULAR_ITERATIONS):
         shifted = values + lam
         length = float(np.linalg.norm(g / shifted))
-        if abs(length - radius) <= 1e-10 * radius:
+        if abs(length - radius) <= _BOUNDARY_TOLERANCE * radius:
             break
         if length > radius:
             lo = lam
@@ -199,7 +209,7 @@ def minimize_interior_point(
     # Slack variables s = h(x) > 0 carry the barrier; the trust region is scaled by them
     # (the step in s is S times the scaled step), so a bound that is nearly active only
     # shortens the step of its own slack.
-    slack = np.maximum(bounds(x), 1e-8)
+    slack = np.maximum(bounds(x), _MIN_SLACK)
     mu = barrier_parameter
     mu_floor = tol / 10.0
     radius = trust_radius
@@ -246,7 +256,7 @@ def minimize_interior_point(
             error = kkt_error(0.0)
             if error <= tol:
                 return InteriorPointResult(x, multipliers[:m], iteration, CONVERGED, error)
-            if radius < tol * 1e-4:
+            if radius < tol * _STEP_TOLERANCE_FACTOR:
                 return InteriorPointResult(x, multipliers[:m], iteration, STEP_TOLERANCE, error)
             if iteration >= max_iterations:
                 return InteriorPointResult(x, multipliers[:m], iteration, ITERATION_LIMIT, error)
