@@ -474,3 +474,18 @@ def test_trajectory_table(inp, solved):
     assert np.allclose(table["altitude_km"], altitude, rtol=0, atol=1e-9)
     assert table["latitude_deg"].iloc[-1] == pytest.approx(row["entry_lat_deg"], abs=1e-9)
     assert np.all(table["altitude_km"].to_numpy()[n_prep:] >= inp.entry.altitude_m / 1e3 - 1e-6)
+
+
+def test_osculating_perigee_radius_against_the_closed_form():
+    # r_p = a (1 - e) for states all around an ellipse (perifocal axes, mu of the Earth).
+    from ovtraj.deorbit.correction import _perigee_radius
+
+    mu, a, e = 3.986004418e14, 6.9e6, 0.02
+    p = a * (1.0 - e * e)
+    for nu in np.linspace(-math.pi, math.pi, 13):
+        r = p / (1.0 + e * math.cos(nu))
+        speed = math.sqrt(mu / p)
+        position = [r * math.cos(nu), r * math.sin(nu), 0.0]
+        velocity = [-speed * math.sin(nu), speed * (e + math.cos(nu)), 0.0]
+        state = np.array([*position, *velocity])
+        assert _perigee_radius(state, mu) == pytest.approx(a * (1.0 - e), rel=1e-13)

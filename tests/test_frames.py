@@ -174,6 +174,14 @@ def test_rsw_round_trip_and_degenerate_case() -> None:
         rsw_basis([7e6, 0, 0], [100.0, 0, 0])
 
 
+def test_rsw_basis_of_one_state_equals_the_broadcast_path() -> None:
+    # One state takes a scalar path (the deorbit's shots); a batch the array one.
+    r, v = _random_states(20)
+    batch = rsw_basis(r, v)
+    for k in range(20):
+        np.testing.assert_allclose(rsw_basis(r[k], v[k]), batch[k], rtol=0.0, atol=1e-15)
+
+
 # ------------------------------------------------------- flight-path angle
 
 
@@ -196,6 +204,11 @@ def test_flight_path_angle_of_ellipse_matches_closed_form() -> None:
 
 def test_flight_path_angle_scalar_input() -> None:
     assert flight_path_angle([7e6, 0, 0], [1e3, 1e3, 0]) == pytest.approx(math.pi / 4)
+    e, nu = 0.3, np.linspace(-np.pi, np.pi, 37)
+    r, v = _perifocal_state(9.0e6, e, nu, EARTH.mu)
+    one_by_one = [flight_path_angle(r[k], v[k]) for k in range(len(nu))]
+    assert all(isinstance(gamma, float) for gamma in one_by_one)
+    np.testing.assert_allclose(one_by_one, flight_path_angle(r, v), rtol=0.0, atol=1e-15)
 
 
 # ---------------------------------------------------------------- heading
