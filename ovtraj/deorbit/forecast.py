@@ -120,14 +120,28 @@ def forecast_passes(
             great_circle_distance(lat, lon, entry.latitude_rad, entry.longitude_rad, radius=radius)
         )
 
+    # Every crossing's sub-satellite point and distance in one array call: a long horizon
+    # has ~100 crossings, and one-point calls were half the forecast's time (issue 20).
+    hit_states = np.array([hit.state for hit in result.hits]).reshape(-1, 6)
+    hit_times = np.array([hit.t for hit in result.hits])
+    lats_c, lons_c = subsatellite_point(
+        hit_states, hit_times, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
+    )
+    distances_c = great_circle_distance(
+        lats_c, lons_c, entry.latitude_rad, entry.longitude_rad, radius=radius
+    )
     passes = []
-    for hit in result.hits:
-        lat_c, lon_c = subsatellite_point(
-            hit.state, hit.t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
-        )
+    for hit, lat_c, lon_c, d_c in zip(
+        result.hits,
+        np.atleast_1d(lats_c),
+        np.atleast_1d(lons_c),
+        np.atleast_1d(distances_c),
+        strict=True,
+    ):
+        lat_c, lon_c = float(lat_c), float(lon_c)
         northbound = bool(hit.state[5] > 0.0)
-        through = entry.contains(float(lat_c), float(lon_c)) and entry.accepts_direction(northbound)
-        t_near, state, d_near = hit.t, hit.state, distance(hit.t)
+        through = entry.contains(lat_c, lon_c) and entry.accepts_direction(northbound)
+        t_near, state, d_near, lat, lon = hit.t, hit.state, float(d_c), lat_c, lon_c
         if through:  # refine only the passes that matter: the others keep the crossing
             lo = max(0.0, hit.t - 0.25 * period)
             hi = min(horizon_s, hit.t + 0.25 * period)
@@ -136,9 +150,9 @@ def forecast_passes(
             )
             t_near, d_near = float(best.x), float(best.fun)
             state = result.state_at(t_near)
-        lat, lon = subsatellite_point(
-            state, t_near, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
-        )
+            lat, lon = subsatellite_point(
+                state, t_near, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
+            )
         passes.append(
             TrackPass(
                 t_s=t_near,
@@ -146,7 +160,7 @@ def forecast_passes(
                 longitude_rad=float(lon),
                 distance_m=d_near,
                 crossing_t_s=hit.t,
-                crossing_longitude_rad=float(lon_c),
+                crossing_longitude_rad=lon_c,
                 northbound=northbound,
                 in_region=through,
                 state=np.array(state, dtype=float),
