@@ -112,6 +112,16 @@ def test_kepler_near_singular_corner():
     assert np.max(np.abs(E - 0.99 * np.sin(E) - M)) < 1e-13
 
 
+def test_kepler_one_angle_equals_the_vectorised_solution():
+    # One angle takes a float path (the J2 mean-element inversion); arrays the vector one.
+    rng = np.random.default_rng(8)
+    e = np.concatenate([[0.0, 0.99], rng.uniform(0.0, 0.99, 200)])
+    M = np.concatenate([[1e-12, -np.pi], rng.uniform(-6.0 * np.pi, 6.0 * np.pi, 200)])
+    one_by_one = np.array([mean_to_eccentric_anomaly(m, x) for m, x in zip(M, e, strict=True)])
+    np.testing.assert_allclose(one_by_one, mean_to_eccentric_anomaly(M, e), rtol=0, atol=1e-14)
+    assert np.max(np.abs(one_by_one - e * np.sin(one_by_one) - M)) < 1e-13
+
+
 def test_kepler_rejects_non_elliptic():
     with pytest.raises(ValueError):
         mean_to_eccentric_anomaly(1.0, 1.0)

@@ -29,6 +29,7 @@ Element sets
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -285,6 +286,8 @@ def mean_to_eccentric_anomaly(
     M, e = np.broadcast_arrays(_as_float(M), _as_float(e))
     if np.any((e < 0.0) | (e >= 1.0)):
         raise ValueError("Kepler's equation here is for elliptic orbits, 0 <= e < 1")
+    if M.ndim == 0:
+        return _eccentric_anomaly_single(float(M), float(e), tol, max_iter)
     revolutions = np.round(M / _TWO_PI)
     M_reduced = M - _TWO_PI * revolutions
     E = np.where(M_reduced > 0.0, M_reduced + e, M_reduced - e)
@@ -296,6 +299,22 @@ def mean_to_eccentric_anomaly(
     else:
         raise RuntimeError(f"Kepler's equation did not converge in {max_iter} iterations")
     return _scalar_or_array(E + _TWO_PI * revolutions)
+
+
+def _eccentric_anomaly_single(M: float, e: float, tol: float, max_iter: int) -> float:
+    """:func:`mean_to_eccentric_anomaly` of one angle on floats (the same iteration; the
+    J2 mean-element inversion solves ~6 per state, a third of its time on 0-d arrays)."""
+    revolutions = round(M / _TWO_PI)
+    M_reduced = M - _TWO_PI * revolutions
+    E = M_reduced + e if M_reduced > 0.0 else M_reduced - e
+    for _ in range(max_iter):
+        step = (E - e * math.sin(E) - M_reduced) / (1.0 - e * math.cos(E))
+        E = E - step
+        if abs(step) <= tol * max(1.0, abs(E)):
+            break
+    else:
+        raise RuntimeError(f"Kepler's equation did not converge in {max_iter} iterations")
+    return E + _TWO_PI * revolutions
 
 
 def true_to_mean_anomaly(nu: ArrayLike, e: ArrayLike) -> FloatOrArray:

@@ -386,8 +386,10 @@ def osculating_to_mean(
         for k in angle_slots:
             residual[k] = _wrap_pi(residual[k])
         x = tuple(xk + rk for xk, rk in zip(x, residual, strict=True))
-        scaled = [np.abs(residual[0]) / np.abs(x[0]), *(np.abs(rk) for rk in residual[1:])]
-        if max(float(np.max(s)) for s in scaled) <= tol:
+        # One array of every correction (a is relative): one reduction per iteration.
+        scaled = np.abs(np.array(residual, dtype=float))
+        scaled[0] /= np.abs(x[0])
+        if float(np.max(scaled)) <= tol:
             break
     else:
         raise RuntimeError(f"osculating_to_mean did not converge in {max_iter} iterations")
