@@ -206,6 +206,11 @@ def test_dense_output_matches_a_direct_propagation(earth, j2):
     # Two lookups must not share memory (heyoka reuses an internal buffer).
     a, b = result.state_at(100.0), result.state_at(5000.0)
     assert np.linalg.norm(a[:3] - b[:3]) > 1e5
+    # Several lookups in one call: each equals its own lookup, clipped the same way.
+    times = np.array([-50.0, 0.0, 1234.5, 9876.0, 20000.0, 20050.0])
+    np.testing.assert_array_equal(
+        result.states_at(times), np.array([result.state_at(t) for t in times])
+    )
 
 
 def test_batch_propagation_equals_single_propagations(earth, j2):
@@ -303,5 +308,6 @@ def test_zero_length_dense_propagation_is_the_state_itself(earth, j2):
     np.testing.assert_array_equal(result.state_at(100.0), s0)
     np.testing.assert_array_equal(result.dense(np.array([100.0, 100.0])), [s0, s0])
     np.testing.assert_array_equal(result.dense(100.0), s0)
+    np.testing.assert_array_equal(result.states_at(np.array([99.0, 100.0, 101.0])), [s0] * 3)
     with pytest.raises(ValueError, match="must lie in"):
         result.dense(101.0)

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
-from ovtraj.astro.propagation.gravity import two_body_j2_rhs_single
+from ovtraj.astro.propagation.gravity import two_body_j2_rhs
 from ovtraj.deadline import Deadline
 from ovtraj.rendezvous.interior_point import (
     ITERATION_LIMIT,
@@ -122,6 +122,40 @@ class _Point:
     transfer_time: float
 
 
+@dataclass(frozen=True)
+class _Candidates:
+    """Several candidates (the fields of :class:`_Point`, one row per lane)."""
+
+    x: np.ndarray
+    cost: np.ndarray
+    grad: np.ndarray
+    miss: np.ndarray
+    d_miss: np.ndarray
+    dv1: np.ndarray
+    dv2: np.ndarray
+    chaser: np.ndarray
+    final: np.ndarray
+    target: np.ndarray
+    burn_time: np.ndarray
+    transfer_time: np.ndarray
+
+    def point(self, k: int) -> _Point:
+        return _Point(
+            x=self.x[k],
+            cost=float(self.cost[k]),
+            grad=self.grad[k],
+            miss=self.miss[k],
+            d_miss=self.d_miss[k],
+            dv1=self.dv1[k],
+            dv2=self.dv2[k],
+            chaser=self.chaser[k],
+            final=self.final[k],
+            target=self.target[k],
+            burn_time=float(self.burn_time[k]),
+            transfer_time=float(self.transfer_time[k]),
+        )
+
+
 class _Transfer:
     """Evaluates candidate transfers; caches the last point and the last Hessians."""
 
@@ -174,66 +208,69 @@ class _Transfer:
         self.evaluations += 1
         burn_time, arrival, chaser, after_burn = self._departure(x)
         final, stm = self.p.propagator.propagate_with_stm(after_burn, burn_time, arrival)
-        return self._candidate(x, chaser, final, stm)
+        return self._candidates(x[None, :], chaser[None, :], final[None, :], stm[None]).point(0)
 
-    def _evaluate_many(self, xs: list[np.ndarray]) -> list[_Point]:
+    def _evaluate_many(self, xs: list[np.ndarray]) -> _Candidates:
         """:meth:`_evaluate` of several points, their arcs in one batch propagation."""
         self.evaluations += len(xs)
-        departures = [self._departure(x) for x in xs]
-        finals, stms = self.p.propagator.propagate_with_stm_batch(
-            np.array([d[3] for d in departures]),
-            np.array([d[0] for d in departures]),
-            np.array([d[1] for d in departures]),
-        )
-        return [
-            self._candidate(x, d[2], final, stm)
-            for x, d, final, stm in zip(xs, departures, finals, stms, strict=True)
-        ]
+        x = np.array(xs, dtype=float)
+        burn_time, arrival = self._epochs(x)
+        chaser = self.p.chaser_coast.states_at(burn_time)
+        after_burn = chaser.copy()
+        after_burn[:, 3:] += x[:, :3] * self.dv_scale
+        finals, stms = self.p.propagator.propagate_with_stm_batch(after_burn, burn_time, arrival)
+        return self._candidates(x, chaser, finals, stms)
+
+    def _epochs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Burn and arrival epochs [s] of points x (m, n)."""
+        p = self.p
+        shift = x[..., 4] if self.free_epoch else np.zeros_like(x[..., 3])
+        burn_time = p.burn_time_s + shift * p.hohmann_time_s
+        return burn_time, burn_time + x[..., 3] * p.hohmann_time_s
 
     def _departure(self, x: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
         """Burn epoch, arrival epoch, chaser state before and after the first impulse."""
-        p = self.p
-        burn_time = p.burn_time_s + (x[4] * p.hohmann_time_s if self.free_epoch else 0.0)
-        arrival = burn_time + x[3] * p.hohmann_time_s
-        chaser = p.chaser_coast.state_at(burn_time)
+        burn_time, arrival = (float(t) for t in self._epochs(x))
+        chaser = self.p.chaser_coast.state_at(burn_time)
         after_burn = chaser.copy()
         after_burn[3:] += x[:3] * self.dv_scale
         return burn_time, arrival, chaser, after_burn
 
-    def _candidate(
+    def _candidates(
         self, x: np.ndarray, chaser: np.ndarray, final: np.ndarray, stm: np.ndarray
-    ) -> _Point:
-        """The candidate at ``x`` from its arc's end state and state-transition matrix."""
-        p = self.p
-        dv = x[:3] * self.dv_scale
-        transfer_time = x[3] * p.hohmann_time_s
-        burn_time = p.burn_time_s + (x[4] * p.hohmann_time_s if self.free_epoch else 0.0)
-        arrival = burn_time + transfer_time
-        target = p.target_coast.state_at(arrival)
-        f_final = two_body_j2_rhs_single(final, **self._rhs_args)
-        f_target = two_body_j2_rhs_single(target, **self._rhs_args)
+    ) -> _Candidates:
+        """The candidates at points x (m, n) from their arcs' end states (m, 6) and
+        state-transition matrices (m, 6, 6), all lanes in one pass of array arithmetic
+        (a Hessian's columns are ~5 candidates per iteration; issue 20)."""
+        p, n = self.p, self.n
+        dv = x[:, :3] * self.dv_scale
+        burn_time, arrival = self._epochs(x)
+        target = p.target_coast.states_at(arrival)
+        f_final = two_body_j2_rhs(final, **self._rhs_args)
+        f_target = two_body_j2_rhs(target, **self._rhs_args)
 
         # d(final state) / d(dv, T, burn epoch); the flow is autonomous, so moving the
         # burn epoch with T fixed gives f(x_f) + Phi (f(x_c) - f(x_c + dv)) = f(x_f) - Phi_r dv.
-        d_final = np.empty((6, 5))
-        d_final[:, :3] = stm[:, 3:6]
-        d_final[:, 3] = f_final
-        d_final[:, 4] = f_final - stm[:, :3] @ dv
-        d_target = np.zeros((6, 5))
-        d_target[:, 3] = f_target
-        d_target[:, 4] = f_target
-        d_miss = (d_final[:3, : self.n] - d_target[:3, : self.n]) * self._to_scaled
-        d_dv2 = (d_target[3:, : self.n] - d_final[3:, : self.n]) * self._to_scaled
+        m = len(x)
+        d_final = np.empty((m, 6, 5))
+        d_final[:, :, :3] = stm[:, :, 3:6]
+        d_final[:, :, 3] = f_final
+        d_final[:, :, 4] = f_final - np.einsum("kij,kj->ki", stm[:, :, :3], dv)
+        d_target = np.zeros((m, 6, 5))
+        d_target[:, :, 3] = f_target
+        d_target[:, :, 4] = f_target
+        d_miss = (d_final[:, :3, :n] - d_target[:, :3, :n]) * self._to_scaled
+        d_dv2 = (d_target[:, 3:, :n] - d_final[:, 3:, :n]) * self._to_scaled
 
-        dv2 = target[3:] - final[3:]
+        dv2 = target[:, 3:] - final[:, 3:]
         n1, n2 = _smooth_norm(dv), _smooth_norm(dv2)
-        grad = dv2 @ d_dv2 / n2
-        grad[:3] += dv / n1 * self.dv_scale
-        return _Point(
+        grad = np.einsum("ki,kij->kj", dv2, d_dv2) / n2[:, None]
+        grad[:, :3] += dv / n1[:, None] * self.dv_scale
+        return _Candidates(
             x=x,
             cost=(n1 + n2) / self.dv_scale,
             grad=grad / self.dv_scale,
-            miss=final[:3] - target[:3],
+            miss=final[:, :3] - target[:, :3],
             d_miss=d_miss,
             dv1=dv,
             dv2=dv2,
@@ -241,7 +278,7 @@ class _Transfer:
             final=final,
             target=target,
             burn_time=burn_time,
-            transfer_time=transfer_time,
+            transfer_time=x[:, 3] * p.hohmann_time_s,
         )
 
     def hessians(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +287,7 @@ class _Transfer:
         if self._hessians is None or self._hessians[0] != key:
             base = self.at(x)
             # The columns' arcs are independent: one batch propagation (issue 20).
-            self._store_hessians(base, self._evaluate_many(self._columns(base.x)))
+            self._store_hessians(base, self._evaluate_many(self._columns(base.x)), 0)
         return self._hessians[1], self._hessians[2]
 
     def at_with_hessians(self, x: np.ndarray) -> _Point:
@@ -263,20 +300,21 @@ class _Transfer:
         x = np.array(x, dtype=float)
         if self._hessians is not None and self._hessians[0] == x.tobytes():
             return self.at(x)
-        base, *moved = self._evaluate_many([x, *self._columns(x)])
+        lanes = self._evaluate_many([x, *self._columns(x)])
+        base = lanes.point(0)
         self._point = base
-        self._store_hessians(base, moved)
+        self._store_hessians(base, lanes, 1)
         return base
 
     def _columns(self, x: np.ndarray) -> list[np.ndarray]:
         return [x + self._fd_step * e for e in np.eye(self.n)]
 
-    def _store_hessians(self, base: _Point, moved: list[_Point]) -> None:
-        h_obj = np.empty((self.n, self.n))
-        h_con = np.empty((3, self.n, self.n))
-        for k, point in enumerate(moved):
-            h_obj[:, k] = (point.grad - base.grad) / self._fd_step
-            h_con[:, :, k] = (point.d_miss - base.d_miss) / self._fd_step
+    def _store_hessians(self, base: _Point, lanes: _Candidates, first: int) -> None:
+        """Forward-difference Hessians from the gradients of ``lanes`` ``first`` on (the
+        columns, in order) and of ``base``."""
+        columns = slice(first, first + self.n)
+        h_obj = ((lanes.grad[columns] - base.grad) / self._fd_step).T
+        h_con = ((lanes.d_miss[columns] - base.d_miss) / self._fd_step).transpose(1, 2, 0)
         h_obj = 0.5 * (h_obj + h_obj.T)
         h_con = 0.5 * (h_con + h_con.transpose(0, 2, 1))
         self._hessians = (base.x.tobytes(), h_obj, h_con)
@@ -295,7 +333,8 @@ class _Transfer:
             if not active or self.p.deadline.expired():
                 break
             try:
-                points: list[_Point | None] = list(self._evaluate_many([xs[k] for k in active]))
+                lanes = self._evaluate_many([xs[k] for k in active])
+                points: list[_Point | None] = [lanes.point(i) for i in range(len(active))]
             except FloatingPointError:
                 points = [self._flown(xs[k]) for k in active]
             still = []
@@ -321,9 +360,10 @@ class _Transfer:
             return None
 
 
-def _smooth_norm(v: np.ndarray) -> float:
+def _smooth_norm(v: np.ndarray) -> np.ndarray:
+    """|v| over the last axis, kept differentiable at zero."""
     # A zero impulse is a legitimate point; keep the gradient defined there.
-    return math.sqrt(float(v @ v) + 1e-12)
+    return np.sqrt(np.einsum("...i,...i->...", v, v) + 1e-12)
 
 
 def _interior_point(

@@ -6,7 +6,6 @@ numpy right-hand side (reference integrator) and the symbolic heyoka system.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -50,10 +49,3 @@ def two_body_j2_rhs(state: np.ndarray, *, mu: float, radius: float, j2: float) -
         state[..., 0], state[..., 1], state[..., 2], mu=mu, radius=radius, j2=j2
     )
     return np.concatenate([state[..., 3:6], np.stack([ax, ay, az], axis=-1)], axis=-1)
-
-
-def two_body_j2_rhs_single(state: np.ndarray, *, mu: float, radius: float, j2: float) -> np.ndarray:
-    """:func:`two_body_j2_rhs` for one state (6,), on Python floats (no array temporaries)."""
-    x, y, z = float(state[0]), float(state[1]), float(state[2])
-    ax, ay, az = two_body_j2_acceleration(x, y, z, mu=mu, radius=radius, j2=j2, sqrt=math.sqrt)
-    return np.array([state[3], state[4], state[5], ax, ay, az], dtype=float)

@@ -95,6 +95,14 @@ class PropagationResult:
         lo, hi = min(self.t0, self.t), max(self.t0, self.t)
         return np.array(self._dense(min(max(float(t), lo), hi))[:6])
 
+    def states_at(self, t: np.ndarray) -> np.ndarray:
+        """:meth:`state_at` of several times (m,): states (m, 6), one dense-output call."""
+        if self._dense is None:
+            raise ValueError("propagate(..., dense=True) is needed for dense output")
+        lo, hi = min(self.t0, self.t), max(self.t0, self.t)
+        t_arr = np.clip(np.asarray(t, dtype=float).reshape(-1), lo, hi)
+        return np.array(self._dense(t_arr), dtype=float).reshape(len(t_arr), -1)[:, :6]
+
 
 @dataclass(frozen=True)
 class _Stationary:
