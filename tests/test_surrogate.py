@@ -662,3 +662,24 @@ def test_parity_plots_one_png_per_output(fitted, tmp_path):
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == sorted(p.name for p in paths)
+
+
+@pytest.mark.parametrize(("random_start", "starts"), [(True, 2), (False, 1)])
+def test_kriging_random_start_setting(settings, monkeypatch, random_start, starts):
+    # SMT runs theta0 and a seeded random start; without the random one, theta0 alone
+    # (SMT's default 0.01 per input, log10 -2 in the optimiser's variables).
+    seen: list[np.ndarray] = []
+    tnc = candidates_module.TNCOptimizer
+    original = tnc._minimize
+
+    def recording(self, objective, x0, *args):
+        seen.append(np.array(x0))
+        return original(self, objective, x0, *args)
+
+    monkeypatch.setattr(tnc, "_minimize", recording)
+    u, _ = lhs(20, 3)
+    y = np.sin(3.0 * u[:, 0]) + u[:, 1] ** 2
+    chosen = settings.model_copy(update={"kriging_random_start": random_start})
+    candidates_module.fit_regressor("KRG", u, y, chosen)
+    assert len(seen) == starts
+    np.testing.assert_array_equal(seen[0], np.full(u.shape[1], -2.0))

@@ -144,6 +144,9 @@ class SurrogateSettings(StrictModel):
     kriging_starts: int = bounded(
         ge=1, le=50, description="SMT n_start of KRG/KPLS: multistarts of the likelihood optimiser"
     )
+    # SMT always adds a seeded random start to theta0; false drops it (theta0 and any LHS
+    # starts of kriging_starts > 1 remain).
+    kriging_random_start: bool = True
     gpc_length_scale: float = bounded(
         gt=0, le=10, description="initial RBF length scale of the GP classifier, unit cube"
     )

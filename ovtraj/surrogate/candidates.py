@@ -54,9 +54,11 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.model_selection import StratifiedKFold
 from sklearn.svm import SVC
 from smt.surrogate_models import KPLS, KRG, QP, RBF
+from smt.surrogate_models.krg_based.hyperparam_optim import TNCOptimizer
 from smt.surrogate_models.surrogate_model import SurrogateModel
 
 from ovtraj.config.mission import SurrogateSettings
+from ovtraj.surrogate import smt_linalg
 
 __all__ = [
     "ALL_FEASIBLE",
@@ -69,6 +71,10 @@ __all__ = [
 ]
 
 ALL_FEASIBLE = "all-feasible"
+
+# SMT's Kriging likelihood without scipy's finite-value scan on each factorisation (the
+# same fits, ~40 % less time; see the module).
+smt_linalg.install()
 
 
 class CandidateError(RuntimeError):
@@ -83,13 +89,49 @@ def min_regressor_samples(name: str, dim: int) -> int:
     return 2
 
 
+class _WithoutRandomStart(TNCOptimizer):
+    """SMT's TNC from its starts but the second, the seeded random one SMT always adds to
+    theta0 (``kriging_random_start: false``)."""
+
+    def optimize(self, objective: Any, theta_starts: np.ndarray, **kwargs: Any) -> Any:
+        return super().optimize(objective, np.delete(theta_starts, 1, axis=0), **kwargs)
+
+
+class _KRG(KRG):
+    """SMT's KRG; its likelihood optimiser without the random start when asked (SMT's
+    documented extension point, ``_create_optimizer``)."""
+
+    def __init__(self, *, random_start: bool = True, **options: Any) -> None:
+        super().__init__(**options)
+        self.random_start = random_start
+
+    def _create_optimizer(self) -> Any:
+        return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
+
+
+class _KPLS(KPLS):
+    """SMT's KPLS, its optimiser chosen as :class:`_KRG`'s."""
+
+    def __init__(self, *, random_start: bool = True, **options: Any) -> None:
+        super().__init__(**options)
+        self.random_start = random_start
+
+    def _create_optimizer(self) -> Any:
+        return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
+
+
 def _smt_model(name: str, dim: int, settings: SurrogateSettings) -> SurrogateModel | Any:
     common: dict[str, Any] = {"print_global": False}
+    kriging = {
+        "n_start": settings.kriging_starts,
+        "seed": settings.seed,
+        "random_start": settings.kriging_random_start,
+        **common,
+    }
     if name == "KRG":
-        return KRG(n_start=settings.kriging_starts, seed=settings.seed, **common)
+        return _KRG(**kriging)
     if name == "KPLS":
-        n_comp = min(settings.kpls_components, dim)
-        return KPLS(n_comp=n_comp, n_start=settings.kriging_starts, seed=settings.seed, **common)
+        return _KPLS(n_comp=min(settings.kpls_components, dim), **kriging)
     if name == "RBF":
         return RBF(d0=settings.rbf_d0, **common)
     if name == "QP":

@@ -1,0 +1,79 @@
+"""SMT's Kriging with scipy's validation layers skipped: the same fits, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+from smt.surrogate_models import KPLS, KRG
+
+import ovtraj.surrogate.candidates  # noqa: F401  (installs the namespace, as in the pipeline)
+from ovtraj.surrogate import smt_linalg
+
+
+def _fitted(model_class, u: np.ndarray, y: np.ndarray, **options):
+    model = model_class(print_global=False, n_start=1, seed=7, **options)
+    model.set_training_values(u, y)
+    model.train()
+    return model
+
+
+@pytest.mark.parametrize(("model_class", "options"), [(KRG, {}), (KPLS, {"n_comp": 2})])
+def test_fits_equal_those_of_stock_smt(model_class, options):
+    rng = np.random.default_rng(21)
+    u = rng.random((30, 3))
+    y = np.sin(3.0 * u[:, 0]) + u[:, 1] ** 2 + 0.3 * u[:, 2]
+    grid = rng.random((200, 3))
+    installed = _fitted(model_class, u, y, **options)
+    smt_linalg.uninstall()
+    try:
+        stock = _fitted(model_class, u, y, **options)
+    finally:
+        smt_linalg.install()
+    np.testing.assert_array_equal(installed.optimal_theta, stock.optimal_theta)
+    np.testing.assert_array_equal(installed.predict_values(grid), stock.predict_values(grid))
+    np.testing.assert_array_equal(installed.predict_variances(grid), stock.predict_variances(grid))
+
+
+def test_the_namespace_is_scipy_linalg_but_the_four_unchecked_functions():
+    from importlib import import_module
+
+    smt_linalg.install()  # idempotent: already installed by the candidates module
+    for module_name in smt_linalg.SMT_MODULES:
+        namespace = import_module(module_name).linalg
+        assert namespace.unchecked
+        for name in scipy.linalg.__all__:
+            if name not in smt_linalg.UNCHECKED:
+                assert getattr(namespace, name) is getattr(scipy.linalg, name)
+        assert namespace.solve_triangular is smt_linalg.solve_triangular
+        assert namespace.cholesky is smt_linalg.cholesky
+        for name in ("qr", "svd"):
+            assert getattr(namespace, name).keywords == {"check_finite": False}
+
+
+def test_direct_lapack_calls_equal_scipy_and_raise_as_scipy():
+    rng = np.random.default_rng(5)
+    a = rng.random((12, 12)) + 12.0 * np.eye(12)
+    spd = a @ a.T
+    for lower in (True, False):
+        factor = smt_linalg.cholesky(spd, lower=lower)
+        np.testing.assert_array_equal(factor, scipy.linalg.cholesky(spd, lower=lower))
+        for b in (rng.random(12), rng.random((12, 3))):
+            for matrix in (factor, factor.T, np.asfortranarray(factor)):
+                for trans in (0, 1, "T"):
+                    np.testing.assert_array_equal(
+                        smt_linalg.solve_triangular(matrix, b, trans=trans, lower=lower),
+                        scipy.linalg.solve_triangular(matrix, b, trans=trans, lower=lower),
+                    )
+    # Inputs outside the direct path go to scipy's own function.
+    np.testing.assert_array_equal(
+        smt_linalg.solve_triangular(np.eye(2, dtype=np.float32), np.ones(2, dtype=np.float32)),
+        np.ones(2),
+    )
+    indefinite = np.diag([1.0, -1.0])
+    with pytest.raises(scipy.linalg.LinAlgError, match="not positive definite"):
+        smt_linalg.cholesky(indefinite)
+    singular = np.triu(np.ones((3, 3)))
+    singular[1, 1] = 0.0
+    with pytest.raises(scipy.linalg.LinAlgError, match="singular matrix"):
+        smt_linalg.solve_triangular(singular, np.ones(3))
