@@ -206,9 +206,9 @@ def test_heldout_samples_never_enter_a_fit(settings, monkeypatch):
     seen: list[np.ndarray] = []
 
     def recording(real):
-        def wrapper(name, u_fit, y_fit, s):
+        def wrapper(name, u_fit, y_fit, s, *start):
             seen.append(np.array(u_fit))
-            return real(name, u_fit, y_fit, s)
+            return real(name, u_fit, y_fit, s, *start)
 
         return wrapper
 
@@ -683,3 +683,41 @@ def test_kriging_random_start_setting(settings, monkeypatch, random_start, start
     candidates_module.fit_regressor("KRG", u, y, chosen)
     assert len(seen) == starts
     np.testing.assert_array_equal(seen[0], np.full(u.shape[1], -2.0))
+
+
+def test_cv_warm_start_keeps_the_models_and_starts_the_folds_from_them(settings, monkeypatch):
+    # The whole training part's fit is the model kept: unchanged by the option; each
+    # Kriging fold starts from that fit's hyperparameters alone.
+    x, outputs, feasible = chain_like(40, seed=9)
+    restricted = {name: "KRG" for name in outputs}
+
+    def fit(warm: bool):
+        chosen = settings.model_copy(update={"cv_warm_start": warm})
+        return fit_surrogates(
+            x, outputs, feasible, LOWER, UPPER, chosen, input_names=NAMES, candidates=restricted
+        )
+
+    starts: list[np.ndarray] = []
+    tnc = candidates_module.TNCOptimizer
+    original = tnc._minimize
+
+    def recording(self, objective, x0, *args):
+        starts.append(np.array(x0))
+        return original(self, objective, x0, *args)
+
+    cold = fit(False)
+    monkeypatch.setattr(tnc, "_minimize", recording)
+    warm = fit(True)
+    grid = lhs(200, 3)[1]
+    cold_values, warm_values = cold.predict(grid), warm.predict(grid)
+    for name in outputs:
+        np.testing.assert_array_equal(warm_values[name], cold_values[name])
+        theta = np.log10(warm._regressors[name].model.optimal_theta)
+        from_whole = [s for s in starts if np.allclose(s, theta, rtol=0, atol=1e-12)]
+        assert len(from_whole) == settings.folds
+    # Two starts for each whole fit, one for each fold.
+    assert len(starts) == len(outputs) * (2 + settings.folds)
+    cv = warm.validation.set_index("model")["cv_rmse"]
+    reference = cold.validation.set_index("model")["cv_rmse"]
+    for name in outputs:
+        assert cv[name] == pytest.approx(reference[name], rel=0.5)

@@ -147,6 +147,9 @@ class SurrogateSettings(StrictModel):
     # SMT always adds a seeded random start to theta0; false drops it (theta0 and any LHS
     # starts of kriging_starts > 1 remain).
     kriging_random_start: bool = True
+    # Cross-validation folds of KRG/KPLS started from the whole training part's optimum
+    # alone (fitted first); the models kept are unchanged, only the CV figures can move.
+    cv_warm_start: bool = False
     gpc_length_scale: float = bounded(
         gt=0, le=10, description="initial RBF length scale of the GP classifier, unit cube"
     )

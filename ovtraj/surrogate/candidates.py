@@ -71,6 +71,8 @@ __all__ = [
 ]
 
 ALL_FEASIBLE = "all-feasible"
+# The candidates with Kriging hyperparameters (``optimal_theta``).
+KRIGING = ("KRG", "KPLS")
 
 # SMT's Kriging likelihood without scipy's finite-value scan on each factorisation (the
 # same fits, ~40 % less time; see the module).
@@ -120,7 +122,9 @@ class _KPLS(KPLS):
         return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
 
 
-def _smt_model(name: str, dim: int, settings: SurrogateSettings) -> SurrogateModel | Any:
+def _smt_model(
+    name: str, dim: int, settings: SurrogateSettings, start: np.ndarray | None = None
+) -> SurrogateModel | Any:
     common: dict[str, Any] = {"print_global": False}
     kriging = {
         "n_start": settings.kriging_starts,
@@ -128,6 +132,9 @@ def _smt_model(name: str, dim: int, settings: SurrogateSettings) -> SurrogateMod
         "random_start": settings.kriging_random_start,
         **common,
     }
+    if start is not None and name in KRIGING:
+        # A known good start (the whole training part's optimum): from it alone.
+        kriging.update(theta0=np.asarray(start, dtype=float).tolist(), random_start=False)
     if name == "KRG":
         return _KRG(**kriging)
     if name == "KPLS":
@@ -172,14 +179,22 @@ class Regressor:
 
 
 def fit_regressor(
-    name: str, u: np.ndarray, y: np.ndarray, settings: SurrogateSettings
+    name: str,
+    u: np.ndarray,
+    y: np.ndarray,
+    settings: SurrogateSettings,
+    start: np.ndarray | None = None,
 ) -> Regressor:
-    """Fit the SMT candidate ``name`` on unit-cube inputs ``u`` (n, d) and values ``y`` (n,)."""
+    """Fit the SMT candidate ``name`` on unit-cube inputs ``u`` (n, d) and values ``y`` (n,).
+
+    ``start``: Kriging hyperparameters (``theta``) to start the likelihood's maximisation
+    from, alone (no other start); ignored by the other candidates.
+    """
     n, dim = u.shape
     need = min_regressor_samples(name, dim)
     if n < need:
         raise CandidateError(f"{name} needs at least {need} training samples in {dim}-D, got {n}")
-    model = _smt_model(name, dim, settings)
+    model = _smt_model(name, dim, settings, start)
     try:
         model.set_training_values(np.ascontiguousarray(u, dtype=float), np.asarray(y, float))
         model.train()

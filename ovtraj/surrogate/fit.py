@@ -59,6 +59,7 @@ from ovtraj.records import (
 from ovtraj.storage import location
 from ovtraj.surrogate.candidates import (
     ALL_FEASIBLE,
+    KRIGING,
     CandidateError,
     FeasibilityClassifier,
     Regressor,
@@ -705,7 +706,11 @@ def _fit_regressors(
             )
             for name, candidate in jobs
         ]
-        fits = iter(mapped(_regressor_fit, [a for p in pieces for a in p], executor))
+        if settings.cv_warm_start:
+            fitted = _warm_started_fits(pieces, executor)
+        else:
+            fitted = mapped(_regressor_fit, [a for p in pieces for a in p], executor)
+        fits = iter(fitted)
         out: dict[str, list[RegressorScore]] = {name: [] for name in names}
         for (name, candidate), arguments in zip(jobs, pieces, strict=True):
             mine = [next(fits) for _ in arguments]
@@ -749,6 +754,35 @@ def _fit_regressors(
             )
         )
     return regressors, selected, rows, tables
+
+
+def _warm_started_fits(pieces: list[list[tuple]], executor: Executor | None) -> list[Any]:
+    """The fits of every candidate's :func:`regressor_fit_arguments` (folds, then the
+    whole training part), in that order: the whole parts first, then each Kriging fold
+    started from its whole part's hyperparameters alone (``surrogate.cv_warm_start``).
+
+    The models kept are the whole parts', fitted as without the option; only the folds'
+    fits, hence the cross-validation figures, can differ.
+    """
+    wholes = mapped(_regressor_fit, [p[-1] for p in pieces], executor)
+    folds = [
+        (*arguments, _theta(whole))
+        for p, whole in zip(pieces, wholes, strict=True)
+        for arguments in p[:-1]
+    ]
+    fold_fits = iter(mapped(_regressor_fit, folds, executor))
+    ordered: list[Any] = []
+    for p, whole in zip(pieces, wholes, strict=True):
+        ordered += [next(fold_fits) for _ in p[:-1]] + [whole]
+    return ordered
+
+
+def _theta(whole: RegressorFit) -> np.ndarray | None:
+    """A whole part's Kriging hyperparameters (``None``: no Kriging model or it failed)."""
+    regressor = whole.model
+    if regressor is None or regressor.name not in KRIGING:
+        return None
+    return np.asarray(regressor.model.optimal_theta, dtype=float)
 
 
 def _regressor_fit(*arguments: Any) -> RegressorFit:

@@ -199,15 +199,17 @@ def regressor_fit(
     u_predict: np.ndarray,
     settings: SurrogateSettings,
     keep_model: bool = False,
+    theta0: np.ndarray | None = None,
 ) -> RegressorFit:
     """Fit candidate ``name`` on (``u_fit``, ``y_fit``) and predict ``u_predict``.
 
     The pieces of :func:`evaluate_regressor` (each fold, then the whole training part):
     independent, so a process pool may run them in any order with the same result.
+    ``theta0``: a Kriging start (:func:`~ovtraj.surrogate.candidates.fit_regressor`).
     """
     start = time.perf_counter()
     try:
-        model = fit_regressor(name, u_fit, y_fit, settings)
+        model = fit_regressor(name, u_fit, y_fit, settings, theta0)
         predictions = model.predict(u_predict) if len(u_predict) else np.empty(0)
     except CandidateError as err:
         return RegressorFit(None, error=str(err), seconds=time.perf_counter() - start)
