@@ -664,10 +664,8 @@ def test_parity_plots_one_png_per_output(fitted, tmp_path):
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == sorted(p.name for p in paths)
 
 
-@pytest.mark.parametrize(("random_start", "starts"), [(True, 2), (False, 1)])
-def test_kriging_random_start_setting(settings, monkeypatch, random_start, starts):
-    # SMT runs theta0 and a seeded random start; without the random one, theta0 alone
-    # (SMT's default 0.01 per input, log10 -2 in the optimiser's variables).
+def _recorded_kriging_starts(monkeypatch) -> list[np.ndarray]:
+    """Every start of SMT's TNC likelihood maximisation from now on (log10 theta)."""
     seen: list[np.ndarray] = []
     tnc = candidates_module.TNCOptimizer
     original = tnc._minimize
@@ -677,6 +675,14 @@ def test_kriging_random_start_setting(settings, monkeypatch, random_start, start
         return original(self, objective, x0, *args)
 
     monkeypatch.setattr(tnc, "_minimize", recording)
+    return seen
+
+
+@pytest.mark.parametrize(("random_start", "starts"), [(True, 2), (False, 1)])
+def test_kriging_random_start_setting(settings, monkeypatch, random_start, starts):
+    # SMT runs theta0 and a seeded random start; without the random one, theta0 alone
+    # (SMT's default 0.01 per input, log10 -2 in the optimiser's variables).
+    seen = _recorded_kriging_starts(monkeypatch)
     u, _ = lhs(20, 3)
     y = np.sin(3.0 * u[:, 0]) + u[:, 1] ** 2
     chosen = settings.model_copy(update={"kriging_random_start": random_start})
@@ -697,16 +703,8 @@ def test_cv_warm_start_keeps_the_models_and_starts_the_folds_from_them(settings,
             x, outputs, feasible, LOWER, UPPER, chosen, input_names=NAMES, candidates=restricted
         )
 
-    starts: list[np.ndarray] = []
-    tnc = candidates_module.TNCOptimizer
-    original = tnc._minimize
-
-    def recording(self, objective, x0, *args):
-        starts.append(np.array(x0))
-        return original(self, objective, x0, *args)
-
     cold = fit(False)
-    monkeypatch.setattr(tnc, "_minimize", recording)
+    starts = _recorded_kriging_starts(monkeypatch)
     warm = fit(True)
     grid = lhs(200, 3)[1]
     cold_values, warm_values = cold.predict(grid), warm.predict(grid)

@@ -124,36 +124,21 @@ class _Point:
 
 @dataclass(frozen=True)
 class _Candidates:
-    """Several candidates (the fields of :class:`_Point`, one row per lane)."""
+    """Several candidates: every field of :class:`_Point` as an array, one row per lane."""
 
-    x: np.ndarray
-    cost: np.ndarray
-    grad: np.ndarray
-    miss: np.ndarray
-    d_miss: np.ndarray
-    dv1: np.ndarray
-    dv2: np.ndarray
-    chaser: np.ndarray
-    final: np.ndarray
-    target: np.ndarray
-    burn_time: np.ndarray
-    transfer_time: np.ndarray
+    columns: dict[str, np.ndarray]
 
     def point(self, k: int) -> _Point:
         return _Point(
-            x=self.x[k],
-            cost=float(self.cost[k]),
-            grad=self.grad[k],
-            miss=self.miss[k],
-            d_miss=self.d_miss[k],
-            dv1=self.dv1[k],
-            dv2=self.dv2[k],
-            chaser=self.chaser[k],
-            final=self.final[k],
-            target=self.target[k],
-            burn_time=float(self.burn_time[k]),
-            transfer_time=float(self.transfer_time[k]),
+            **{
+                name: float(column[k]) if name in _POINT_SCALARS else column[k]
+                for name, column in self.columns.items()
+            }
         )
+
+
+# The float fields of _Point (the others are arrays).
+_POINT_SCALARS = ("cost", "burn_time", "transfer_time")
 
 
 class _Transfer:
@@ -267,18 +252,20 @@ class _Transfer:
         grad = np.einsum("ki,kij->kj", dv2, d_dv2) / n2[:, None]
         grad[:, :3] += dv / n1[:, None] * self.dv_scale
         return _Candidates(
-            x=x,
-            cost=(n1 + n2) / self.dv_scale,
-            grad=grad / self.dv_scale,
-            miss=final[:, :3] - target[:, :3],
-            d_miss=d_miss,
-            dv1=dv,
-            dv2=dv2,
-            chaser=chaser,
-            final=final,
-            target=target,
-            burn_time=burn_time,
-            transfer_time=x[:, 3] * p.hohmann_time_s,
+            {
+                "x": x,
+                "cost": (n1 + n2) / self.dv_scale,
+                "grad": grad / self.dv_scale,
+                "miss": final[:, :3] - target[:, :3],
+                "d_miss": d_miss,
+                "dv1": dv,
+                "dv2": dv2,
+                "chaser": chaser,
+                "final": final,
+                "target": target,
+                "burn_time": burn_time,
+                "transfer_time": x[:, 3] * p.hohmann_time_s,
+            }
         )
 
     def hessians(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -313,8 +300,9 @@ class _Transfer:
         """Forward-difference Hessians from the gradients of ``lanes`` ``first`` on (the
         columns, in order) and of ``base``."""
         columns = slice(first, first + self.n)
-        h_obj = ((lanes.grad[columns] - base.grad) / self._fd_step).T
-        h_con = ((lanes.d_miss[columns] - base.d_miss) / self._fd_step).transpose(1, 2, 0)
+        grad, d_miss = lanes.columns["grad"][columns], lanes.columns["d_miss"][columns]
+        h_obj = ((grad - base.grad) / self._fd_step).T
+        h_con = ((d_miss - base.d_miss) / self._fd_step).transpose(1, 2, 0)
         h_obj = 0.5 * (h_obj + h_obj.T)
         h_con = 0.5 * (h_con + h_con.transpose(0, 2, 1))
         self._hessians = (base.x.tobytes(), h_obj, h_con)

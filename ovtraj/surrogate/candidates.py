@@ -99,9 +99,9 @@ class _WithoutRandomStart(TNCOptimizer):
         return super().optimize(objective, np.delete(theta_starts, 1, axis=0), **kwargs)
 
 
-class _KRG(KRG):
-    """SMT's KRG; its likelihood optimiser without the random start when asked (SMT's
-    documented extension point, ``_create_optimizer``)."""
+class _RandomStartChoice:
+    """SMT's likelihood optimiser with or without its random start (SMT's documented
+    extension point, ``_create_optimizer``); mixed into KRG and KPLS."""
 
     def __init__(self, *, random_start: bool = True, **options: Any) -> None:
         super().__init__(**options)
@@ -111,15 +111,12 @@ class _KRG(KRG):
         return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
 
 
-class _KPLS(KPLS):
-    """SMT's KPLS, its optimiser chosen as :class:`_KRG`'s."""
+class _KRG(_RandomStartChoice, KRG):
+    """SMT's KRG, its random start optional."""
 
-    def __init__(self, *, random_start: bool = True, **options: Any) -> None:
-        super().__init__(**options)
-        self.random_start = random_start
 
-    def _create_optimizer(self) -> Any:
-        return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
+class _KPLS(_RandomStartChoice, KPLS):
+    """SMT's KPLS, its random start optional."""
 
 
 def _smt_model(
