@@ -50,6 +50,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 DIRECT_SEED = 11
+READY_TIMEOUT_S = 300.0  # the pool's start: its workers import and build the context
 GOALS = {"hypervolume_ratio_min": 0.99, "evaluation_ratio_max": 0.05, "wall_ratio_max": 0.25}
 
 _CONTEXT = None
@@ -95,10 +96,15 @@ def ready_pool(workers: int) -> tuple[ProcessPoolExecutor, float]:
         initializer=_init,
         initargs=(load_orchestration().dask.worker_threads,),
     )
-    # Tasks that overlap start every worker; a worker that starts runs _init first.
-    pids = set(pool.map(_started, [0.5] * workers))
-    if len(pids) != workers:
-        raise RuntimeError(f"{len(pids)} of {workers} workers started")
+    # Tasks that overlap start every worker; a worker that starts runs _init first. A worker
+    # whose start is quick may take every task of a round while the others still start:
+    # rounds until each has answered.
+    pids: set[int] = set()
+    while len(pids) < workers:
+        if time.perf_counter() - start > READY_TIMEOUT_S:
+            pool.shutdown(cancel_futures=True)
+            raise RuntimeError(f"{len(pids)} of {workers} workers started")
+        pids.update(pool.map(_started, [0.5] * workers))
     return pool, time.perf_counter() - start
 
 

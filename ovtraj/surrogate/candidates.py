@@ -59,6 +59,7 @@ from smt.surrogate_models.surrogate_model import SurrogateModel
 
 from ovtraj.config.mission import SurrogateSettings
 from ovtraj.surrogate import smt_linalg
+from ovtraj.surrogate.smt_likelihood import RememberedLikelihoodMixin
 
 __all__ = [
     "ALL_FEASIBLE",
@@ -111,12 +112,12 @@ class _RandomStartChoice:
         return super()._create_optimizer() if self.random_start else _WithoutRandomStart()
 
 
-class _KRG(_RandomStartChoice, KRG):
-    """SMT's KRG, its random start optional."""
+class _KRG(_RandomStartChoice, RememberedLikelihoodMixin, KRG):
+    """SMT's KRG, its random start optional, each likelihood point evaluated once."""
 
 
-class _KPLS(_RandomStartChoice, KPLS):
-    """SMT's KPLS, its random start optional."""
+class _KPLS(_RandomStartChoice, RememberedLikelihoodMixin, KPLS):
+    """SMT's KPLS, its random start optional, each likelihood point evaluated once."""
 
 
 def _smt_model(

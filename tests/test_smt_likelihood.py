@@ -1,0 +1,85 @@
+"""SMT's Kriging likelihood remembered between TNC's objective and gradient calls: the
+same fits, bit for bit, with about half the likelihood evaluations."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from smt.surrogate_models import KPLS, KRG
+from smt.surrogate_models.krg_based.likelihood_eval import LikelihoodEvaluator
+
+from ovtraj.surrogate.candidates import _KPLS, _KRG
+from ovtraj.surrogate.smt_likelihood import RememberedLikelihood
+
+
+def _fitted(model_class, u, y, **options):
+    model = model_class(print_global=False, n_start=3, seed=7, **options)
+    model.set_training_values(u, y)
+    model.train()
+    return model
+
+
+@pytest.mark.parametrize(
+    ("ours", "stock", "options", "dim"),
+    [(_KRG, KRG, {}, 3), (_KPLS, KPLS, {"n_comp": 2}, 3), (_KRG, KRG, {}, 1)],
+)
+def test_fits_equal_stock_smt_with_half_the_evaluations(monkeypatch, ours, stock, options, dim):
+    rng = np.random.default_rng(21)
+    u = rng.random((20, dim))
+    y = np.sin(3.0 * u[:, 0]) + 0.3 * u[:, -1] ** 2
+    grid = rng.random((200, dim))
+    mine = _fitted(ours, u, y, **options)
+
+    computed = []
+    evaluate = LikelihoodEvaluator.evaluate
+
+    def counted(self, theta):
+        computed.append(1)
+        return evaluate(self, theta)
+
+    monkeypatch.setattr(LikelihoodEvaluator, "evaluate", counted)
+    reference = _fitted(stock, u, y, **options)
+    monkeypatch.undo()
+
+    np.testing.assert_array_equal(mine.optimal_theta, reference.optimal_theta)
+    np.testing.assert_array_equal(mine.corr.theta, reference.corr.theta)
+    np.testing.assert_array_equal(mine.predict_values(grid), reference.predict_values(grid))
+    np.testing.assert_array_equal(mine.predict_variances(grid), reference.predict_variances(grid))
+    assert set(mine.optimal_par) == set(reference.optimal_par)
+    for name, value in reference.optimal_par.items():
+        np.testing.assert_array_equal(np.asarray(mine.optimal_par[name]), np.asarray(value))
+    evaluator = mine._likelihood_evaluator
+    assert isinstance(evaluator, RememberedLikelihood)
+    # Every call stock SMT made, computed or answered from memory; about half remembered.
+    assert evaluator.evaluations + evaluator.remembered == len(computed)
+    assert evaluator.remembered >= 0.45 * len(computed)
+
+
+def test_a_trained_model_keeps_no_memory_and_pickles():
+    rng = np.random.default_rng(3)
+    u = rng.random((15, 2))
+    y = u[:, 0] - 2.0 * u[:, 1] ** 2
+    model = _fitted(_KRG, u, y)
+    assert model._likelihood_evaluator._last is None
+    restored = pickle.loads(pickle.dumps(model))
+    grid = rng.random((50, 2))
+    np.testing.assert_array_equal(restored.predict_values(grid), model.predict_values(grid))
+
+
+def test_another_theta_or_other_training_data_is_computed():
+    rng = np.random.default_rng(4)
+    u = rng.random((10, 2))
+    model = _fitted(_KRG, u, u[:, 0] + u[:, 1])
+    evaluator = RememberedLikelihood(model)
+    theta = np.array([0.3, 0.7])
+    first, _ = evaluator.evaluate(theta)
+    again, _ = evaluator.evaluate(theta.reshape(-1, 1))
+    assert (evaluator.evaluations, evaluator.remembered) == (1, 1)
+    assert again == first
+    evaluator.evaluate(np.array([0.3, 0.70000001]))
+    assert evaluator.evaluations == 2
+    model.y_norma = model.y_norma.copy()  # new training values: not the remembered ones
+    evaluator.evaluate(np.array([0.3, 0.70000001]))
+    assert evaluator.evaluations == 3
