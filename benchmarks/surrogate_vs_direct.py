@@ -162,7 +162,14 @@ def pipeline(
 def _pipeline(
     scenario, fit, seed: int, doe_samples: int, executor, workers: int, folder: Path
 ) -> dict:
-    from ovtraj.pipeline import PipelineSteps, draw_views, fit_step, front_step, run_pipeline
+    from ovtraj.pipeline import (
+        PipelineSteps,
+        draw_views,
+        fit_step,
+        front_step,
+        run_pipeline,
+        start_drawing,
+    )
     from ovtraj.runs import RunStore, prepare_run, run_doe
     from ovtraj.runs.runners import BatchPool
 
@@ -200,6 +207,7 @@ def _pipeline(
         fit=timed("fit", partial(fit_step, executor=pool.executor)),
         front=timed("front", front_step),
         draw=timed("views", partial(draw_views, executor=pool.executor)),
+        predraw=partial(start_drawing, executor=pool.executor),
     )
     result = run_pipeline(scenario, doe, store=store, code="benchmark", steps=steps)
     wall = time.perf_counter() - start

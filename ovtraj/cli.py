@@ -1224,6 +1224,7 @@ def pipeline(
         front_step,
         pipeline_doe_run,
         run_pipeline,
+        start_drawing,
     )
     from ovtraj.pipeline.planning import write_mission_plan
     from ovtraj.pipeline.report import stop_explanation
@@ -1284,6 +1285,7 @@ def pipeline(
             fit=partial(fit_step, refit=refit, executor=processes),
             front=partial(front_step, refit=refit),
             draw=partial(draw_views, executor=processes),
+            predraw=None if processes is None else partial(start_drawing, executor=processes),
         )
         result = run_pipeline(scenario, doe_run, store=store, code=code, steps=steps, progress=say)
         exits.close()

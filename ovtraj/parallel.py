@@ -13,12 +13,12 @@ from __future__ import annotations
 import functools
 import logging
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import BrokenExecutor, Executor, Future
+from concurrent.futures import BrokenExecutor, Executor, Future, wait
 from typing import Any
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["Bounded", "blas_threads", "mapped"]
+__all__ = ["Bounded", "blas_threads", "mapped", "started"]
 
 logger = logging.getLogger(__name__)
 
@@ -50,9 +50,46 @@ def mapped(
     try:
         return list(executor.map(function, *zip(*arguments, strict=True)))
     except (BrokenExecutor, TimeoutError) as err:
-        reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
-        logger.warning("the pool failed (%s): %s runs in this process", reason, function.__name__)
-        return [function(*a) for a in arguments]
+        return _here(function, arguments, err)()
+
+
+def started(
+    function: Callable[..., Any], arguments: Sequence[tuple], executor: Executor | None
+) -> Callable[[], list[Any]]:
+    """:func:`mapped` begun now, collected later: ``function(*a)`` for each ``a`` is
+    submitted to ``executor`` at once, and the call returned waits for the results, in
+    order. With no executor the call computes them when it is made. A broken pool, or
+    results not all in within a :class:`Bounded` executor's bound (counted from the
+    collection), have them computed in this process, with a warning, as :func:`mapped`
+    does. Meant for work that can run while this process does something else (drawing
+    plots while it runs NSGA-II)."""
+    if executor is None:
+        return lambda: [function(*a) for a in arguments]
+    try:
+        futures = [executor.submit(function, *a) for a in arguments]
+    except BrokenExecutor as err:
+        return _here(function, arguments, err)
+
+    def results() -> list[Any]:
+        _, pending = wait(futures, timeout=getattr(executor, "timeout_s", None))
+        try:
+            if pending:
+                raise TimeoutError(f"{len(pending)} of {len(futures)} results not in time")
+            return [future.result() for future in futures]
+        except (BrokenExecutor, TimeoutError) as err:
+            for future in futures:
+                future.cancel()
+            return _here(function, arguments, err)()
+
+    return results
+
+
+def _here(
+    function: Callable[..., Any], arguments: Sequence[tuple], err: Exception
+) -> Callable[[], list[Any]]:
+    reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    logger.warning("the pool failed (%s): %s runs in this process", reason, function.__name__)
+    return lambda: [function(*a) for a in arguments]
 
 
 class Bounded(Executor):

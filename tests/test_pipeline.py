@@ -214,6 +214,52 @@ def test_replay_refits_and_reoptimises_without_simulation_and_gives_the_same_fro
     assert set(drawn) <= set(files)
 
 
+def test_parity_plots_begun_on_a_pool_during_the_rounds_give_the_same_files(small, tmp_path):
+    """Each round's parity plots begun on a process pool while NSGA-II runs (as the CLI and
+    the benchmark do): the same pipeline files, byte for byte, as drawn at the end."""
+    import multiprocessing
+    import shutil
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ovtraj.pipeline import start_drawing
+
+    result, doe = small["result"], small["doe"]
+    copy_root = tmp_path / "runs"
+    shutil.copytree(small["store"].root, copy_root)
+    relative = result.directory.relative_to(small["store"].root)
+    shutil.rmtree(copy_root / relative)  # the pipeline's own directory: drawn again
+    store = RunStore(copy_root)
+    begun = []
+    before = execute.EVALUATIONS["count"]
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+
+        def predraw(views):
+            begun.append([view.file for view in views])
+            return start_drawing(views, pool)
+
+        again = run_pipeline(
+            small["scenario"],
+            store.run(doe.id),
+            store=store,
+            code=small["code"],
+            steps=PipelineSteps(evaluate=small["evaluate_run"], predraw=predraw),
+        )
+    assert execute.EVALUATIONS["count"] == before  # every round's child run reused
+    assert len(begun) == len(result.summary["iterations"])
+    assert all(name.startswith("parity-") for names in begun for name in names)
+    drawn, stored = _digest(again.directory), _digest(result.directory)
+    assert {k: v for k, v in drawn.items() if k != "pipeline.json"} == {
+        k: v for k, v in stored.items() if k != "pipeline.json"
+    }
+    assert set(begun[-1]) < set(drawn)
+    markers = [
+        json.loads((d / "pipeline.json").read_text()) for d in (again.directory, result.directory)
+    ]
+    for marker in markers:
+        marker.pop("created_utc")
+    assert markers[0] == markers[1]
+
+
 def _digest(directory) -> dict[str, str]:
     return {
         str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()

@@ -18,6 +18,7 @@ from ovtraj.pipeline.steps import (
     draw_views,
     fit_step,
     front_step,
+    start_drawing,
 )
 
 __all__ = [
@@ -37,5 +38,6 @@ __all__ = [
     "pipeline_doe_run",
     "run_pipeline",
     "run_scenario",
+    "start_drawing",
     "training_data",
 ]

@@ -65,6 +65,7 @@ from ovtraj.pipeline.steps import (
     front_view,
     parity_views,
     unit_designs,
+    write_views,
 )
 from ovtraj.products import Product
 from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
@@ -123,6 +124,11 @@ class PipelineSteps:
     front: Callable[..., FrontOutcome] = front_step  # (run, fit, scenario, code, *, views)
     # (views, directory) -> paths: the plots of the result, e.g. on the pool's processes
     draw: Callable[[list[View], Path], list[Path]] = draw_views
+    # (views) -> the call that returns their PNG bytes: each round's parity plots begun on
+    # the pool's processes right after its fit, while this process runs NSGA-II and the
+    # pool would wait (:func:`.steps.start_drawing`); the last round's are written at the
+    # end. None: drawn at the end by ``draw``.
+    predraw: Callable[[list[View]], Callable[[], list[bytes]]] | None = None
 
 
 @dataclass
@@ -174,6 +180,7 @@ def run_pipeline(
     stop = "max_iterations"
     kept: dict[str, Any] | None = None  # the first fit's models (surrogate.selection)
     last: tuple[FitOutcome, FrontOutcome, Run] | None = None  # the last round's models
+    parity: Callable[[], list[bytes]] | None = None  # its parity plots, begun early
     real = real_hypervolume(run, normalisation)  # of the current run's real front
     for iteration in range(1, verify.max_iterations + 1):
         data = training_data(run)
@@ -183,6 +190,8 @@ def run_pipeline(
             kept = dict(fit.surrogates.selected)
         elif kept is None and settings.selection == "shortlist":
             kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
+        if steps.predraw is not None:
+            parity = steps.predraw(parity_views(fit.surrogates))
         outcome = steps.front(run, fit, scenario, code, views=False)
         front, last = outcome.front, (fit, outcome, run)
         record = {
@@ -264,6 +273,7 @@ def run_pipeline(
         say,
         last,
         steps.draw,
+        parity,
     )
 
 
@@ -330,6 +340,7 @@ def _finish(
     say: Callable[[str], None],
     last: tuple[FitOutcome, FrontOutcome, Run] | None,
     draw: Callable[[list[View], Path], list[Path]],
+    parity: Callable[[], list[bytes]] | None = None,
 ) -> PipelineResult:
     pid = pipeline_id(doe_run, scenario, code)
     directory = doe_run.directory / "pipeline" / pid
@@ -380,14 +391,17 @@ def _finish(
                 },
             )
         ]
-        if last is not None:
-            fitted, surrogate, fitted_run = last
-            jobs += parity_views(fitted.surrogates)
-            title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
-            jobs.append(
-                front_view("surrogate-front.png", surrogate.front, fitted_run, scenario, title)
-            )
-        return draw(jobs, directory)
+        if last is None:
+            return draw(jobs, directory)
+        fitted, surrogate, fitted_run = last
+        title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
+        jobs.append(front_view("surrogate-front.png", surrogate.front, fitted_run, scenario, title))
+        plots = parity_views(fitted.surrogates)
+        if parity is None:
+            # front.png, the parity plots, the surrogate front: the order they are listed in
+            return draw([jobs[0], *plots, jobs[1]], directory)
+        front_path, surrogate_path = draw(jobs, directory)
+        return [front_path, *write_views(plots, parity(), directory), surrogate_path]
 
     _store(directory, front, verification, summary, views)
     hv = summary["hypervolume"]

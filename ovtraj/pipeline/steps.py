@@ -41,7 +41,7 @@ from ovtraj.files import file_digest, write_bytes
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
-from ovtraj.parallel import mapped
+from ovtraj.parallel import mapped, started
 from ovtraj.pipeline.data import TrainingData
 from ovtraj.pipeline.features import (
     MissionSurrogates,
@@ -188,7 +188,26 @@ def draw_views(views: list[View], directory: Path, executor: Executor | None = N
     are the same bytes); this process writes every file, so the directory may be one the
     processes cannot reach (object storage, another machine's disk).
     """
-    images = mapped(view_png, [(view,) for view in views], executor)
+    return write_views(views, mapped(view_png, [(view,) for view in views], executor), directory)
+
+
+def start_drawing(views: list[View], executor: Executor | None = None) -> Callable[[], list[bytes]]:
+    """Begin drawing ``views`` on one of ``executor``'s processes; returns the call that
+    waits for their PNG bytes (:func:`ovtraj.parallel.started`; with no executor, drawn by
+    that call). The pipeline draws each round's parity plots this way while NSGA-II runs in
+    this process, on a core the pool would leave idle: one process draws them all, so
+    NSGA-II keeps the other core. :func:`write_views` writes the last round's at the end."""
+    drawn = started(views_png, [(views,)], executor)
+    return lambda: drawn()[0]
+
+
+def views_png(views: list[View]) -> list[bytes]:
+    """:func:`view_png` of each view, in order, in this process."""
+    return [view_png(view) for view in views]
+
+
+def write_views(views: list[View], images: list[bytes], directory: Path) -> list[Path]:
+    """Write each view's PNG bytes into ``directory`` (atomically); returns the paths."""
     paths = []
     for view, image in zip(views, images, strict=True):
         path = location(directory) / view.file
