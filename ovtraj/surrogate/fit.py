@@ -29,7 +29,7 @@ import pickle
 import platform
 import threading
 import warnings
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor
 from contextlib import contextmanager
 from pathlib import Path
@@ -44,7 +44,7 @@ from pydantic import ValidationError
 
 from ovtraj.config.mission import SurrogateSettings
 from ovtraj.files import Digest, StoreError, read_json
-from ovtraj.parallel import blas_threads, mapped
+from ovtraj.parallel import blas_threads, mapped, started
 from ovtraj.products import Product
 from ovtraj.records import (
     BOOL,
@@ -651,12 +651,18 @@ def fit_surrogates(
         )
 
     with _serial_blas():
+        classified: list[tuple[FeasibilityClassifier, list[dict], pd.DataFrame]] = []
+
+        def classify() -> None:
+            classified.append(
+                _fit_classifier(u, flags, ids, held, settings, (candidates or {}).get(FEASIBLE))
+            )
+
+        # The classifier is fitted here while the pool fits the regressors.
         regressors, selected, rows, tables = _fit_regressors(
-            u, values, flags, ids, held, settings, dict(candidates or {}), executor
+            u, values, flags, ids, held, settings, dict(candidates or {}), executor, classify
         )
-        classifier, rows_cls, table_cls = _fit_classifier(
-            u, flags, ids, held, settings, (candidates or {}).get(FEASIBLE)
-        )
+        classifier, rows_cls, table_cls = classified[0]
     selected[FEASIBLE] = classifier.name
     rows += rows_cls
     tables.append(table_cls)
@@ -685,8 +691,18 @@ def _fit_regressors(
     settings: SurrogateSettings,
     candidates: dict[str, str | list[str]],
     executor: Executor | None = None,
+    meanwhile: Callable[[], None] | None = None,
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
-    """CV, selection and final fit of every output's regressor (feasible samples only)."""
+    """CV, selection and final fit of every output's regressor (feasible samples only).
+
+    ``meanwhile``: called once, in this process, while ``executor`` fits the candidates
+    (with no executor, after them)."""
+    pending = [meanwhile] if meanwhile is not None else []
+
+    def in_the_meantime() -> None:
+        while pending:
+            pending.pop()()
+
     reg_train = np.flatnonzero(~held & flags)  # ascending sample order
     reg_held = np.flatnonzero(held & flags)
     rows: list[dict] = []
@@ -707,9 +723,12 @@ def _fit_regressors(
             for name, candidate in jobs
         ]
         if settings.cv_warm_start:
-            fitted = _warm_started_fits(pieces, executor)
+            fitted = _warm_started_fits(pieces, executor, in_the_meantime)
         else:
-            fitted = mapped(_regressor_fit, [a for p in pieces for a in p], executor)
+            collect = started(_regressor_fit, [a for p in pieces for a in p], executor)
+            if executor is not None:
+                in_the_meantime()
+            fitted = collect()
         fits = iter(fitted)
         out: dict[str, list[RegressorScore]] = {name: [] for name in names}
         for (name, candidate), arguments in zip(jobs, pieces, strict=True):
@@ -727,6 +746,7 @@ def _fit_regressors(
         if listed != configured and select_regressor(all_scores[name]) is None
     }
     all_scores |= scored(retry) if retry else {}
+    in_the_meantime()
     for name, y in values.items():
         scores = all_scores[name]
         best = select_regressor(scores)
@@ -756,7 +776,9 @@ def _fit_regressors(
     return regressors, selected, rows, tables
 
 
-def _warm_started_fits(pieces: list[list[tuple]], executor: Executor | None) -> list[Any]:
+def _warm_started_fits(
+    pieces: list[list[tuple]], executor: Executor | None, meanwhile: Callable[[], None]
+) -> list[Any]:
     """The fits of every candidate's :func:`regressor_fit_arguments` (folds, then the
     whole training part), in that order: the whole parts first, then each Kriging fold
     started from its whole part's hyperparameters alone (``surrogate.cv_warm_start``).
@@ -764,7 +786,10 @@ def _warm_started_fits(pieces: list[list[tuple]], executor: Executor | None) -> 
     The models kept are the whole parts', fitted as without the option; only the folds'
     fits, hence the cross-validation figures, can differ.
     """
-    wholes = mapped(_regressor_fit, [p[-1] for p in pieces], executor)
+    collect = started(_regressor_fit, [p[-1] for p in pieces], executor)
+    if executor is not None:
+        meanwhile()
+    wholes = collect()
     folds = [
         (*arguments, _theta(whole))
         for p, whole in zip(pieces, wholes, strict=True)
