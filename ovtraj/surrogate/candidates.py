@@ -58,7 +58,7 @@ from smt.surrogate_models.krg_based.hyperparam_optim import TNCOptimizer
 from smt.surrogate_models.surrogate_model import SurrogateModel
 
 from ovtraj.config.mission import SurrogateSettings
-from ovtraj.surrogate import smt_linalg
+from ovtraj.surrogate import smt_differences, smt_linalg
 from ovtraj.surrogate.smt_likelihood import RememberedLikelihoodMixin
 
 __all__ = [
@@ -78,6 +78,8 @@ KRIGING = ("KRG", "KPLS")
 # SMT's Kriging likelihood without scipy's finite-value scan on each factorisation (the
 # same fits, ~40 % less time; see the module).
 smt_linalg.install()
+# and its predictions without scikit-learn's checks of their inputs (the same values).
+smt_differences.install()
 
 
 class CandidateError(RuntimeError):
