@@ -83,3 +83,19 @@ def test_another_theta_or_other_training_data_is_computed():
     model.y_norma = model.y_norma.copy()  # new training values: not the remembered ones
     evaluator.evaluate(np.array([0.3, 0.70000001]))
     assert evaluator.evaluations == 3
+
+
+@pytest.mark.parametrize(("ours", "options"), [(_KRG, {}), (_KPLS, {"n_comp": 3})])
+def test_the_gradient_from_one_correlation_evaluation_equals_smts(ours, options):
+    rng = np.random.default_rng(6)
+    u = rng.random((18, 5))
+    model = _fitted(ours, u, np.sin(u.sum(axis=1)), **options)
+    evaluator = model._likelihood_evaluator
+    kernel = model.corr
+    for scale in (0.5, 1.0, 3.0):
+        theta = np.atleast_1d(model.optimal_theta) * scale
+        mine, _ = evaluator.gradient(theta)
+        evaluator.forget()
+        stock, _ = LikelihoodEvaluator.gradient(evaluator, theta)
+        np.testing.assert_array_equal(mine, stock)
+    assert model.corr is kernel  # the kernel back after each gradient
