@@ -71,9 +71,18 @@ def _steps(runner: Any, scenario: Scenario, fit: LaunchFit, deadline: float) -> 
         # loads what the task stored
         return fit_step(run, data, scenario, code, candidates=candidates, views=views)
 
-    def front(run: Run, fitted: Any, scenario: Scenario, code: str, views: bool = True) -> Any:
-        surrogate_front(scenario, run, fitted.fit_id, views=views)
-        return front_step(run, fitted, scenario, code, views=views)
+    def front(
+        run: Run,
+        fitted: Any,
+        scenario: Scenario,
+        code: str,
+        views: bool = True,
+        previous: Any = None,
+    ) -> Any:
+        warm = previous is not None and scenario.mission.optimize.warm_start_generations
+        earlier = str(previous.directory) if warm else None
+        surrogate_front(scenario, run, fitted.fit_id, views=views, previous_front=earlier)
+        return front_step(run, fitted, scenario, code, views=views, previous=previous)
 
     def evaluate(run: Run) -> Run:
         return evaluate_run(scenario, run, fit, deadline=deadline, limit=LIMIT, runner=runner)

@@ -14,8 +14,11 @@ from typing import Any
 from prefect import task
 
 from ovtraj.config import scenario_from_dict
-from ovtraj.pipeline import fit_step, front_step, training_data
+from ovtraj.optimize import Normalisation
+from ovtraj.pipeline import FrontOutcome, fit_step, front_step, training_data
+from ovtraj.pipeline.steps import load_front
 from ovtraj.runs.store import Run
+from ovtraj.storage import location
 from tasks.common import TIMEOUTS, cached, code_version, parameter, run_label
 
 
@@ -79,16 +82,26 @@ def fit_surrogates_task(
     **cached(),
 )
 def surrogate_front_task(
-    resolved_scenario: dict[str, Any], run_url: str, fit_id: str, views: bool = True
+    resolved_scenario: dict[str, Any],
+    run_url: str,
+    fit_id: str,
+    views: bool = True,
+    previous_front: str | None = None,
 ) -> dict[str, Any]:
-    """NSGA-II on the fitted surrogates (loaded from the run); ``views``: with its plot."""
+    """NSGA-II on the fitted surrogates (loaded from the run); ``views``: with its plot;
+    ``previous_front``: the directory of the previous round's front, its warm start."""
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
     code = code_version()
     fit = fit_step(run, training_data(run), scenario, code, views=views)
     if fit.fit_id != fit_id:
         raise RuntimeError(f"run {run.id}: surrogates {fit_id} expected, found {fit.fit_id}")
-    outcome = front_step(run, fit, scenario, code, views=views)
+    previous = None
+    if previous_front is not None:
+        where = location(previous_front)
+        normalisation = Normalisation.mission(scenario.mission.optimize)
+        previous = FrontOutcome(load_front(where, normalisation), where, where.name, reused=True)
+    outcome = front_step(run, fit, scenario, code, views=views, previous=previous)
     return {
         "front_id": outcome.front_id,
         "directory": str(outcome.directory),

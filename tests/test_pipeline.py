@@ -901,3 +901,57 @@ def test_prune_removes_superseded_runs_and_stale_fits_and_keeps_every_result(sma
     assert remove(cached[0]) and not (results / "a").exists()
     refused = runner.invoke(app, ["prune", "--store", str(store.root), "--only", "everything"])
     assert refused.exit_code == 2 and "--only" in refused.output
+
+
+def test_warm_started_fronts_hold_the_previous_front_and_replay(small, tmp_path):
+    """optimize.warm_start_generations: a later round's NSGA-II runs that many generations
+    from the previous round's front as well; the warm start is part of the front's identity
+    and a refit reproduces it; off, the previous front changes nothing."""
+    import shutil
+
+    from ovtraj.pipeline.steps import load_front
+
+    doe, code = small["doe"], small["code"]
+    data = _data(points_per_iteration=3, max_iterations=2, budget=6)
+    data["mission"]["optimize"]["warm_start_generations"] = 7
+    warm = build_scenario(copy.deepcopy(data))
+    fitted = fit_step(doe, training_data(doe), small["scenario"], code, views=False)
+    cold = front_step(doe, fitted, small["scenario"], code, views=False)
+    ignored = front_step(doe, fitted, small["scenario"], code, views=False, previous=cold)
+    assert ignored.front_id == cold.front_id and ignored.reused
+    first = front_step(doe, fitted, warm, code, views=False)
+    second = front_step(doe, fitted, warm, code, views=False, previous=first)
+    assert second.front_id != first.front_id and not second.reused
+    meta = json.loads((second.directory / "meta.json").read_text())
+    assert meta["warm_from"] == first.front_id
+    assert second.front.info["generations"] < first.front.info["generations"]
+    again = front_step(doe, fitted, warm, code, views=False, refit=True, previous=first)
+    assert again.matches_stored is True
+    # The previous front as the Prefect task loads it: the same warm start.
+    normalisation = Normalisation.mission(warm.mission.optimize)
+    loaded = type(first)(
+        load_front(first.directory, normalisation), first.directory, first.front_id, True
+    )
+    reloaded = front_step(doe, fitted, warm, code, views=False, refit=True, previous=loaded)
+    assert reloaded.matches_stored is True
+    # The whole loop: every round after the first warm from the one before.
+    copy_root = tmp_path / "runs"
+    shutil.copytree(small["store"].root, copy_root)
+    store = RunStore(copy_root)
+    fit = small["fit"]
+    result = run_pipeline(
+        warm,
+        store.run(doe.id),
+        store=store,
+        code=code,
+        steps=PipelineSteps(
+            evaluate=lambda run: run_doe(warm, run, fit, batch_size=warm.mission.doe.batch_size)
+        ),
+    )
+    rounds = result.summary["iterations"]
+    assert len(rounds) >= 2
+    fronts = {
+        p.name: json.loads((p / "meta.json").read_text()) for p in copy_root.rglob("fronts/*")
+    }
+    warm_from = [m["warm_from"] for m in fronts.values()]
+    assert warm_from.count(None) >= 1 and sum(w is not None for w in warm_from) >= len(rounds) - 1

@@ -185,6 +185,16 @@ class OptimizeSettings(StrictModel):
     seed_with_real_front: bool = Field(
         description="first generation = the real non-dominated designs, topped up at random"
     )
+    # Optional (null when absent, and then off): the configs stored before it existed
+    # still read.
+    warm_start_generations: int | None = bounded(
+        ge=1,
+        le=100000,
+        default=None,
+        description="NSGA-II of the pipeline's rounds after the first: this many generations, "
+        "the first one also holding the previous round's surrogate front (null: every round "
+        "like the first)",
+    )
     ideal: ObjectivePoint  # maps to 0 in the normalised objectives
     reference: ObjectivePoint  # maps to 1: the hypervolume's reference point
 

@@ -121,7 +121,8 @@ class PipelineSteps:
     evaluate: Callable[[Run], Run]  # evaluate a run's pending batches, return it finished
     # (run, data, scenario, code, *, candidates, views)
     fit: Callable[..., FitOutcome] = fit_step
-    front: Callable[..., FrontOutcome] = front_step  # (run, fit, scenario, code, *, views)
+    # (run, fit, scenario, code, *, views, previous): ``previous`` the last round's front
+    front: Callable[..., FrontOutcome] = front_step
     # (views, directory) -> paths: the plots of the result, e.g. on the pool's processes
     draw: Callable[[list[View], Path], list[Path]] = draw_views
     # (views) -> the call that returns their PNG bytes: each round's parity plots begun on
@@ -192,7 +193,8 @@ def run_pipeline(
             kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
         if steps.predraw is not None:
             parity = steps.predraw(parity_views(fit.surrogates))
-        outcome = steps.front(run, fit, scenario, code, views=False)
+        previous = last[1] if last is not None else None
+        outcome = steps.front(run, fit, scenario, code, views=False, previous=previous)
         front, last = outcome.front, (fit, outcome, run)
         record = {
             "iteration": iteration,

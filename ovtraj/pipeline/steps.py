@@ -250,22 +250,35 @@ def front_step(
     *,
     refit: bool = False,
     views: bool = True,
+    previous: FrontOutcome | None = None,
 ) -> FrontOutcome:
     """NSGA-II on the surrogates: loaded when stored, else optimised and stored.
 
-    ``views``: draw and store ``front.png`` (see the module notes)."""
+    ``views``: draw and store ``front.png`` (see the module notes). ``previous``: the
+    pipeline's previous round's front; with ``optimize.warm_start_generations`` set, NSGA-II
+    runs that many generations and its first generation holds that front's designs too
+    (after the real front's, when ``seed_with_real_front``), a warm start that is part of
+    the front's identity."""
     settings = scenario.mission.optimize
     normalisation = Normalisation.mission(settings)
     content = {"fit": fit.fit_id, "settings": settings.model_dump(mode="json"), "code": code}
     if not views:
         content["views"] = False
+    warm = settings.warm_start_generations is not None and previous is not None
+    if warm:
+        content["warm_from"] = previous.front_id
     front_id = content_id(content)
     product = Product(run.directory / "fronts" / front_id, MARKER)
     directory = product.directory
     if product.exists() and not refit:
         return FrontOutcome(load_front(directory, normalisation), directory, front_id, True)
     initial = _real_front_designs(run, normalisation) if settings.seed_with_real_front else None
-    front = surrogate_front(fit.surrogates, normalisation, settings, initial=initial)
+    search = settings
+    if warm:
+        earlier = previous.front.designs[list(DESIGN_NAMES)].to_numpy(dtype=float)
+        initial = earlier if initial is None else np.vstack([initial, earlier])
+        search = settings.model_copy(update={"generations": settings.warm_start_generations})
+    front = surrogate_front(fit.surrogates, normalisation, search, initial=initial)
     if front.info.get("time_limit_reached"):
         raise OptimiserStopped(f"{front.info['reason']}: no front stored")
     table = table_from_frame(front.to_frame(), FRONT_SCHEMA, "surrogate front")
@@ -281,6 +294,7 @@ def front_step(
         "hypervolume": front.hypervolume,
         "nsga2": front.info,
         "settings": settings.model_dump(mode="json"),
+        "warm_from": previous.front_id if warm else None,
     }
     with product.writing() as out:
         if out.complete:  # stored meanwhile by another process: compare with it
