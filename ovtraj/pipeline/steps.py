@@ -195,8 +195,9 @@ def start_drawing(views: list[View], executor: Executor | None = None) -> Callab
     """Begin drawing ``views`` on one of ``executor``'s processes; returns the call that
     waits for their PNG bytes (:func:`ovtraj.parallel.started`; with no executor, drawn by
     that call). The pipeline draws each round's parity plots this way while NSGA-II runs in
-    this process, on a core the pool would leave idle: one process draws them all, so
-    NSGA-II keeps the other core. :func:`write_views` writes the last round's at the end."""
+    this process, on a core the pool would leave idle: one process draws them all, leaving
+    NSGA-II the other core (on the 2-vCPU test machine NSGA-II still slows by about the
+    time saved: docs/optimize.md). :func:`write_views` writes the last round's at the end."""
     drawn = started(views_png, [(views,)], executor)
     return lambda: drawn()[0]
 
