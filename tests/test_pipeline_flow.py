@@ -28,11 +28,14 @@ def flown(prefect_server, tmp_path_factory):
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"].update(samples=12, batch_size=6, store=str(tmp / "runs"))
-    data["mission"]["verify"].update(points_per_iteration=3, max_iterations=1, budget=3)
+    # Two rounds, the second's NSGA-II warm from the first's front (through the front task).
+    data["mission"]["verify"].update(
+        points_per_iteration=3, max_iterations=2, budget=6, hypervolume_tolerance=None
+    )
     data["mission"]["surrogate"].update(
         regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
     )
-    data["mission"]["optimize"].update(population=32, generations=40)
+    data["mission"]["optimize"].update(population=32, generations=40, warm_start_generations=10)
     config = tmp / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     before = execute.EVALUATIONS["count"]
@@ -53,7 +56,7 @@ def flown(prefect_server, tmp_path_factory):
 def test_flow_verifies_the_front_with_the_real_chain(flown):
     first = flown["first"]
     assert flown["evaluations"][0] == 12 + first["real_evaluations"]["infill"]
-    assert first["real_evaluations"] == {"doe": 12, "infill": 3}
+    assert first["real_evaluations"] == {"doe": 12, "infill": 6}
     front = read_parquet(first["front"])
     totals = flown["store"].run(first["final_run"]).totals().set_index("sample_id")
     scenario = flown["scenario"]
@@ -70,3 +73,17 @@ def test_flow_verifies_the_front_with_the_real_chain(flown):
 def test_the_flows_plan_lands_within_its_stated_miss(flown):
     report = fly_plan(read_plan(flown["first"]["plan_json"]))
     assert report.landed_within_stated_miss
+
+
+def test_the_flows_second_round_starts_from_the_first_rounds_front(flown):
+    """optimize.warm_start_generations through the Prefect front task: the second round's
+    front names the first's as its warm start and ran the warm generations."""
+    import json
+
+    root = flown["store"].root
+    markers = [json.loads(p.read_text()) for p in sorted(root.glob("*/fronts/*/meta.json"))]
+    by_id = {m["front_id"]: m for m in markers}
+    warm = [m for m in markers if m.get("warm_from")]
+    assert len(warm) == 1 and len(markers) == 2
+    assert warm[0]["warm_from"] in by_id
+    assert warm[0]["nsga2"]["generations"] < by_id[warm[0]["warm_from"]]["nsga2"]["generations"]
