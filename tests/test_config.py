@@ -164,3 +164,18 @@ def test_a_config_stored_before_shortlist_size_existed_still_reads(scenario_data
     surrogate["selection"] = "shortlist"
     with pytest.raises(ConfigError, match="shortlist_size"):
         build_scenario(scenario_data)
+
+
+def test_part_inputs_are_checked_and_optional(scenario_data):
+    surrogate = scenario_data["mission"]["surrogate"]
+    surrogate.pop("part_inputs", None)
+    assert build_scenario(scenario_data).mission.surrogate.part_inputs == {}
+    surrogate["part_inputs"] = {"dv_rendezvous_mps": ["parking_altitude_km", "sin_wait_phase"]}
+    with pytest.raises(ConfigError, match=r"part_inputs\.dv_rendezvous_mps.*burn_phase true"):
+        build_scenario(scenario_data)
+    surrogate["part_inputs"] = {"dv_rendezvous_mps": ["altitude"]}
+    with pytest.raises(ConfigError, match=r"part_inputs\.dv_rendezvous_mps\.0"):
+        build_scenario(scenario_data)
+    surrogate["part_inputs"] = {"dv_total_mps": ["parking_altitude_km"]}
+    with pytest.raises(ConfigError, match=r"part_inputs\.dv_total_mps"):
+        build_scenario(scenario_data)

@@ -640,13 +640,31 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     for name, values in surrogates.predict(designs).items():
         assert np.array_equal(again.predict(designs)[name], values)
     assert np.array_equal(again.feasibility(designs), surrogates.feasibility(designs))
+    # Each dV part on its own inputs (surrogate.part_inputs): the rendezvous is over before
+    # H_dp and t_dsp act, so designs that differ in those alone share its prediction.
+    own = {k: tuple(v) for k, v in scenario.mission.surrogate.part_inputs.items()}
+    assert own["dv_rendezvous_mps"] == ("parking_altitude_km", "sin_2u_burn", "cos_2u_burn")
+    assert surrogates.main.output_inputs == own == again.main.output_inputs
+    later = designs.copy()
+    later[:, 1], later[:, 2] = designs[::-1, 1], designs[::-1, 2]
+    before, after = surrogates.predict_parts(designs), surrogates.predict_parts(later)
+    np.testing.assert_allclose(after["dv_rendezvous_mps"], before["dv_rendezvous_mps"], rtol=1e-10)
+    assert not np.allclose(after["dv_transfer_mps"], before["dv_transfer_mps"], rtol=1e-3)
+    # Every part on every input: another fit, whose rendezvous part moves with them.
+    shared = fit_step(doe, data, _with_surrogate(scenario, part_inputs={}), small["code"])
+    assert shared.fit_id != fitted.fit_id and shared.surrogates.main.output_inputs == {}
+    moved = shared.surrogates.predict_parts(later)["dv_rendezvous_mps"]
+    assert not np.allclose(
+        moved, shared.surrogates.predict_parts(designs)["dv_rendezvous_mps"], rtol=1e-6
+    )
     # Without the phase input: one plain set of the three objectives.
     plain = _with_surrogate(scenario, phase_input=False)
     direct = fit_step(doe, data, plain, small["code"]).surrogates
     assert set(direct.output_names) == set(OBJECTIVES) and not hasattr(direct, "wait")
     # Without the pass model and the burn phase: T_total regressed like the other outputs,
     # on the phase of the wait model's wait in the target's period.
-    regressed = _with_surrogate(scenario, pass_forecast=None, burn_phase=False)
+    # (part_inputs names the burn's phase inputs, absent without it)
+    regressed = _with_surrogate(scenario, pass_forecast=None, burn_phase=False, part_inputs={})
     whole = fit_step(doe, data, regressed, small["code"]).surrogates
     assert whole.pass_model is None and whole.selected["t_total_s"] != "pass model"
     assert whole.burn_phase is None

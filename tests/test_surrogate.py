@@ -719,3 +719,102 @@ def test_cv_warm_start_keeps_the_models_and_starts_the_folds_from_them(settings,
     reference = cold.validation.set_index("model")["cv_rmse"]
     for name in outputs:
         assert cv[name] == pytest.approx(reference[name], rel=0.5)
+
+
+# -- outputs fitted on some of the inputs -------------------------------------------------
+
+
+def test_an_output_fitted_on_its_own_inputs_ignores_the_others(settings, tmp_path):
+    # y depends on the first input alone; z on all three. Repeats of the first input (a
+    # bound hit by several designs) must not reach y's Kriging fit.
+    u, x = lhs(40, seed=21)
+    x[:6, 0] = LOWER[0]
+    feasible = np.ones(40, dtype=bool)
+    y = 100.0 + 20.0 * np.sin(3.0 * u[:, 0]) + 5.0 * u[:, 0] ** 2
+    y[:6] = 100.0  # the value at u0 = 0
+    z = 50.0 + 10.0 * u[:, 1] - 4.0 * u[:, 2] + 2.0 * u[:, 0]
+    fit = fit_surrogates(
+        x,
+        {"y": y, "z": z},
+        feasible,
+        LOWER,
+        UPPER,
+        settings,
+        input_names=NAMES,
+        output_inputs={"y": [NAMES[0]]},
+    )
+    assert fit.output_inputs == {"y": (NAMES[0],)}
+    # Designs that differ in the other inputs only: the same y, different z.
+    probe = np.column_stack(
+        [np.full(9, 300.0), np.linspace(300.0, 380.0, 9), np.linspace(0.0, 24.0, 9)]
+    )
+    predicted = fit.predict(probe)
+    # (to rounding: SMT's batched products may round a row differently by its position)
+    np.testing.assert_allclose(predicted["y"], predicted["y"][0], rtol=1e-10)
+    assert np.ptp(predicted["z"]) > 1.0
+    u0 = (300.0 - LOWER[0]) / (UPPER[0] - LOWER[0])
+    exact = 100.0 + 20.0 * np.sin(3.0 * u0) + 5.0 * u0**2
+    assert abs(predicted["y"][0] - exact) < 0.5  # 40 samples of a 1-D function
+    # y trained on the first of the repeated designs only: its CV rows count them once.
+    rows = fit.predictions
+    y_cv = rows[(rows["model"] == "y") & (rows["split"] == "cv")]
+    z_cv = rows[(rows["model"] == "z") & (rows["split"] == "cv")]
+    assert len(z_cv) + int(((rows["model"] == "z") & (rows["split"] == "heldout")).sum()) == 40
+    repeats_in_training = int(np.isin(z_cv["sample_id"], np.arange(6)).sum())
+    assert repeats_in_training >= 2
+    assert len(y_cv) == len(z_cv) - max(repeats_in_training - 1, 0)
+    # Stored and read back: the inputs go with the models, and meta.json names them.
+    fit.save(tmp_path / "set", meta={})
+    meta = json.loads((tmp_path / "set" / "meta.json").read_text())
+    assert meta["output_inputs"] == {"y": [NAMES[0]]}
+    back = SurrogateSet.load(tmp_path / "set")
+    assert back.output_inputs == fit.output_inputs
+    for name in ("y", "z"):
+        np.testing.assert_array_equal(back.predict(probe)[name], predicted[name])
+
+
+def test_without_own_inputs_the_fit_is_unchanged(fitted, settings):
+    fit, (x, outputs, feasible, ids) = fitted
+    everything = {name: list(NAMES) for name in outputs}
+    again = fit_surrogates(
+        x,
+        outputs,
+        feasible,
+        LOWER,
+        UPPER,
+        settings,
+        input_names=NAMES,
+        sample_ids=ids,
+        output_inputs=everything,
+    )
+    # All three inputs and no repeated design: the same training rows, folds and models.
+    pd.testing.assert_frame_equal(
+        again.validation.drop(columns="fit_time_s"), fit.validation.drop(columns="fit_time_s")
+    )
+    probe = qmc.scale(qmc.LatinHypercube(d=3, seed=9).random(50), LOWER, UPPER)
+    for name in fit.output_names:
+        np.testing.assert_array_equal(again.predict(probe)[name], fit.predict(probe)[name])
+    assert fit.output_inputs == {} and again.output_inputs == {n: NAMES for n in outputs}
+
+
+@pytest.mark.parametrize(
+    ("output_inputs", "words"),
+    [
+        ({"nope": [NAMES[0]]}, r"output_inputs: 'nope' is not an output"),
+        ({"t_h": ["altitude"]}, r"output_inputs\['t_h'\]: \['altitude'\] must be one or more"),
+        ({"t_h": []}, r"output_inputs\['t_h'\]: \[\] must be one or more"),
+    ],
+)
+def test_unknown_own_inputs_are_named(settings, output_inputs, words):
+    x, outputs, feasible = chain_like(30, seed=2)
+    with pytest.raises(SurrogateError, match=words):
+        fit_surrogates(
+            x,
+            outputs,
+            feasible,
+            LOWER,
+            UPPER,
+            settings,
+            input_names=NAMES,
+            output_inputs=output_inputs,
+        )

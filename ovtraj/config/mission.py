@@ -67,6 +67,20 @@ class StoreSettings(StrictModel):
 
 RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET"]
 ClassifierName = Literal["svc", "gpc", "logistic"]
+DvPart = Literal["dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps"]
+# The phase-input model's inputs: the design, then the phase's sine and cosine (the burn's
+# with burn_phase, the wait's without).
+MainInput = Literal[
+    "parking_altitude_km",
+    "preparation_altitude_km",
+    "separation_delay_h",
+    "sin_2u_burn",
+    "cos_2u_burn",
+    "sin_wait_phase",
+    "cos_wait_phase",
+]
+WAIT_PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
+BURN_PHASE_INPUTS = ("sin_2u_burn", "cos_2u_burn")
 
 
 class PassForecastSettings(StrictModel):
@@ -120,6 +134,13 @@ class SurrogateSettings(StrictModel):
         description="T_total as the low-fidelity pass forecast plus a regressed residual "
         "(phase_input only)",
     )
+    # Optional (empty when absent, every part on every input): the configs stored with runs
+    # made before it existed still read.
+    part_inputs: dict[DvPart, list[MainInput]] = Field(
+        default_factory=dict,
+        description="phase_input: dV parts fitted on these of the phase-input model's inputs "
+        "alone (the inputs they physically depend on); the other parts on all of them",
+    )
     # Optional (null when absent): the configs stored with runs made before it existed
     # still read; `selection: shortlist` requires it.
     shortlist_size: int | None = bounded(
@@ -161,6 +182,14 @@ class SurrogateSettings(StrictModel):
     def _shortlist_sized(self) -> SurrogateSettings:
         if self.selection == "shortlist" and self.shortlist_size is None:
             raise ValueError("selection: shortlist needs shortlist_size (candidates per output)")
+        other = WAIT_PHASE_INPUTS if self.burn_phase else BURN_PHASE_INPUTS
+        for part, names in self.part_inputs.items():
+            if not names or set(names) & set(other):
+                raise ValueError(
+                    f"part_inputs.{part}: {names} must be one or more of the design's names "
+                    f"and {BURN_PHASE_INPUTS if self.burn_phase else WAIT_PHASE_INPUTS} "
+                    f"(burn_phase {str(self.burn_phase).lower()})"
+                )
         return self
 
 

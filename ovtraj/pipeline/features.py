@@ -45,13 +45,14 @@ import math
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 import pandas as pd
 
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.config import Scenario
+from ovtraj.config.mission import BURN_PHASE_INPUTS, WAIT_PHASE_INPUTS, DvPart
 from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.launch.fourier import FourierSeries
@@ -67,9 +68,8 @@ KIND = "mission-phase-surrogates/4"
 # Stored by earlier versions and still read: /3 had no burn phase.
 READABLE_KINDS = ("mission-phase-surrogates/3",)
 WAIT = "rendezvous_wait_s"
-DV_PARTS = ("dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps")
-PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
-BURN_PHASE_INPUTS = ("sin_2u_burn", "cos_2u_burn")
+DV_PARTS = get_args(DvPart)
+PHASE_INPUTS = WAIT_PHASE_INPUTS
 PAYLOAD = "payload_kg"
 PASS_MODEL = "pass model"  # T_total's model when it is the pass model (no regressor)
 MARKER = "meta.json"
@@ -481,5 +481,6 @@ def fit_mission_surrogates(
         sample_ids=data.sample_ids,
         candidates=candidates,
         executor=executor,
+        output_inputs={k: v for k, v in settings.part_inputs.items() if k in outputs},
     )
     return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)

@@ -168,14 +168,22 @@ class _ExtraTrees:
 
 @dataclass
 class Regressor:
-    """A fitted SMT model on unit-cube inputs."""
+    """A fitted SMT model on unit-cube inputs.
+
+    ``columns``: the inputs (column indices of the set's inputs) the model was fitted on,
+    in order; ``None``: all of them (and every model stored before the option).
+    """
 
     name: str
     model: SurrogateModel | Any
+    columns: tuple[int, ...] | None = None
 
     def predict(self, u: np.ndarray) -> np.ndarray:
-        """Unit-cube points (m, d) -> predictions (m,)."""
-        return np.asarray(self.model.predict_values(np.asarray(u, dtype=float))).reshape(-1)
+        """Unit-cube points (m, d) of all the set's inputs -> predictions (m,)."""
+        u = np.asarray(u, dtype=float)
+        if self.columns is not None:
+            u = u[:, list(self.columns)]
+        return np.asarray(self.model.predict_values(u)).reshape(-1)
 
 
 def fit_regressor(

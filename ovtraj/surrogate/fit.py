@@ -24,6 +24,7 @@ changed file. Pickles execute code when loaded: load only stores this project wr
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import pickle
 import platform
@@ -240,6 +241,15 @@ class SurrogateSet:
             f"data_hash={self.data_hash!r})"
         )
 
+    @property
+    def output_inputs(self) -> dict[str, tuple[str, ...]]:
+        """The outputs fitted on some of the inputs only -> those inputs' names."""
+        return {
+            name: tuple(self.input_names[k] for k in regressor.columns)
+            for name, regressor in self._regressors.items()
+            if regressor.columns is not None
+        }
+
     def _unit(self, X: np.ndarray) -> np.ndarray:
         try:
             x = np.asarray(X, dtype=float)
@@ -304,6 +314,7 @@ class SurrogateSet:
             "settings": self.settings.model_dump(mode="json"),
             "input_names": list(self.input_names),
             "output_names": list(self.output_names),
+            "output_inputs": {k: list(v) for k, v in self.output_inputs.items()},
             "lower": np.asarray(self.cube.lower).tolist(),
             "upper": np.asarray(self.cube.upper).tolist(),
             "versions": _versions(),
@@ -592,6 +603,7 @@ def fit_surrogates(
     sample_ids: np.ndarray | None = None,
     candidates: Mapping[str, str | Sequence[str]] | None = None,
     executor: Executor | None = None,
+    output_inputs: Mapping[str, Sequence[str]] | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
 
@@ -627,11 +639,18 @@ def fit_surrogates(
     regressor candidates (every output's) on its processes: the same models and figures as
     in this process, since every candidate is seeded and fitted with one BLAS thread.
 
+    ``output_inputs`` (output name -> names of ``input_names``) fits those outputs on those
+    inputs alone, e.g. a quantity that physically depends on fewer inputs than the set
+    takes; the others on all. Such an output is trained on the first of the training
+    samples that repeat its inputs (repeated inputs make a Kriging correlation matrix
+    singular), with its own k folds of them; it still predicts from all the set's inputs.
+
     A candidate that fails gets its reason in the ``error`` column and is not selected.
     Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
     feasible training samples, shapes, NaN) or when no candidate of a model can be fitted.
     """
     x, values, flags, ids = _checked(X, outputs, feasible, tuple(input_names), sample_ids)
+    columns = _output_columns(output_inputs or {}, tuple(input_names), values)
     n, dim = x.shape
     cube = UnitCube(lower, upper)
     if cube.dim != dim:
@@ -660,7 +679,16 @@ def fit_surrogates(
 
         # The classifier is fitted here while the pool fits the regressors.
         regressors, selected, rows, tables = _fit_regressors(
-            u, values, flags, ids, held, settings, dict(candidates or {}), executor, classify
+            u,
+            values,
+            flags,
+            ids,
+            held,
+            settings,
+            dict(candidates or {}),
+            executor,
+            classify,
+            columns,
         )
         classifier, rows_cls, table_cls = classified[0]
     selected[FEASIBLE] = classifier.name
@@ -682,6 +710,37 @@ def fit_surrogates(
     )
 
 
+def _output_columns(
+    output_inputs: Mapping[str, Sequence[str]],
+    input_names: tuple[str, ...],
+    outputs: dict[str, np.ndarray],
+) -> dict[str, tuple[int, ...]]:
+    """Output name -> the column indices (in input order) of its own inputs."""
+    columns: dict[str, tuple[int, ...]] = {}
+    for output, names in output_inputs.items():
+        if output not in outputs:
+            raise SurrogateError(
+                f"output_inputs: {output!r} is not an output (outputs: {tuple(outputs)})"
+            )
+        listed = [names] if isinstance(names, str) else list(names)
+        unknown = [name for name in listed if name not in input_names]
+        if not listed or unknown:
+            raise SurrogateError(
+                f"output_inputs[{output!r}]: {listed} must be one or more of the inputs "
+                f"{input_names}"
+            )
+        columns[output] = tuple(k for k, name in enumerate(input_names) if name in listed)
+    return columns
+
+
+def _first_of_repeats(rows: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    """``rows`` (ascending) without those whose ``inputs`` repeat an earlier row's."""
+    if rows.size == 0:
+        return rows
+    _, first = np.unique(inputs[rows], axis=0, return_index=True)
+    return rows[np.sort(first)]
+
+
 def _fit_regressors(
     u: np.ndarray,
     values: dict[str, np.ndarray],
@@ -692,25 +751,37 @@ def _fit_regressors(
     candidates: dict[str, str | list[str]],
     executor: Executor | None = None,
     meanwhile: Callable[[], None] | None = None,
+    columns: dict[str, tuple[int, ...]] | None = None,
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
     """CV, selection and final fit of every output's regressor (feasible samples only).
 
     ``meanwhile``: called once, in this process, while ``executor`` fits the candidates
-    (with no executor, after them)."""
+    (with no executor, after them); ``columns``: the outputs fitted on some inputs only
+    (:func:`fit_surrogates`' ``output_inputs``)."""
     pending = [meanwhile] if meanwhile is not None else []
 
     def in_the_meantime() -> None:
         while pending:
             pending.pop()()
 
+    columns = columns or {}
     reg_train = np.flatnonzero(~held & flags)  # ascending sample order
     reg_held = np.flatnonzero(held & flags)
     rows: list[dict] = []
     tables: list[pd.DataFrame] = []
     selected: dict[str, str] = {}
     regressors: dict[str, Regressor] = {}
-    folds = regression_folds(reg_train.size, settings.folds, settings.seed)
     configured = list(dict.fromkeys(settings.regressors))
+    # Each output's inputs, training rows and folds: all of them, unless it has inputs of
+    # its own (then the first of the rows that repeat those inputs).
+    inputs = {name: u[:, list(columns[name])] if name in columns else u for name in values}
+    trains = {
+        name: _first_of_repeats(reg_train, inputs[name]) if name in columns else reg_train
+        for name in values
+    }
+    all_folds = {
+        name: regression_folds(trains[name].size, settings.folds, settings.seed) for name in values
+    }
 
     def scored(names: dict[str, list[str]]) -> dict[str, list[RegressorScore]]:
         jobs = [(name, candidate) for name, listed in names.items() for candidate in listed]
@@ -718,7 +789,12 @@ def _fit_regressors(
         # candidate keep a pool's processes evenly busy where whole candidates did not.
         pieces = [
             regressor_fit_arguments(
-                candidate, u[reg_train], values[name][reg_train], u[reg_held], folds, settings
+                candidate,
+                inputs[name][trains[name]],
+                values[name][trains[name]],
+                inputs[name][reg_held],
+                all_folds[name],
+                settings,
             )
             for name, candidate in jobs
         ]
@@ -733,8 +809,10 @@ def _fit_regressors(
         out: dict[str, list[RegressorScore]] = {name: [] for name in names}
         for (name, candidate), arguments in zip(jobs, pieces, strict=True):
             mine = [next(fits) for _ in arguments]
-            y = values[name]
-            out[name].append(regressor_score(candidate, y[reg_train], y[reg_held], folds, mine))
+            y, train = values[name], trains[name]
+            out[name].append(
+                regressor_score(candidate, y[train], y[reg_held], all_folds[name], mine)
+            )
         return out
 
     first = {name: _shortlisted(candidates.get(name), configured) for name in values}
@@ -756,17 +834,26 @@ def _fit_regressors(
             )
         selected[name] = best.name
         regressors[name] = best.model
+        x, train = inputs[name], trains[name]
         if settings.holdout_refit and reg_held.size:
             # Scored without the hold-out; the model used has seen it too.
+            every = np.flatnonzero(flags)
+            every = _first_of_repeats(every, x) if name in columns else every
             regressors[name] = _refitted(
-                best.model, lambda n=best.name, y=y: fit_regressor(n, u[flags], y[flags], settings)
+                best.model,
+                lambda n=best.name, y=y, x=x, every=every: fit_regressor(
+                    n, x[every], y[every], settings
+                ),
             )
+        if name in columns:
+            regressors[name] = dataclasses.replace(regressors[name], columns=columns[name])
+        folds = all_folds[name]
         rows += [dict(r, n_folds=len(folds)) for r in _regressor_rows(name, scores, best.name)]
         tables.append(
             _prediction_rows(
                 name,
-                ids[reg_train],
-                y[reg_train],
+                ids[train],
+                y[train],
                 best.cv_pred,
                 ids[reg_held],
                 y[reg_held],
