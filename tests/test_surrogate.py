@@ -515,7 +515,11 @@ def _case(name):
     [
         ("no samples", r"no samples: X has 0 rows"),
         ("all infeasible", r"all 30 samples are infeasible"),
-        ("too few", r"^7 feasible training samples \(9 feasible of 9, 2 held out\); at least 8"),
+        (
+            "too few",
+            r"^7 feasible training samples \(9 feasible of 9, 2 held out\); at least 8 are "
+            r"needed \(surrogate\.min_training_samples\): evaluate more samples",
+        ),
         ("output shape", r"output 'y': expected shape \(30,\).*got \(29,\)"),
         ("feasible shape", r"feasible: expected a boolean array of shape \(30,\)"),
         ("feasible dtype", r"feasible: expected a boolean array.*dtype int"),

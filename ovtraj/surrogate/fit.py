@@ -666,7 +666,7 @@ def fit_surrogates(
         raise SurrogateError(
             f"{n_train} feasible training samples ({int(flags.sum())} feasible of {n}, "
             f"{int(held.sum())} held out); at least {settings.min_training_samples} are "
-            f"needed (min_training_samples, allowed >= {settings.min_training_samples})"
+            "needed (surrogate.min_training_samples): evaluate more samples, e.g. a larger DoE"
         )
 
     with _serial_blas():
