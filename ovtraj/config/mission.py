@@ -92,6 +92,15 @@ class PassForecastSettings(StrictModel):
     transfer_fraction: float = bounded(
         gt=0, le=10, description="the transfer to H_dp's time, in Hohmann times"
     )
+    # Optional (0 when absent): the configs stored before it existed still read.
+    longitude_shift_deg: float = bounded(
+        unit="deg",
+        ge=-10,
+        le=10,
+        default=0.0,
+        description="added to each forecast crossing's longitude before the entry box is "
+        "checked: the closed-form forecast's bias against the deorbit stage",
+    )
 
 
 class SurrogateSettings(StrictModel):

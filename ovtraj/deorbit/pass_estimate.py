@@ -54,13 +54,16 @@ def first_pass_s(
     earth_angle_at_zero_rad: float,
     horizon_s: float,
     burn_window_s: float,
+    longitude_shift_rad: float = 0.0,
 ) -> NDArray:
     """Time [s, the clock of ``t0_s``] of each orbit's first pass through the entry region
     within ``horizon_s`` after ``t0_s``; NaN when there is none.
 
     Every argument but the scalars broadcasts to one shape (m,): the orbits' start times,
     mean arguments of latitude and right ascensions there [rad], and radii [m]. The Earth
-    angle is ``earth_angle_at_zero_rad`` at t = 0 of that clock.
+    angle is ``earth_angle_at_zero_rad`` at t = 0 of that clock. ``longitude_shift_rad``
+    is added to every crossing's longitude before the box is checked (a measured bias of
+    this estimate against the stage, :class:`ovtraj.pipeline.pass_model.PassModel`).
     """
     t0, u0, raan0, radius = np.broadcast_arrays(
         *(np.atleast_1d(np.asarray(x, dtype=float)) for x in (t0_s, u0_rad, raan0_rad, radius_m))
@@ -94,7 +97,8 @@ def first_pass_s(
             + math.atan2(math.cos(inclination_rad) * math.sin(u), math.cos(u))
             - (earth_angle_at_zero_rad + earth.rotation_rate_rad_s * absolute)
         )
-        offset = np.mod(longitude - entry.longitude_rad + math.pi, TWO_PI) - math.pi
+        shifted = longitude + longitude_shift_rad
+        offset = np.mod(shifted - entry.longitude_rad + math.pi, TWO_PI) - math.pi
         usable = (
             (np.abs(offset) <= entry.longitude_tol_rad)
             & (t <= horizon_s)

@@ -104,6 +104,9 @@ class PassModel:
     # After the pass: the descent and the entry to the terminal point, learned from the
     # chain's samples (:meth:`calibrated`); 0 until then.
     offset_s: float = 0.0
+    # Added to each crossing's longitude before the entry box is checked (the setting's
+    # longitude_shift_deg); 0 in the models stored before it.
+    longitude_shift_rad: float = 0.0
 
     @classmethod
     def of(
@@ -131,6 +134,7 @@ class PassModel:
             burn_window_s=deorbit.solver.burn_window_s,
             rendezvous_transfer_fraction=settings.rendezvous_transfer_fraction,
             transfer_fraction=settings.transfer_fraction,
+            longitude_shift_rad=math.radians(settings.longitude_shift_deg),
         )
 
     def calibrated(
@@ -201,6 +205,7 @@ class PassModel:
             earth_angle_at_zero_rad=self.earth_angle_at_zero_rad,
             horizon_s=self.horizon_s,
             burn_window_s=self.burn_window_s,
+            longitude_shift_rad=self.longitude_shift_rad,
         )
         reached = np.where(np.isfinite(passes), passes, start + self.horizon_s)
         return reached - drop + self.offset_s
