@@ -778,19 +778,8 @@ def test_an_output_fitted_on_its_own_inputs_ignores_the_others(settings, tmp_pat
 
 
 def test_without_own_inputs_the_fit_is_unchanged(fitted, settings):
-    fit, (x, outputs, feasible, ids) = fitted
-    everything = {name: list(NAMES) for name in outputs}
-    again = fit_surrogates(
-        x,
-        outputs,
-        feasible,
-        LOWER,
-        UPPER,
-        settings,
-        input_names=NAMES,
-        sample_ids=ids,
-        output_inputs=everything,
-    )
+    fit, (_, outputs, _, _) = fitted
+    again = _fit_again(fitted, settings, output_inputs={name: list(NAMES) for name in outputs})
     # All three inputs and no repeated design: the same training rows, folds and models.
     pd.testing.assert_frame_equal(
         again.validation.drop(columns="fit_time_s"), fit.validation.drop(columns="fit_time_s")
