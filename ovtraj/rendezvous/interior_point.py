@@ -41,6 +41,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ovtraj.deadline import Deadline
 
@@ -115,27 +116,150 @@ class _Bounds:
         return self.matrix @ x + self.offset
 
 
-class _Jacobian:
-    """QR factors of a full-row-rank constraint Jacobian (m, n): its range and null space."""
+def _factor(
+    jacobian: np.ndarray, bound_matrix: np.ndarray, slack: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The scaled problem's constraint Jacobian (m + k, n + k) and its QR factors.
 
-    def __init__(self, jacobian: np.ndarray) -> None:
-        m = jacobian.shape[0]
-        q, r = np.linalg.qr(jacobian.T, mode="complete")
-        pivots = np.abs(np.diag(r[:m]))
-        if m and not pivots.min() > _RANK_TOLERANCE * pivots.max():
-            raise np.linalg.LinAlgError("the constraint Jacobian is rank-deficient")
-        self.matrix = jacobian
-        self.range, self.null, self.r = q[:, :m], q[:, m:], r[:m]
+    Rows: the equalities ``dc/dx`` and the bounds ``h(x) - s = 0`` with the slack columns
+    scaled by ``S``. Returns the matrix, an orthonormal basis of its rows' span (``Q_1``),
+    one of its null space (``Q_2``), the triangular ``R`` of ``matrix.T = Q_1 R``, and
+    whether the rows are independent (with equalities, each pivot of ``R`` above
+    ``_RANK_TOLERANCE`` of the largest). numpy's QR: numba's takes ~9 s to compile.
+    """
+    m, n = jacobian.shape
+    k = slack.size
+    matrix = np.zeros((m + k, n + k))
+    matrix[:m, :n] = jacobian
+    matrix[m:, :n] = bound_matrix
+    matrix[m:, n:] = -np.diag(slack)
+    q, r = np.linalg.qr(matrix.T, mode="complete")
+    r = np.ascontiguousarray(r[: m + k])
+    pivots = np.abs(np.diag(r))
+    independent = not m or bool(pivots.min() > _RANK_TOLERANCE * pivots.max())
+    return (
+        matrix,
+        np.ascontiguousarray(q[:, : m + k]),
+        np.ascontiguousarray(q[:, m + k :]),
+        r,
+        independent,
+    )
 
-    def least_norm(self, rhs: np.ndarray) -> np.ndarray:
-        """The least-norm ``v`` with ``J v = rhs``."""
-        return self.range @ np.linalg.solve(self.r.T, rhs)
 
-    def least_squares_transpose(self, rhs: np.ndarray) -> np.ndarray:
-        """The ``y`` that minimises ``|J^T y - rhs|``."""
-        return np.linalg.solve(self.r, self.range.T @ rhs)
+# Small dense products as plain loops: numba compiles them in a fraction of the time its
+# BLAS-backed ``@`` and ``norm`` take (seconds each on first use), for the same sums.
+@njit(cache=True)
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    total = 0.0
+    for i in range(a.size):
+        total += a[i] * b[i]
+    return total
 
 
+@njit(cache=True)
+def _norm(a: np.ndarray) -> float:
+    return math.sqrt(_dot(a, a))
+
+
+@njit(cache=True)
+def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for a matrix ``a`` and a vector ``b``."""
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i] += a[i, j] * b[j]
+    return out
+
+
+@njit(cache=True)
+def _transposed_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a.T @ b`` for a matrix ``a`` and a vector ``b``."""
+    out = np.zeros(a.shape[1])
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[j] += a[i, j] * b[i]
+    return out
+
+
+@njit(cache=True)
+def _least_norm(span: np.ndarray, r: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The least-norm ``v`` with ``J v = rhs`` (``J.T = span r``): ``span r^-T rhs``."""
+    z = np.empty(rhs.size)
+    for i in range(rhs.size):  # forward substitution with the lower triangle r.T
+        z[i] = (rhs[i] - _dot(r[:i, i], z[:i])) / r[i, i]
+    return _product(span, z)
+
+
+@njit(cache=True)
+def _least_squares_multipliers(
+    span: np.ndarray, r: np.ndarray, g: np.ndarray, k: int, mu: float
+) -> np.ndarray:
+    """Least-squares multipliers of the equalities and of ``h(x) - s = 0`` (N&W eq.
+    18.21): the ``y`` minimising ``|J.T y + (g, -mu)|``, ``r^-1 span.T (-g, mu)``; the
+    bound multipliers are the negatives of the last ``k``."""
+    rhs = np.empty(g.size + k)
+    rhs[: g.size] = -g
+    rhs[g.size :] = mu
+    b = _transposed_product(span, rhs)
+    y = np.empty(b.size)
+    for i in range(b.size - 1, -1, -1):  # back substitution
+        y[i] = (b[i] - _dot(r[i, i + 1 :], y[i + 1 :])) / r[i, i]
+    return y
+
+
+@njit(cache=True)
+def _residuals(
+    c: np.ndarray, x: np.ndarray, slack: np.ndarray, bound_matrix: np.ndarray, offset: np.ndarray
+) -> np.ndarray:
+    """The scaled problem's constraint values: ``c(x)`` and ``h(x) - s``."""
+    out = np.empty(c.size + slack.size)
+    out[: c.size] = c
+    out[c.size :] = _product(bound_matrix, x) + offset - slack
+    return out
+
+
+@njit(cache=True)
+def _kkt_error(
+    g: np.ndarray,
+    jacobian: np.ndarray,
+    bound_matrix: np.ndarray,
+    residual: np.ndarray,
+    slack: np.ndarray,
+    multipliers: np.ndarray,
+    mu: float,
+) -> float:
+    """KKT error (max norms of stationarity, feasibility, complementarity) of the barrier
+    problem; with ``mu = 0``, of the problem."""
+    m = jacobian.shape[0]
+    y, w = multipliers[:m], multipliers[m:]
+    stationarity = g + _transposed_product(jacobian, y) + _transposed_product(bound_matrix, w)
+    error = np.max(np.abs(stationarity))
+    if residual.size:
+        error = max(error, np.max(np.abs(residual)))
+    if slack.size:
+        error = max(error, np.max(np.abs(-slack * w - mu)))
+    return error
+
+
+@njit(cache=True)
+def _merit(f: float, slack: np.ndarray, residual: np.ndarray, mu: float, penalty: float) -> float:
+    """The l2 merit function of the barrier problem (inf outside the slacks' domain)."""
+    if np.any(slack <= 0.0):
+        return math.inf
+    return f - mu * np.sum(np.log(slack)) + penalty * _norm(residual)
+
+
+@njit(cache=True)
+def _fraction_to_boundary(scaled_slack_step: np.ndarray, tau: float) -> float:
+    """Largest alpha in (0, 1] with 1 + alpha * step >= 1 - tau for every slack."""
+    alpha = 1.0
+    for value in scaled_slack_step:
+        if value < 0.0:
+            alpha = min(alpha, -tau / value)
+    return alpha
+
+
+@njit(cache=True)
 def trust_region_step(hessian: np.ndarray, gradient: np.ndarray, radius: float) -> np.ndarray:
     """Exact minimiser of ``g.u + u.H.u / 2`` over ``|u| <= radius`` (small dense H).
 
@@ -144,40 +268,93 @@ def trust_region_step(hessian: np.ndarray, gradient: np.ndarray, radius: float) 
     safeguarded Newton on ``1/|u(lam)| - 1/radius``; in the hard case (no gradient along
     the lowest eigenvector) that eigenvector fills the step to the boundary.
     """
-    values, vectors = np.linalg.eigh(hessian)
-    g = vectors.T @ gradient
-    lowest = float(values[0])
+    values, vectors = np.linalg.eigh(np.ascontiguousarray(hessian))
+    g = _transposed_product(vectors, gradient)
+    lowest = values[0]
     if lowest > 0.0:
         u = -g / values
-        if float(np.linalg.norm(u)) <= radius:
-            return vectors @ u
+        if _norm(u) <= radius:
+            return _product(vectors, u)
     lam_lo = max(0.0, -lowest)
-    g_norm = float(np.linalg.norm(g))
+    g_norm = _norm(g)
     at_lowest = values - lowest <= _HARD_CASE_TOLERANCE * max(1.0, abs(lowest))
-    hard = np.abs(g[at_lowest]) <= _HARD_CASE_TOLERANCE * max(g_norm, 1e-300)
-    if lowest <= 0.0 and np.all(hard):
+    hard = True
+    for i in range(g.size):
+        if at_lowest[i] and abs(g[i]) > _HARD_CASE_TOLERANCE * max(g_norm, 1e-300):
+            hard = False
+    if lowest <= 0.0 and hard:
         u = np.zeros_like(g)
-        u[~at_lowest] = -g[~at_lowest] / (values[~at_lowest] + lam_lo)
-        fill = radius**2 - float(u @ u)
+        for i in range(g.size):
+            if not at_lowest[i]:
+                u[i] = -g[i] / (values[i] + lam_lo)
+        fill = radius**2 - _dot(u, u)
         if fill >= 0.0:
-            u[int(np.argmax(at_lowest))] = math.sqrt(fill)
-            return vectors @ u
-    lo, hi = lam_lo, lam_lo + g_norm / radius + abs(float(values[-1]))
+            u[np.argmax(at_lowest)] = math.sqrt(fill)
+            return _product(vectors, u)
+    lo, hi = lam_lo, lam_lo + g_norm / radius + abs(values[-1])
     lam = hi
     for _ in range(_SECULAR_ITERATIONS):
         shifted = values + lam
-        length = float(np.linalg.norm(g / shifted))
+        length = _norm(g / shifted)
         if abs(length - radius) <= _BOUNDARY_TOLERANCE * radius:
             break
         if length > radius:
             lo = lam
         else:
             hi = lam
-        slope = float(np.sum(g**2 / shifted**3))
+        slope = np.sum(g**2 / shifted**3)
         lam += (length - radius) * length**2 / (radius * slope) if slope > 0.0 else 0.0
         if not lo < lam < hi:
             lam = 0.5 * (lo + hi)
-    return vectors @ (-g / (values + lam))
+    return _product(vectors, -g / (values + lam))
+
+
+@njit(cache=True)
+def _propose(
+    g: np.ndarray,
+    lagrangian_hessian: np.ndarray,
+    residual: np.ndarray,
+    matrix: np.ndarray,
+    span: np.ndarray,
+    null: np.ndarray,
+    r: np.ndarray,
+    mu: float,
+    radius: float,
+    tau: float,
+    penalty: float,
+) -> tuple[np.ndarray, float, float]:
+    """One Byrd-Omojokun step of the barrier subproblem in (x, S^-1 s): the step, the
+    predicted reduction of the merit function and the updated penalty parameter."""
+    n = g.size
+    k = matrix.shape[1] - n
+    gradient = np.empty(n + k)
+    gradient[:n] = g
+    gradient[n:] = -mu
+    hessian = np.zeros((n + k, n + k))
+    hessian[:n, :n] = lagrangian_hessian
+    for i in range(k):
+        hessian[n + i, n + i] = mu
+    # Normal step: the least-norm Gauss-Newton step to feasibility, within zeta * radius
+    # and keeping half the fraction to the boundary for the tangential step.
+    normal = _least_norm(span, r, -residual)
+    normal *= min(1.0, _ZETA * radius / max(_norm(normal), 1e-300))
+    normal *= _fraction_to_boundary(normal[n:], 0.5 * tau)
+    # Tangential step in the null space, exact in its n - m dimensions.
+    rest = math.sqrt(max(radius**2 - _dot(normal, normal), 0.0))
+    step = normal
+    if null.shape[1] and rest > 0.0:
+        reduced = np.empty((null.shape[1], null.shape[1]))
+        for j in range(null.shape[1]):
+            reduced[:, j] = _transposed_product(null, _product(hessian, null[:, j].copy()))
+        reduced_gradient = _transposed_product(null, gradient + _product(hessian, normal))
+        step = normal + _product(null, trust_region_step(reduced, reduced_gradient, rest))
+    step = step * _fraction_to_boundary(step[n:], tau)
+    # Predicted reductions of the quadratic model and of the linearised infeasibility.
+    model = _dot(gradient, step) + 0.5 * _dot(step, _product(hessian, step))
+    infeasibility_drop = _norm(residual) - _norm(residual + _product(matrix, step))
+    if infeasibility_drop > 0.0:
+        penalty = max(penalty, model / ((1.0 - _RHO) * infeasibility_drop))
+    return step, -model + penalty * infeasibility_drop, penalty
 
 
 def minimize_interior_point(
@@ -213,47 +390,22 @@ def minimize_interior_point(
     mu = barrier_parameter
     mu_floor = tol / 10.0
     radius = trust_radius
-    penalty = 0.0
     f, g, c, jac = evaluate(x)
     m = c.size
 
-    def scaled_jacobian() -> _Jacobian:
-        matrix = np.zeros((m + k, n + k))
-        matrix[:m, :n] = jac
-        matrix[m:, :n] = bounds.matrix
-        matrix[m:, n:] = -np.diag(slack)
-        return _Jacobian(matrix)
-
-    def residuals(c_value: np.ndarray, x_value: np.ndarray, s_value: np.ndarray) -> np.ndarray:
-        return np.concatenate((c_value, bounds(x_value) - s_value))
-
-    def kkt_error(mu_value: float) -> float:
-        """KKT error of the barrier problem; with ``mu_value = 0``, of the problem."""
-        y, w = multipliers[:m], multipliers[m:]
-        stationarity = g + jac.T @ y + bounds.matrix.T @ w
-        return max(
-            float(np.max(np.abs(stationarity))),
-            float(np.max(np.abs(residuals(c, x, slack)))) if m + k else 0.0,
-            float(np.max(np.abs(-slack * w - mu_value))) if k else 0.0,
-        )
-
-    def merit(f_value: float, s_value: np.ndarray, residual: np.ndarray) -> float:
-        if np.any(s_value <= 0.0):
-            return math.inf
-        barrier = -mu * float(np.sum(np.log(s_value)))
-        return f_value + barrier + penalty * float(np.linalg.norm(residual))
-
-    def least_squares_multipliers() -> np.ndarray:
-        # Of the equalities and of h(x) - s = 0; the bound multipliers are their negatives.
-        return factors.least_squares_transpose(np.concatenate((-g, np.full(k, mu))))
-
+    bound_matrix, offset = bounds.matrix, bounds.offset
+    penalty = 0.0
     multipliers = np.zeros(m + k)
     iteration = 0
+    # The Jacobian's factors at (x, s) and the least-squares multipliers, after each
+    # accepted step; the numeric work is compiled (~35 iterations a mission evaluation).
     try:
-        factors = scaled_jacobian()
-        multipliers = least_squares_multipliers()
-        while True:
-            error = kkt_error(0.0)
+        matrix, span, null, r, independent = _factor(jac, bound_matrix, slack)
+        if independent:
+            multipliers = _least_squares_multipliers(span, r, g, k, mu)
+        while independent:
+            residual = _residuals(c, x, slack, bound_matrix, offset)
+            error = _kkt_error(g, jac, bound_matrix, residual, slack, multipliers, 0.0)
             if error <= tol:
                 return InteriorPointResult(x, multipliers[:m], iteration, CONVERGED, error)
             if radius < tol * _STEP_TOLERANCE_FACTOR:
@@ -262,43 +414,21 @@ def minimize_interior_point(
                 return InteriorPointResult(x, multipliers[:m], iteration, ITERATION_LIMIT, error)
             if deadline.expired():
                 return InteriorPointResult(x, multipliers[:m], iteration, TIME_LIMIT, error)
-            while mu > mu_floor and kkt_error(mu) <= _KAPPA_EPS * mu:
+            while (
+                mu > mu_floor
+                and _kkt_error(g, jac, bound_matrix, residual, slack, multipliers, mu)
+                <= _KAPPA_EPS * mu
+            ):
                 mu = max(mu_floor, min(_KAPPA_MU * mu, mu**_THETA_MU))
-                multipliers = least_squares_multipliers()
+                multipliers = _least_squares_multipliers(span, r, g, k, mu)
             tau = max(_TAU_MIN, 1.0 - mu)
             iteration += 1
 
-            # The scaled problem in (x, S^-1 s): gradient, Hessian (barrier block mu I).
-            gradient = np.concatenate((g, np.full(k, -mu)))
-            hessian = np.zeros((n + k, n + k))
-            hessian[:n, :n] = lagrangian_hessian(x, multipliers[:m])
-            hessian[n:, n:] = mu * np.eye(k)
-            residual = residuals(c, x, slack)
-            # Normal step: the least-norm Gauss-Newton step to feasibility, within zeta *
-            # radius and keeping half the fraction to the boundary for the tangential step.
-            normal = factors.least_norm(-residual)
-            normal *= min(1.0, _ZETA * radius / max(float(np.linalg.norm(normal)), 1e-300))
-            normal *= _fraction_to_boundary(normal[n:], 0.5 * tau)
-            # Tangential step in the null space, exact in its n - m dimensions.
-            basis = factors.null
-            rest = math.sqrt(max(radius**2 - float(normal @ normal), 0.0))
-            step = normal
-            if basis.shape[1] and rest > 0.0:
-                u = trust_region_step(
-                    basis.T @ hessian @ basis, basis.T @ (gradient + hessian @ normal), rest
-                )
-                step = normal + basis @ u
-            step = step * _fraction_to_boundary(step[n:], tau)
-
-            # Predicted reductions of the quadratic model and of the linearised infeasibility.
-            model = float(gradient @ step + 0.5 * step @ hessian @ step)
-            residual_norm = float(np.linalg.norm(residual))
-            linearised = float(np.linalg.norm(residual + factors.matrix @ step))
-            infeasibility_drop = residual_norm - linearised
-            if infeasibility_drop > 0.0:
-                penalty = max(penalty, model / ((1.0 - _RHO) * infeasibility_drop))
-            predicted = -model + penalty * infeasibility_drop
-            current = merit(f, slack, residual)
+            hessian = np.asarray(lagrangian_hessian(x, multipliers[:m]), dtype=float)
+            step, predicted, penalty = _propose(
+                g, hessian, residual, matrix, span, null, r, mu, radius, tau, penalty
+            )
+            current = _merit(f, slack, residual, mu, penalty)
 
             accepted = None
             for attempt in range(2):
@@ -306,15 +436,17 @@ def minimize_interior_point(
                 trial = _try(evaluate, trial_x)
                 if trial is None:
                     break
-                trial_residual = residuals(trial[2], trial_x, trial_s)
-                ratio = _ratio(current, merit(trial[0], trial_s, trial_residual), predicted)
+                trial_residual = _residuals(trial[2], trial_x, trial_s, bound_matrix, offset)
+                ratio = _ratio(
+                    current, _merit(trial[0], trial_s, trial_residual, mu, penalty), predicted
+                )
                 if ratio >= _ETA:
                     accepted = trial_x, trial_s, trial, ratio
                     break
                 if attempt == 1:
                     break
                 # Second-order correction: back onto the constraints' curvature.
-                corrected = step + factors.least_norm(-trial_residual)
+                corrected = step + _least_norm(span, r, -trial_residual)
                 if float(np.linalg.norm(corrected)) > 2.0 * radius:
                     break
                 step = corrected * _fraction_to_boundary(corrected[n:], tau)
@@ -325,19 +457,13 @@ def minimize_interior_point(
             x, slack, (f, g, c, jac), ratio = accepted
             if ratio >= _GOOD_RATIO:
                 radius = min(max(radius, 2.0 * step_norm), _MAX_RADIUS)
-            factors = scaled_jacobian()
-            multipliers = least_squares_multipliers()
+            matrix, span, null, r, independent = _factor(jac, bound_matrix, slack)
+            if independent:
+                multipliers = _least_squares_multipliers(span, r, g, k, mu)
     except np.linalg.LinAlgError:
-        # A singular constraint Jacobian (dependent constraints): no step is defined.
-        return InteriorPointResult(x, multipliers[:m], iteration, SINGULAR, math.nan)
-
-
-def _fraction_to_boundary(scaled_slack_step: np.ndarray, tau: float) -> float:
-    """Largest alpha in (0, 1] with 1 + alpha * step >= 1 - tau for every slack."""
-    falling = scaled_slack_step < 0.0
-    if not np.any(falling):
-        return 1.0
-    return float(min(1.0, np.min(-tau / scaled_slack_step[falling])))
+        pass  # an eigen- or linear solve failed: as dependent constraints
+    # Dependent constraints (a rank-deficient Jacobian): no step is defined.
+    return InteriorPointResult(x, multipliers[:m], iteration, SINGULAR, math.nan)
 
 
 def _try(evaluate: Callable[[np.ndarray], Evaluation], x: np.ndarray) -> Evaluation | None:

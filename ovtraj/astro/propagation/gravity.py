@@ -10,13 +10,13 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 
 def two_body_j2_acceleration(
     x: Any,
     y: Any,
     z: Any,
-    *,
     mu: Any,
     radius: Any,
     j2: Any,
@@ -27,7 +27,9 @@ def two_body_j2_acceleration(
     a = -mu r / |r|^3 - (3/2) J2 mu R^2 / |r|^5 [x (1 - 5 z^2/r^2), y (1 - 5 z^2/r^2),
     z (3 - 5 z^2/r^2)]  (Vallado, 4th ed., eq. 8-30; Curtis, 3rd ed., eq. 10.30).
 
-    Works on floats, numpy arrays and heyoka expressions alike (pass ``sqrt``).
+    Works on floats, numpy arrays and heyoka expressions alike (pass ``sqrt``), and
+    compiles with numba (:data:`two_body_j2_acceleration_compiled`; no keyword-only
+    parameters, which numba cannot bind).
     Units: positions in m, ``mu`` in m^3/s^2, ``radius`` in m; result in m/s^2.
     With ``j2 = 0`` this is the two-body field.
     """
@@ -40,6 +42,10 @@ def two_body_j2_acceleration(
     ay = -mu * y / r3 - k * y * (1.0 - 5.0 * z2_r2)
     az = -mu * z / r3 - k * z * (3.0 - 5.0 * z2_r2)
     return ax, ay, az
+
+
+# The same formula for compiled kernels (floats in, a tuple out).
+two_body_j2_acceleration_compiled = njit(cache=True)(two_body_j2_acceleration)
 
 
 def two_body_j2_rhs(state: np.ndarray, *, mu: float, radius: float, j2: float) -> np.ndarray:
