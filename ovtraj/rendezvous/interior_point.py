@@ -186,7 +186,10 @@ def _least_norm(span: np.ndarray, r: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """The least-norm ``v`` with ``J v = rhs`` (``J.T = span r``): ``span r^-T rhs``."""
     z = np.empty(rhs.size)
     for i in range(rhs.size):  # forward substitution with the lower triangle r.T
-        z[i] = (rhs[i] - _dot(r[:i, i], z[:i])) / r[i, i]
+        total = rhs[i]
+        for j in range(i):
+            total -= r[j, i] * z[j]
+        z[i] = total / r[i, i]
     return _product(span, z)
 
 
@@ -197,13 +200,16 @@ def _least_squares_multipliers(
     """Least-squares multipliers of the equalities and of ``h(x) - s = 0`` (N&W eq.
     18.21): the ``y`` minimising ``|J.T y + (g, -mu)|``, ``r^-1 span.T (-g, mu)``; the
     bound multipliers are the negatives of the last ``k``."""
-    rhs = np.empty(g.size + k)
-    rhs[: g.size] = -g
-    rhs[g.size :] = mu
+    rhs = np.full(g.size + k, mu)
+    for i in range(g.size):
+        rhs[i] = -g[i]
     b = _transposed_product(span, rhs)
     y = np.empty(b.size)
     for i in range(b.size - 1, -1, -1):  # back substitution
-        y[i] = (b[i] - _dot(r[i, i + 1 :], y[i + 1 :])) / r[i, i]
+        total = b[i]
+        for j in range(i + 1, b.size):
+            total -= r[i, j] * y[j]
+        y[i] = total / r[i, i]
     return y
 
 
@@ -212,9 +218,12 @@ def _residuals(
     c: np.ndarray, x: np.ndarray, slack: np.ndarray, bound_matrix: np.ndarray, offset: np.ndarray
 ) -> np.ndarray:
     """The scaled problem's constraint values: ``c(x)`` and ``h(x) - s``."""
+    bounds = _product(bound_matrix, x)
     out = np.empty(c.size + slack.size)
-    out[: c.size] = c
-    out[c.size :] = _product(bound_matrix, x) + offset - slack
+    for i in range(c.size):
+        out[i] = c[i]
+    for i in range(slack.size):
+        out[c.size + i] = bounds[i] + offset[i] - slack[i]
     return out
 
 
@@ -232,21 +241,27 @@ def _kkt_error(
     problem; with ``mu = 0``, of the problem."""
     m = jacobian.shape[0]
     y, w = multipliers[:m], multipliers[m:]
-    stationarity = g + _transposed_product(jacobian, y) + _transposed_product(bound_matrix, w)
-    error = np.max(np.abs(stationarity))
-    if residual.size:
-        error = max(error, np.max(np.abs(residual)))
-    if slack.size:
-        error = max(error, np.max(np.abs(-slack * w - mu)))
+    from_equalities = _transposed_product(jacobian, y)
+    from_bounds = _transposed_product(bound_matrix, w)
+    error = 0.0
+    for i in range(g.size):
+        error = max(error, abs(g[i] + from_equalities[i] + from_bounds[i]))
+    for value in residual:
+        error = max(error, abs(value))
+    for i in range(slack.size):
+        error = max(error, abs(-slack[i] * w[i] - mu))
     return error
 
 
 @njit(cache=True)
 def _merit(f: float, slack: np.ndarray, residual: np.ndarray, mu: float, penalty: float) -> float:
     """The l2 merit function of the barrier problem (inf outside the slacks' domain)."""
-    if np.any(slack <= 0.0):
-        return math.inf
-    return f - mu * np.sum(np.log(slack)) + penalty * _norm(residual)
+    barrier = 0.0
+    for value in slack:
+        if value <= 0.0:
+            return math.inf
+        barrier -= mu * math.log(value)
+    return f + barrier + penalty * _norm(residual)
 
 
 @njit(cache=True)
@@ -270,43 +285,57 @@ def trust_region_step(hessian: np.ndarray, gradient: np.ndarray, radius: float) 
     """
     values, vectors = np.linalg.eigh(np.ascontiguousarray(hessian))
     g = _transposed_product(vectors, gradient)
+    size = g.size
     lowest = values[0]
+    u = np.empty(size)
     if lowest > 0.0:
-        u = -g / values
+        for i in range(size):
+            u[i] = -g[i] / values[i]
         if _norm(u) <= radius:
             return _product(vectors, u)
     lam_lo = max(0.0, -lowest)
     g_norm = _norm(g)
-    at_lowest = values - lowest <= _HARD_CASE_TOLERANCE * max(1.0, abs(lowest))
-    hard = True
-    for i in range(g.size):
-        if at_lowest[i] and abs(g[i]) > _HARD_CASE_TOLERANCE * max(g_norm, 1e-300):
+    lowest_band = _HARD_CASE_TOLERANCE * max(1.0, abs(lowest))
+    hard = lowest <= 0.0
+    for i in range(size):
+        if values[i] - lowest <= lowest_band and abs(g[i]) > _HARD_CASE_TOLERANCE * max(
+            g_norm, 1e-300
+        ):
             hard = False
-    if lowest <= 0.0 and hard:
-        u = np.zeros_like(g)
-        for i in range(g.size):
-            if not at_lowest[i]:
+    if hard:
+        first_lowest = -1
+        for i in range(size):
+            if values[i] - lowest <= lowest_band:
+                u[i] = 0.0
+                if first_lowest < 0:
+                    first_lowest = i
+            else:
                 u[i] = -g[i] / (values[i] + lam_lo)
         fill = radius**2 - _dot(u, u)
         if fill >= 0.0:
-            u[np.argmax(at_lowest)] = math.sqrt(fill)
+            u[first_lowest] = math.sqrt(fill)
             return _product(vectors, u)
     lo, hi = lam_lo, lam_lo + g_norm / radius + abs(values[-1])
     lam = hi
     for _ in range(_SECULAR_ITERATIONS):
-        shifted = values + lam
-        length = _norm(g / shifted)
+        length_squared, slope = 0.0, 0.0
+        for i in range(size):
+            shifted = values[i] + lam
+            length_squared += (g[i] / shifted) ** 2
+            slope += g[i] ** 2 / shifted**3
+        length = math.sqrt(length_squared)
         if abs(length - radius) <= _BOUNDARY_TOLERANCE * radius:
             break
         if length > radius:
             lo = lam
         else:
             hi = lam
-        slope = np.sum(g**2 / shifted**3)
         lam += (length - radius) * length**2 / (radius * slope) if slope > 0.0 else 0.0
         if not lo < lam < hi:
             lam = 0.5 * (lo + hi)
-    return _product(vectors, -g / (values + lam))
+    for i in range(size):
+        u[i] = -g[i] / (values[i] + lam)
+    return _product(vectors, u)
 
 
 @njit(cache=True)
@@ -326,32 +355,54 @@ def _propose(
     """One Byrd-Omojokun step of the barrier subproblem in (x, S^-1 s): the step, the
     predicted reduction of the merit function and the updated penalty parameter."""
     n = g.size
-    k = matrix.shape[1] - n
-    gradient = np.empty(n + k)
-    gradient[:n] = g
-    gradient[n:] = -mu
-    hessian = np.zeros((n + k, n + k))
-    hessian[:n, :n] = lagrangian_hessian
-    for i in range(k):
-        hessian[n + i, n + i] = mu
+    size = matrix.shape[1]
+    gradient = np.full(size, -mu)
+    hessian = np.zeros((size, size))
+    for i in range(n):
+        gradient[i] = g[i]
+        for j in range(n):
+            hessian[i, j] = lagrangian_hessian[i, j]
+    for i in range(n, size):
+        hessian[i, i] = mu
     # Normal step: the least-norm Gauss-Newton step to feasibility, within zeta * radius
     # and keeping half the fraction to the boundary for the tangential step.
-    normal = _least_norm(span, r, -residual)
-    normal *= min(1.0, _ZETA * radius / max(_norm(normal), 1e-300))
-    normal *= _fraction_to_boundary(normal[n:], 0.5 * tau)
+    normal = _least_norm(span, r, residual)  # to -residual: the signs flip below
+    shrink = -min(1.0, _ZETA * radius / max(_norm(normal), 1e-300))
+    for i in range(size):
+        normal[i] *= shrink
+    shrink = _fraction_to_boundary(normal[n:], 0.5 * tau)
+    for i in range(size):
+        normal[i] *= shrink
     # Tangential step in the null space, exact in its n - m dimensions.
     rest = math.sqrt(max(radius**2 - _dot(normal, normal), 0.0))
-    step = normal
-    if null.shape[1] and rest > 0.0:
-        reduced = np.empty((null.shape[1], null.shape[1]))
-        for j in range(null.shape[1]):
-            reduced[:, j] = _transposed_product(null, _product(hessian, null[:, j].copy()))
-        reduced_gradient = _transposed_product(null, gradient + _product(hessian, normal))
-        step = normal + _product(null, trust_region_step(reduced, reduced_gradient, rest))
-    step = step * _fraction_to_boundary(step[n:], tau)
+    step = normal.copy()
+    dimensions = null.shape[1]
+    if dimensions and rest > 0.0:
+        reduced = np.empty((dimensions, dimensions))
+        column = np.empty(size)
+        for j in range(dimensions):
+            for i in range(size):
+                column[i] = null[i, j]
+            reduced_column = _transposed_product(null, _product(hessian, column))
+            for i in range(dimensions):
+                reduced[i, j] = reduced_column[i]
+        pull = _product(hessian, normal)
+        for i in range(size):
+            pull[i] += gradient[i]
+        tangential = _product(
+            null, trust_region_step(reduced, _transposed_product(null, pull), rest)
+        )
+        for i in range(size):
+            step[i] += tangential[i]
+    shrink = _fraction_to_boundary(step[n:], tau)
+    for i in range(size):
+        step[i] *= shrink
     # Predicted reductions of the quadratic model and of the linearised infeasibility.
     model = _dot(gradient, step) + 0.5 * _dot(step, _product(hessian, step))
-    infeasibility_drop = _norm(residual) - _norm(residual + _product(matrix, step))
+    linearised = _product(matrix, step)
+    for i in range(residual.size):
+        linearised[i] += residual[i]
+    infeasibility_drop = _norm(residual) - _norm(linearised)
     if infeasibility_drop > 0.0:
         penalty = max(penalty, model / ((1.0 - _RHO) * infeasibility_drop))
     return step, -model + penalty * infeasibility_drop, penalty
