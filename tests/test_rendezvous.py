@@ -319,3 +319,56 @@ def test_circular_transfer_ends_on_a_circular_orbit(scenario, altitude_km):
     assert np.mean(a) - earth.radius == pytest.approx(altitude_km * KM, abs=50.0)
     # Osculating e of a mean-circular LEO orbit is ~1e-3 (J2); its average vanishes.
     assert math.hypot(np.mean(ns.ex), np.mean(ns.ey)) < 1e-4
+
+
+# --- the correction's derivatives --------------------------------------------
+
+
+@pytest.mark.parametrize("free_epoch", [False, True])
+def test_correction_derivatives_match_central_differences_of_propagations(earth, free_epoch):
+    """The compiled candidate terms (cost gradient and miss Jacobian from the STM and the
+    J2 field) against central differences of the same quantities, each point flown
+    again with a Taylor integrator: the transfer time, the burn epoch and the impulse."""
+    from ovtraj.rendezvous.correction import _transfer_terms
+
+    prop = OrbitPropagator(earth, tol=1e-14)
+    chaser0 = coe_to_rv(
+        earth.radius + 300 * KM, 1e-4, math.radians(51.6), 0.3, 0.0, 0.0, mu=earth.mu
+    )
+    target0 = coe_to_rv(
+        earth.radius + 420 * KM, 1e-4, math.radians(51.6), 0.3, 0.0, 0.4, mu=earth.mu
+    )
+    chaser0, target0 = np.concatenate(chaser0), np.concatenate(target0)
+    burn0, hohmann_s, dv_scale = 600.0, 2760.0, 60.0
+    n = 5 if free_epoch else 4
+    to_scaled = np.array([dv_scale] * 3 + [hohmann_s] * 2)[:n]
+
+    def fly(x):
+        burn = burn0 + (x[4] * hohmann_s if free_epoch else 0.0)
+        arrival = burn + x[3] * hohmann_s
+        after = prop.propagate(chaser0, 0.0, burn).state + np.r_[0.0, 0.0, 0.0, x[:3] * dv_scale]
+        final, stm = prop.propagate_with_stm(after, burn, arrival)
+        target = prop.propagate(target0, 0.0, arrival).state
+        return final, stm, target
+
+    def terms(x):
+        final, stm, target = fly(x)
+        grav = (earth.mu, earth.radius, earth.j2)
+        cost, grad, d_miss, *_ = _transfer_terms(
+            x[None], final[None], stm[None], target[None], dv_scale, to_scaled, *grav
+        )
+        return cost[0], grad[0], d_miss[0], final[:3] - target[:3]
+
+    x = np.array([0.9, 0.05, -0.02, 1.02, 0.01][:n])
+    _, grad, d_miss, _ = terms(x)
+    step = 1e-6
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = step
+        cost_hi, _, _, miss_hi = terms(x + e)
+        cost_lo, _, _, miss_lo = terms(x - e)
+        assert (cost_hi - cost_lo) / (2 * step) == pytest.approx(grad[j], rel=1e-6, abs=1e-9)
+        # The miss moves by ~1e3 km per unit of a scaled variable: 0.1 m of it is 1e-10.
+        np.testing.assert_allclose(
+            (miss_hi - miss_lo) / (2 * step), d_miss[:, j], rtol=1e-6, atol=0.1
+        )

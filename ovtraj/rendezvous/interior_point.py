@@ -11,7 +11,9 @@ large-scale nonlinear programming", SIAM J. Optim. 9 (1999) 877-900), written fo
 dense problems of ~5 variables, where scipy's sparse-operator machinery (linear
 operators, projections, projected CG) cost more than the propagations it drove: on
 the mission chain's correction problems this solver takes half the iterations and
-~2.2x less time for the same optima (issue 20, ``benchmarks/interior_point.py``):
+~3.4x less time for the same optima (issue 20, ``benchmarks/interior_point.py``; its
+arithmetic per iteration runs in numba kernels, the loop around the caller's
+evaluations in Python):
 
 * the bounds become ``h(x) - s = 0`` with slacks ``s > 0`` carrying the log barrier
   ``-mu sum(ln s)``, and the trust region is scaled by the slacks, so a variable on its
