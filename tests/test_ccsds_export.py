@@ -158,10 +158,12 @@ def test_the_declared_interpolation_reproduces_the_trajectory_between_samples(
     assert set(worst_position) == {"orbit", "entry"}
     # Measured (docs/export.md): orbit arcs (Hermite degree 7, 60 s) 8.3 mm and
     # 1.1e-4 m/s at worst (the descent's short last interval; ~1-2 mm elsewhere, the file's
-    # 1 mm digits); entry (2 s) 1.1 mm and 5.6 mm/s. With microsecond epochs the descent's
-    # worst was 0.030-0.054 m, moving with the rounding of its last epoch.
+    # 1 mm digits); entry (2 s) 2.3-18 mm/s over 13 plans whose H_P0 differed by 1e-8 to
+    # 1e-3 km (1.2-4.9 mm over 6 of them): the entry's worst point jumps along the flight
+    # from one to the next. With microsecond epochs the descent's worst was 0.030-0.054 m, moving
+    # with the rounding of its last epoch.
     assert worst_position["orbit"] < 0.05 and worst_velocity["orbit"] < 5e-4
-    assert worst_position["entry"] < 0.01 and worst_velocity["entry"] < 0.01
+    assert worst_position["entry"] < 0.01 and worst_velocity["entry"] < 0.05
 
 
 def test_opm_reads_back_with_the_five_impulses_and_the_rocket_equation(
