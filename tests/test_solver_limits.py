@@ -78,7 +78,7 @@ def test_an_unlimited_deadline_never_passes_and_a_limit_must_be_positive():
         Deadline(0.0, "x")
 
 
-def test_the_pymoo_termination_ends_at_the_deadline_or_the_generations():
+def test_nsga2_ends_at_the_deadline_or_the_generations():
     from ovtraj.optimize import nsga2_front
 
     def model(units):
