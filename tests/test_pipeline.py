@@ -245,13 +245,18 @@ def test_parity_plots_begun_on_a_pool_during_the_rounds_give_the_same_files(smal
             steps=PipelineSteps(evaluate=small["evaluate_run"], predraw=predraw),
         )
     assert execute.EVALUATIONS["count"] == before  # every round's child run reused
-    assert len(begun) == len(result.summary["iterations"])
+    # Only a round that is surely the last begins its parity plots on the pool (the
+    # others' would be thrown away); a round that stops early has them drawn at the end.
+    rounds, verify = result.summary["iterations"], small["scenario"].mission.verify
+    surely_last = len(rounds) == verify.max_iterations or result.summary["stop_reason"] == "budget"
+    assert len(begun) == (1 if surely_last else 0)
     assert all(name.startswith("parity-") for names in begun for name in names)
     drawn, stored = _digest(again.directory), _digest(result.directory)
     assert {k: v for k, v in drawn.items() if k != "pipeline.json"} == {
         k: v for k, v in stored.items() if k != "pipeline.json"
     }
-    assert set(begun[-1]) < set(drawn)
+    assert any(name.startswith("parity-") for name in drawn)
+    assert all(set(names) < set(drawn) for names in begun)
     markers = [
         json.loads((d / "pipeline.json").read_text()) for d in (again.directory, result.directory)
     ]

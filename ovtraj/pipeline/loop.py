@@ -191,7 +191,12 @@ def run_pipeline(
             kept = dict(fit.surrogates.selected)
         elif kept is None and settings.selection == "shortlist":
             kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
-        if steps.predraw is not None:
+        # Only the last round's parity plots are kept: begin them on the pool only in a
+        # round that is surely the last (a round that stops early has them drawn at the
+        # end), so that no round's evaluations queue behind plots that are thrown away.
+        surely_last = iteration == verify.max_iterations or verify.budget - spent <= 0
+        parity = None
+        if steps.predraw is not None and surely_last:
             parity = steps.predraw(parity_views(fit.surrogates))
         previous = last[1] if last is not None else None
         outcome = steps.front(run, fit, scenario, code, views=False, previous=previous)
