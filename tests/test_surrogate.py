@@ -266,10 +266,11 @@ def test_feasibility_classifier_on_a_known_region(settings):
     u, x = lhs(120, seed=0)
     feasible = ball(u)  # feasible iff |u - c| < 0.4 (~27 % of the cube)
     y = np.where(feasible, u.sum(axis=1), np.nan)
-    quick = settings.model_copy(update={"regressors": ["QP"]})
+    every = ["svc", "gpc", "logistic"]
+    quick = settings.model_copy(update={"regressors": ["QP"], "classifiers": every})
     fit = fit_surrogates(x, {"y": y}, feasible, LOWER, UPPER, quick, input_names=NAMES)
     rows = fit.validation.query("model == 'feasible'").set_index("candidate")
-    assert set(rows.index) == {"svc", "gpc", "logistic"}
+    assert set(rows.index) == set(every)
     chosen = fit.selected["feasible"]
     assert rows.loc[chosen, "selected"] and rows["selected"].sum() == 1
     assert rows.loc[chosen, "cv_balanced_accuracy"] == rows["cv_balanced_accuracy"].max()
@@ -556,6 +557,7 @@ def test_failing_candidates_are_recorded_not_selected(settings, monkeypatch):
     x, outputs, feasible = _data(n=14, seed=3)
     feasible[[2, 9]] = False  # two infeasible: one held out, one left for training
     outputs["y"][[2, 9]] = np.nan
+    settings = settings.model_copy(update={"classifiers": ["svc", "gpc", "logistic"]})
     fit = fit_surrogates(x, outputs, feasible, LOWER, UPPER, settings, input_names=NAMES)
     rows = fit.validation.set_index(["model", "candidate"])
     assert "QP needs at least 10 training samples in 3-D" in rows.loc[("y", "QP"), "error"]
