@@ -175,12 +175,8 @@ def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def _transposed_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a.T @ b`` for a matrix ``a`` and a vector ``b``."""
-    out = np.zeros(a.shape[1])
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            out[j] += a[i, j] * b[i]
-    return out
+    """``a.T @ b`` for a matrix ``a`` and a vector ``b`` (the same sums, in the same order)."""
+    return _product(a.T, b)
 
 
 @njit(cache=True)
