@@ -88,7 +88,7 @@ def nsga2_front(
     while generation < generations:
         if deadline.expired():
             break
-        offspring = _offspring(x, f, cv, rank, crowding, population, rng)
+        offspring = _offspring(x, f, cv, crowding, population, rng)
         if not len(offspring):
             break  # every new design repeats one already in the population
         f_new, cv_new = _evaluated(model, offspring, n_constr)
@@ -177,7 +177,6 @@ def _offspring(
     x: np.ndarray,
     f: np.ndarray,
     cv: np.ndarray,
-    rank: np.ndarray,
     crowding: np.ndarray,
     size: int,
     rng: np.random.Generator,
