@@ -683,6 +683,47 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     )
 
 
+def test_pinned_deorbit_burns_stay_out_of_the_deorbit_part_alone(small):
+    import dataclasses
+
+    from ovtraj.mission import reference
+    from ovtraj.pipeline.features import (
+        DEORBIT_WAIT,
+        fit_mission_surrogates,
+        pinned_deorbit_burns,
+    )
+    from ovtraj.runs.doe import bounds_arrays
+
+    # The regime: a burn the deorbit's correction pinned at the preparation orbit's start
+    # (its wait 0) pays for reaching the pass (a pipeline's pick of seed 2041), one after
+    # a wait costs the minimum impulse (the direct method's best short mission).
+    scenario = small["scenario"]
+    context = reference.context(reference.load_settings())  # the default scenario's chain
+    pinned = evaluate(context, MissionDesign(296.25, 380.0, 1.19)).stages["deorbit"]
+    waited = evaluate(context, MissionDesign(285.3, 379.9, 4.6)).stages["deorbit"]
+    assert pinned["wait_time_s"] == 0.0 and pinned["dv_mps"] > 100.0
+    assert waited["wait_time_s"] > 600.0 and waited["dv_mps"] < 90.0
+    # Two feasible samples of the DoE marked as pinned: out of the deorbit part's rows
+    # (training, folds, hold-out), in the transfer part's; with the setting off, in both.
+    data = training_data(small["doe"])
+    marked = np.flatnonzero(data.feasible)[[1, 4]]
+    waits = data.components[DEORBIT_WAIT].copy()
+    waits[marked] = 0.0
+    data = dataclasses.replace(data, components={**data.components, DEORBIT_WAIT: waits})
+    assert np.array_equal(np.flatnonzero(pinned_deorbit_burns(data)), marked)
+    lower, upper = bounds_arrays(scenario.mission.design_bounds)
+    assert scenario.mission.surrogate.skip_pinned_deorbit_burns
+    for skip in (True, False):
+        chosen = _with_surrogate(scenario, skip_pinned_deorbit_burns=skip)
+        rows = fit_mission_surrogates(data, chosen, lower, upper).main.predictions
+        ids = data.sample_ids[marked]
+        deorbit = rows[rows["model"] == "dv_deorbit_mps"]["sample_id"]
+        transfer = rows[rows["model"] == "dv_transfer_mps"]["sample_id"]
+        assert np.isin(ids, transfer).all()
+        assert np.isin(ids, deorbit).all() != skip
+        assert len(deorbit) == len(transfer) - (2 if skip else 0)
+
+
 def test_no_prediction_leaves_its_physical_range_on_a_dense_grid(small):
     """Issue 21: T_total above the stay + t_dsp it contains, M_load inside the launch fit's
     range, each dV part above its two-body floor, on a 31 x 21 x 13 grid (8463 designs)."""

@@ -813,3 +813,56 @@ def test_unknown_own_inputs_are_named(settings, output_inputs, words):
             input_names=NAMES,
             output_inputs=output_inputs,
         )
+
+
+def test_samples_left_out_of_one_output_reach_only_the_others(settings):
+    # y is smooth except on 6 samples of another regime (+40): left out of y's fit, they
+    # neither enter its training, folds or hold-out nor bend its predictions, while z
+    # (and feasibility) keep every sample.
+    u, x = lhs(40, seed=23)
+    feasible = np.ones(40, dtype=bool)
+    y = 80.0 + 10.0 * u[:, 1] + 2.0 * u[:, 0]
+    other = np.zeros(40, dtype=bool)
+    other[[3, 9, 14, 22, 30, 37]] = True
+    spiked = np.where(other, y + 40.0, y)
+    z = 50.0 + 10.0 * u[:, 1] - 4.0 * u[:, 2]
+    common = dict(input_names=NAMES)
+    kept = fit_surrogates(x, {"y": spiked, "z": z}, feasible, LOWER, UPPER, settings, **common)
+    fit = fit_surrogates(
+        x,
+        {"y": spiked, "z": z},
+        feasible,
+        LOWER,
+        UPPER,
+        settings,
+        **common,
+        left_out={"y": other},
+    )
+    rows = fit.predictions
+    y_rows = rows[rows["model"] == "y"]
+    z_rows = rows[rows["model"] == "z"]
+    assert not np.isin(y_rows["sample_id"], np.flatnonzero(other)).any()
+    assert len(y_rows) == 40 - other.sum() and len(z_rows) == 40
+    probe = qmc.scale(qmc.LatinHypercube(d=3, seed=4).random(30), LOWER, UPPER)
+    smooth = 80.0 + 10.0 * (probe[:, 1] - LOWER[1]) / 80.0 + 2.0 * (probe[:, 0] - LOWER[0]) / 100.0
+    error_without = np.abs(fit.predict(probe)["y"] - smooth).max()
+    error_with = np.abs(kept.predict(probe)["y"] - smooth).max()
+    assert error_without < 0.5 < 5.0 < error_with
+    np.testing.assert_array_equal(fit.predict(probe)["z"], kept.predict(probe)["z"])
+
+
+@pytest.mark.parametrize(
+    ("left_out", "words"),
+    [
+        ({"nope": np.zeros(30, dtype=bool)}, r"left_out: 'nope' is not an output"),
+        ({"t_h": np.zeros(29, dtype=bool)}, r"left_out\['t_h'\]: expected a boolean array"),
+        ({"t_h": np.zeros(30)}, r"left_out\['t_h'\]: expected a boolean array"),
+        ({"t_h": np.ones(30, dtype=bool)}, r"output 't_h': 0 feasible training samples once"),
+    ],
+)
+def test_unusable_left_out_samples_are_named(settings, left_out, words):
+    x, outputs, feasible = chain_like(30, seed=2)
+    with pytest.raises(SurrogateError, match=words):
+        fit_surrogates(
+            x, outputs, feasible, LOWER, UPPER, settings, input_names=NAMES, left_out=left_out
+        )

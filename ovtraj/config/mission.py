@@ -150,6 +150,14 @@ class SurrogateSettings(StrictModel):
         description="phase_input: dV parts fitted on these of the phase-input model's inputs "
         "alone (the inputs they physically depend on); the other parts on all of them",
     )
+    # Optional (false when absent): the configs stored with runs made before it existed
+    # still read.
+    skip_pinned_deorbit_burns: bool = Field(
+        default=False,
+        description="phase_input: the deorbit part fitted without the samples whose burn the "
+        "deorbit's correction pinned at the start of the preparation orbit (a costlier regime "
+        "at the edge of a pass)",
+    )
     # Optional (null when absent): the configs stored with runs made before it existed
     # still read; `selection: shortlist` requires it.
     shortlist_size: int | None = bounded(

@@ -71,6 +71,8 @@ COMPONENTS = {
     "dv_rendezvous_mps": ("rendezvous", "dv_total_mps"),
     "dv_transfer_mps": ("transfer", "dv_total_mps"),
     "dv_deorbit_mps": ("deorbit", "dv_mps"),
+    # 0 when the deorbit's correction pinned the burn at the preparation orbit's start.
+    "deorbit_wait_s": ("deorbit", "wait_time_s"),
 }
 
 

@@ -63,11 +63,13 @@ from ovtraj.products import Product
 from ovtraj.rendezvous.hohmann import hohmann_impulses_mps
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
+from ovtraj.surrogate.validation import holdout_mask
 
 KIND = "mission-phase-surrogates/4"
 # Stored by earlier versions and still read: /3 had no burn phase.
 READABLE_KINDS = ("mission-phase-surrogates/3",)
 WAIT = "rendezvous_wait_s"
+DEORBIT_WAIT = "deorbit_wait_s"
 DV_PARTS = get_args(DvPart)
 PHASE_INPUTS = WAIT_PHASE_INPUTS
 PAYLOAD = "payload_kg"
@@ -482,5 +484,32 @@ def fit_mission_surrogates(
         candidates=candidates,
         executor=executor,
         output_inputs={k: v for k, v in settings.part_inputs.items() if k in outputs},
+        left_out=_pinned_deorbit_burns(data, settings),
     )
     return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)
+
+
+def pinned_deorbit_burns(data: Any) -> np.ndarray:
+    """The feasible samples whose deorbit burn the stage's correction pinned at the start
+    of the preparation orbit (its burn-time bound; the stage's ``wait_time_s`` is 0): a
+    pass reached only by moving the burn, at a cost in impulse (the 7 costliest deorbits,
+    91-172 m/s, of the direct method's 583 feasible designs; every other one 71-88 m/s;
+    docs/optimize.md)."""
+    wait = np.asarray(data.components[DEORBIT_WAIT], dtype=float)
+    return data.feasible & ~(wait > 0.0)
+
+
+def _pinned_deorbit_burns(data: Any, settings: Any) -> dict[str, np.ndarray]:
+    """``left_out`` of the phase-input model: the deorbit part's regime is the minimum
+    impulse after a wait (``surrogate.skip_pinned_deorbit_burns``), so the pinned burns
+    stay out of its fit when enough samples remain."""
+    if not settings.skip_pinned_deorbit_burns:
+        return {}
+    pinned = pinned_deorbit_burns(data)
+    # The training samples fit_surrogates would keep (its seeded hold-out split).
+    held = holdout_mask(data.feasible, settings.holdout_fraction, settings.seed)
+    if not pinned.any() or (data.feasible & ~held & ~pinned).sum() < (
+        settings.min_training_samples
+    ):
+        return {}
+    return {"dv_deorbit_mps": pinned}

@@ -604,6 +604,7 @@ def fit_surrogates(
     candidates: Mapping[str, str | Sequence[str]] | None = None,
     executor: Executor | None = None,
     output_inputs: Mapping[str, Sequence[str]] | None = None,
+    left_out: Mapping[str, np.ndarray] | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
 
@@ -645,12 +646,18 @@ def fit_surrogates(
     samples that repeat its inputs (repeated inputs make a Kriging correlation matrix
     singular), with its own k folds of them; it still predicts from all the set's inputs.
 
+    ``left_out`` (output name -> (n,) bool) leaves those samples out of that output's
+    regressor (its training, folds and hold-out rows), e.g. samples in a regime the
+    output's model is not meant to describe; they still count for the other outputs and
+    for the feasibility model. Each output keeps at least ``min_training_samples``.
+
     A candidate that fails gets its reason in the ``error`` column and is not selected.
     Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
     feasible training samples, shapes, NaN) or when no candidate of a model can be fitted.
     """
     x, values, flags, ids = _checked(X, outputs, feasible, tuple(input_names), sample_ids)
     columns = _output_columns(output_inputs or {}, tuple(input_names), values)
+    omitted = _left_out(left_out or {}, values, x.shape[0])
     n, dim = x.shape
     cube = UnitCube(lower, upper)
     if cube.dim != dim:
@@ -668,6 +675,14 @@ def fit_surrogates(
             f"{int(held.sum())} held out); at least {settings.min_training_samples} are "
             "needed (surrogate.min_training_samples): evaluate more samples, e.g. a larger DoE"
         )
+    for name, mask in omitted.items():
+        kept = int(np.count_nonzero(~held & flags & ~mask))
+        if kept < settings.min_training_samples:
+            raise SurrogateError(
+                f"output {name!r}: {kept} feasible training samples once "
+                f"{int(np.count_nonzero(flags & mask))} are left out; at least "
+                f"{settings.min_training_samples} are needed (surrogate.min_training_samples)"
+            )
 
     with _serial_blas():
         classified: list[tuple[FeasibilityClassifier, list[dict], pd.DataFrame]] = []
@@ -689,6 +704,7 @@ def fit_surrogates(
             executor,
             classify,
             columns,
+            omitted,
         )
         classifier, rows_cls, table_cls = classified[0]
     selected[FEASIBLE] = classifier.name
@@ -733,6 +749,24 @@ def _output_columns(
     return columns
 
 
+def _left_out(
+    left_out: Mapping[str, np.ndarray], values: dict[str, np.ndarray], n: int
+) -> dict[str, np.ndarray]:
+    """``fit_surrogates``' ``left_out``, checked: known outputs, one flag per sample."""
+    checked = {}
+    for name, mask in left_out.items():
+        if name not in values:
+            raise SurrogateError(f"left_out: {name!r} is not an output (outputs: {tuple(values)})")
+        flags = np.asarray(mask)
+        if flags.shape != (n,) or flags.dtype != bool:
+            raise SurrogateError(
+                f"left_out[{name!r}]: expected a boolean array of shape ({n},), got dtype "
+                f"{flags.dtype} and shape {flags.shape}"
+            )
+        checked[name] = flags
+    return checked
+
+
 def _first_of_repeats(rows: np.ndarray, inputs: np.ndarray) -> np.ndarray:
     """``rows`` (ascending) without those whose ``inputs`` repeat an earlier row's."""
     if rows.size == 0:
@@ -752,12 +786,14 @@ def _fit_regressors(
     executor: Executor | None = None,
     meanwhile: Callable[[], None] | None = None,
     columns: dict[str, tuple[int, ...]] | None = None,
+    omitted: dict[str, np.ndarray] | None = None,
 ) -> tuple[dict[str, Regressor], dict[str, str], list[dict], list[pd.DataFrame]]:
     """CV, selection and final fit of every output's regressor (feasible samples only).
 
     ``meanwhile``: called once, in this process, while ``executor`` fits the candidates
     (with no executor, after them); ``columns``: the outputs fitted on some inputs only
-    (:func:`fit_surrogates`' ``output_inputs``)."""
+    (:func:`fit_surrogates`' ``output_inputs``); ``omitted``: the samples each output
+    leaves out (its ``left_out``)."""
     pending = [meanwhile] if meanwhile is not None else []
 
     def in_the_meantime() -> None:
@@ -765,8 +801,12 @@ def _fit_regressors(
             pending.pop()()
 
     columns = columns or {}
-    reg_train = np.flatnonzero(~held & flags)  # ascending sample order
-    reg_held = np.flatnonzero(held & flags)
+    omitted = omitted or {}
+    none = np.zeros(flags.shape, dtype=bool)
+    # Each output's feasible rows: training (ascending sample order) and hold-out.
+    usable = {name: flags & ~omitted.get(name, none) for name in values}
+    reg_trains = {name: np.flatnonzero(~held & rows) for name, rows in usable.items()}
+    reg_helds = {name: np.flatnonzero(held & rows) for name, rows in usable.items()}
     rows: list[dict] = []
     tables: list[pd.DataFrame] = []
     selected: dict[str, str] = {}
@@ -776,7 +816,9 @@ def _fit_regressors(
     # its own (then the first of the rows that repeat those inputs).
     inputs = {name: u[:, list(columns[name])] if name in columns else u for name in values}
     trains = {
-        name: _first_of_repeats(reg_train, inputs[name]) if name in columns else reg_train
+        name: _first_of_repeats(reg_trains[name], inputs[name])
+        if name in columns
+        else reg_trains[name]
         for name in values
     }
     all_folds = {
@@ -792,7 +834,7 @@ def _fit_regressors(
                 candidate,
                 inputs[name][trains[name]],
                 values[name][trains[name]],
-                inputs[name][reg_held],
+                inputs[name][reg_helds[name]],
                 all_folds[name],
                 settings,
             )
@@ -811,7 +853,7 @@ def _fit_regressors(
             mine = [next(fits) for _ in arguments]
             y, train = values[name], trains[name]
             out[name].append(
-                regressor_score(candidate, y[train], y[reg_held], all_folds[name], mine)
+                regressor_score(candidate, y[train], y[reg_helds[name]], all_folds[name], mine)
             )
         return out
 
@@ -835,9 +877,9 @@ def _fit_regressors(
         selected[name] = best.name
         regressors[name] = best.model
         x, train = inputs[name], trains[name]
-        if settings.holdout_refit and reg_held.size:
+        if settings.holdout_refit and reg_helds[name].size:
             # Scored without the hold-out; the model used has seen it too.
-            every = np.flatnonzero(flags)
+            every = np.flatnonzero(usable[name])
             every = _first_of_repeats(every, x) if name in columns else every
             regressors[name] = _refitted(
                 best.model,
@@ -855,8 +897,8 @@ def _fit_regressors(
                 ids[train],
                 y[train],
                 best.cv_pred,
-                ids[reg_held],
-                y[reg_held],
+                ids[reg_helds[name]],
+                y[reg_helds[name]],
                 best.heldout_pred,
             )
         )
