@@ -109,3 +109,40 @@ def test_the_model_round_trips(model):
     again = BurnPhaseModel.from_dict(model.to_dict())
     designs = np.column_stack([np.linspace(250, 340, 5), np.full(5, 350.0), np.zeros(5)])
     assert np.array_equal(again.phase_rad(designs), model.phase_rad(designs))
+
+
+def test_the_departure_phase_explains_the_transfer_above_its_trend(scenario):
+    """On 40 hypercube designs of the chain, where on the target's slightly eccentric orbit
+    the OV leaves it (the pass model's separation time with the chain's own wait) carries
+    the transfer's impulse beyond its trend in H_dp: the departure radius sets the
+    Hohmann transfer down to H_dp."""
+    from scipy.stats import qmc
+
+    from ovtraj.mission import evaluate
+    from ovtraj.pipeline.pass_model import PassModel
+    from ovtraj.runs.doe import bounds_arrays
+
+    settings = reference.load_settings()
+    context = reference.context(settings)
+    series = find_launch_fit(context.scenario).series
+    model = PassModel.of(context.scenario, series["insertion_time_s"], series["flight_time_s"])
+    lower, upper = bounds_arrays(context.scenario.mission.design_bounds)
+    designs, waits, impulses = [], [], []
+    for x in qmc.scale(qmc.LatinHypercube(d=3, seed=5).random(40), lower, upper):
+        stages = evaluate(context, MissionDesign(*x)).stages
+        if stages.get("transfer", {}).get("feasible"):
+            designs.append(x)
+            waits.append(stages["rendezvous"]["wait_time_s"])
+            impulses.append(stages["transfer"]["dv_total_mps"])
+    designs, impulses = np.array(designs), np.array(impulses)
+    phase = model.departure_phase_rad(designs, np.array(waits))
+    h = designs[:, 1]
+    trend = np.column_stack([np.ones_like(h), h, h**2])
+    with_phase = np.column_stack([trend, np.sin(phase), np.cos(phase)])
+    rms = []
+    for basis in (trend, with_phase):
+        coefficients, *_ = np.linalg.lstsq(basis, impulses, rcond=None)
+        rms.append(float(np.sqrt(np.mean((impulses - basis @ coefficients) ** 2))))
+    assert len(impulses) >= 30
+    assert rms[1] < 0.6 * rms[0]  # measured 0.366 against 0.762 m/s (37 designs)
+    assert math.hypot(*coefficients[3:]) > 0.5  # measured 0.99 m/s

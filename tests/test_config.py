@@ -179,3 +179,19 @@ def test_part_inputs_are_checked_and_optional(scenario_data):
     surrogate["part_inputs"] = {"dv_total_mps": ["parking_altitude_km"]}
     with pytest.raises(ConfigError, match=r"part_inputs\.dv_total_mps"):
         build_scenario(scenario_data)
+
+
+def test_the_departure_phase_needs_the_pass_model_and_names_its_inputs(scenario_data):
+    surrogate = scenario_data["mission"]["surrogate"]
+    assert build_scenario(scenario_data).mission.surrogate.departure_phase
+    surrogate.pop("departure_phase")
+    surrogate.pop("part_inputs")
+    assert not build_scenario(scenario_data).mission.surrogate.departure_phase
+    surrogate["part_inputs"] = {"dv_transfer_mps": ["sin_departure_phase"]}
+    with pytest.raises(ConfigError, match=r"part_inputs\.dv_transfer_mps.*departure_phase false"):
+        build_scenario(scenario_data)
+    surrogate.pop("part_inputs")
+    surrogate["departure_phase"] = True
+    surrogate["pass_forecast"] = None
+    with pytest.raises(ConfigError, match=r"departure_phase needs pass_forecast"):
+        build_scenario(scenario_data)

@@ -622,8 +622,13 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     wait = surrogates.wait.predict(designs[:, :1])[WAIT]
     # The phase input: twice the first burn's argument of latitude (surrogate.burn_phase).
     burn = 2.0 * surrogates.burn_phase.burn(designs[:, 0])[1]
-    assert np.allclose(features[:, 3:], np.column_stack([np.sin(burn), np.cos(burn)]))
-    assert surrogates.main.input_names[3:] == ("sin_2u_burn", "cos_2u_burn")
+    assert np.allclose(features[:, 3:5], np.column_stack([np.sin(burn), np.cos(burn)]))
+    assert surrogates.main.input_names[3:5] == ("sin_2u_burn", "cos_2u_burn")
+    # The departure phase (surrogate.departure_phase): where on the target's orbit the OV
+    # leaves it, from the pass model's separation time with the wait model's wait.
+    departure = surrogates.pass_model.departure_phase_rad(designs, wait)
+    assert np.allclose(features[:, 5:], np.column_stack([np.sin(departure), np.cos(departure)]))
+    assert surrogates.main.input_names[5:] == ("sin_departure_phase", "cos_departure_phase")
     raw = surrogates.main.predict(features)
     floors = surrogates.floors(designs)
     parts = {name: above(floors[name], raw[name], surrogates.softness_mps) for name in DV_PARTS}
@@ -642,6 +647,7 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
         predicted["m_load_kg"][known], data.outputs["m_load_kg"][:7][known], rtol=0, atol=1e-9
     )
     again = load_surrogates(fitted.directory)
+    assert again.departure_phase and again.phase_inputs == surrogates.phase_inputs
     for name, values in surrogates.predict(designs).items():
         assert np.array_equal(again.predict(designs)[name], values)
     assert np.array_equal(again.feasibility(designs), surrogates.feasibility(designs))
@@ -669,7 +675,9 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     # Without the pass model and the burn phase: T_total regressed like the other outputs,
     # on the phase of the wait model's wait in the target's period.
     # (part_inputs names the burn's phase inputs, absent without it)
-    regressed = _with_surrogate(scenario, pass_forecast=None, burn_phase=False, part_inputs={})
+    regressed = _with_surrogate(
+        scenario, pass_forecast=None, burn_phase=False, departure_phase=False, part_inputs={}
+    )
     whole = fit_step(doe, data, regressed, small["code"]).surrogates
     assert whole.pass_model is None and whole.selected["t_total_s"] != "pass model"
     assert whole.burn_phase is None

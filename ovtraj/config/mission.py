@@ -78,9 +78,12 @@ MainInput = Literal[
     "cos_2u_burn",
     "sin_wait_phase",
     "cos_wait_phase",
+    "sin_departure_phase",
+    "cos_departure_phase",
 ]
 WAIT_PHASE_INPUTS = ("sin_wait_phase", "cos_wait_phase")
 BURN_PHASE_INPUTS = ("sin_2u_burn", "cos_2u_burn")
+DEPARTURE_PHASE_INPUTS = ("sin_departure_phase", "cos_departure_phase")
 
 
 class PassForecastSettings(StrictModel):
@@ -152,6 +155,14 @@ class SurrogateSettings(StrictModel):
     )
     # Optional (false when absent): the configs stored with runs made before it existed
     # still read.
+    departure_phase: bool = Field(
+        default=False,
+        description="phase_input with pass_forecast: two more inputs, the sine and cosine of "
+        "the target's mean argument of latitude from its perigee when the OV leaves it (the "
+        "transfer's departure point on the target's orbit)",
+    )
+    # Optional (false when absent): the configs stored with runs made before it existed
+    # still read.
     skip_pinned_deorbit_burns: bool = Field(
         default=False,
         description="phase_input: the deorbit part fitted without the samples whose burn the "
@@ -199,13 +210,17 @@ class SurrogateSettings(StrictModel):
     def _shortlist_sized(self) -> SurrogateSettings:
         if self.selection == "shortlist" and self.shortlist_size is None:
             raise ValueError("selection: shortlist needs shortlist_size (candidates per output)")
-        other = WAIT_PHASE_INPUTS if self.burn_phase else BURN_PHASE_INPUTS
+        if self.departure_phase and self.pass_forecast is None:
+            raise ValueError("departure_phase needs pass_forecast (the separation time)")
+        phase = BURN_PHASE_INPUTS if self.burn_phase else WAIT_PHASE_INPUTS
+        allowed = phase + (DEPARTURE_PHASE_INPUTS if self.departure_phase else ())
+        other = set(WAIT_PHASE_INPUTS + BURN_PHASE_INPUTS + DEPARTURE_PHASE_INPUTS) - set(allowed)
         for part, names in self.part_inputs.items():
-            if not names or set(names) & set(other):
+            if not names or set(names) & other:
                 raise ValueError(
                     f"part_inputs.{part}: {names} must be one or more of the design's names "
-                    f"and {BURN_PHASE_INPUTS if self.burn_phase else WAIT_PHASE_INPUTS} "
-                    f"(burn_phase {str(self.burn_phase).lower()})"
+                    f"and {allowed} (burn_phase {str(self.burn_phase).lower()}, "
+                    f"departure_phase {str(self.departure_phase).lower()})"
                 )
         return self
 

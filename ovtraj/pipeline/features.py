@@ -52,7 +52,12 @@ import pandas as pd
 
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.config import Scenario
-from ovtraj.config.mission import BURN_PHASE_INPUTS, WAIT_PHASE_INPUTS, DvPart
+from ovtraj.config.mission import (
+    BURN_PHASE_INPUTS,
+    DEPARTURE_PHASE_INPUTS,
+    WAIT_PHASE_INPUTS,
+    DvPart,
+)
 from ovtraj.files import Digest, StoreError, read_json
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.launch.fourier import FourierSeries
@@ -186,9 +191,13 @@ class MissionSurrogates:
         softness_mps: float,
         pass_model: PassModel | None = None,
         burn_phase: BurnPhaseModel | None = None,
+        departure_phase: bool = False,
     ) -> None:
+        if departure_phase and pass_model is None:
+            raise SurrogateError("the departure phase needs the pass model (its separation time)")
         self.wait, self._main, self.period_s = wait, main, float(period_s)
         self.pass_model, self.burn_phase = pass_model, burn_phase
+        self.departure_phase = departure_phase
         self.payload, self.floors = payload, floors
         self.stay_s, self.softness_s, self.softness_mps = stay_s, softness_s, softness_mps
         self.input_names = tuple(DESIGN_NAMES)
@@ -222,20 +231,26 @@ class MissionSurrogates:
         return f"{self.wait.data_hash}-{self.main.data_hash}"
 
     def features(self, designs: np.ndarray, wait: np.ndarray | None = None) -> np.ndarray:
-        """Designs (m, 3) -> the main model's inputs (m, 5); ``wait``: their waits [s],
-        when already predicted."""
+        """Designs (m, 3) -> the main model's inputs (m, 5, or 7 with the departure
+        phase); ``wait``: their waits [s], when already predicted."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        if self.burn_phase is None or self.departure_phase:
+            wait = self.waits(designs) if wait is None else wait
         if self.burn_phase is not None:
             phase = self.burn_phase.phase_rad(designs)
         else:
-            wait = self.waits(designs) if wait is None else wait
             phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
-        return np.column_stack([designs, np.sin(phase), np.cos(phase)])
+        columns = [designs, np.sin(phase), np.cos(phase)]
+        if self.departure_phase:
+            departure = self.pass_model.departure_phase_rad(designs, wait)
+            columns += [np.sin(departure), np.cos(departure)]
+        return np.column_stack(columns)
 
     @property
-    def phase_inputs(self) -> tuple[str, str]:
-        """The names of the main model's two phase inputs."""
-        return BURN_PHASE_INPUTS if self.burn_phase is not None else PHASE_INPUTS
+    def phase_inputs(self) -> tuple[str, ...]:
+        """The names of the main model's phase inputs (sine, cosine of each phase)."""
+        phase = BURN_PHASE_INPUTS if self.burn_phase is not None else PHASE_INPUTS
+        return phase + (DEPARTURE_PHASE_INPUTS if self.departure_phase else ())
 
     def predict(self, designs: np.ndarray) -> dict[str, np.ndarray]:
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
@@ -297,6 +312,7 @@ class MissionSurrogates:
             "softness_mps": self.softness_mps,
             "pass_model": None if self.pass_model is None else self.pass_model.to_dict(),
             "burn_phase": None if self.burn_phase is None else self.burn_phase.to_dict(),
+            "departure_phase": self.departure_phase,
             "lower": self.cube.lower.tolist(),
             "upper": self.cube.upper.tolist(),
             "selected": self.selected,
@@ -351,6 +367,8 @@ class MissionSurrogates:
             softness_mps=float(meta["softness_mps"]),
             pass_model=pass_model,
             burn_phase=burn_phase,
+            # Absent from sets stored before it (no departure phase there).
+            departure_phase=bool(meta.get("departure_phase", False)),
         )
 
 
@@ -465,6 +483,7 @@ def fit_mission_surrogates(
         "softness_mps": settings.floor_softness_mps,
         "pass_model": pass_model,
         "burn_phase": burn_phase,
+        "departure_phase": settings.departure_phase,
     }
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
@@ -476,8 +495,8 @@ def fit_mission_surrogates(
         composed.features(data.designs),
         outputs,
         data.feasible,
-        np.concatenate([lower, [-1.0, -1.0]]),
-        np.concatenate([upper, [1.0, 1.0]]),
+        np.concatenate([lower, [-1.0] * len(composed.phase_inputs)]),
+        np.concatenate([upper, [1.0] * len(composed.phase_inputs)]),
         settings,
         input_names=(*DESIGN_NAMES, *composed.phase_inputs),
         sample_ids=data.sample_ids,

@@ -58,6 +58,8 @@ class TargetMeanMotion:
     raan0_rad: float
     u_rate: float
     raan_rate: float
+    argp0_rad: float  # mean argument of perigee at the launch day's 0 h
+    argp_rate: float
 
 
 def target_mean_motion(scenario: Scenario) -> TargetMeanMotion:
@@ -78,6 +80,8 @@ def target_mean_motion(scenario: Scenario) -> TargetMeanMotion:
         raan0_rad=float(mean.raan) + float(raan_rate) * offset,
         u_rate=u_rate,
         raan_rate=float(raan_rate),
+        argp0_rad=math.atan2(float(mean.ey), float(mean.ex)) + float(argp_rate) * offset,
+        argp_rate=float(argp_rate),
     )
 
 
@@ -107,6 +111,10 @@ class PassModel:
     # Added to each crossing's longitude before the entry box is checked (the setting's
     # longitude_shift_deg); 0 in the models stored before it.
     longitude_shift_rad: float = 0.0
+    # The target's mean argument of perigee at t = 0 and its J2 rate (the departure
+    # phase, :meth:`departure_phase_rad`); 0 in the models stored before them.
+    target_argp0_rad: float = 0.0
+    target_argp_rate: float = 0.0
 
     @classmethod
     def of(
@@ -135,6 +143,8 @@ class PassModel:
             rendezvous_transfer_fraction=settings.rendezvous_transfer_fraction,
             transfer_fraction=settings.transfer_fraction,
             longitude_shift_rad=math.radians(settings.longitude_shift_deg),
+            target_argp0_rad=target.argp0_rad,
+            target_argp_rate=target.argp_rate,
         )
 
     def calibrated(
@@ -181,16 +191,8 @@ class PassModel:
         earth = self._earth
         mu = earth.mu
         parking = 1e3 * designs[:, 0]
-        insertion_series, flight_series = self._series
-        insertion = np.asarray(insertion_series(parking), float)
-        drop = insertion - np.asarray(flight_series(parking), float)
-        arrival = (
-            insertion
-            + np.asarray(wait_s, dtype=float)
-            + self.rendezvous_transfer_fraction
-            * hohmann_time_s(earth.radius + parking, self.target_a_m, mu)
-        )
-        separation = arrival + self.stay_s + 3600.0 * designs[:, 2]
+        insertion, drop = self._insertion_and_drop(parking)
+        separation = self._separation_s(designs, wait_s, insertion)
         preparation_radius = earth.radius + 1e3 * designs[:, 1]
         transfer = self.transfer_fraction * hohmann_time_s(self.target_a_m, preparation_radius, mu)
         start = separation + transfer
@@ -209,3 +211,33 @@ class PassModel:
         )
         reached = np.where(np.isfinite(passes), passes, start + self.horizon_s)
         return reached - drop + self.offset_s
+
+    def departure_phase_rad(self, designs: np.ndarray, wait_s: np.ndarray) -> np.ndarray:
+        """The target's mean argument of latitude from its perigee [rad] when the OV of
+        designs (m, 3) with phasing waits ``wait_s`` leaves it (J2 secular elements): where
+        on the target's slightly eccentric orbit the transfer to H_dp starts."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        insertion, _ = self._insertion_and_drop(1e3 * designs[:, 0])
+        separation = self._separation_s(designs, wait_s, insertion)
+        u = self.target_u0_rad + self.target_u_rate * separation
+        return u - (self.target_argp0_rad + self.target_argp_rate * separation)
+
+    def _insertion_and_drop(self, parking_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The launch fit's insertion and drop times [s] at parking altitudes [m]."""
+        insertion_series, flight_series = self._series
+        insertion = np.asarray(insertion_series(parking_m), float)
+        return insertion, insertion - np.asarray(flight_series(parking_m), float)
+
+    def _separation_s(
+        self, designs: np.ndarray, wait_s: np.ndarray, insertion: np.ndarray
+    ) -> np.ndarray:
+        """When the OV leaves the target [s]: the rendezvous's arrival after the wait and
+        ``rendezvous_transfer_fraction`` Hohmann times, then the stay and t_dsp."""
+        earth = self._earth
+        arrival = (
+            insertion
+            + np.asarray(wait_s, dtype=float)
+            + self.rendezvous_transfer_fraction
+            * hohmann_time_s(earth.radius + 1e3 * designs[:, 0], self.target_a_m, earth.mu)
+        )
+        return arrival + self.stay_s + 3600.0 * designs[:, 2]
