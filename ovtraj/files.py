@@ -10,7 +10,10 @@ replaced, atomically (``replace=True``). Every write returns the file's
 
 Reading: :func:`read_bytes`, :func:`read_json` and :func:`read_parquet` verify a
 file against its recorded digest (and a Parquet file against its declared schema)
-before anything is parsed, and refuse a changed file naming it.
+before anything is parsed, and refuse a changed file naming it. Every read reads and
+hashes the file; the Parquet decoding of a payload already decoded in this process is
+reused (:class:`DecodedTables`, keyed by the SHA-256 just verified: the same digest is
+the same bytes, so the same table).
 
 Every operating-system failure (missing file, read-only file system, full disk)
 becomes one :class:`StoreError` that names the file and the cause; an interrupted
@@ -25,6 +28,7 @@ import json
 import os
 import secrets
 import socket
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +41,8 @@ from ovtraj.records import json_text
 from ovtraj.storage import PreconditionFailed, S3Path, StorageError, location
 
 __all__ = [
+    "DECODED_TABLES",
+    "DecodedTables",
     "Digest",
     "StoreError",
     "file_digest",
@@ -58,6 +64,10 @@ TEMPORARY_SUFFIX = ".tmp"
 # zstd with byte-stream-split floats is 35-40 % smaller than snappy on trajectory tables.
 PARQUET_COMPRESSION = "zstd"
 PARQUET_COMPRESSION_LEVEL = 9
+# Arrow memory of the decoded tables kept for reuse (DecodedTables): the pipeline's later
+# rounds read the earlier rounds' files again; 5 % of its wall time (benchmarks/
+# surrogate_vs_direct.py's 30-evaluation pipelines, ~2 MB of tables each).
+DECODED_TABLES_BYTES = 256 * 2**20
 
 
 class StoreError(RuntimeError):
@@ -241,13 +251,59 @@ def read_json(path: Path, expected: Digest | None = None) -> Any:
         raise StoreError(f"{path}: unreadable JSON file ({err})") from None
 
 
+class DecodedTables:
+    """Arrow tables decoded from Parquet payloads, by the payload's SHA-256, least recently
+    used first out beyond ``limit_bytes`` of Arrow memory. Arrow tables are immutable, so
+    one can be handed to every reader of the same bytes."""
+
+    def __init__(self, limit_bytes: int) -> None:
+        self.limit_bytes = limit_bytes
+        self._tables: OrderedDict[str, pa.Table] = OrderedDict()
+        self._bytes = 0
+
+    def get(self, sha256: str, payload: bytes) -> pa.Table:
+        """The table ``payload`` (whose SHA-256 is ``sha256``) decodes to."""
+        table = self._tables.get(sha256)
+        if table is not None:
+            self._tables.move_to_end(sha256)
+            return table
+        table = pq.read_table(pa.BufferReader(payload))
+        if table.nbytes <= self.limit_bytes:
+            self._tables[sha256] = table
+            self._bytes += table.nbytes
+            while self._bytes > self.limit_bytes:
+                self._bytes -= self._tables.popitem(last=False)[1].nbytes
+        return table
+
+    def clear(self) -> None:
+        self._tables.clear()
+        self._bytes = 0
+
+    def __len__(self) -> int:
+        return len(self._tables)
+
+    @property
+    def nbytes(self) -> int:
+        """Arrow memory of the tables kept [bytes]."""
+        return self._bytes
+
+
+DECODED_TABLES = DecodedTables(DECODED_TABLES_BYTES)
+
+
 def read_table(
     path: Path, expected: Digest | None = None, schema: pa.Schema | None = None
 ) -> pa.Table:
-    """A stored Parquet file as an Arrow table, checked (digest, then declared schema)."""
+    """A stored Parquet file as an Arrow table, checked (digest, then declared schema).
+
+    The file is read and verified every time; with ``expected``, a payload decoded before
+    in this process is not decoded again (:data:`DECODED_TABLES`)."""
     payload = read_bytes(path, expected)
     try:
-        table = pq.read_table(pa.BufferReader(payload))
+        if expected is None:
+            table = pq.read_table(pa.BufferReader(payload))
+        else:
+            table = DECODED_TABLES.get(expected.sha256, payload)
     except (OSError, pa.ArrowException) as err:
         raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
     if schema is not None and not table.schema.equals(schema, check_metadata=False):

@@ -265,6 +265,48 @@ def test_a_stored_file_is_never_overwritten(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
 
 
+def test_a_file_decoded_before_is_still_verified_on_every_read(tmp_path):
+    """The decoded-table reuse skips only the decoding: the file is read and hashed each
+    time, so a file changed after its first read is refused, not served from memory."""
+    import pyarrow as pa
+
+    from ovtraj.files import DECODED_TABLES, parquet_bytes, read_table
+
+    table = pa.table({"sample_id": pa.array([0, 1, 2], pa.int64()), "x": [1.0, 2.0, 3.0]})
+    path = tmp_path / "part.parquet"
+    digest = write_bytes(path, parquet_bytes(table))
+    first = read_table(path, digest, table.schema)
+    assert first.equals(table)
+    assert read_table(path, digest, table.schema) is first  # decoded once
+    changed = table.set_column(1, "x", pa.array([1.0, 2.0, 4.0]))
+    os.chmod(path, 0o644)
+    path.write_bytes(parquet_bytes(changed))  # a valid file, other values
+    with pytest.raises(StoreError, match=r"part\.parquet: changed since it was stored"):
+        read_table(path, digest, table.schema)
+    with pytest.raises(StoreError, match=r"part\.parquet: columns or types differ"):
+        read_table(path, Digest.of(path.read_bytes()), pa.schema([("sample_id", pa.int32())]))
+    DECODED_TABLES.clear()
+    assert read_table(path, expected=None, schema=None).equals(changed)
+
+
+def test_decoded_tables_keep_the_most_recent_within_their_bound():
+    import pyarrow as pa
+
+    from ovtraj.files import DecodedTables, parquet_bytes
+
+    payloads = [parquet_bytes(pa.table({"x": np.arange(1000.0) + k})) for k in range(4)]
+    size = DecodedTables(limit_bytes=0).get("any", payloads[0]).nbytes  # each table's
+    tables = DecodedTables(limit_bytes=2 * size)
+    decoded = [tables.get(Digest.of(p).sha256, p) for p in payloads[:3]]
+    assert tables.get(Digest.of(payloads[2]).sha256, payloads[2]) is decoded[2]
+    again = tables.get(Digest.of(payloads[0]).sha256, payloads[0])  # evicted: decoded anew
+    assert again is not decoded[0] and again.equals(decoded[0])
+    assert tables.nbytes == 2 * size and len(tables) == 2
+    huge = DecodedTables(limit_bytes=size // 2)
+    assert huge.get(Digest.of(payloads[3]).sha256, payloads[3]).num_rows == 1000
+    assert len(huge) == 0 and huge.nbytes == 0  # larger than the whole bound: not kept
+
+
 def test_a_full_disk_is_one_error_naming_the_file_and_leaves_no_temporary(tmp_path, monkeypatch):
     import ovtraj.files
 
