@@ -206,3 +206,28 @@ def test_prograde_burn_is_reported():
         tangential_deorbit(R0, RE, GAMMA, MU, speed_before_mps=v1 - 1.0)
     # exactly the post-burn speed: no impulse needed, still valid
     assert tangential_deorbit(R0, RE, GAMMA, MU, speed_before_mps=v1).dv_mps == 0.0
+
+
+def test_the_central_angle_alone_is_the_whole_estimates_to_the_bit():
+    """The pass forecast's shortcut (:func:`descent_central_angle_rad`) runs the same
+    operations as the whole estimate, and its caller keeps the estimate's checks."""
+    from ovtraj.astro.constants import default_earth
+    from ovtraj.deorbit.estimate import descent_central_angle_rad
+    from ovtraj.deorbit.inputs import EntryRegion
+    from ovtraj.deorbit.pass_estimate import descent_angle_rad
+
+    for r0, gamma in itertools.product(
+        R_EARTH + np.linspace(121, 2000, 200) * KM, np.radians([-0.01, -0.9, -1.1, -5, -60])
+    ):
+        whole = tangential_deorbit(r0, RE, gamma, MU).central_angle_rad
+        assert descent_central_angle_rad(r0, RE, gamma, MU) == whole
+    earth = default_earth()
+    entry_radius = earth.radius + 120 * KM
+    entry = EntryRegion(0.0, 0.0, 0.1, 0.1, 120 * KM, -0.03, -0.01, GAMMA)
+    burn = earth.radius + 345 * KM
+    angles = descent_angle_rad(np.array([burn, earth.radius + 300 * KM, burn]), entry, earth)
+    whole = tangential_deorbit(burn, entry_radius, GAMMA, earth.mu).central_angle_rad
+    assert angles[0] == angles[2] == whole
+    for bad in (entry_radius - 1.0, np.nan):
+        with pytest.raises(ValueError, match=r"burn_radius_m|entry_radius_m"):
+            descent_angle_rad(np.array([burn, bad]), entry, earth)

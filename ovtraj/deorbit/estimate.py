@@ -133,10 +133,7 @@ def tangential_deorbit(
             f"entry_fpa_rad must lie in (-pi/2, 0) rad (descending entry), got {gamma} rad"
         )
 
-    cos_g_sq = math.cos(gamma) ** 2
-    # r0^2 - re^2 cos^2 > 0 since re < r0; factored to keep the digits.
-    re_cos = re * math.cos(gamma)
-    v1_sq = 2.0 * mu * re * cos_g_sq * (r0 - re) / (r0 * (r0 - re_cos) * (r0 + re_cos))
+    v1_sq = _post_burn_speed_sq(r0, re, gamma, mu)
     v1 = math.sqrt(v1_sq)
 
     if speed_before_mps is None:
@@ -152,17 +149,10 @@ def tangential_deorbit(
                 f"{v1 - v0:.6f} m/s, not a retrograde deorbit burn"
             )
 
-    h = r0 * v1
-    semi_latus_rectum = h * h / mu
     energy = 0.5 * v1_sq - mu / r0
     a = -mu / (2.0 * energy)
     e = 1.0 - r0 * v1_sq / mu
-    ve = math.sqrt(v1_sq + 2.0 * mu * (r0 - re) / (r0 * re))
-
-    # Central angle from the apoapsis: delta = nu_e - pi.
-    e_sin_delta = -h * ve * math.sin(gamma) / mu
-    e_cos_delta = 1.0 - semi_latus_rectum / re
-    delta = math.atan2(e_sin_delta, e_cos_delta)
+    ve, delta = _entry_speed_and_central_angle(r0, re, gamma, mu, v1_sq)
 
     sin_d, cos_d = math.sin(delta), math.cos(delta)
     d_ecc_anomaly = math.atan2(math.sqrt((1.0 - e) * (1.0 + e)) * sin_d, cos_d - e)
@@ -182,3 +172,37 @@ def tangential_deorbit(
         central_angle_rad=delta,
         time_of_flight_s=tof,
     )
+
+
+def _post_burn_speed_sq(r0: float, re: float, gamma: float, mu: float) -> float:
+    """v1^2 [m^2/s^2] of :func:`tangential_deorbit` (its docstring gives the formula)."""
+    cos_g_sq = math.cos(gamma) ** 2
+    # r0^2 - re^2 cos^2 > 0 since re < r0; factored to keep the digits.
+    re_cos = re * math.cos(gamma)
+    return 2.0 * mu * re * cos_g_sq * (r0 - re) / (r0 * (r0 - re_cos) * (r0 + re_cos))
+
+
+def _entry_speed_and_central_angle(
+    r0: float, re: float, gamma: float, mu: float, v1_sq: float
+) -> tuple[float, float]:
+    """The entry speed [m/s] and the central angle [rad] from the burn to the entry of
+    :func:`tangential_deorbit` (its docstring gives the formulas)."""
+    h = r0 * math.sqrt(v1_sq)
+    semi_latus_rectum = h * h / mu
+    ve = math.sqrt(v1_sq + 2.0 * mu * (r0 - re) / (r0 * re))
+    # Central angle from the apoapsis: delta = nu_e - pi.
+    e_sin_delta = -h * ve * math.sin(gamma) / mu
+    e_cos_delta = 1.0 - semi_latus_rectum / re
+    return ve, math.atan2(e_sin_delta, e_cos_delta)
+
+
+def descent_central_angle_rad(
+    burn_radius_m: float, entry_radius_m: float, entry_fpa_rad: float, mu: float
+) -> float:
+    """The central angle [rad] of :func:`tangential_deorbit` alone, for callers that need
+    only it over many burn radii (the pass forecast): the same operations, so the same
+    bits, without the checks and the rest of the descent. Arguments as there, valid."""
+    v1_sq = _post_burn_speed_sq(burn_radius_m, entry_radius_m, entry_fpa_rad, mu)
+    return _entry_speed_and_central_angle(burn_radius_m, entry_radius_m, entry_fpa_rad, mu, v1_sq)[
+        1
+    ]

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.j2_elements import secular_rates
-from ovtraj.deorbit.estimate import tangential_deorbit
+from ovtraj.deorbit.estimate import descent_central_angle_rad, tangential_deorbit
 from ovtraj.deorbit.inputs import EntryRegion
 
 TWO_PI = 2.0 * math.pi
@@ -35,8 +35,12 @@ def descent_angle_rad(radius_m: ArrayLike, entry: EntryRegion, earth: EarthModel
     at the entry angle the stage aims for (``fpa_target_rad``), two-body."""
     entry_radius = earth.radius + entry.altitude_m
     radii, index = np.unique(np.atleast_1d(np.asarray(radius_m, dtype=float)), return_inverse=True)
+    # The checks of the whole descent at the smallest and the largest radius (sorted, a NaN
+    # last): every radius between passes them too.
+    for r in radii[[0, -1]] if radii.size else ():
+        tangential_deorbit(float(r), entry_radius, entry.fpa_target_rad, earth.mu)
     angles = [
-        tangential_deorbit(float(r), entry_radius, entry.fpa_target_rad, earth.mu).central_angle_rad
+        descent_central_angle_rad(float(r), entry_radius, entry.fpa_target_rad, earth.mu)
         for r in radii
     ]
     return np.asarray(angles)[index]
