@@ -468,3 +468,14 @@ def test_sigterm_marks_the_run_interrupted_in_its_manifest(tmp_path):
     resumed = subprocess.run(args, capture_output=True, text=True, timeout=600, check=False)
     assert resumed.returncode == 0, resumed.stderr
     assert run.status() == "complete" and run.manifest["resumed_after_interruption"] == 1
+
+
+def test_the_dependency_versions_are_looked_up_once_and_handed_out_as_copies():
+    from importlib import metadata
+
+    from ovtraj.runs.store import dependency_versions
+
+    first = dependency_versions()
+    assert first["pyarrow"] == metadata.version("pyarrow")
+    first["pyarrow"] = "edited by a caller"
+    assert dependency_versions()["pyarrow"] == metadata.version("pyarrow")
