@@ -28,6 +28,7 @@ import json
 import os
 import secrets
 import socket
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -260,24 +261,31 @@ class DecodedTables:
         self.limit_bytes = limit_bytes
         self._tables: OrderedDict[str, pa.Table] = OrderedDict()
         self._bytes = 0
+        # Readers may be threads (Prefect's task runner, the threads runner).
+        self._lock = threading.Lock()
 
     def get(self, sha256: str, payload: bytes) -> pa.Table:
         """The table ``payload`` (whose SHA-256 is ``sha256``) decodes to."""
-        table = self._tables.get(sha256)
-        if table is not None:
-            self._tables.move_to_end(sha256)
+        with self._lock:
+            table = self._tables.get(sha256)
+            if table is not None:
+                self._tables.move_to_end(sha256)
+                return table
+        table = pq.read_table(pa.BufferReader(payload))  # outside the lock: readers overlap
+        if table.nbytes > self.limit_bytes:
             return table
-        table = pq.read_table(pa.BufferReader(payload))
-        if table.nbytes <= self.limit_bytes:
-            self._tables[sha256] = table
-            self._bytes += table.nbytes
-            while self._bytes > self.limit_bytes:
-                self._bytes -= self._tables.popitem(last=False)[1].nbytes
+        with self._lock:
+            if sha256 not in self._tables:
+                self._tables[sha256] = table
+                self._bytes += table.nbytes
+                while self._bytes > self.limit_bytes:
+                    self._bytes -= self._tables.popitem(last=False)[1].nbytes
         return table
 
     def clear(self) -> None:
-        self._tables.clear()
-        self._bytes = 0
+        with self._lock:
+            self._tables.clear()
+            self._bytes = 0
 
     def __len__(self) -> int:
         return len(self._tables)

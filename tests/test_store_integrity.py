@@ -479,3 +479,32 @@ def test_the_dependency_versions_are_looked_up_once_and_handed_out_as_copies():
     assert first["pyarrow"] == metadata.version("pyarrow")
     first["pyarrow"] = "edited by a caller"
     assert dependency_versions()["pyarrow"] == metadata.version("pyarrow")
+
+
+def test_decoded_tables_serve_reader_threads_within_their_bound():
+    """Prefect's task runner reads from threads: evictions under concurrent reads give
+    every reader its own payload's table and keep the bound."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import pyarrow as pa
+
+    from ovtraj.files import DecodedTables, parquet_bytes
+
+    payloads = [parquet_bytes(pa.table({"x": np.full(200, float(k))})) for k in range(24)]
+    keys = [Digest.of(p).sha256 for p in payloads]
+    size = DecodedTables(limit_bytes=0).get("any", payloads[0]).nbytes
+    tables = DecodedTables(limit_bytes=5 * size)
+
+    def read(k: int) -> float:
+        j = k % len(payloads)
+        return float(tables.get(keys[j], payloads[j])["x"][0].as_py()) - j
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # threads switch often: without its lock 20 of 20 runs fail
+    try:
+        with ThreadPoolExecutor(8) as threads:
+            offsets = list(threads.map(read, range(4000)))
+    finally:
+        sys.setswitchinterval(interval)
+    assert offsets == [0.0] * 4000
+    assert len(tables) <= 5 and tables.nbytes == len(tables) * size <= 5 * size
