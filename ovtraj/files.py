@@ -23,6 +23,7 @@ write leaves at most a temporary file (:func:`remove_orphans` clears them).
 from __future__ import annotations
 
 import errno
+import functools
 import hashlib
 import json
 import os
@@ -42,10 +43,10 @@ from ovtraj.records import json_text
 from ovtraj.storage import PreconditionFailed, S3Path, StorageError, location
 
 __all__ = [
-    "DECODED_TABLES",
     "DecodedTables",
     "Digest",
     "StoreError",
+    "decoded_tables",
     "file_digest",
     "os_error_text",
     "parquet_bytes",
@@ -65,10 +66,6 @@ TEMPORARY_SUFFIX = ".tmp"
 # zstd with byte-stream-split floats is 35-40 % smaller than snappy on trajectory tables.
 PARQUET_COMPRESSION = "zstd"
 PARQUET_COMPRESSION_LEVEL = 9
-# Arrow memory of the decoded tables kept for reuse (DecodedTables): the pipeline's later
-# rounds read the earlier rounds' files again; 5 % of its wall time (benchmarks/
-# surrogate_vs_direct.py's 30-evaluation pipelines, ~2 MB of tables each).
-DECODED_TABLES_BYTES = 256 * 2**20
 
 
 class StoreError(RuntimeError):
@@ -296,7 +293,13 @@ class DecodedTables:
         return self._bytes
 
 
-DECODED_TABLES = DecodedTables(DECODED_TABLES_BYTES)
+@functools.cache
+def decoded_tables() -> DecodedTables:
+    """This process's :class:`DecodedTables`, bounded by ``reads.decoded_tables_mib`` of
+    ``configs/orchestration.yaml`` (read at the first checked Parquet read)."""
+    from ovtraj.config.orchestration import load_orchestration
+
+    return DecodedTables(int(load_orchestration().reads.decoded_tables_mib * 2**20))
 
 
 def read_table(
@@ -305,13 +308,13 @@ def read_table(
     """A stored Parquet file as an Arrow table, checked (digest, then declared schema).
 
     The file is read and verified every time; with ``expected``, a payload decoded before
-    in this process is not decoded again (:data:`DECODED_TABLES`)."""
+    in this process is not decoded again (:func:`decoded_tables`)."""
     payload = read_bytes(path, expected)
     try:
         if expected is None:
             table = pq.read_table(pa.BufferReader(payload))
         else:
-            table = DECODED_TABLES.get(expected.sha256, payload)
+            table = decoded_tables().get(expected.sha256, payload)
     except (OSError, pa.ArrowException) as err:
         raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
     if schema is not None and not table.schema.equals(schema, check_metadata=False):

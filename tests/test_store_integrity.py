@@ -270,7 +270,7 @@ def test_a_file_decoded_before_is_still_verified_on_every_read(tmp_path):
     time, so a file changed after its first read is refused, not served from memory."""
     import pyarrow as pa
 
-    from ovtraj.files import DECODED_TABLES, parquet_bytes, read_table
+    from ovtraj.files import decoded_tables, parquet_bytes, read_table
 
     table = pa.table({"sample_id": pa.array([0, 1, 2], pa.int64()), "x": [1.0, 2.0, 3.0]})
     path = tmp_path / "part.parquet"
@@ -285,7 +285,10 @@ def test_a_file_decoded_before_is_still_verified_on_every_read(tmp_path):
         read_table(path, digest, table.schema)
     with pytest.raises(StoreError, match=r"part\.parquet: columns or types differ"):
         read_table(path, Digest.of(path.read_bytes()), pa.schema([("sample_id", pa.int32())]))
-    DECODED_TABLES.clear()
+    from ovtraj.config.orchestration import load_orchestration
+
+    assert decoded_tables().limit_bytes == load_orchestration().reads.decoded_tables_mib * 2**20
+    decoded_tables().clear()
     assert read_table(path, expected=None, schema=None).equals(changed)
 
 

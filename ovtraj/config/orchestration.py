@@ -112,12 +112,24 @@ class ConcurrencySettings(StrictModel):
     lease_s: float = bounded(unit="s", ge=60, le=86400, description="renewed while held")
 
 
+class ReadSettings(StrictModel):
+    """Checked reads of the stores (:mod:`ovtraj.files`)."""
+
+    decoded_tables_mib: float = bounded(
+        unit="MiB",
+        ge=0,
+        le=1024 * 1024,
+        description="Arrow memory kept of the decoded Parquet files, reused for the same bytes",
+    )
+
+
 class OrchestrationConfig(StrictModel):
     tasks: TaskTimeouts
     flows: FlowTimeouts
     dask: DaskSettings
     results: ResultSettings
     concurrency: ConcurrencySettings
+    reads: ReadSettings
 
 
 def load_orchestration(path: str | Path | None = None) -> OrchestrationConfig:
