@@ -30,7 +30,11 @@ at every step and at the end point: heat rate ``k_Q sqrt(rho) V^n``, normal load
 Compiled with numba's ``error_model="numpy"``: a division by zero gives inf or nan
 (the step's finiteness check then ends the flight ``DIVERGED``) instead of a Python
 exception, which spares a zero test on every division: 40 % of a flight's time
-(benchmarks/mission.py, issue 20).
+(benchmarks/mission.py, issue 20). Inside the step loop no array crosses a call: the
+state and the stages are scalars and the parameters and tables travel as one packed
+array (:func:`pack`), because numba counts references (atomic operations) to every
+array a compiled function receives; with the state, the stages and six tables as
+arrays those counts were half of a flight's time (perf, issue 20).
 """
 
 from __future__ import annotations
@@ -106,34 +110,6 @@ Tables = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nd
 
 
 @njit(cache=True, error_model="numpy")
-def _poly(c: np.ndarray, a: float, m: float) -> float:
-    total = 0.0
-    ai = 1.0
-    for i in range(c.shape[0]):
-        mj = 1.0
-        for j in range(c.shape[1]):
-            total += c[i, j] * ai * mj
-            mj *= m
-        ai *= a
-    return total
-
-
-@njit(cache=True, error_model="numpy")
-def _atmosphere(
-    h: float, p: np.ndarray, log_rho: np.ndarray, sound: np.ndarray
-) -> tuple[float, float]:
-    if p[P_ATM_MODEL] > 0.5:
-        return p[P_RHO0] * math.exp(-max(h, 0.0) / p[P_SCALE_HEIGHT]), p[P_SOUND]
-    step = p[P_ATM_STEP]
-    last = log_rho.shape[0] - 2
-    x = min(max(h, 0.0), step * (last + 1)) / step
-    k = min(int(x), last)
-    f = x - k
-    rho = math.exp(log_rho[k] + f * (log_rho[k + 1] - log_rho[k]))
-    return rho, sound[k] + f * (sound[k + 1] - sound[k])
-
-
-@njit(cache=True, error_model="numpy")
 def range_and_bearing(lat1: float, lon1: float, lat2: float, lon2: float) -> tuple[float, float]:
     """Central angle [rad] and initial bearing from north [rad] from point 1 to point 2."""
     return _range_and_bearing(lat1, lon1, lat2, lon2, math.cos(lat2), math.sin(lat2))
@@ -161,35 +137,92 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@njit(cache=True, error_model="numpy")
-def _interp(x: float, xs: np.ndarray, ys: np.ndarray) -> float:
-    """Piecewise-linear, held constant outside the nodes."""
-    if x <= xs[0]:
-        return ys[0]
-    n = xs.shape[0]
-    if x >= xs[n - 1]:
-        return ys[n - 1]
-    k = 0
-    while xs[k + 1] < x:
-        k += 1
-    return ys[k] + (ys[k + 1] - ys[k]) * (x - xs[k]) / (xs[k + 1] - xs[k])
+# The packed model (:func:`pack`): the float parameters (``P_*``), the table sizes
+# (``H_*``), then the tables: lift and drag coefficient matrices row by row, the Mach and
+# alpha nodes, the log-density and speed-of-sound tables. One array instead of a
+# parameter vector and six tables: numba counts references to every array a function
+# receives, and those atomic counts were half of a flight's time (issue 20).
+H_ROWS, H_COLS, H_MACH, H_ATM, N_HEADER = range(5)
 
 
 @njit(cache=True, error_model="numpy")
-def _coefficients(cl: np.ndarray, cd: np.ndarray, a: float, m: float) -> tuple[float, float]:
-    """Lift and drag coefficients: both polynomials in one pass over the powers."""
+def pack(p: np.ndarray, tables: Tables) -> np.ndarray:
+    """The parameters ``p`` and the vehicle and atmosphere ``tables`` in one array."""
+    cl, cd, mach_nodes, alpha_nodes, log_rho, sound = tables
+    rows, cols = cl.shape
+    n_mach, n_atm = mach_nodes.shape[0], log_rho.shape[0]
+    m = np.empty(N_PARAMS + N_HEADER + 2 * rows * cols + 2 * n_mach + 2 * n_atm)
+    m[:N_PARAMS] = p
+    m[N_PARAMS + H_ROWS] = rows
+    m[N_PARAMS + H_COLS] = cols
+    m[N_PARAMS + H_MACH] = n_mach
+    m[N_PARAMS + H_ATM] = n_atm
+    k = N_PARAMS + N_HEADER
+    for i in range(rows):
+        for j in range(cols):
+            m[k] = cl[i, j]
+            m[k + rows * cols] = cd[i, j]
+            k += 1
+    k += rows * cols
+    m[k : k + n_mach] = mach_nodes
+    m[k + n_mach : k + 2 * n_mach] = alpha_nodes
+    k += 2 * n_mach
+    m[k : k + n_atm] = log_rho
+    m[k + n_atm : k + 2 * n_atm] = sound
+    return m
+
+
+@njit(cache=True, error_model="numpy")
+def _aero_packed(r: float, v: float, m: np.ndarray) -> tuple[float, float, float, float, float]:
+    """Lift and drag accelerations [m/s^2], angle of attack [rad], Mach and density
+    [kg/m^3] at radius r [m] and speed v [m/s]: the atmosphere (US76 table, log-linear,
+    or exponential), the alpha schedule (piecewise linear in Mach, held outside its
+    nodes) and the coefficient polynomials ``C = sum c[i][j] alpha^i Mach^j``."""
+    rows, cols = int(m[N_PARAMS + H_ROWS]), int(m[N_PARAMS + H_COLS])
+    n_mach, n_atm = int(m[N_PARAMS + H_MACH]), int(m[N_PARAMS + H_ATM])
+    cl0 = N_PARAMS + N_HEADER
+    cd0 = cl0 + rows * cols
+    mach0 = cd0 + rows * cols
+    alpha0 = mach0 + n_mach
+    rho0 = alpha0 + n_mach
+    sound0 = rho0 + n_atm
+    h = r - m[P_RADIUS]
+    if m[P_ATM_MODEL] > 0.5:
+        rho, a = m[P_RHO0] * math.exp(-max(h, 0.0) / m[P_SCALE_HEIGHT]), m[P_SOUND]
+    else:
+        step = m[P_ATM_STEP]
+        last = n_atm - 2
+        x = min(max(h, 0.0), step * (last + 1)) / step
+        k = min(int(x), last)
+        f = x - k
+        rho = math.exp(m[rho0 + k] + f * (m[rho0 + k + 1] - m[rho0 + k]))
+        a = m[sound0 + k] + f * (m[sound0 + k + 1] - m[sound0 + k])
+    mach = v / a
+    if mach <= m[mach0]:
+        alpha = m[alpha0]
+    elif mach >= m[mach0 + n_mach - 1]:
+        alpha = m[alpha0 + n_mach - 1]
+    else:
+        k = 0
+        while m[mach0 + k + 1] < mach:
+            k += 1
+        alpha = m[alpha0 + k] + (m[alpha0 + k + 1] - m[alpha0 + k]) * (mach - m[mach0 + k]) / (
+            m[mach0 + k + 1] - m[mach0 + k]
+        )
+    q = 0.5 * rho * v * v / m[P_MASS_AREA]
+    a_unit = alpha * m[P_ALPHA_SCALE]
     c_lift = 0.0
     c_drag = 0.0
     ai = 1.0
-    for i in range(cl.shape[0]):
+    for i in range(rows):
         mj = 1.0
-        for j in range(cl.shape[1]):
+        for j in range(cols):
             term = ai * mj
-            c_lift += cl[i, j] * term
-            c_drag += cd[i, j] * term
-            mj *= m
-        ai *= a
-    return c_lift, c_drag
+            c_lift += m[cl0 + i * cols + j] * term
+            c_drag += m[cd0 + i * cols + j] * term
+            mj *= mach
+        ai *= a_unit
+    return q * c_lift, q * c_drag, alpha, mach, rho
 
 
 @njit(cache=True, error_model="numpy")
@@ -199,22 +232,51 @@ def _aero(
     tables: Tables,
 ) -> tuple[float, float, float, float, float]:
     """Lift and drag accelerations, angle of attack, Mach and density at state x."""
-    cl, cd, mach_nodes, alpha_nodes, log_rho, sound = tables
-    h = x[0] - p[P_RADIUS]
-    rho, a = _atmosphere(h, p, log_rho, sound)
-    mach = x[3] / a
-    alpha = _interp(mach, mach_nodes, alpha_nodes)
-    q = 0.5 * rho * x[3] * x[3] / p[P_MASS_AREA]
-    c_lift, c_drag = _coefficients(cl, cd, alpha * p[P_ALPHA_SCALE], mach)
-    return q * c_lift, q * c_drag, alpha, mach, rho
+    return _aero_packed(x[0], x[3], pack(p, tables))
 
 
 @njit(cache=True, error_model="numpy")
-def _bank_magnitude(v: float, p: np.ndarray) -> float:
-    span = p[P_V_START] - p[P_V_END]
-    frac = 0.0 if span <= 0.0 else min(max((p[P_V_START] - v) / span, 0.0), 1.0)
-    sigma = p[P_SIGMA0] + (p[P_SIGMA1] - p[P_SIGMA0]) * frac
-    return min(max(sigma, 0.0), p[P_SIGMA_MAX])
+def _bank_magnitude(v: float, m: np.ndarray) -> float:
+    span = m[P_V_START] - m[P_V_END]
+    frac = 0.0 if span <= 0.0 else min(max((m[P_V_START] - v) / span, 0.0), 1.0)
+    sigma = m[P_SIGMA0] + (m[P_SIGMA1] - m[P_SIGMA0]) * frac
+    return min(max(sigma, 0.0), m[P_SIGMA_MAX])
+
+
+@njit(cache=True, error_model="numpy")
+def _stage_rates(
+    r: float,
+    lat: float,
+    v: float,
+    gamma: float,
+    psi: float,
+    sign: float,
+    lift: float,
+    drag: float,
+    m: np.ndarray,
+) -> tuple[float, float, float, float, float, float]:
+    """The state derivatives (module equations) with the lift and drag at the state."""
+    # The magnitude follows the stage's speed (it is a function of the state); only
+    # the sign, a guidance decision, is held over the step.
+    sigma = sign * _bank_magnitude(v, m)
+    return point_mass_rates_of(
+        r, lat, v, gamma, psi, lift, drag, sigma, m[P_MU] / (r * r), m[P_OMEGA]
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _stage(
+    r: float,
+    lat: float,
+    v: float,
+    gamma: float,
+    psi: float,
+    sign: float,
+    m: np.ndarray,
+) -> tuple[float, float, float, float, float, float]:
+    """The state derivatives at a state (its aerodynamics evaluated)."""
+    lift, drag, _, _, _ = _aero_packed(r, v, m)
+    return _stage_rates(r, lat, v, gamma, psi, sign, lift, drag, m)
 
 
 @njit(cache=True, error_model="numpy")
@@ -225,20 +287,50 @@ def _derivatives(
     tables: Tables,
     out: np.ndarray,
 ) -> None:
-    lift, drag, _, _, _ = _aero(x, p, tables)
-    _rates(x, sign, lift, drag, p, out)
+    out[:] = _stage(x[0], x[2], x[3], x[4], x[5], sign, pack(p, tables))
 
 
 @njit(cache=True, error_model="numpy")
-def _rates(
-    x: np.ndarray, sign: float, lift: float, drag: float, p: np.ndarray, out: np.ndarray
-) -> None:
-    """The state derivatives (module equations) with the lift and drag at x given."""
-    r, v = x[0], x[3]
-    # The magnitude follows the stage's speed (it is a function of the state); only
-    # the sign, a guidance decision, is held over the step.
-    sigma = sign * _bank_magnitude(v, p)
-    point_mass_rates(r, x[2], v, x[4], x[5], lift, drag, sigma, p[P_MU] / (r * r), p[P_OMEGA], out)
+def point_mass_rates_of(
+    r: float,
+    lat: float,
+    v: float,
+    gamma: float,
+    psi: float,
+    lift: float,
+    drag: float,
+    bank: float,
+    g: float,
+    omega: float,
+) -> tuple[float, float, float, float, float, float]:
+    """d/dt of (r or h, lon, lat, V, gamma, psi): the module equations (Vinh, Busemann &
+    Culp 1980, ch. 2), radius r [m], speed [m/s], angles [rad], lift and drag
+    accelerations and gravity g [m/s^2], Earth rate omega [rad/s]. The same primitive for
+    the guided entry and the optimal entry's compiled re-flight."""
+    w = omega
+    cg, sg = math.cos(gamma), math.sin(gamma)
+    cl_, sl = math.cos(lat), math.sin(lat)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return (
+        v * sg,
+        v * cg * sp / (r * cl_),
+        v * cg * cp / r,
+        -drag - g * sg + w * w * r * cl_ * (sg * cl_ - cg * sl * cp),
+        (
+            lift * math.cos(bank)
+            + (v * v / r - g) * cg
+            + 2.0 * w * v * cl_ * sp
+            + w * w * r * cl_ * (cg * cl_ + sg * cp * sl)
+        )
+        / v,
+        (
+            lift * math.sin(bank) / cg
+            + v * v / r * cg * sp * sl / cl_
+            - 2.0 * w * v * (sg / cg * cp * cl_ - sl)
+            + w * w * r * sp * sl * cl_ / cg
+        )
+        / v,
+    )
 
 
 @njit(cache=True, error_model="numpy")
@@ -255,30 +347,18 @@ def point_mass_rates(
     omega: float,
     out: np.ndarray,
 ) -> None:
-    """d/dt of (r or h, lon, lat, V, gamma, psi): the module equations (Vinh, Busemann &
-    Culp 1980, ch. 2), radius r [m], speed [m/s], angles [rad], lift and drag
-    accelerations and gravity g [m/s^2], Earth rate omega [rad/s]. The same primitive for
-    the guided entry and the optimal entry's compiled re-flight."""
-    w = omega
-    cg, sg = math.cos(gamma), math.sin(gamma)
-    cl_, sl = math.cos(lat), math.sin(lat)
-    cp, sp = math.cos(psi), math.sin(psi)
-    out[0] = v * sg
-    out[1] = v * cg * sp / (r * cl_)
-    out[2] = v * cg * cp / r
-    out[3] = -drag - g * sg + w * w * r * cl_ * (sg * cl_ - cg * sl * cp)
-    out[4] = (
-        lift * math.cos(bank)
-        + (v * v / r - g) * cg
-        + 2.0 * w * v * cl_ * sp
-        + w * w * r * cl_ * (cg * cl_ + sg * cp * sl)
-    ) / v
-    out[5] = (
-        lift * math.sin(bank) / cg
-        + v * v / r * cg * sp * sl / cl_
-        - 2.0 * w * v * (sg / cg * cp * cl_ - sl)
-        + w * w * r * sp * sl * cl_ / cg
-    ) / v
+    """:func:`point_mass_rates_of` into ``out``."""
+    out[:] = point_mass_rates_of(r, lat, v, gamma, psi, lift, drag, bank, g, omega)
+
+
+@njit(cache=True, error_model="numpy")
+def _path_of(
+    v: float, lift: float, drag: float, alpha: float, rho: float, m: np.ndarray
+) -> tuple[float, float, float]:
+    """Heat rate ``k_Q sqrt(rho) V^n`` [W/m^2], normal load [g], dynamic pressure [Pa]."""
+    heat = m[P_KQ] * math.sqrt(rho) * v ** m[P_NQ]
+    load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / m[P_G0]
+    return heat, load, 0.5 * rho * v * v
 
 
 @njit(cache=True, error_model="numpy")
@@ -288,28 +368,30 @@ def _path(
     tables: Tables,
 ) -> tuple[float, float, float, float, float, float]:
     """Angle of attack, Mach, density, heat rate, normal load [g], dynamic pressure."""
-    lift, drag, alpha, mach, rho = _aero(x, p, tables)
-    return _path_from(x, p, lift, drag, alpha, mach, rho)
+    m = pack(p, tables)
+    lift, drag, alpha, mach, rho = _aero_packed(x[0], x[3], m)
+    heat, load, qdyn = _path_of(x[3], lift, drag, alpha, rho, m)
+    return alpha, mach, rho, heat, load, qdyn
 
 
 @njit(cache=True, error_model="numpy")
-def _path_from(
-    x: np.ndarray, p: np.ndarray, lift: float, drag: float, alpha: float, mach: float, rho: float
+def _raised(
+    maxima: tuple[float, float, float, float, float, float],
+    t: float,
+    heat: float,
+    load: float,
+    qdyn: float,
 ) -> tuple[float, float, float, float, float, float]:
-    """:func:`_path` from the aerodynamics at x."""
-    heat = p[P_KQ] * math.sqrt(rho) * x[3] ** p[P_NQ]
-    load = abs(lift * math.cos(alpha) + drag * math.sin(alpha)) / p[P_G0]
-    return alpha, mach, rho, heat, load, 0.5 * rho * x[3] * x[3]
-
-
-@njit(cache=True, error_model="numpy")
-def _update_maxima(maxima: np.ndarray, t: float, heat: float, load: float, qdyn: float) -> None:
-    if heat > maxima[0]:
-        maxima[0], maxima[1] = heat, t
-    if load > maxima[2]:
-        maxima[2], maxima[3] = load, t
-    if qdyn > maxima[4]:
-        maxima[4], maxima[5] = qdyn, t
+    """(heat rate, its time, load, its time, dynamic pressure, its time) with the values
+    at time t counted."""
+    q_max, q_t, n_max, n_t, p_max, p_t = maxima
+    if heat > q_max:
+        q_max, q_t = heat, t
+    if load > n_max:
+        n_max, n_t = load, t
+    if qdyn > p_max:
+        p_max, p_t = qdyn, t
+    return q_max, q_t, n_max, n_t, p_max, p_t
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -324,46 +406,49 @@ def fly(
     ``maxima``: heat rate [W/m^2], its time, load [g], its time, dynamic pressure
     [Pa], its time, largest |bank| [rad].
     """
-    dt = p[P_STEP]
-    n_max = int(p[P_MAX_TIME] / dt) + 2
+    m = pack(p, tables)
+    dt = m[P_STEP]
+    n_max = int(m[P_MAX_TIME] / dt) + 2
     history = np.zeros((n_max if record else 1, 15))
-    maxima = np.zeros(7)
+    maxima = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    max_bank = 0.0
     x = x0.copy()
-    new, stage = np.empty(6), np.empty(6)
-    k1, k2, k3, k4 = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     t = 0.0
-    sign = p[P_BANK_SIGN]
-    if p[P_GUIDED] > 0.5:
-        _, bearing = range_and_bearing(x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON])
+    sign = m[P_BANK_SIGN]
+    guided = m[P_GUIDED] > 0.5
+    site_lat, site_lon = m[P_TARGET_LAT], m[P_TARGET_LON]
+    if guided:
+        _, bearing = range_and_bearing(x[2], x[1], site_lat, site_lon)
         sign = -1.0 if _wrap(x[5] - bearing) > 0.0 else 1.0
     reversals = 0
     n = 0
     status = TIME_LIMIT
-    cos_site, sin_site = math.cos(p[P_TARGET_LAT]), math.sin(p[P_TARGET_LAT])
-    while t < p[P_MAX_TIME]:
-        angle, bearing = _range_and_bearing(
-            x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON], cos_site, sin_site
-        )
-        togo = angle * p[P_RADIUS]
-        if p[P_GUIDED] > 0.5:
-            frac = min(togo / p[P_CORRIDOR_RANGE], 1.0)
-            corridor = p[P_CORRIDOR_MIN] + (p[P_CORRIDOR_MAX] - p[P_CORRIDOR_MIN]) * frac
-            error = _wrap(x[5] - bearing)
+    cos_site, sin_site = math.cos(site_lat), math.sin(site_lat)
+    # The state and the stages as scalars: no array crosses a call in the loop.
+    r, lon, lat, v, gamma, psi = x[0], x[1], x[2], x[3], x[4], x[5]
+    while t < m[P_MAX_TIME]:
+        angle, bearing = _range_and_bearing(lat, lon, site_lat, site_lon, cos_site, sin_site)
+        togo = angle * m[P_RADIUS]
+        if guided:
+            frac = min(togo / m[P_CORRIDOR_RANGE], 1.0)
+            corridor = m[P_CORRIDOR_MIN] + (m[P_CORRIDOR_MAX] - m[P_CORRIDOR_MIN]) * frac
+            error = _wrap(psi - bearing)
             if error > corridor and sign > 0.0:
                 sign = -1.0
                 reversals += 1
             elif error < -corridor and sign < 0.0:
                 sign = 1.0
                 reversals += 1
-        sigma = sign * _bank_magnitude(x[3], p)
+        sigma = sign * _bank_magnitude(v, m)
         # One aerodynamic evaluation at x serves the path quantities and the first stage.
-        lift, drag, alpha, mach, rho = _aero(x, p, tables)
-        alpha, mach, rho, heat, load, qdyn = _path_from(x, p, lift, drag, alpha, mach, rho)
-        _update_maxima(maxima, t, heat, load, qdyn)
-        maxima[6] = max(maxima[6], abs(sigma))
+        lift, drag, alpha, mach, rho = _aero_packed(r, v, m)
+        heat, load, qdyn = _path_of(v, lift, drag, alpha, rho, m)
+        maxima = _raised(maxima, t, heat, load, qdyn)
+        max_bank = max(max_bank, abs(sigma))
         if record:
             history[n, 0] = t
-            history[n, 1:7] = x
+            history[n, 1], history[n, 2], history[n, 3] = r, lon, lat
+            history[n, 4], history[n, 5], history[n, 6] = v, gamma, psi
             history[n, 7] = alpha
             history[n, 8] = sigma
             history[n, 9] = mach
@@ -373,52 +458,73 @@ def fly(
             history[n, 13] = qdyn
             history[n, 14] = togo
         n += 1
-        _rates(x, sign, lift, drag, p, k1)
-        for i in range(6):
-            stage[i] = x[i] + 0.5 * dt * k1[i]
-        _derivatives(stage, sign, p, tables, k2)
-        for i in range(6):
-            stage[i] = x[i] + 0.5 * dt * k2[i]
-        _derivatives(stage, sign, p, tables, k3)
-        for i in range(6):
-            stage[i] = x[i] + dt * k3[i]
-        _derivatives(stage, sign, p, tables, k4)
+        k1 = _stage_rates(r, lat, v, gamma, psi, sign, lift, drag, m)
+        h = 0.5 * dt
+        k2 = _stage(
+            r + h * k1[0], lat + h * k1[2], v + h * k1[3], gamma + h * k1[4], psi + h * k1[5],
+            sign, m,
+        )  # fmt: skip
+        k3 = _stage(
+            r + h * k2[0], lat + h * k2[2], v + h * k2[3], gamma + h * k2[4], psi + h * k2[5],
+            sign, m,
+        )  # fmt: skip
+        k4 = _stage(
+            r + dt * k3[0], lat + dt * k3[2], v + dt * k3[3], gamma + dt * k3[4],
+            psi + dt * k3[5], sign, m,
+        )  # fmt: skip
+        w = dt / 6.0
+        new = (
+            r + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+            lon + w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+            lat + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
+            v + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
+            gamma + w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4]),
+            psi + w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5]),
+        )
         finite = True
-        for i in range(6):
-            new[i] = x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-            finite = finite and math.isfinite(new[i])
+        for value in new:
+            finite = finite and math.isfinite(value)
         if not finite:
             status = DIVERGED
             break
-        if new[3] <= p[P_V_END]:
-            f = (x[3] - p[P_V_END]) / (x[3] - new[3])
-            for i in range(6):
-                x[i] += f * (new[i] - x[i])
+        if new[3] <= m[P_V_END]:
+            f = (v - m[P_V_END]) / (v - new[3])
+            r, lon, lat = r + f * (new[0] - r), lon + f * (new[1] - lon), lat + f * (new[2] - lat)
+            v, gamma, psi = (
+                v + f * (new[3] - v),
+                gamma + f * (new[4] - gamma),
+                psi + f * (new[5] - psi),
+            )
             t += f * dt
             status = TERMINAL
             break
-        x[:] = new
+        r, lon, lat, v, gamma, psi = new
         t += dt
-        if x[0] <= p[P_RADIUS]:
+        if r <= m[P_RADIUS]:
             status = CRASHED
             break
-        if x[0] > p[P_SKIP_RADIUS] and x[4] > 0.0:
+        if r > m[P_SKIP_RADIUS] and gamma > 0.0:
             status = SKIPPED
             break
+    x[0], x[1], x[2], x[3], x[4], x[5] = r, lon, lat, v, gamma, psi
     # The end point (e.g. interpolated to the terminal speed) counts for the maxima too.
-    alpha, mach, rho, heat, load, qdyn = _path(x, p, tables)
-    _update_maxima(maxima, t, heat, load, qdyn)
+    lift, drag, alpha, mach, rho = _aero_packed(r, v, m)
+    heat, load, qdyn = _path_of(v, lift, drag, alpha, rho, m)
+    maxima = _raised(maxima, t, heat, load, qdyn)
     if record:
         history[n, 0] = t
         history[n, 1:7] = x
-        angle, _ = range_and_bearing(x[2], x[1], p[P_TARGET_LAT], p[P_TARGET_LON])
+        angle, _ = range_and_bearing(lat, lon, site_lat, site_lon)
         history[n, 7] = alpha
-        history[n, 8] = sign * _bank_magnitude(x[3], p)
+        history[n, 8] = sign * _bank_magnitude(v, m)
         history[n, 9] = mach
         history[n, 10] = rho
         history[n, 11] = heat
         history[n, 12] = load
         history[n, 13] = qdyn
-        history[n, 14] = angle * p[P_RADIUS]
+        history[n, 14] = angle * m[P_RADIUS]
         n += 1
-    return status, t, x, maxima, reversals, history, n
+    out = np.empty(7)
+    out[:6] = maxima
+    out[6] = max_bank
+    return status, t, x, out, reversals, history, n
