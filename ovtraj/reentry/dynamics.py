@@ -302,27 +302,26 @@ def _shifted(c: float, s: float, angle: float, start: float) -> tuple[float, flo
 
 @njit(cache=True, error_model="numpy")
 def _stage(
-    r: float,
-    lat: float,
-    v: float,
-    gamma: float,
-    psi: float,
+    state: tuple[float, float, float, float, float],
+    aero: tuple[float, float, float, float, float],
+    bank: float,
     sign: float,
-    m: np.ndarray,
+    mu: float,
+    omega: float,
     start: StepStart,
 ) -> tuple[float, float, float, float, float, float]:
-    """The state derivatives at an RK4 stage, its aerodynamics evaluated and its angles'
-    cosines and sines shifted from the step's ``start``. The bank magnitude follows the
-    stage's speed (it is a function of the state); only the sign, a guidance decision,
-    is held over the step."""
-    lift, drag, _, _, _ = _aero_packed(r, v, m)
+    """The state derivatives at an RK4 stage: ``state`` (r, lat, V, gamma, psi), its
+    aerodynamics (:func:`_aero_packed`) and bank magnitude, its angles' cosines and sines
+    shifted from the step's ``start``. The magnitude follows the stage's speed (it is a
+    function of the state); only the sign, a guidance decision, is held over the step.
+    Scalars only: no array reference to count (see the module's notes)."""
+    r, lat, v, gamma, psi = state
     cl_, sl = _shifted(start[4], start[5], lat, start[0])
     cg, sg = _shifted(start[6], start[7], gamma, start[1])
     cp, sp = _shifted(start[8], start[9], psi, start[2])
-    cb, sb = _shifted(start[10], start[11], _bank_magnitude(v, m), start[3])
-    g = m[P_MU] / (r * r)
+    cb, sb = _shifted(start[10], start[11], bank, start[3])
     return point_mass_rates_trig(
-        r, v, cl_, sl, cg, sg, cp, sp, cb, sign * sb, lift, drag, g, m[P_OMEGA]
+        r, v, cl_, sl, cg, sg, cp, sp, cb, sign * sb, aero[0], aero[1], mu / (r * r), omega
     )
 
 
@@ -511,6 +510,7 @@ def fly(
     n = 0
     status = TIME_LIMIT
     cos_site, sin_site = math.cos(site_lat), math.sin(site_lat)
+    mu, omega = m[P_MU], m[P_OMEGA]
     # The state and the stages as scalars: no array crosses a call in the loop.
     r, lon, lat, v, gamma, psi = x[0], x[1], x[2], x[3], x[4], x[5]
     while t < m[P_MAX_TIME]:
@@ -551,21 +551,21 @@ def fly(
         n += 1
         k1 = point_mass_rates_trig(
             r, v, start[4], start[5], start[6], start[7], start[8], start[9],
-            start[10], sign * start[11], lift, drag, m[P_MU] / (r * r), m[P_OMEGA],
+            start[10], sign * start[11], lift, drag, mu / (r * r), omega,
         )  # fmt: skip
         h = 0.5 * dt
-        k2 = _stage(
-            r + h * k1[0], lat + h * k1[2], v + h * k1[3], gamma + h * k1[4], psi + h * k1[5],
-            sign, m, start,
-        )  # fmt: skip
-        k3 = _stage(
-            r + h * k2[0], lat + h * k2[2], v + h * k2[3], gamma + h * k2[4], psi + h * k2[5],
-            sign, m, start,
-        )  # fmt: skip
-        k4 = _stage(
+        s2 = (r + h * k1[0], lat + h * k1[2], v + h * k1[3], gamma + h * k1[4], psi + h * k1[5])
+        a2 = _aero_packed(s2[0], s2[2], m)
+        k2 = _stage(s2, a2, _bank_magnitude(s2[2], m), sign, mu, omega, start)
+        s3 = (r + h * k2[0], lat + h * k2[2], v + h * k2[3], gamma + h * k2[4], psi + h * k2[5])
+        a3 = _aero_packed(s3[0], s3[2], m)
+        k3 = _stage(s3, a3, _bank_magnitude(s3[2], m), sign, mu, omega, start)
+        s4 = (
             r + dt * k3[0], lat + dt * k3[2], v + dt * k3[3], gamma + dt * k3[4],
-            psi + dt * k3[5], sign, m, start,
+            psi + dt * k3[5],
         )  # fmt: skip
+        a4 = _aero_packed(s4[0], s4[2], m)
+        k4 = _stage(s4, a4, _bank_magnitude(s4[2], m), sign, mu, omega, start)
         w = dt / 6.0
         new = (
             r + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
