@@ -151,7 +151,13 @@ def _range_and_bearing_trig(
 
 @njit(cache=True, error_model="numpy")
 def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    """``angle`` in [-pi, pi) [rad]."""
+    shifted = angle + math.pi
+    if 0.0 <= shifted < 2.0 * math.pi:
+        # The modulo would return ``shifted`` itself (exact): skip its library call, a
+        # few % of a flight (issue 20).
+        return shifted - math.pi
+    return shifted % (2.0 * math.pi) - math.pi
 
 
 # The packed model (:func:`pack`): the float parameters (``P_*``), the table sizes
