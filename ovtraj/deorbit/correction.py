@@ -90,7 +90,7 @@ class DescentModel:
         before = self.preparation.state_at(burn_t_s)
         basis = rsw_basis(before[:3], before[3:])
         dv_eci = np.asarray(dv_rsw_mps, dtype=float) @ basis
-        after = np.r_[before[:3], before[3:] + dv_eci]
+        after = np.concatenate((before[:3], before[3:] + dv_eci))
         self.propagations += 1
         descent = self.propagator.propagate(
             after,
