@@ -251,7 +251,11 @@ def test_state_transition_matrix_against_central_differences(earth, j2):
 
 
 def test_batch_state_transition_matrices_equal_the_scalar_ones(earth, j2):
-    """More states than SIMD lanes (chunks and a padded last one), each with its times."""
+    """More states than SIMD lanes (chunks and a padded last one), each with its times.
+
+    The batch integrator is compiled without compact mode (issue 20) and the scalar one
+    with it: the same Taylor method, other operation order, so they agree to the
+    integration's tolerance (up to 2.4e-8 m on ~7e6 m here), not to the bit."""
     rng = np.random.default_rng(7)
     base = _state(earth, earth.radius + 300e3, 0.001, 51.6)
     states = base + rng.normal(size=(11, 6)) * np.r_[np.full(3, 1e3), np.full(3, 1.0)]
@@ -260,7 +264,7 @@ def test_batch_state_transition_matrices_equal_the_scalar_ones(earth, j2):
     finals, stms = j2.propagate_with_stm_batch(states, t0, t1)
     for k in range(11):
         final, stm = j2.propagate_with_stm(states[k], t0[k], t1[k])
-        np.testing.assert_allclose(finals[k], final, rtol=1e-13, atol=1e-9)
+        np.testing.assert_allclose(finals[k], final, rtol=TOL, atol=1e6 * TOL)
         np.testing.assert_allclose(stms[k], stm, rtol=1e-11, atol=1e-12)
     with pytest.raises(FloatingPointError, match="variational propagation failed"):
         j2.propagate_with_stm_batch(np.vstack([states[:2], np.zeros(6)]), 0.0, 100.0)

@@ -663,3 +663,66 @@ def test_seed_001_aero_expressible():
         / inp.earth.g0_m_s2
     )
     assert row[COL["load_g"]] == pytest.approx(load, rel=1e-12)
+
+
+# --- 9. the flight kernel's shortcuts (issue 20) ----------------------------------------------
+
+
+def test_angle_addition_gives_the_cosine_and_sine_within_two_ulp():
+    """cos and sin of a stage's angle from the step's start (angle addition, the
+    increment's Taylor series) against the library's, over every increment a stage
+    takes; a far increment is the library's value itself."""
+    rng = np.random.default_rng(20)
+    worst = 0.0
+    for start in rng.uniform(-math.pi, math.pi, 400):
+        for d in rng.uniform(-0.05, 0.05, 25):
+            c, s = dyn._shifted(math.cos(start), math.sin(start), start + d, start)
+            angle = start + d
+            worst = max(worst, abs(c - math.cos(angle)), abs(s - math.sin(angle)))
+    assert worst <= 2 * np.finfo(float).eps
+    far = 1.0 + 0.06
+    assert dyn._shifted(math.cos(1.0), math.sin(1.0), far, 1.0) == (math.cos(far), math.sin(far))
+
+
+def test_stage_rates_by_angle_addition_match_the_module_equations():
+    """The RK4 stages' rates (angles shifted from the step's start) against
+    :func:`point_mass_rates_of` (the library's cosines and sines) at the same state."""
+    rng = np.random.default_rng(5)
+    mu, omega = 3.986004418e14, 7.2921159e-5
+    for _ in range(200):
+        r = 6.371e6 + rng.uniform(25e3, 120e3)
+        lat0, gamma0, psi0, bank0 = rng.uniform(-1.2, 1.2), -0.02, rng.uniform(-3, 3), 0.7
+        start = dyn._start_of_step(lat0, gamma0, psi0, bank0)
+        d = rng.uniform(-0.01, 0.01, 4)
+        state = (r, lat0 + d[0], rng.uniform(800.0, 7600.0), gamma0 + d[1], psi0 + d[2])
+        aero = (rng.uniform(0.0, 30.0), rng.uniform(0.0, 30.0), 0.0, 0.0, 0.0)
+        sign = rng.choice([-1.0, 1.0])
+        shifted = dyn._stage(state, aero, bank0 + d[3], sign, mu, omega, start)
+        g = mu / (r * r)
+        direct = dyn.point_mass_rates_of(
+            r, state[1], state[2], state[3], state[4], aero[0], aero[1],
+            sign * (bank0 + d[3]), g, omega,
+        )  # fmt: skip
+        assert np.allclose(shifted, direct, rtol=1e-13, atol=1e-18)
+
+
+@pytest.mark.parametrize("angle", [-10.0, -math.pi - 1e-12, -math.pi, -1.0, 0.0, 3.0, math.pi, 7.5])
+def test_heading_wrap_equals_the_modulo(angle):
+    expected = (angle + math.pi) % (2.0 * math.pi) - math.pi
+    assert dyn._wrap(angle) == expected
+    assert -math.pi <= dyn._wrap(angle) < math.pi
+
+
+def test_packed_model_holds_the_parameters_and_tables_in_order():
+    """:func:`~ovtraj.reentry.dynamics.pack`: parameters, sizes, then the tables row by row."""
+    _, model = setup()
+    m = dyn.pack(model.params, model.tables)
+    n = dyn.N_PARAMS
+    assert np.array_equal(m[:n], model.params)
+    rows, cols = model.cl.shape
+    sizes = m[n : n + dyn.N_HEADER]
+    assert list(sizes) == [rows, cols, len(model.mach_nodes), len(model.log_rho)]
+    k = n + dyn.N_HEADER
+    pieces = (model.cl, model.cd, model.mach_nodes, model.alpha_nodes, model.log_rho, model.sound)
+    tables = np.concatenate([np.ravel(piece) for piece in pieces])
+    assert np.array_equal(m[k:], tables)

@@ -291,6 +291,11 @@ def _start_of_step(lat: float, gamma: float, psi: float, bank: float) -> StepSta
     )
 
 
+# Largest increment [rad] whose cosine and sine :func:`_shifted` takes from a series:
+# the truncation is below 1e-19 there; a stage's increments are < 0.01 rad.
+_SHIFT_MAX_RAD = 0.05
+
+
 @njit(cache=True, error_model="numpy")
 def _shifted(c: float, s: float, angle: float, start: float) -> tuple[float, float]:
     """cos and sin of ``angle`` from those of a nearby ``start`` (c, s): angle addition
@@ -298,7 +303,7 @@ def _shifted(c: float, s: float, angle: float, start: float) -> tuple[float, flo
     increments up to 0.05 rad, a stage's are < 0.01); a far angle is computed directly.
     Within an RK4 step this replaces 12 of 16 cosine-sine pairs (issue 20)."""
     d = angle - start
-    if abs(d) > 0.05:
+    if abs(d) > _SHIFT_MAX_RAD:
         return math.cos(angle), math.sin(angle)
     d2 = d * d
     cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0 - d2 * (1.0 / 40320.0))))

@@ -393,10 +393,11 @@ class OrbitPropagator:
     ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`propagate_with_stm` of many states at once: (n, 6) and (n, 6, 6).
 
-        heyoka's batch mode (SIMD lanes, each with its own steps and times): the lanes give
-        the scalar integrator's numbers, and a batch of 8 costs ~1.4 scalar propagations
-        (e.g. the columns of a finite-difference Hessian). Raises ``FloatingPointError``
-        if any propagation fails, as the scalar call does.
+        heyoka's batch mode (SIMD lanes, each with its own steps and times), compiled
+        without compact mode: the lanes agree with the scalar integrator to the
+        integration's tolerance (not to the bit), and a batch of 8 costs about what one
+        scalar propagation does (e.g. the columns of a finite-difference Hessian). Raises
+        ``FloatingPointError`` if any propagation fails, as the scalar call does.
         """
         states0 = np.atleast_2d(np.asarray(states0, dtype=float))
         n = len(states0)
