@@ -99,3 +99,44 @@ def test_the_gradient_from_one_correlation_evaluation_equals_smts(ours, options)
         stock, _ = LikelihoodEvaluator.gradient(evaluator, theta)
         np.testing.assert_array_equal(mine, stock)
     assert model.corr is kernel  # the kernel back after each gradient
+
+
+@pytest.mark.parametrize(("ours", "options", "dim"), [(_KRG, {}, 3), (_KPLS, {"n_comp": 2}, 4)])
+def test_the_ordinary_path_evaluates_as_stock_smt(ours, options, dim):
+    """The evaluation and the gradient through LAPACK directly: stock SMT's value, gradient
+    and every parameter, to the bit, over hyperparameters from tiny to large (issue 20)."""
+    rng = np.random.default_rng(11)
+    u = rng.random((25, dim))
+    model = _fitted(ours, u, np.cos(2.0 * u[:, 0]) * u[:, -1], **options)
+    evaluator = model._likelihood_evaluator
+    for scale in (1e-3, 0.3, 1.0, 4.0, 60.0):
+        theta = np.atleast_1d(model.optimal_theta) * scale
+        value, par = evaluator.evaluate(theta)
+        stock_value, stock_par = LikelihoodEvaluator.evaluate(evaluator, theta)
+        assert value == stock_value
+        assert list(par) == list(stock_par)
+        for name, array in stock_par.items():
+            np.testing.assert_array_equal(par[name], array)
+        evaluator.forget()
+        gradient, gradient_par = evaluator.gradient(theta)
+        evaluator.forget()
+        stock_gradient, stock_gradient_par = LikelihoodEvaluator.gradient(evaluator, theta)
+        np.testing.assert_array_equal(gradient, stock_gradient)
+        for name in ("dr", "tr", "dmu", "arg", "dsigma", "dbeta_all"):
+            for mine, stock in zip(gradient_par[name], stock_gradient_par[name], strict=True):
+                np.testing.assert_array_equal(mine, stock)
+        evaluator.forget()
+
+
+def test_a_correlation_matrix_that_is_not_positive_definite_has_no_likelihood():
+    """Two equal inputs make R singular without a nugget: -inf and no parameters, as SMT
+    returns (without its printout)."""
+    rng = np.random.default_rng(2)
+    u = rng.random((8, 2))
+    model = _fitted(_KRG, u, u[:, 0])
+    evaluator = model._likelihood_evaluator
+    model.options["nugget"] = 0.0
+    model.D[0] = 0.0  # the first pair's inputs made equal: their correlation is 1
+    value, par = evaluator.evaluate(np.array([1e-3, 1e-3]))
+    assert value == -np.inf
+    assert par == {}
