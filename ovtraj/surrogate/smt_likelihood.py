@@ -59,12 +59,36 @@ class RememberedLikelihood(LikelihoodEvaluator):
         super().__init__(model)
         self.evaluations = 0  # computed
         self.remembered = 0  # answered from memory
+        # The model's path (:func:`_ordinary`, a power-exponential kernel), asked once: the
+        # checks walk SMT's design space on every call.
+        self._ordinary: bool | None = None
+        self._power_exponential: bool | None = None
         self.forget()
 
     def forget(self) -> None:
         """Drops the remembered evaluation (its arrays)."""
         self._last_key: tuple | None = None
         self._last: tuple[float, dict] | None = None
+        # The last computed ordinary evaluation's correlations (the gradient's too) and the
+        # flat positions of the correlation matrix's two triangles.
+        self._correlations: np.ndarray | None = None
+        self._triangles: tuple[tuple, np.ndarray, np.ndarray] | None = None
+
+    def _paths(self) -> tuple[bool, bool]:
+        if self._ordinary is None:
+            m = self._model
+            self._power_exponential = bool(m.is_continuous and type(m.corr) is PowExp)
+            self._ordinary = _ordinary(m)
+        return bool(self._ordinary), bool(self._power_exponential)
+
+    def triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Flat indices of the pairs ``m.ij`` and of their mirror in an (nt, nt) matrix."""
+        m = self._model
+        key = (id(m.ij), m.ij.shape, m.nt)
+        if self._triangles is None or self._triangles[0] != key:
+            i, j = m.ij[:, 0], m.ij[:, 1]
+            self._triangles = (key, i * m.nt + j, j * m.nt + i)
+        return self._triangles[1], self._triangles[2]
 
     def _key(self, theta: Any) -> tuple:
         m = self._model
@@ -76,7 +100,7 @@ class RememberedLikelihood(LikelihoodEvaluator):
         key = self._key(theta)
         if self._last is not None and key == self._last_key:
             m = self._model
-            if m.is_continuous:
+            if self._paths()[1] or m.is_continuous:
                 # What the evaluation sets on the kernel before computing (SMT's order).
                 noise_theta = m._eval_noise and not m.options["use_het_noise"]
                 m.corr.theta = theta[0:-1] if noise_theta else theta
@@ -84,7 +108,7 @@ class RememberedLikelihood(LikelihoodEvaluator):
             value, par = self._last
             return value, dict(par)
         value, par = (
-            _ordinary_evaluation(self, theta) if _ordinary(self._model) else super().evaluate(theta)
+            _ordinary_evaluation(self, theta) if self._paths()[0] else super().evaluate(theta)
         )
         self.evaluations += 1
         self._last_key, self._last = key, (value, dict(par))
@@ -93,9 +117,10 @@ class RememberedLikelihood(LikelihoodEvaluator):
     def gradient(self, theta: Any) -> tuple[Any, dict]:
         m = self._model
         kernel = m.corr
-        if not (m.is_continuous and type(kernel) is PowExp):
+        ordinary, power_exponential = self._paths()
+        if not power_exponential:
             return super().gradient(theta)
-        if _ordinary(m):
+        if ordinary:
             return _ordinary_gradient(self, theta)
         m.corr = _CorrelationOnce(kernel)
         try:
@@ -174,7 +199,7 @@ def _ordinary(m: Any) -> bool:
     )
 
 
-def _ordinary_evaluation(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[float, dict]:
+def _ordinary_evaluation(evaluator: RememberedLikelihood, theta: Any) -> tuple[float, dict]:
     """SMT 2.15's ``LikelihoodEvaluator.evaluate`` on the ordinary path, statement by
     statement, with the LAPACK calls of :func:`_cholesky_lower`, :func:`_solve_triangular`,
     :func:`_qr_economic` and :func:`_singular_values`. The reduced likelihood (log10 form,
@@ -184,6 +209,7 @@ def _ordinary_evaluation(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[fl
     par: dict = {}
     nugget, noise = m.options["nugget"], m.noise0
     m.corr.theta = theta
+    evaluator._correlations = None
     try:
         r = m.corr(m.D).reshape(-1, 1)
         if np.isnan(r).any():
@@ -194,9 +220,11 @@ def _ordinary_evaluation(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[fl
             stacklevel=2,
         )
         return value, par
+    evaluator._correlations = r
+    upper, lower = evaluator.triangles()
     R = np.eye(m.nt) * (1.0 + nugget + noise)
-    R[m.ij[:, 0], m.ij[:, 1]] = r[:, 0]
-    R[m.ij[:, 1], m.ij[:, 0]] = r[:, 0]
+    R.ravel()[upper] = r[:, 0]
+    R.ravel()[lower] = r[:, 0]
     p, q = m._get_pq()
     C = _cholesky_lower(R)
     if C is None:  # not positive definite (SMT prints its eigenvalues)
@@ -231,7 +259,7 @@ def _ordinary_evaluation(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[fl
     return value, par
 
 
-def _ordinary_gradient(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[Any, dict]:
+def _ordinary_gradient(evaluator: RememberedLikelihood, theta: Any) -> tuple[Any, dict]:
     """SMT 2.15's ``LikelihoodEvaluator.gradient`` on the ordinary path with a
     power-exponential kernel, statement by statement: the correlations once
     (:class:`_CorrelationOnce`'s expression for their derivatives), the LAPACK calls of
@@ -245,16 +273,19 @@ def _ordinary_gradient(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[Any,
         return 1, par
     nb_theta = len(theta)
     grad_red = np.zeros(nb_theta)
-    r = m.corr(m.D)
+    # The correlations at theta: the evaluation's (the same kernel call), else computed.
+    r = evaluator._correlations if evaluator._correlations is not None else m.corr(m.D)
+    upper, lower = evaluator.triangles()
     dr_all, tr_all, dmu_all, arg_all, dsigma_all, dbeta_all = [], [], [], [], [], []
     for i_der in range(nb_theta):
         dr = np.zeros((m.D.shape[0], 1))
         dr[:, 0] = -m.D[:, i_der] * r[:, 0]
         dr_all.append(dr)
         dR = np.zeros((m.nt, m.nt))
-        dR[m.ij[:, 0], m.ij[:, 1]] = dr[:, 0]
-        dR[m.ij[:, 1], m.ij[:, 0]] = dr[:, 0]
-        Cinv_dR_gamma = _solve_triangular(C, np.dot(dR, gamma), lower=True)
+        dR.ravel()[upper] = dr[:, 0]
+        dR.ravel()[lower] = dr[:, 0]
+        dR_gamma = np.dot(dR, gamma)
+        Cinv_dR_gamma = _solve_triangular(C, dR_gamma, lower=True)
         dbeta = -_solve_triangular(G, np.dot(Q.T, Cinv_dR_gamma))
         arg_all.append(Cinv_dR_gamma)
         dbeta_all.append(dbeta)
@@ -265,7 +296,7 @@ def _ordinary_gradient(evaluator: LikelihoodEvaluator, theta: Any) -> tuple[Any,
         tr_all.append(tr)
         dsigma_2 = (
             (1 / m.nt)
-            * (-dmu.T.dot(gamma) - gamma.T.dot(dmu) - np.dot(gamma.T, dR.dot(gamma)))
+            * (-dmu.T.dot(gamma) - gamma.T.dot(dmu) - np.dot(gamma.T, dR_gamma))
             * m.y_std**2.0
         )
         dsigma_all.append(dsigma_2)
