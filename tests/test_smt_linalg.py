@@ -45,10 +45,35 @@ def test_the_namespace_is_scipy_linalg_but_the_four_unchecked_functions():
         for name in scipy.linalg.__all__:
             if name not in smt_linalg.UNCHECKED:
                 assert getattr(namespace, name) is getattr(scipy.linalg, name)
-        assert namespace.solve_triangular is smt_linalg.solve_triangular
-        assert namespace.cholesky is smt_linalg.cholesky
-        for name in ("qr", "svd"):
-            assert getattr(namespace, name).keywords == {"check_finite": False}
+        for name in smt_linalg.UNCHECKED:
+            assert getattr(namespace, name) is getattr(smt_linalg, name)
+
+
+def test_economic_qr_and_singular_values_equal_scipy_and_defer_the_rest():
+    """The LAPACK paths of ``qr(mode="economic")`` and ``svd(compute_uv=False)`` (issue 20):
+    scipy's numbers to the bit on tall, square and one-column matrices, C- or
+    Fortran-ordered; other modes, ``compute_uv`` and wide matrices are scipy's own."""
+    rng = np.random.default_rng(8)
+    for shape in ((30, 1), (30, 4), (12, 12), (7, 3)):
+        for a in (rng.random(shape), np.asfortranarray(rng.random(shape))):
+            q, r = smt_linalg.qr(a, mode="economic")
+            q_ref, r_ref = scipy.linalg.qr(a, mode="economic")
+            np.testing.assert_array_equal(q, q_ref)
+            np.testing.assert_array_equal(r, r_ref)
+            assert r.flags.c_contiguous == r_ref.flags.c_contiguous
+            np.testing.assert_array_equal(
+                smt_linalg.svd(a, compute_uv=False), scipy.linalg.svd(a, compute_uv=False)
+            )
+    wide = rng.random((3, 7))
+    for got, ref in zip(
+        smt_linalg.qr(wide, mode="economic"), scipy.linalg.qr(wide, mode="economic"), strict=True
+    ):
+        np.testing.assert_array_equal(got, ref)
+    full = smt_linalg.qr(rng.random((6, 2)))
+    assert full[0].shape == (6, 6)
+    u, s, vt = smt_linalg.svd(wide)  # scipy's full factors
+    assert (u.shape, vt.shape) == ((3, 3), (7, 7))
+    np.testing.assert_allclose(u @ np.diag(s) @ vt[:3], wide, atol=1e-12)
 
 
 def test_direct_lapack_calls_equal_scipy_and_raise_as_scipy():

@@ -29,14 +29,14 @@ into a remembering one; the memory is dropped when the training ends, so a store
 holds none of it.
 
 On the ordinary path (continuous inputs, no re-interpolation, no noise estimated: every
-fit of the pipeline's) the evaluation and the gradient are SMT's own statements with
-``scipy.linalg``'s ``cholesky``, ``solve_triangular``, ``qr`` and ``svd`` replaced by the
-LAPACK calls those functions make (``potrf``, ``trtrs``, ``geqrf``/``orgqr``, ``gesdd``),
-without their input validation (5-10 us each, around factorisations of ~1 us on the
-pipeline's 10-30 samples): a benchmark pipeline's fits 1.12 -> 0.88-0.98 s (issue 20 made
-the direct method faster, so issue 21's wall ratio needed the fits faster). The same calls with
-the same arguments give the same bits (``tests/test_smt_likelihood.py``: every value and
-parameter of both, and whole fits, equal to stock SMT's).
+fit of the pipeline's) the evaluation and the gradient are SMT's own statements, without
+its generic code around them (the path's checks on every call, the kernel called again
+for the gradient, the correlation matrices filled by 2-D fancy indexing) and with
+:mod:`ovtraj.surrogate.smt_linalg`'s LAPACK calls (the economic QR and the singular
+values straight to LAPACK too): a benchmark pipeline's fits 1.12 -> 0.80-0.98 s on its two
+processes (issue 20 made the direct method faster, so issue 21's wall ratio needed the
+fits faster). The same operations give the same bits (``tests/test_smt_likelihood.py``:
+every value and parameter of both, and whole fits, equal to stock SMT's).
 """
 
 from __future__ import annotations
@@ -45,9 +45,11 @@ import warnings
 from typing import Any
 
 import numpy as np
-from scipy.linalg.lapack import dgeqrf, dgesdd, dgesdd_lwork, dorgqr, dpotrf, dtrtrs
+from scipy.linalg import LinAlgError
 from smt.kernels.kernels import PowExp
 from smt.surrogate_models.krg_based.likelihood_eval import LikelihoodEvaluator
+
+from ovtraj.surrogate.smt_linalg import cholesky, qr, solve_triangular, svd
 
 __all__ = ["RememberedLikelihood", "RememberedLikelihoodMixin"]
 
@@ -201,8 +203,8 @@ def _ordinary(m: Any) -> bool:
 
 def _ordinary_evaluation(evaluator: RememberedLikelihood, theta: Any) -> tuple[float, dict]:
     """SMT 2.15's ``LikelihoodEvaluator.evaluate`` on the ordinary path, statement by
-    statement, with the LAPACK calls of :func:`_cholesky_lower`, :func:`_solve_triangular`,
-    :func:`_qr_economic` and :func:`_singular_values`. The reduced likelihood (log10 form,
+    statement, with :mod:`ovtraj.surrogate.smt_linalg`'s LAPACK calls (those of the
+    module SMT is given, without its generic code). The reduced likelihood (log10 form,
     Lophaven, Nielsen & Sondergaard, DACE, 2002) and the GLS parameters."""
     m = evaluator._model
     value = -np.inf
@@ -226,28 +228,29 @@ def _ordinary_evaluation(evaluator: RememberedLikelihood, theta: Any) -> tuple[f
     R.ravel()[upper] = r[:, 0]
     R.ravel()[lower] = r[:, 0]
     p, q = m._get_pq()
-    C = _cholesky_lower(R)
-    if C is None:  # not positive definite (SMT prints its eigenvalues)
+    try:
+        C = cholesky(R, lower=True)
+    except (LinAlgError, ValueError):  # not positive definite (SMT prints its eigenvalues)
         return value, par
-    Ft = _solve_triangular(C, m.F, lower=True)
-    Q, G = _qr_economic(Ft)
-    sv = _singular_values(G)
+    Ft = solve_triangular(C, m.F, lower=True)
+    Q, G = qr(Ft, mode="economic")
+    sv = svd(G, compute_uv=False)
     if sv[-1] / sv[0] < 1e-10:
-        sv = _singular_values(m.F)
+        sv = svd(m.F, compute_uv=False)
         if sv[0] / sv[-1] > 1e15:
             raise Exception(
                 "F is too ill conditioned. Poor combination of regression model and observations."
             )
         return value, par
-    Yt = _solve_triangular(C, m.y_norma, lower=True)
-    beta = _solve_triangular(G, np.dot(Q.T, Yt))
+    Yt = solve_triangular(C, m.y_norma, lower=True)
+    beta = solve_triangular(G, np.dot(Q.T, Yt))
     rho = Yt - np.dot(Ft, beta)
     detR = (np.diag(C) ** (2.0 / m.nt)).prod()
     sigma2 = (rho**2.0).sum(axis=0) / (m.nt - p - q)
     value = -(m.nt - p - q) * np.log10(sigma2.sum()) - m.nt * np.log10(detR)
     par["sigma2"] = sigma2 * m.y_std**2.0
     par["beta"] = beta
-    par["gamma"] = _solve_triangular(C.T, rho)
+    par["gamma"] = solve_triangular(C.T, rho)
     par["C"] = C
     par["Ft"] = Ft
     par["G"] = G
@@ -262,8 +265,8 @@ def _ordinary_evaluation(evaluator: RememberedLikelihood, theta: Any) -> tuple[f
 def _ordinary_gradient(evaluator: RememberedLikelihood, theta: Any) -> tuple[Any, dict]:
     """SMT 2.15's ``LikelihoodEvaluator.gradient`` on the ordinary path with a
     power-exponential kernel, statement by statement: the correlations once
-    (:class:`_CorrelationOnce`'s expression for their derivatives), the LAPACK calls of
-    :func:`_solve_triangular`."""
+    (:class:`_CorrelationOnce`'s expression for their derivatives), the triangular
+    solves of :mod:`ovtraj.surrogate.smt_linalg`."""
     m = evaluator._model
     _, par = evaluator.evaluate(theta)
     try:
@@ -285,14 +288,14 @@ def _ordinary_gradient(evaluator: RememberedLikelihood, theta: Any) -> tuple[Any
         dR.ravel()[upper] = dr[:, 0]
         dR.ravel()[lower] = dr[:, 0]
         dR_gamma = np.dot(dR, gamma)
-        Cinv_dR_gamma = _solve_triangular(C, dR_gamma, lower=True)
-        dbeta = -_solve_triangular(G, np.dot(Q.T, Cinv_dR_gamma))
+        Cinv_dR_gamma = solve_triangular(C, dR_gamma, lower=True)
+        dbeta = -solve_triangular(G, np.dot(Q.T, Cinv_dR_gamma))
         arg_all.append(Cinv_dR_gamma)
         dbeta_all.append(dbeta)
         dmu = np.dot(m.F, dbeta)
         dmu_all.append(dmu)
-        tr_1 = _solve_triangular(C, dR, lower=True)
-        tr = _solve_triangular(C.T, tr_1)
+        tr_1 = solve_triangular(C, dR, lower=True)
+        tr = solve_triangular(C.T, tr_1)
         tr_all.append(tr)
         dsigma_2 = (
             (1 / m.nt)
@@ -310,45 +313,3 @@ def _ordinary_gradient(evaluator: RememberedLikelihood, theta: Any) -> tuple[Any
     grad_red = np.atleast_2d(grad_red).T
     grad_red += m._reduced_log_prior(theta, grad=True)
     return grad_red, par
-
-
-def _cholesky_lower(a: np.ndarray) -> np.ndarray | None:
-    """``scipy.linalg.cholesky(a, lower=True)`` (LAPACK ``potrf``, the other triangle
-    zeroed), or None where it raises (not positive definite)."""
-    c, info = dpotrf(a, lower=1, clean=1)
-    return c if info == 0 else None
-
-
-def _solve_triangular(a: np.ndarray, b: np.ndarray, *, lower: bool = False) -> np.ndarray:
-    """``scipy.linalg.solve_triangular(a, b, lower=lower)``: LAPACK ``trtrs`` on ``a``, or
-    on its transpose (the transposed system) when ``a`` is not Fortran-ordered, as scipy
-    does; a singular ``a`` raises ``LinAlgError`` as there."""
-    if a.flags.f_contiguous:
-        x, info = dtrtrs(a, b, lower=lower, trans=0)
-    else:
-        x, info = dtrtrs(a.T, b, lower=not lower, trans=1)
-    if info > 0:
-        raise np.linalg.LinAlgError(f"singular matrix: resolution failed at diagonal {info - 1}")
-    return x
-
-
-def _qr_economic(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``scipy.linalg.qr(a, mode="economic")`` of a tall ``a``: LAPACK ``geqrf`` and
-    ``orgqr`` with their optimal workspaces (queried, as scipy does)."""
-    columns = a.shape[1]
-    lwork = int(dgeqrf(a, lwork=-1)[-2][0])
-    qr, tau, _, _ = dgeqrf(a, lwork=lwork)
-    r = np.triu(qr[:columns, :])
-    lwork = int(dorgqr(qr, tau, lwork=-1)[-2][0])
-    q, _, _ = dorgqr(qr, tau, lwork=lwork, overwrite_a=1)
-    return q, r
-
-
-def _singular_values(a: np.ndarray) -> np.ndarray:
-    """``scipy.linalg.svd(a, compute_uv=False)``: LAPACK ``gesdd`` with scipy's workspace."""
-    rows, columns = a.shape
-    lwork, _ = dgesdd_lwork(rows, columns, compute_uv=0, full_matrices=0)
-    _, s, _, info = dgesdd(a, compute_uv=0, full_matrices=0, lwork=int(np.ceil(lwork)))
-    if info > 0:
-        raise np.linalg.LinAlgError("SVD did not converge")
-    return s

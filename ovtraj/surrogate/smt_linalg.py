@@ -21,9 +21,11 @@ predictions at its own samples are not finite is refused
 (:func:`ovtraj.surrogate.candidates.fit_regressor`).
 
 :func:`install` gives SMT's two Kriging modules a ``linalg`` namespace equal to
-``scipy.linalg`` except for those four functions: ``qr`` and ``svd`` without the scan,
-``solve_triangular`` and ``cholesky`` straight to LAPACK's ``dtrtrs`` and ``dpotrf`` as
-scipy calls them (float64 matrices; anything else goes to scipy's functions). It changes
+``scipy.linalg`` except for those four functions, straight to the LAPACK routines scipy
+calls, with its arguments: ``solve_triangular`` and ``cholesky`` (``dtrtrs``, ``dpotrf``),
+the economic ``qr`` (``dgeqrf``, ``dorgqr``) and the singular values of ``svd``
+(``dgesdd``); float64 matrices of those shapes, anything else to scipy's functions
+without the scan (the last two added for issue 20: ~5-10 us each a call). It changes
 nothing else and runs once per process (the candidates module calls it on import, in the
 pipeline's worker processes too).
 """
@@ -37,7 +39,7 @@ from importlib import import_module
 import numpy as np
 import scipy.linalg
 from scipy.linalg import LinAlgError
-from scipy.linalg.lapack import dpotrf, dtrtrs
+from scipy.linalg.lapack import dgeqrf, dgesdd, dgesdd_lwork, dorgqr, dpotrf, dtrtrs
 
 # SMT's modules that call ``linalg.<function>`` from ``from scipy import linalg``.
 SMT_MODULES = (
@@ -103,6 +105,44 @@ def cholesky(
     return c
 
 
+def qr(a: np.ndarray, mode: str = "full", **options: object) -> tuple[np.ndarray, ...]:
+    """``scipy.linalg.qr`` of a tall float64 matrix in ``mode="economic"``, straight to
+    LAPACK's ``dgeqrf`` and ``dorgqr`` with the workspaces scipy queries (the same Q and
+    R); any other input or option goes to scipy's function (without the scan)."""
+    a1 = np.asarray(a)
+    if options or mode != "economic" or not _tall_float64(a1):
+        return _UNCHECKED_SCIPY["qr"](a, mode=mode, **options)
+    columns = a1.shape[1]
+    qr_, tau, _, info = dgeqrf(a1, lwork=int(dgeqrf(a1, lwork=-1)[-2][0]))
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal geqrf")
+    r = np.triu(qr_[:columns, :])
+    q, _, info = dorgqr(qr_, tau, lwork=int(dorgqr(qr_, tau, lwork=-1)[-2][0]), overwrite_a=1)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal gorgqr/gungqr")
+    return q, r
+
+
+def svd(a: np.ndarray, compute_uv: bool = True, **options: object) -> object:
+    """``scipy.linalg.svd(a, compute_uv=False)`` of a float64 matrix, straight to LAPACK's
+    ``dgesdd`` with scipy's workspace (the same singular values); anything else goes to
+    scipy's function (without the scan)."""
+    a1 = np.asarray(a)
+    if options or compute_uv or not _tall_float64(a1):
+        return _UNCHECKED_SCIPY["svd"](a, compute_uv=compute_uv, **options)
+    lwork, _ = dgesdd_lwork(a1.shape[0], a1.shape[1], compute_uv=0, full_matrices=0)
+    _, s, _, info = dgesdd(a1, compute_uv=0, full_matrices=0, lwork=int(np.ceil(lwork)))
+    if info > 0:
+        raise LinAlgError("SVD did not converge")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal gesdd")
+    return s
+
+
+def _tall_float64(a: np.ndarray) -> bool:
+    return a.dtype == np.float64 and a.ndim == 2 and a.shape[0] >= a.shape[1] > 0
+
+
 _UNCHECKED_SCIPY = {
     name: functools.partial(getattr(scipy.linalg, name), check_finite=False) for name in UNCHECKED
 }
@@ -113,7 +153,7 @@ def unchecked_linalg() -> types.SimpleNamespace:
     the triangular solve and the Cholesky factorisation straight to LAPACK."""
     names = {name: getattr(scipy.linalg, name) for name in scipy.linalg.__all__}
     names.update(_UNCHECKED_SCIPY)
-    names.update(solve_triangular=solve_triangular, cholesky=cholesky)
+    names.update(solve_triangular=solve_triangular, cholesky=cholesky, qr=qr, svd=svd)
     namespace = types.SimpleNamespace(**names)
     namespace.unchecked = True
     return namespace
