@@ -1728,6 +1728,7 @@ def entry_point() -> None:
     import signal
 
     from ovtraj.files import StoreError
+    from ovtraj.interrupts import interrupt_of
 
     signal.signal(signal.SIGTERM, _terminated)
     signal.signal(signal.SIGINT, _terminated)
@@ -1750,10 +1751,14 @@ def entry_point() -> None:
         typer.echo(str(err), err=True)
         code = 2
     except Exception as err:
-        if os.environ.get("OVTRAJ_DEBUG"):
+        if interrupt_of(err) is not None:  # raised inside a compiled call (ovtraj.interrupts)
+            typer.echo("interrupted", err=True)
+            code = 130
+        elif os.environ.get("OVTRAJ_DEBUG"):
             raise
-        typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
-        code = 2
+        else:
+            typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
+            code = 2
     _exit(code if isinstance(code, int) else 0)
 
 

@@ -455,9 +455,50 @@ def test_a_killed_run_is_reported_interrupted_and_resumes_cleanly(tmp_path):
     assert report.clean and not report.uncovered
 
 
+def test_an_interrupt_wrapped_by_compiled_code_marks_the_run_interrupted(tmp_path, scenario):
+    """A SIGTERM's KeyboardInterrupt raised while numba's dispatcher types a call comes
+    back as CPython's ``SystemError: ... returned a result with an exception set`` (seen in
+    CI, issue 20): the run is marked interrupted by the signal, and the interrupt goes on."""
+    from ovtraj.interrupts import interrupt_of
+    from ovtraj.runs import prepare_run
+
+    run = prepare_run(scenario, samples=2, seed=1, code="test", store=RunStore(tmp_path))
+    with pytest.raises(KeyboardInterrupt, match="signal 15"), run.working():
+        try:
+            raise KeyboardInterrupt("signal 15")
+        except KeyboardInterrupt as interrupt:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from (
+                interrupt
+            )
+    manifest = json.loads((run.directory / "manifest.json").read_text())
+    assert manifest["status"] == "interrupted"
+    assert manifest["interrupted"] == "KeyboardInterrupt: signal 15"
+    plain_error = ValueError("not an interrupt")
+    assert interrupt_of(plain_error) is None and interrupt_of(None) is None
+
+
+def test_the_command_reports_a_wrapped_interrupt_as_interrupted():
+    """The command's exit for that SystemError: ``interrupted``, 130 (not an internal error)."""
+    script = (
+        "import ovtraj.cli as cli\n"
+        "def app(**_):\n"
+        "    try:\n"
+        "        raise KeyboardInterrupt('signal 15')\n"
+        "    except KeyboardInterrupt as interrupt:\n"
+        "        raise SystemError('returned a result with an exception set') from interrupt\n"
+        "cli.app = app\n"
+        "cli.entry_point()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert (done.returncode, done.stderr.strip()) == (130, "interrupted")
+
+
 def test_sigterm_marks_the_run_interrupted_in_its_manifest(tmp_path):
     config = _batches_of_one(tmp_path)
-    args = [OVTRAJ, "run", str(config), "--samples", "5", "--seed", "9", "--store", str(tmp_path)]
+    # 20 samples: the run cannot finish before the signal (5 took ~0.2 s after the first).
+    args = [OVTRAJ, "run", str(config), "--samples", "20", "--seed", "9", "--store", str(tmp_path)]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_for_the_first_batch(proc, tmp_path)
     proc.send_signal(signal.SIGTERM)

@@ -79,6 +79,7 @@ from ovtraj.files import (
     write_json,
     write_parquet,
 )
+from ovtraj.interrupts import interrupt_of
 from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.records import table_from_frame, table_from_rows
 from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
@@ -354,14 +355,18 @@ class Run:
             try:
                 yield removed
             except BaseException as err:
+                # An interrupt wrapped by compiled code is the interrupt (ovtraj.interrupts).
+                cause = interrupt_of(err) or err
                 try:
                     self.update_manifest(
                         status="interrupted",
-                        interrupted=f"{type(err).__name__}: {err}"[:500],
+                        interrupted=f"{type(cause).__name__}: {cause}"[:500],
                         interrupted_utc=_utc_now(),
                     )
                 except StoreError:
                     pass  # the cause is reported; the lock tells readers the run stopped
+                if cause is not err:
+                    raise cause from err
                 raise
 
     @contextmanager
