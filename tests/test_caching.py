@@ -296,3 +296,42 @@ def test_optimize_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch
     changed = optimize_flow(run_id, pipeline["config"], store)
     assert calls["front_step"] > computed["front_step"]
     assert changed["front_id"] != served["front_id"]
+
+
+@pytest.mark.parametrize("toplevel", [None, "/somebody/elses/repository"])
+def test_an_installed_copy_is_versioned_by_its_sources(monkeypatch, toplevel):
+    """Outside a git checkout of its own (a wheel in site-packages, possibly inside another
+    repository) the code version is the package version and a digest of its sources."""
+    import ovtraj
+    from ovtraj import version
+
+    def git(*args):
+        if toplevel is None:
+            return None
+        return toplevel + "\n" if "--show-toplevel" in args else "0123456789ab\n"
+
+    monkeypatch.setattr(version, "_git", git)
+    version.code_version.cache_clear()
+    try:
+        installed = version.code_version()
+    finally:
+        version.code_version.cache_clear()
+    assert installed == f"{ovtraj.__version__}+s{version.source_digest()}"
+
+
+def test_the_source_digest_moves_with_any_source(tmp_path):
+    from ovtraj import version
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    (tmp_path / "data.yaml").write_text("not a source\n")
+    first = version.source_digest(tmp_path)
+    assert len(first) == 12 and int(first, 16) >= 0
+    (tmp_path / "data.yaml").write_text("changed, still not a source\n")
+    assert version.source_digest(tmp_path) == first
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    changed = version.source_digest(tmp_path)
+    assert changed != first
+    (tmp_path / "sub" / "b.py").rename(tmp_path / "sub" / "c.py")
+    assert version.source_digest(tmp_path) not in (first, changed)
