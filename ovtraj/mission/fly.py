@@ -382,14 +382,14 @@ def _fly_entry(
     p[dyn.P_V_START] = profile.speed_start_mps
     p[dyn.P_V_END] = profile.speed_end_mps
     p[dyn.P_SIGMA_MAX] = math.radians(profile.max_bank_deg)
-    tables = model.tables
+    packed = dyn.pack(p, model.tables)  # once: the right-hand side runs thousands of times
     radius = p[dyn.P_RADIUS]
-    out = np.empty(6)
 
     def rhs_for(sign: float) -> Any:
         def rhs(_t: float, x: np.ndarray) -> np.ndarray:
-            dyn._derivatives(np.ascontiguousarray(x, dtype=float), sign, p, tables, out)
-            return out.copy()
+            return np.array(
+                dyn.derivatives_packed(np.ascontiguousarray(x, dtype=float), sign, packed)
+            )
 
         return rhs
 
@@ -450,8 +450,8 @@ def _fly_entry(
         samples = np.unique(np.r_[np.arange(t0, t_end, settings.path_sample_step_s), t_end])
         for t in samples:
             state = x if t == t_end else sol.sol(t)
-            _, _, _, heat, load, qdyn = dyn._path(
-                np.ascontiguousarray(state, dtype=float), p, tables
+            _, _, _, heat, load, qdyn = dyn.path_packed(
+                np.ascontiguousarray(state, dtype=float), packed
             )
             maxima = np.maximum(maxima, (heat, load, qdyn))
         if hit is not None:

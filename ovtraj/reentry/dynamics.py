@@ -344,11 +344,19 @@ def _derivatives(
     tables: Tables,
     out: np.ndarray,
 ) -> None:
-    m = pack(p, tables)
+    out[:] = derivatives_packed(x, sign, pack(p, tables))
+
+
+@njit(cache=True, error_model="numpy")
+def derivatives_packed(
+    x: np.ndarray, sign: float, m: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    """The state derivatives at x with the bank sign ``sign``, the model packed once
+    (:func:`pack`; e.g. a replay's right-hand side, called thousands of times)."""
     r, v = x[0], x[3]
     lift, drag, _, _, _ = _aero_packed(r, v, m)
     sigma = sign * _bank_magnitude(v, m)
-    out[:] = point_mass_rates_of(
+    return point_mass_rates_of(
         r, x[2], v, x[4], x[5], lift, drag, sigma, m[P_MU] / (r * r), m[P_OMEGA]
     )
 
@@ -431,24 +439,6 @@ def point_mass_rates_trig(
 
 
 @njit(cache=True, error_model="numpy")
-def point_mass_rates(
-    r: float,
-    lat: float,
-    v: float,
-    gamma: float,
-    psi: float,
-    lift: float,
-    drag: float,
-    bank: float,
-    g: float,
-    omega: float,
-    out: np.ndarray,
-) -> None:
-    """:func:`point_mass_rates_of` into ``out``."""
-    out[:] = point_mass_rates_of(r, lat, v, gamma, psi, lift, drag, bank, g, omega)
-
-
-@njit(cache=True, error_model="numpy")
 def _path_of(
     v: float, lift: float, drag: float, alpha: float, rho: float, m: np.ndarray
 ) -> tuple[float, float, float]:
@@ -465,7 +455,12 @@ def _path(
     tables: Tables,
 ) -> tuple[float, float, float, float, float, float]:
     """Angle of attack, Mach, density, heat rate, normal load [g], dynamic pressure."""
-    m = pack(p, tables)
+    return path_packed(x, pack(p, tables))
+
+
+@njit(cache=True, error_model="numpy")
+def path_packed(x: np.ndarray, m: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """:func:`_path` with the model packed once (:func:`pack`)."""
     lift, drag, alpha, mach, rho = _aero_packed(x[0], x[3], m)
     heat, load, qdyn = _path_of(x[3], lift, drag, alpha, rho, m)
     return alpha, mach, rho, heat, load, qdyn

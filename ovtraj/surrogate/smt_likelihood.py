@@ -235,6 +235,7 @@ def _ordinary_evaluation(evaluator: RememberedLikelihood, theta: Any) -> tuple[f
     Ft = solve_triangular(C, m.F, lower=True)
     Q, G = qr(Ft, mode="economic")
     sv = svd(G, compute_uv=False)
+    # SMT's own thresholds (likelihood_eval.py), kept as SMT has them: part of its method.
     if sv[-1] / sv[0] < 1e-10:
         sv = svd(m.F, compute_uv=False)
         if sv[0] / sv[-1] > 1e15:

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from ovtraj.astro.atmosphere import ExponentialAtmosphere, US76Atmosphere
-from ovtraj.reentry.dynamics import point_mass_rates
+from ovtraj.reentry.dynamics import point_mass_rates_of
 from ovtraj.reentry.pseudospectral.problem import EntryProblem
 
 __all__ = ["ControlTable", "KernelFlight", "fly_compiled", "model_arrays"]
@@ -329,7 +329,7 @@ def _rates(y: Array, alpha: float, bank: float, out: Array, model: Arrays) -> No
     r = p[P_RADIUS] + h
     g = p[P_G0] if p[P_CONSTANT_GRAVITY] > 0.5 else p[P_MU] / (r * r)
     lift, drag, _, _, _ = _path(h, v, alpha, model)
-    point_mass_rates(r, y[2], v, y[4], y[5], lift, drag, bank, g, p[P_OMEGA], out)
+    out[:] = point_mass_rates_of(r, y[2], v, y[4], y[5], lift, drag, bank, g, p[P_OMEGA])
 
 
 @njit(cache=True, error_model="numpy")
