@@ -286,6 +286,14 @@ class VerifySettings(StrictModel):
     )
 
 
+class FrontTolerance(StrictModel):
+    """How close a plan's totals must be to the front point it was picked from."""
+
+    dv_total_mps: float = bounded(unit="m/s", gt=0, le=1000, description="|dV_total| difference")
+    t_total_s: float = bounded(unit="s", gt=0, le=86400, description="|T_total| difference")
+    m_load_kg: float = bounded(unit="kg", gt=0, le=1000, description="|M_load| difference")
+
+
 class PlanSettings(StrictModel):
     """The mission plan and its independent replay (SPEC step 6; ``ovtraj.mission.fly``)."""
 
@@ -304,6 +312,59 @@ class PlanSettings(StrictModel):
     entry_fpa_tolerance_deg: float = bounded(
         unit="deg", ge=0, le=10, description="slack of the replayed entry angle on its limits"
     )
+    # Optional: the configs stored before issue 43 have no promise to check.
+    front_tolerance: FrontTolerance | None = Field(
+        default=None,
+        description="how far a plan's totals may lie from its front point's; null: unchecked",
+    )
+
+
+# Where the chain starts the OV (issue 43, docs/rendezvous.md "Plane management"):
+# launch_target: the osculating circular orbit at R_E + H_P0 the launch stage aims at (its
+# insertion constraints); mean_circular: a circular orbit of J2 mean elements at H_P0 (the
+# chain before issue 43).
+InsertionOrbit = Literal["launch_target", "mean_circular"]
+# The plane the launch aims at: rendezvous: the target's plane at the rendezvous transfer
+# (the differential nodal regression over the phasing wait compensated through the
+# insertion time); launch: the target's plane at insertion (the patent's choice).
+PlaneStrategy = Literal["rendezvous", "launch"]
+
+
+class PlaneAimSettings(StrictModel):
+    """The fixed point between the aimed node and the phasing wait it gives."""
+
+    max_iterations: int = bounded(ge=1, le=100, description="fixed-point iterations")
+    tolerance_deg: float = bounded(
+        unit="deg", gt=0, le=0.1, description="change of the aimed node that ends the iteration"
+    )
+
+
+class LaunchMatchSettings(StrictModel):
+    """The plan's launch, solved to fly to the chain's insertion (ovtraj.launch.insertion)."""
+
+    position_tolerance_m: float = bounded(
+        unit="m", gt=0, le=1000, description="insertion position against the chain's"
+    )
+    velocity_tolerance_mps: float = bounded(
+        unit="m/s", gt=0, le=10, description="insertion velocity against the chain's"
+    )
+    flight_time_tolerance_s: float = bounded(
+        unit="s", gt=0, le=60, description="drop-to-insertion time against the chain's"
+    )
+    payload_ftol_kg: float = bounded(
+        unit="kg", gt=0, le=10, description="SLSQP's stopping change of the payload"
+    )
+    max_iterations: int = bounded(ge=1, le=1000, description="SLSQP iterations")
+    time_limit_s: float = bounded(unit="s", gt=0, le=86400, description="wall time (safety net)")
+
+
+class InsertionSettings(StrictModel):
+    """Where the chain starts the OV, and the launch that flies there (issue 43)."""
+
+    orbit: InsertionOrbit
+    plane: PlaneStrategy
+    aim: PlaneAimSettings
+    launch_match: LaunchMatchSettings
 
 
 class MissionSettings(StrictModel):
@@ -311,6 +372,13 @@ class MissionSettings(StrictModel):
         unit="h", ge=0, le=8760, description="docked with the target after arrival"
     )
     design_bounds: MissionBoundsConfig
+    # Optional: the configs stored before issue 43 still read, and their chain is the one
+    # they were evaluated with (mean circular, the target's plane at insertion).
+    insertion: InsertionSettings | None = Field(
+        default=None,
+        description="where the chain starts the OV and how the plan's launch flies there; "
+        "null: a mean circular orbit in the target's plane at insertion (before issue 43)",
+    )
     doe: DoeSettings
     store: StoreSettings
     surrogate: SurrogateSettings

@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,11 +38,13 @@ import numpy as np
 from ovtraj.astro.frames import ecef_to_eci_state
 from ovtraj.config import Scenario
 from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.config.mission import LaunchMatchSettings
 from ovtraj.files import StoreError
 from ovtraj.launch.ascent import initial_state
 from ovtraj.launch.fit import LaunchFit, design_of, launch_fit_key, predicted_design
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import LaunchInput, launch_input
+from ovtraj.launch.insertion import InsertionPoint, solve_launch_to
 from ovtraj.launch.result import PHASES, LaunchResult
 from ovtraj.launch.stage import ascent_model, solve_launch
 from ovtraj.paths import workspace
@@ -50,9 +54,12 @@ from ovtraj.version import code_version
 __all__ = [
     "SolvedLaunch",
     "cached_launch_at",
+    "cached_launch_to",
     "drop_state",
+    "grid_prediction",
     "launch_solve_key",
     "solve_launch_at",
+    "solve_launch_to_point",
 ]
 
 KIND = "launch-solve"
@@ -78,26 +85,56 @@ def launch_solve_key(scenario: Scenario, altitude_m: float) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
-def solve_launch_at(scenario: Scenario, fit: LaunchFit, altitude_m: float) -> LaunchResult:
-    """The stage's optimum at ``altitude_m`` by continuation from the fit's grid."""
-    inp = launch_input(scenario, altitude_km=altitude_m / 1e3)
+def grid_prediction(fit: LaunchFit, altitude_m: float) -> dict[str, float] | None:
+    """The programme at ``altitude_m`` predicted from the fit's solved grid: the secant
+    through the two nearest feasible grid launches (None without two of them)."""
     grid = fit.grid
     if grid.empty or "target_altitude_km" not in grid.columns:
-        return solve_launch(inp)
+        return None
     grid = grid[grid["feasible"].astype(bool)].sort_values("target_altitude_km")
     heights = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
     if len(heights) < 2:
-        return solve_launch(inp)
+        return None
     # The two nearest solved launches: the nearer seeds, the other gives the secant.
     order = np.argsort(np.abs(heights - altitude_m), kind="stable")[:2]
     rows = [grid.iloc[int(k)].to_dict() for k in order]
-    seed = predicted_design(
+    return predicted_design(
         altitude_m,
         (heights[order[0]], design_of(rows[0])),
         (heights[order[1]], design_of(rows[1])),
     )
+
+
+def solve_launch_at(scenario: Scenario, fit: LaunchFit, altitude_m: float) -> LaunchResult:
+    """The stage's optimum at ``altitude_m`` by continuation from the fit's grid."""
+    inp = launch_input(scenario, altitude_km=altitude_m / 1e3)
+    seed = grid_prediction(fit, altitude_m)
+    if seed is None:
+        return solve_launch(inp)
     result = solve_launch(inp, seed_design=seed, global_search=False)
     return result if result.feasible else solve_launch(inp)
+
+
+def solve_launch_to_point(
+    scenario: Scenario,
+    fit: LaunchFit,
+    altitude_m: float,
+    point: InsertionPoint,
+    raan_offset_rad: float,
+    settings: LaunchMatchSettings,
+) -> LaunchResult:
+    """The launch flown to the chain's insertion ``point`` (:mod:`ovtraj.launch.insertion`),
+    from the grid's prediction at ``altitude_m`` (else the stage's optimum there), in the
+    target's plane turned ``raan_offset_rad`` east (the plane the chain aimed at)."""
+    inp = launch_input(scenario, altitude_km=altitude_m / 1e3)
+    inp = replace(inp, target_plane=inp.target_plane.turned(raan_offset_rad))
+    seed = grid_prediction(fit, altitude_m)
+    if seed is None:
+        start = solve_launch(inp)
+        if not start.feasible:
+            return start
+        seed = start.design
+    return solve_launch_to(inp, point, seed, settings)
 
 
 @dataclass(frozen=True)
@@ -149,6 +186,44 @@ def cached_launch_at(
     its checksum (nothing is solved over it) or cannot be written.
     """
     key = launch_solve_key(scenario, altitude_m)
+    return _cached(
+        key, altitude_m, root, lambda: _row_of(solve_launch_at(scenario, fit, altitude_m))
+    )
+
+
+def cached_launch_to(
+    scenario: Scenario,
+    fit: LaunchFit,
+    altitude_m: float,
+    point: InsertionPoint,
+    raan_offset_rad: float,
+    root: Path | None = None,
+) -> SolvedLaunch:
+    """The launch flown to ``point`` (:func:`solve_launch_to_point`, the settings of
+    ``mission.insertion.launch_match``): read from the cache, or solved and stored there.
+    Its key adds the point, the node offset and those settings to :func:`launch_solve_key`'s
+    content. Raises :class:`~ovtraj.files.StoreError` as :func:`cached_launch_at`."""
+    settings = scenario.mission.insertion.launch_match
+    content = {
+        "solve": launch_solve_key(scenario, altitude_m),
+        "point": [repr(float(point.t_s)), repr(float(point.flight_time_s))]
+        + [repr(float(v)) for v in point.state],
+        "raan_offset_rad": repr(float(raan_offset_rad)),
+        "match": settings.model_dump(mode="json", exclude={"time_limit_s"}),
+    }
+    text = json.dumps(content, sort_keys=True, separators=(",", ":"))
+    key = hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+    def solve() -> dict[str, Any]:
+        result = solve_launch_to_point(scenario, fit, altitude_m, point, raan_offset_rad, settings)
+        return {**_row_of(result), "raan_offset_deg": math.degrees(raan_offset_rad)}
+
+    return _cached(key, altitude_m, root, solve)
+
+
+def _cached(
+    key: str, altitude_m: float, root: Path | None, solve: Callable[[], dict[str, Any]]
+) -> SolvedLaunch:
     product = Product((root or launch_solves_root()) / key, MARKER)
     if product.exists():
         marker = product.marker()
@@ -158,7 +233,7 @@ def cached_launch_at(
         if not isinstance(row, dict) or "feasible" not in row:
             raise StoreError(f"{product.directory / ROW_FILE}: not a launch row")
         return SolvedLaunch(row)
-    row = _row_of(solve_launch_at(scenario, fit, altitude_m))
+    row = solve()
     with product.writing() as writer:
         writer.write_json(ROW_FILE, row)
         writer.finish({"kind": KIND, "key": key, "altitude_m": float(altitude_m)})

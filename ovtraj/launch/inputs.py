@@ -37,6 +37,11 @@ class TargetPlane:
         """Mean RAAN [rad] ``t_s`` seconds after the launch day's 0 h."""
         return self.raan_0h_rad + self.raan_rate_rad_s * t_s
 
+    def turned(self, raan_offset_rad: float) -> TargetPlane:
+        """The plane with its node ``raan_offset_rad`` further east (the same drift): where
+        a launch aims to meet the target's plane later (ovtraj.mission.plane)."""
+        return replace(self, raan_0h_rad=self.raan_0h_rad + raan_offset_rad)
+
 
 @dataclass(frozen=True)
 class LaunchInput:

@@ -163,23 +163,40 @@ def solve_launch(
                 global_search=global_search,
                 on_progress=on_progress,
             )
-            return _finish(inp, problem, outcome, time.perf_counter() - start)
+            return finish_launch(inp, problem, outcome, time.perf_counter() - start)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
         return LaunchResult.infeasible(inp, f"numerical failure: {type(err).__name__}: {err}")
 
 
-def _finish(
-    inp: LaunchInput, problem: LaunchProblem, outcome: OptimisationOutcome, wall_time_s: float
+def finish_launch(
+    inp: LaunchInput,
+    problem: LaunchProblem,
+    outcome: OptimisationOutcome,
+    wall_time_s: float,
+    *,
+    insertion_time: float | None = None,
+    violations: list[str] | None = None,
 ) -> LaunchResult:
+    """The stage's result of an optimised design: the ascent flown again with its history,
+    timed to the plane, its insertion, losses and trajectory table.
+
+    ``insertion_time`` [s from the launch day's 0 h]: the insertion's epoch when the caller
+    has fixed it (:mod:`ovtraj.launch.insertion`), else the first in-plane one.
+    ``violations``: the caller's reasons in place of the constraints' (a time limit and a
+    crash are always reported)."""
     earth = inp.earth
     ev = problem.evaluate(outcome.x, keep_history=True)
     asc = ev.outcome
     flight_time = float(asc.time_s[0])
     r_fixed, v_fixed_inertial = asc.r_ecef[0], asc.v_inertial_ecef_axes[0]
-    mean_fixed = state_to_mean(
-        r_fixed, v_fixed_inertial, mu=earth.mu, radius=earth.radius, j2=earth.j2
-    )
-    t_drop, t_ins = insertion_time_s(inp, float(mean_fixed.raan), flight_time)
+    if insertion_time is None:
+        mean_fixed = state_to_mean(
+            r_fixed, v_fixed_inertial, mu=earth.mu, radius=earth.radius, j2=earth.j2
+        )
+        t_drop, t_ins = insertion_time_s(inp, float(mean_fixed.raan), flight_time)
+    else:
+        t_ins = float(insertion_time)
+        t_drop = t_ins - flight_time
     theta = inp.launch_day.gmst_rad() + earth.omega * t_ins
     r_eci = ecef_to_eci(r_fixed, theta)
     v_eci = ecef_to_eci(v_fixed_inertial, theta)
@@ -201,7 +218,9 @@ def _finish(
     reasons = []
     if outcome.limit is not None:
         reasons.append(outcome.limit)
-    if outcome.max_violation > 0.0:
+    if violations is not None:
+        reasons.extend(violations)
+    elif outcome.max_violation > 0.0:
         worst = _worst_constraints(ev)
         reasons.append(f"insertion or path constraints not met: {worst}")
     if asc.crashed[0]:

@@ -45,12 +45,14 @@ from ovtraj.launch.exact import SolvedLaunch
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
+from ovtraj.launch.insertion import circular_insertion_state
+from ovtraj.mission.plane import AimedInsertion, aim_insertion
 from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import RendezvousInput, RendezvousResult, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.targets import circular_orbit_state, target_state
+from ovtraj.targets import target_state
 
 _DAY_S = 86400.0
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
@@ -65,6 +67,7 @@ LAUNCH_ROW_SCHEMA = record_schema(
         ("drop_time_s", FLOAT),
         ("insertion_time_s", FLOAT),
         ("insertion_u_deg", FLOAT),
+        ("raan_offset_deg", FLOAT),
         ("drop_epoch_utc", TEXT),
         ("insertion_epoch_utc", TEXT),
         ("feasible", BOOL),
@@ -103,7 +106,9 @@ class MissionDesign:
 class LaunchLeg:
     """The launch as the chain takes it from the launch fit (patent 5.1): times [s from
     the launch day's 0 h UTC], payload [kg], the insertion's argument of latitude [deg]
-    and the ECI state the OV starts from (circular mean orbit in the target's plane)."""
+    and the ECI state the OV starts from (``mission.insertion``:
+    :func:`ovtraj.launch.insertion.circular_insertion_state`, in the plane aimed at by
+    :mod:`ovtraj.mission.plane`)."""
 
     source: str  # "launch fit" or "solved launch" (ovtraj.launch.exact)
     launcher: str
@@ -114,6 +119,11 @@ class LaunchLeg:
     insertion_time_s: float
     insertion_u_deg: float
     insertion_state: np.ndarray
+    # The parking orbit's mean node east of the target's at insertion [deg] (the plane aimed
+    # at the rendezvous, ovtraj.mission.plane; 0: the target's plane at insertion) and the
+    # fixed point that gave it (None for the patent's plane or a solved launch).
+    raan_offset_deg: float = 0.0
+    aim: AimedInsertion | None = None
 
 
 @dataclass
@@ -275,10 +285,22 @@ def evaluate(
     return record
 
 
+def launch_leg(ctx: MissionContext, design: MissionDesign) -> LaunchLeg:
+    """The launch as the chain models it from the launch fit: the insertion every DoE and
+    verification evaluation starts from, and the one a plan's launch is solved to fly to
+    (:func:`ovtraj.launch.exact.cached_launch_to`). Raises :class:`ValueError` (with the
+    reason) outside the fit's range."""
+    try:
+        return _launch_leg(ctx, design, None)
+    except _StageFailed as failure:
+        raise ValueError(failure.reason) from None
+
+
 def _launch_leg(
     ctx: MissionContext, design: MissionDesign, solved: SolvedLaunch | None
 ) -> LaunchLeg:
-    """The launch from the fit (idealised circular insertion), or the solved one."""
+    """The launch from the fit (``mission.insertion``'s circular insertion), or the solved
+    one."""
     altitude_m = design.parking_altitude_km * 1e3
     if solved is not None:
         if not solved.feasible:
@@ -299,30 +321,48 @@ def _launch_leg(
             insertion_time_s=solved.value("insertion_time_s"),
             insertion_u_deg=solved.value("insertion_u_deg") % 360.0,
             insertion_state=solved.insertion_state,
+            raan_offset_deg=float(solved.row.get("raan_offset_deg") or 0.0),
         )
     try:
         launch = ctx.fit.evaluate(altitude_m)
     except FourierRangeError as err:
         raise _StageFailed("launch", str(err)) from None
-    t_ins = launch["insertion_time_s"]
-    parked = circular_orbit_state(
-        altitude_m,
-        ctx.plane.inclination_rad,
-        ctx.plane.raan_at(t_ins),
-        math.radians(launch["insertion_u_deg"]),
-        element_set="mean",
-        earth=ctx.scenario.earth,
-    )
+    settings = ctx.scenario.mission.insertion
+    orbit = "mean_circular" if settings is None else settings.orbit
+    t_fit, flight_time = launch["insertion_time_s"], launch["flight_time_s"]
+    u_ins = math.radians(launch["insertion_u_deg"])
+    plane, earth = ctx.plane, ctx.scenario.earth
+    # A drop dt later turns the node (omega_E - dOmega_T/dt) dt east of the target's.
+    turn_rate = earth.omega - plane.raan_rate_rad_s
+
+    def insertion_at(raan_offset: float) -> tuple[float, np.ndarray]:
+        t_ins = t_fit + raan_offset / turn_rate
+        if t_ins - flight_time < 0.0:  # the launch stage's rule: the first drop after 0 h
+            t_ins += 2.0 * math.pi / turn_rate
+        raan = plane.raan_at(t_ins) + raan_offset
+        state = circular_insertion_state(
+            orbit, altitude_m, u_ins, plane.inclination_rad, raan, earth
+        )
+        return t_ins, state
+
+    if settings is None or settings.plane == "launch":
+        t_ins, parked = insertion_at(0.0)
+        aim = None
+    else:
+        aim = aim_insertion(insertion_at, ctx.target_at, earth, settings.aim)
+        t_ins, parked = aim.insertion_time_s, aim.state
     return LaunchLeg(
         source="launch fit",
         launcher=ctx.fit.launcher,
         parking_altitude_m=altitude_m,
         payload_kg=launch["payload_kg"],
-        flight_time_s=launch["flight_time_s"],
-        drop_time_s=t_ins - launch["flight_time_s"],
+        flight_time_s=flight_time,
+        drop_time_s=t_ins - flight_time,
         insertion_time_s=t_ins,
         insertion_u_deg=launch["insertion_u_deg"] % 360.0,
         insertion_state=parked,
+        raan_offset_deg=0.0 if aim is None else math.degrees(aim.raan_offset_rad),
+        aim=aim,
     )
 
 
@@ -345,6 +385,7 @@ def _run(
         "drop_time_s": t_drop,
         "insertion_time_s": t_ins,
         "insertion_u_deg": leg.insertion_u_deg,
+        "raan_offset_deg": leg.raan_offset_deg,
         "drop_epoch_utc": ctx.day.plus_seconds(t_drop).iso(),
         "insertion_epoch_utc": ctx.day.plus_seconds(t_ins).iso(),
         "feasible": True,

@@ -36,14 +36,16 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import format_validation_error
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.files import StoreError, write_bytes
-from ovtraj.launch.exact import SolvedLaunch, cached_launch_at, drop_state
+from ovtraj.launch.exact import SolvedLaunch, cached_launch_at, cached_launch_to, drop_state
 from ovtraj.launch.inputs import launch_input
+from ovtraj.launch.insertion import InsertionPoint
 from ovtraj.mission.chain import (
     MissionContext,
     MissionDesign,
     MissionRecord,
     StageResults,
     evaluate,
+    launch_leg,
 )
 from ovtraj.records import json_text
 from ovtraj.reentry import EntryState, reentry_input
@@ -140,6 +142,9 @@ class LaunchPlan(_Model):
     insertion_arg_latitude_deg: float
     plane_inclination_deg: float
     plane_raan_deg: float
+    # The parking orbit's node east of the target's at insertion (the plane aimed at the
+    # rendezvous, ovtraj.mission.plane); plan files before issue 43: 0.
+    plane_raan_offset_deg: float = 0.0
     insertion_r_eci_m: Vector3
     insertion_v_eci_mps: Vector3
     programme: LaunchProgramme
@@ -158,6 +163,9 @@ class RendezvousPlan(_Model):
     arrival_t_s: float
     arrival_miss_m: float
     miss_tolerance_m: float
+    # Between the chaser's and the target's planes at the first burn as phased; plan files
+    # before issue 43 lack it.
+    plane_difference_deg: float | None = None
 
 
 class StayPlan(_Model):
@@ -349,12 +357,7 @@ def plan_and_record(
     (default the workspace's ``launch_solves``). Raises :class:`PlanError` naming the
     failed stage and its reason when the design is infeasible.
     """
-    try:
-        solved = cached_launch_at(
-            context.scenario, context.fit, design.parking_altitude_km * 1e3, launch_cache
-        )
-    except StoreError as err:
-        raise PlanError(f"the solved launch cannot be read or stored: {err}") from None
+    solved = plan_launch(context, design, launch_cache)
     record = evaluate(context, design, launch=solved)
     if not record.feasible:
         raise PlanError(
@@ -364,6 +367,39 @@ def plan_and_record(
             reason=record.reason,
         )
     return plan_from_record(context, record, source=source, solved=solved), record
+
+
+def plan_launch(
+    context: MissionContext, design: MissionDesign, launch_cache: Path | None = None
+) -> SolvedLaunch:
+    """The launch a plan flies: solved to the chain's own insertion (``mission.insertion``,
+    :func:`~ovtraj.launch.exact.cached_launch_to`), so that the plan of a front point starts
+    where the front's evaluation did; for a scenario without that section (before issue
+    43), the stage's optimum at the parking altitude. Cached; raises :class:`PlanError`
+    when the launch cannot be solved, read or stored."""
+    scenario, altitude_m = context.scenario, design.parking_altitude_km * 1e3
+    try:
+        if scenario.mission.insertion is None:
+            return cached_launch_at(scenario, context.fit, altitude_m, launch_cache)
+        try:
+            leg = launch_leg(context, design)
+        except ValueError as err:
+            raise PlanError(
+                f"design {design.as_dict()} is infeasible: the launch stage failed: {err}",
+                stage="launch",
+                reason=str(err),
+            ) from None
+        point = InsertionPoint(leg.insertion_time_s, leg.flight_time_s, leg.insertion_state)
+        return cached_launch_to(
+            scenario,
+            context.fit,
+            altitude_m,
+            point,
+            math.radians(leg.raan_offset_deg),
+            launch_cache,
+        )
+    except StoreError as err:
+        raise PlanError(f"the solved launch cannot be read or stored: {err}") from None
 
 
 def plan_from_record(
@@ -425,6 +461,7 @@ def plan_from_record(
             "arrival_t_s": rdv.arrival_time_s,
             "arrival_miss_m": rdv.miss_distance_m,
             "miss_tolerance_m": scenario.tolerances.miss_distance_m,
+            "plane_difference_deg": math.degrees(rdv.plane_difference_rad),
         },
         "stay": {
             "docking_epoch_utc": _iso(day, rdv.arrival_time_s),
@@ -548,6 +585,9 @@ def _launch_plan(
         "source": (
             "solved launch (patent step 101) at the parking altitude: continuation from the "
             "launch fit's grid (ovtraj.launch.exact), cached by its inputs"
+            if context.scenario.mission.insertion is None
+            else "solved launch (patent step 101), maximum payload flown to the chain's "
+            "insertion (ovtraj.launch.insertion), cached by its inputs"
         ),
         "launcher": launch.launcher,
         "drop_epoch_utc": _iso(day, t_drop),
@@ -559,7 +599,9 @@ def _launch_plan(
         "payload_kg": launch.payload_kg,
         "insertion_arg_latitude_deg": launch.insertion_u_deg,
         "plane_inclination_deg": math.degrees(context.plane.inclination_rad),
-        "plane_raan_deg": math.degrees(context.plane.raan_at(t_ins)) % 360.0,
+        "plane_raan_deg": (math.degrees(context.plane.raan_at(t_ins)) + launch.raan_offset_deg)
+        % 360.0,
+        "plane_raan_offset_deg": launch.raan_offset_deg,
         "insertion_r_eci_m": _vector(state[:3]),
         "insertion_v_eci_mps": _vector(state[3:]),
         "programme": {

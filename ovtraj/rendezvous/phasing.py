@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import FloatOrArray, NonsingularElements
-from ovtraj.astro.j2_elements import secular_rates
+from ovtraj.astro.j2_elements import secular_rates, state_to_mean
 from ovtraj.astro.vectors import cross
-from ovtraj.rendezvous.hohmann import wrap_angle
+from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle, wrap_angle
 
 
 def phase_angle(chaser_state: np.ndarray, target_position: np.ndarray) -> float:
@@ -70,3 +71,43 @@ def refine_wait(
         error = wrap_angle(phase_at(wait_s) - lead)
         wait_s = max(0.0, wait_s + error / relative_rate)
     return wait_s
+
+
+@dataclass(frozen=True)
+class SecularPhasing:
+    """The phasing as J2's secular rates predict it, before any propagation.
+
+    ``mean_chaser``, ``mean_target``: Brouwer mean elements of the two states;
+    ``transfer``: the two-body Hohmann between their mean semi-major axes;
+    ``relative_rate``: chaser minus target rate of the mean argument of latitude [rad/s];
+    ``lead``: the target's lead at the burn, pi minus its J2 sweep over the Hohmann time
+    [rad]; ``phase0``: its lead at the start [rad]; ``wait_s``: the first wait >= 0 until
+    the lead is reached [s] (``inf`` for equal rates).
+    """
+
+    mean_chaser: NonsingularElements
+    mean_target: NonsingularElements
+    transfer: HohmannTransfer
+    relative_rate: float
+    lead: float
+    phase0: float
+    wait_s: float
+
+
+def secular_phasing(
+    chaser_state: np.ndarray, target_state: np.ndarray, earth: EarthModel
+) -> SecularPhasing:
+    """The rendezvous stage's first estimate of the wait (its step 2 before the Newton
+    steps on the propagated phase): mean elements, Hohmann, J2 rates, lead, first wait.
+    States: ECI position [m] and velocity [m/s] at the same epoch."""
+    mean_c, mean_t = (
+        state_to_mean(s[:3], s[3:6], mu=earth.mu, radius=earth.radius, j2=earth.j2)
+        for s in (chaser_state, target_state)
+    )
+    transfer = hohmann(float(mean_c.a), float(mean_t.a), earth.mu)
+    rate_t = mean_argument_of_latitude_rate(mean_t, earth)
+    relative_rate = mean_argument_of_latitude_rate(mean_c, earth) - rate_t
+    lead = lead_angle(transfer, rate_t)
+    phase0 = phase_angle(chaser_state, target_state[:3])
+    wait = math.inf if relative_rate == 0.0 else first_wait(phase0, lead, relative_rate)
+    return SecularPhasing(mean_c, mean_t, transfer, relative_rate, lead, phase0, float(wait))

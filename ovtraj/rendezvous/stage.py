@@ -32,11 +32,11 @@ from ovtraj.deadline import Deadline
 from ovtraj.rendezvous.correction import CorrectionProblem, CorrectionResult, correct_transfer
 from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle
 from ovtraj.rendezvous.phasing import (
-    first_wait,
     mean_argument_of_latitude_rate,
     phase_angle,
     plane_difference,
     refine_wait,
+    secular_phasing,
 )
 from ovtraj.rendezvous.result import (
     Impulse,
@@ -103,20 +103,15 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
     s, earth = inp.settings, inp.earth
     chaser0 = _check_state("chaser_state", inp.chaser_state, earth.radius)
     target0 = _check_state("target_state", inp.target_state, earth.radius)
-    mean_c, mean_t = _mean(chaser0, inp), _mean(target0, inp)
-    _check_circular("chaser", mean_c, s.max_eccentricity)
-    _check_circular("target", mean_t, s.max_eccentricity)
+    secular = secular_phasing(chaser0, target0, earth)
+    _check_circular("chaser", secular.mean_chaser, s.max_eccentricity)
+    _check_circular("target", secular.mean_target, s.max_eccentricity)
     _check_planes(plane_difference(chaser0, target0), s.max_plane_difference_deg, "at the start")
 
-    transfer = hohmann(float(mean_c.a), float(mean_t.a), earth.mu)
-    rate_c = mean_argument_of_latitude_rate(mean_c, earth)
-    rate_t = mean_argument_of_latitude_rate(mean_t, earth)
-    relative_rate = rate_c - rate_t
-    lead_j2 = lead_angle(transfer, rate_t)
-    phase0 = phase_angle(chaser0, target0[:3])
+    transfer, lead_j2, relative_rate = secular.transfer, secular.lead, secular.relative_rate
     if relative_rate == 0.0:
         raise Infeasible("chaser and target have the same period: the phase never changes")
-    wait = first_wait(phase0, lead_j2, relative_rate)
+    wait = secular.wait_s
     if wait > s.max_wait_time_s + s.burn_epoch_window_s:
         raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
 

@@ -1,0 +1,235 @@
+"""The insertion the mission chain starts from, and the launch solved to fly there (issue 43).
+
+The chain takes the launch from the launch fit (patent 5.1): payload, drop-to-insertion
+time, insertion epoch and argument of latitude at the parking altitude ``H``. It starts the
+OV on a circular orbit there (:func:`circular_insertion_state`):
+
+* ``launch_target``: the orbit the launch stage aims at, its insertion constraints
+  (:mod:`ovtraj.launch.problem`): radius ``R_E + H``, circular speed, zero flight-path
+  angle, osculating; its *mean* (first-order J2) inclination and node are the plane's,
+  as the stage constrains the mean inclination and times the drop on the mean node;
+* ``mean_circular``: a circular orbit of J2 mean elements at ``H`` (the chain before
+  issue 43); its osculating radius at the insertion point lies ~2 km below ``R_E + H``.
+
+A plan flies from the carrier's drop, so it needs the launch programme itself. The launch
+optimum is flat: programmes within 0.01 kg of the best payload insert up to 0.11 deg of
+argument of latitude and 1.4 s apart, and over a 31-45 h phasing wait such a difference
+moves the rendezvous by minutes. :func:`solve_launch_to` therefore solves the launch to
+*the chain's own insertion*: maximum payload (scipy SLSQP) subject to the insertion's
+Earth-fixed position and inertial velocity and the drop-to-insertion time equal to the
+chain's (each scaled by its tolerance), and to the path limits. The chain flown from that
+launch then starts within millimetres of where the front's evaluation started, so the plan
+of a front point flies the figures the front promised (docs/plan.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import Bounds, minimize
+
+from ovtraj.astro.constants import EarthModel
+from ovtraj.astro.elements import NonsingularElements, coe_to_rv
+from ovtraj.astro.frames import eci_to_ecef
+from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
+from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.config.mission import InsertionOrbit, LaunchMatchSettings
+from ovtraj.deadline import Deadline
+from ovtraj.launch.inputs import LaunchInput
+from ovtraj.launch.optimize import PAYLOAD_INDEX, OptimisationOutcome, PhaseRecord
+from ovtraj.launch.result import LaunchResult
+from ovtraj.launch.stage import finish_launch, launch_problem
+
+__all__ = ["InsertionPoint", "circular_insertion_state", "solve_launch_to"]
+
+# Fixed-point iterations on the osculating plane whose mean plane is the one asked for: the
+# J2 short-period terms of i and the node are ~1e-3 rad, so each iteration gains ~3 digits.
+_PLANE_ITERATIONS = 6
+
+
+def circular_insertion_state(
+    orbit: InsertionOrbit,
+    altitude_m: float,
+    arg_latitude_rad: float,
+    mean_inclination_rad: float,
+    mean_raan_rad: float,
+    earth: EarthModel,
+) -> NDArray:
+    """ECI position [m] and velocity [m/s] of a circular insertion at ``altitude_m`` above
+    the spherical Earth, at argument of latitude ``arg_latitude_rad``, in the plane of mean
+    inclination and node ``mean_*_rad`` (module notes for ``orbit``)."""
+    a = earth.radius + altitude_m
+    if orbit == "mean_circular":
+        r, v = mean_to_state(
+            NonsingularElements(
+                a=a, ex=0.0, ey=0.0, i=mean_inclination_rad, raan=mean_raan_rad, u=arg_latitude_rad
+            ),
+            mu=earth.mu,
+            radius=earth.radius,
+            j2=earth.j2,
+        )
+        return np.r_[r, v]
+    inclination, raan = mean_inclination_rad, mean_raan_rad
+    for _ in range(_PLANE_ITERATIONS):
+        r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
+        mean = state_to_mean(r, v, mu=earth.mu, radius=earth.radius, j2=earth.j2)
+        inclination += mean_inclination_rad - float(mean.i)
+        raan += math.remainder(mean_raan_rad - float(mean.raan), 2.0 * math.pi)
+    r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
+    return np.r_[np.asarray(r, dtype=float), np.asarray(v, dtype=float)]
+
+
+@dataclass(frozen=True)
+class InsertionPoint:
+    """Where and when the launch must insert: ``t_s`` [s from the launch day's 0 h], the
+    drop-to-insertion ``flight_time_s`` [s] and the ECI ``state`` (m, m/s)."""
+
+    t_s: float
+    flight_time_s: float
+    state: NDArray
+
+    def earth_fixed(self, theta0_rad: float, omega_rad_s: float) -> tuple[NDArray, NDArray]:
+        """Earth-fixed position [m] and inertial velocity in Earth-fixed axes [m/s] (what
+        the ascent ends with), the Earth rotation angle being ``theta0 + omega t``."""
+        theta = theta0_rad + omega_rad_s * self.t_s
+        return eci_to_ecef(self.state[:3], theta), eci_to_ecef(self.state[3:], theta)
+
+
+def solve_launch_to(
+    inp: LaunchInput,
+    point: InsertionPoint,
+    seed_design: dict[str, float],
+    settings: LaunchMatchSettings,
+) -> LaunchResult:
+    """Maximum-payload launch that inserts at ``point`` (module notes), from ``seed_design``
+    (configuration units). ``inp.target_plane`` is the plane the point lies in (the timing
+    of the result's node error). Never raises on a numerical failure: the result is
+    infeasible with the reason (a match not reached names each miss and its tolerance)."""
+    start = time.perf_counter()
+    try:
+        problem = launch_problem(inp)
+    except ValueError as err:
+        return LaunchResult.infeasible(inp, str(err))
+    r_fixed, v_fixed = point.earth_fixed(inp.launch_day.gmst_rad(), inp.earth.omega)
+    scale = np.r_[
+        [settings.position_tolerance_m] * 3,
+        [settings.velocity_tolerance_mps] * 3,
+        settings.flight_time_tolerance_s,
+    ]
+    n, step = problem.dimension, inp.local.finite_difference_step
+    margin = problem.target.path_limit_fraction
+    # Payload in kg: the objective's scale, so that ftol is a change of payload.
+    payload_span = float(problem.upper[PAYLOAD_INDEX] - problem.lower[PAYLOAD_INDEX])
+    cache: dict[str, tuple] = {}
+
+    def match(x: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Scaled misses and path margins of ``x``, and their central-difference Jacobians,
+        from one batch of 2n + 1 ascents (cached for the last point)."""
+        key = np.asarray(x, dtype=float).tobytes()
+        if cache.get("key") != key:
+            rows = np.vstack([x, x + step * np.eye(n), x - step * np.eye(n)])
+            ev = problem.evaluate(rows)
+            asc = ev.outcome
+            miss = (
+                np.c_[
+                    asc.r_ecef - r_fixed,
+                    asc.v_inertial_ecef_axes - v_fixed,
+                    asc.time_s - point.flight_time_s,
+                ]
+                / scale
+            )
+            paths = ev.inequality * margin  # 1 - q_max / q_limit, 1 - n_max / n_limit
+            cache["key"] = key
+            cache["values"] = (
+                miss[0],
+                ((miss[1 : n + 1] - miss[n + 1 :]) / (2 * step)).T,
+                paths[0],
+                ((paths[1 : n + 1] - paths[n + 1 :]) / (2 * step)).T,
+            )
+        return cache["values"]
+
+    deadline = Deadline(settings.time_limit_s, "mission.insertion.launch_match.time_limit_s")
+    gradient = np.zeros(n)
+    gradient[PAYLOAD_INDEX] = -payload_span
+    x0 = np.clip(problem.to_scaled(np.array([seed_design[k] for k in DESIGN_VARIABLES])), 0, 1)
+    before = problem.trajectories
+    try:
+        with np.errstate(all="ignore"):
+            result = minimize(
+                lambda x: -payload_span * float(x[PAYLOAD_INDEX]),
+                x0,
+                jac=lambda x: gradient,
+                method="SLSQP",
+                bounds=Bounds(np.zeros(n), np.ones(n)),
+                constraints=[
+                    {"type": "eq", "fun": lambda x: match(x)[0], "jac": lambda x: match(x)[1]},
+                    {"type": "ineq", "fun": lambda x: match(x)[2], "jac": lambda x: match(x)[3]},
+                ],
+                options={"maxiter": settings.max_iterations, "ftol": settings.payload_ftol_kg},
+                callback=lambda _: deadline.stop_if_expired(),
+            )
+            x = np.clip(result.x, 0.0, 1.0)
+            miss, _, paths, _ = match(x)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
+        return LaunchResult.infeasible(inp, f"numerical failure: {type(err).__name__}: {err}")
+    violations = _misses(miss, paths / margin)
+    limit = deadline.reason(int(result.nit)) if deadline.reached else None
+    if limit is None and not result.success and violations:
+        violations.append(f"SLSQP: {result.message}")
+    payload = float(problem.to_config_units(x)[PAYLOAD_INDEX])
+    wall = time.perf_counter() - start
+    record = PhaseRecord(
+        name="match",
+        payload_kg=payload,
+        max_violation=float(max(np.max(np.abs(miss)) - 1.0, 0.0)),
+        max_residual=float(np.max(np.abs(miss))),
+        feasible=not violations,
+        accepted=True,
+        iterations=int(result.nit),
+        trajectories=problem.trajectories - before,
+        wall_time_s=wall,
+        message=str(result.message),
+    )
+    outcome = OptimisationOutcome(
+        x=x,
+        payload_kg=payload,
+        max_violation=record.max_violation,
+        max_residual=record.max_residual,
+        phases=[record],
+        trajectories=problem.trajectories,
+        wall_time_s=wall,
+        limit=limit,
+    )
+    return finish_launch(
+        inp, problem, outcome, wall, insertion_time=point.t_s, violations=violations
+    )
+
+
+_MISS_NAMES = (
+    ("position x", "m"),
+    ("position y", "m"),
+    ("position z", "m"),
+    ("velocity x", "m/s"),
+    ("velocity y", "m/s"),
+    ("velocity z", "m/s"),
+    ("flight time", "s"),
+)
+
+
+def _misses(scaled_miss: NDArray, scaled_paths: NDArray) -> list[str]:
+    """A reason per miss beyond its tolerance and per path limit exceeded beyond its."""
+    reasons = [
+        f"insertion {name} misses the chain's by {value:.3g} tolerances ({unit})"
+        for (name, unit), value in zip(_MISS_NAMES, scaled_miss, strict=True)
+        if abs(value) > 1.0
+    ]
+    reasons += [
+        f"{name} over its limit by {-value:.3g} tolerances"
+        for name, value in zip(("dynamic pressure", "axial load"), scaled_paths, strict=True)
+        if value < -1.0
+    ]
+    return reasons
