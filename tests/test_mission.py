@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import math
-
 import pytest
 
-from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission import STAGES, MissionContext, MissionDesign, evaluate
 
@@ -53,19 +50,11 @@ def test_stages_hand_over_times_and_states(feasible, context, scenario):
     stay_s = 3600.0 * (scenario.mission.stay_h + 15.2)
     assert s["transfer"]["t0_s"] == pytest.approx(s["rendezvous"]["burn2_t_s"] + stay_s)
     assert s["rendezvous"]["t0_s"] == pytest.approx(s["launch"]["insertion_time_s"])
-    # The launch puts the OV in the target's mean plane at insertion; by the first burn
-    # the planes have drifted apart by the difference of their J2 nodal rates.
-    earth = scenario.earth
-    a_ov = earth.radius + 262.9e3
-    a_st = scenario.target.orbit.semi_major_axis_km * 1e3
-    i = math.radians(scenario.target.orbit.inclination_deg)
-    rate_ov = secular_rates(a_ov, 0.0, i, mu=earth.mu, radius=earth.radius, j2=earth.j2)[0]
-    rate_st = secular_rates(a_st, 0.0, i, mu=earth.mu, radius=earth.radius, j2=earth.j2)[0]
-    drift = abs(rate_ov - rate_st) * (
-        s["rendezvous"]["burn1_t_s"] - s["launch"]["insertion_time_s"]
-    )
-    expected = math.degrees(math.asin(math.sin(i) * math.sin(drift)))  # angle between planes
-    assert abs(s["rendezvous"]["plane_difference_deg"]) == pytest.approx(expected, abs=0.02)
+    # The launch aims at the target's plane at the rendezvous (tests/test_plane_aim.py: the
+    # node offset is the differential J2 regression over the wait): at the first burn the
+    # planes nearly coincide.
+    assert 0.4 < s["launch"]["raan_offset_deg"] < 0.8
+    assert abs(s["rendezvous"]["plane_difference_deg"]) < 0.01
     # The reentry starts where and when the deorbit entered.
     assert s["reentry"]["entry_epoch_utc"][:19] == s["deorbit"]["entry_epoch_utc"][:19]
     assert s["reentry"]["miss_distance_km"] <= scenario.reentry.terminal.miss_tolerance_km

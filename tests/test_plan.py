@@ -313,12 +313,13 @@ def test_the_solved_launch_is_cached_by_its_inputs_and_checked_when_read(
     (stored,) = [p for p in launch_cache.iterdir() if p.is_dir()]
     assert sorted(f.name for f in stored.iterdir()) == ["launch.json", "meta.json"]
     row = json.loads((stored / "launch.json").read_text())
-    assert "wall_time_s" not in row and "slsqp_time_s" not in row  # no timing stored
+    assert "wall_time_s" not in row and "match_time_s" not in row  # no timing stored
+    assert row["match_iterations"] >= 1  # solved to the chain's insertion
 
     def no_solve(*_args, **_kwargs):
         raise AssertionError("the cached launch was solved again")
 
-    monkeypatch.setattr(exact, "solve_launch_at", no_solve)
+    monkeypatch.setattr(exact, "solve_launch_to_point", no_solve)
     again = build_plan(
         context, FEASIBLE, source={"run_id": "test", "front_index": 3}, launch_cache=launch_cache
     )
@@ -399,3 +400,53 @@ def test_mission_plots_write_three_pngs(record, scenario, tmp_path):
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
+
+
+def test_the_plan_launch_inserts_where_the_front_evaluation_starts(context, record, plan):
+    """The launch is solved to the chain's own insertion (issue 43): the plan's chain starts
+    within the match tolerances of the front's, and flies the same totals."""
+    settings = context.scenario.mission.insertion.launch_match
+    front = evaluate(context, FEASIBLE)
+    leg, planned = front.results.launch, record.results.launch
+    assert leg.source == "launch fit" and planned.source == "solved launch"
+    miss = planned.insertion_state - leg.insertion_state
+    assert np.linalg.norm(miss[:3]) <= settings.position_tolerance_m
+    assert np.linalg.norm(miss[3:]) <= settings.velocity_tolerance_mps
+    assert planned.insertion_time_s == leg.insertion_time_s
+    assert abs(planned.flight_time_s - leg.flight_time_s) <= settings.flight_time_tolerance_s
+    assert planned.raan_offset_deg == leg.raan_offset_deg and plan.launch.plane_raan_offset_deg
+    tolerance = context.scenario.mission.plan.front_tolerance
+    assert abs(record.dv_total_mps - front.dv_total_mps) <= tolerance.dv_total_mps
+    assert abs(record.t_total_s - front.t_total_s) <= tolerance.t_total_s
+    assert abs(record.m_load_kg - front.m_load_kg) <= tolerance.m_load_kg
+    # The programme is the payload optimum of that insertion: within the path limits, its
+    # payload within the front's tolerance of the launch fit's (the unconstrained optimum).
+    launcher = context.scenario.launch.launcher
+    assert plan.launch.max_dynamic_pressure_pa <= 75000.0 * 1.001
+    assert plan.launch.payload_kg == pytest.approx(front.m_load_kg, abs=tolerance.m_load_kg)
+    assert launcher is not None
+
+
+def test_a_plan_off_its_front_point_is_refused_saying_by_how_much_and_why(record):
+    """check_front_point (what `ovtraj plan` and the pipeline run before writing)."""
+    from ovtraj.config.mission import FrontTolerance
+    from ovtraj.mission.plan import PlanMismatch, check_front_point
+
+    tolerance = FrontTolerance(dv_total_mps=1.0, t_total_s=60.0, m_load_kg=0.1)
+    front = {"dv_total_mps": record.dv_total_mps, "t_total_s": record.t_total_s}
+    front["m_load_kg"] = record.m_load_kg
+    check_front_point(record, front, {}, tolerance, "front point 3")  # the same: no error
+    stored = {k: dict(v) for k, v in record.stages.items()}
+    stored["rendezvous"]["dv_total_mps"] -= 50.0
+    stored["rendezvous"]["wait_time_s"] -= 1255.0
+    moved = front | {"dv_total_mps": front["dv_total_mps"] - 50.0}
+    moved["t_total_s"] -= 86400.0
+    with pytest.raises(PlanMismatch) as raised:
+        check_front_point(record, moved, stored, tolerance, "front point 3")
+    error = raised.value
+    assert len(error.differences) == 2
+    assert error.differences[0].startswith("dV_total") and "+50" in error.differences[0]
+    assert error.differences[1].startswith("T_total") and "+24" in error.differences[1]
+    assert any(c.startswith("rendezvous dV") for c in error.causes)
+    assert any(c.startswith("phasing wait") for c in error.causes)
+    assert "front point 3 does not fly its front values" in str(error)

@@ -44,7 +44,7 @@ from ovtraj.launch.ascent import initial_state
 from ovtraj.launch.fit import LaunchFit, design_of, launch_fit_key, predicted_design
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import LaunchInput, launch_input
-from ovtraj.launch.insertion import InsertionPoint, solve_launch_to
+from ovtraj.launch.insertion import MATCH_PHASE, InsertionPoint, solve_launch_to
 from ovtraj.launch.result import PHASES, LaunchResult
 from ovtraj.launch.stage import ascent_model, solve_launch
 from ovtraj.paths import workspace
@@ -66,7 +66,9 @@ KIND = "launch-solve"
 MARKER = "meta.json"
 ROW_FILE = "launch.json"
 # Wall times of the solve: never part of a stored result.
-TIMING_KEYS = frozenset({"wall_time_s", *(f"{p.replace('-', '_')}_time_s" for p in PHASES)})
+TIMING_KEYS = frozenset(
+    {"wall_time_s", *(f"{p.replace('-', '_')}_time_s" for p in (*PHASES, MATCH_PHASE))}
+)
 
 
 def launch_solves_root() -> Path:

@@ -44,7 +44,10 @@ from ovtraj.launch.optimize import PAYLOAD_INDEX, OptimisationOutcome, PhaseReco
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
 
-__all__ = ["InsertionPoint", "circular_insertion_state", "solve_launch_to"]
+__all__ = ["MATCH_PHASE", "InsertionPoint", "circular_insertion_state", "solve_launch_to"]
+
+MATCH_PHASE = "match"
+"""The phase a launch solved to an insertion records (its row's ``match_*`` columns)."""
 
 # Fixed-point iterations on the osculating plane whose mean plane is the one asked for: the
 # J2 short-period terms of i and the node are ~1e-3 rad, so each iteration gains ~3 digits.
@@ -183,7 +186,7 @@ def solve_launch_to(
     payload = float(problem.to_config_units(x)[PAYLOAD_INDEX])
     wall = time.perf_counter() - start
     record = PhaseRecord(
-        name="match",
+        name=MATCH_PHASE,
         payload_kg=payload,
         max_violation=float(max(np.max(np.abs(miss)) - 1.0, 0.0)),
         max_residual=float(np.max(np.abs(miss))),

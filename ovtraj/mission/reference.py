@@ -54,11 +54,22 @@ class ReferenceTolerances(StrictModel):
     payload_kg: float = bounded(unit="kg", gt=0)
 
 
+class PlaneAimBounds(StrictModel):
+    """What the rendezvous of a reference design must reach with the plane aimed at it
+    (issue 43): its dV over its coplanar two-body Hohmann cost, and the angle between the
+    chaser's and the target's planes at its first burn."""
+
+    hohmann_ratio_max: float = bounded(ge=1, le=10)
+    plane_difference_max_deg: float = bounded(unit="deg", gt=0, le=1)
+
+
 class ReferenceSettings(StrictModel):
     scenario: str = Field(description="a shipped scenario file of configs/")
     designs: int = bounded(ge=1, le=10000)
     seed: int = bounded(ge=0, le=2**32 - 1)
     tolerances: ReferenceTolerances
+    # Optional: the markers stored before issue 43 hold settings without it.
+    plane_aim: PlaneAimBounds | None = None
 
 
 def load_settings(path: str | Path | None = None) -> ReferenceSettings:

@@ -55,7 +55,7 @@ def write_mission_plan(
     (the store keeps its trajectories coarser). ``<name>.files.json``, written last,
     lists the size and SHA-256 of every file of the plan (``ovtraj verify``).
     """
-    from ovtraj.mission.plan import plan_and_record, write_plan
+    from ovtraj.mission.plan import check_front_point, plan_and_record, write_plan
     from ovtraj.plots.mission import mission_plots
 
     normalisation = Normalisation.mission(scenario.mission.optimize)
@@ -72,10 +72,19 @@ def write_mission_plan(
     }
     context = MissionContext(scenario, launch_fit)
     plan, record = plan_and_record(context, design, source=source)
+    run = store.run(result.final_run)
+    tolerance = scenario.mission.plan.front_tolerance
+    if tolerance is not None:
+        check_front_point(
+            record,
+            source["front_objectives"],
+            stored_stage_rows(run, sample_id),
+            tolerance,
+            f"front point {source['front_index']} (sample {sample_id})",
+        )
     directory = result.directory / "plans"
     name = f"plan-sample-{sample_id}"
     json_path, yaml_path = write_plan(plan, directory, name)
-    run = store.run(result.final_run)
     plots = mission_plots(record.trajectories, scenario, directory, prefix=name)
     from ovtraj.plots.front import front_plot
 
@@ -121,6 +130,21 @@ def write_mission_plan(
         "report": report,
         "pick": pick_explanation(result.front, normalisation, pick, row),
     }
+
+
+def stored_stage_rows(run: Run, sample_id: int) -> dict[str, dict[str, Any]]:
+    """The stage rows the run stored for a sample (stage -> row; a stage it did not reach
+    or store is left out)."""
+    from ovtraj.mission import STAGES
+
+    rows: dict[str, dict[str, Any]] = {}
+    for stage in STAGES:
+        table = run.stage(stage)
+        if len(table) and "sample_id" in table:
+            match = table[table["sample_id"] == sample_id]
+            if len(match):
+                rows[stage] = match.iloc[0].to_dict()
+    return rows
 
 
 def _last_surrogates(store: RunStore, result: PipelineResult) -> Any:
