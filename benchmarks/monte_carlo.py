@@ -30,7 +30,7 @@ def main() -> None:
     from ovtraj.config.dispersions import default_dispersions
     from ovtraj.launch.fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
-    from ovtraj.mission.montecarlo import monte_carlo, path_limits, summarise
+    from ovtraj.mission.montecarlo import monte_carlo, outcome_summaries
     from ovtraj.mission.plan import build_plan
     from ovtraj.paths import config_path
 
@@ -49,10 +49,8 @@ def main() -> None:
     start = time.perf_counter()
     pairs = monte_carlo(plan, config, args.runs, args.seed)
     wall = time.perf_counter() - start
-    limits = path_limits(plan)
-    stated = plan.terminal.stated_miss_m
-    closed = summarise([c for c, _ in pairs], limits, stated)
-    opened = summarise([o for _, o in pairs], limits, stated)
+    loops = outcome_summaries(plan, [c for c, _ in pairs], [o for _, o in pairs])
+    closed, opened = loops["closed"], loops["open"]
     say(f"{args.runs} runs, seed {args.seed}, {wall / args.runs:.2f} s per run (both loops)")
     say(
         f"{'':12s}{'landed':>8s}{'within 5 km':>13s}"
@@ -69,6 +67,17 @@ def main() -> None:
             f"{km(miss['p50'])}{km(miss['p95'])}{km(miss['max'])}"
         )
     say(f"closed-loop failures: {closed['failures'] or 'none'}")
+    for name, s in (("closed loop", closed), ("open loop", opened)):
+        total = s["dv_mps"]["total"]
+        shown = (
+            "no run flew every manoeuvre"
+            if total["runs"] == 0
+            else f"p50 {total['p50']:.2f}, p95 {total['p95']:.2f}, max {total['max']:.2f}"
+        )
+        say(
+            f"{name} dV total [m/s]: {shown} over {total['runs']} runs "
+            f"(planned {total['planned']:.2f})"
+        )
     # A failed run counts as a miss beyond any distance (its percentile is then None).
     p95 = (closed["landing_miss_m"] or {}).get("p95")
     met = p95 is not None and p95 <= GOAL_P95_M

@@ -267,6 +267,14 @@ def main() -> None:
             f"{_f(c['max_dv_total_mps'], 4):>14}{_f(c['max_t_total_s'], 3):>11}"
             f"{_f(c['max_m_load_kg'], 4):>11}"
         )
+    for chain, c in chains.items():
+        for seed in c["seeds"]:
+            for p in seed["points"]:
+                if "error" in p:
+                    say(
+                        f"  {chain}, seed {seed['seed']}, front point {p['front_index']}: "
+                        f"{p['error']}"
+                    )
     say(
         f"design space: {args.designs} designs (hypercube seed {args.design_seed}), H_P0 + "
         f"{GOALS['smooth_step_m']:g} m"

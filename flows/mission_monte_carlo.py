@@ -6,8 +6,10 @@
 3. fly the runs the store does not hold yet, closed and open loop, in batches of several
    runs per task on the configured task runner; each task is cached on its inputs and
    writes its own batch to Parquet;
-4. the landing-miss statistics of each loop, the landed fractions and the smallest margin
-   of each path limit into ``summary.json``; a table artifact; the summary is returned.
+4. the landing-miss statistics of each loop, the landed fractions, the smallest margin
+   of each path limit and the dV spent (``dv_mps``: p50 / p95 / max of the total and of
+   each manoeuvre against the plan's) into ``summary.json``; two table artifacts (the
+   landing miss, the dV); the summary is returned.
 """
 
 from __future__ import annotations
@@ -136,6 +138,18 @@ def plan_monte_carlo_flow(
             for loop, s in loops.items()
         ],
         description=f"Plan Monte Carlo {run.id} ({n} runs, seed {seed})",
+    )
+    create_table_artifact(
+        key="plan-monte-carlo-dv",
+        table=[
+            {"loop": loop, "manoeuvre": name, **figures}
+            for loop, s in loops.items()
+            for name, figures in s["dv_mps"].items()
+        ],
+        description=(
+            f"Plan Monte Carlo {run.id}: dV spent [m/s], p50 / p95 / max over the runs that "
+            "flew each manoeuvre, against the plan"
+        ),
     )
     if failures:
         text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())

@@ -1214,6 +1214,7 @@ def pipeline(
     and its HTML report. Says whether the verification loop converged and why it stopped."""
     from functools import partial
 
+    from ovtraj.mission.plan import PlanMismatch
     from ovtraj.parallel import Bounded
     from ovtraj.pipeline import (
         OptimiserStopped,
@@ -1291,7 +1292,7 @@ def pipeline(
         exits.close()
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, fit, store, result, chosen)
-    except OptimiserStopped as err:
+    except (OptimiserStopped, PlanMismatch) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=1) from None
     except (
@@ -1457,7 +1458,7 @@ def plan(
 ) -> None:
     """Write the mission plan (JSON and YAML), its plots and its HTML report, of a point
     of the verified front of a run's pipeline result."""
-    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan import PlanError, PlanMismatch
     from ovtraj.pipeline import PipelineError
     from ovtraj.pipeline.catalog import family_root
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
@@ -1470,6 +1471,9 @@ def plan(
         result = find_pipeline(stored, pipeline_id)
         chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, _launch_fit_or_exit(scenario), store, result, chosen)
+    except PlanMismatch as err:  # the plan does not fly its front point: an unmet result
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
     except (StoreError, PipelineError, PlanError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
@@ -1557,18 +1561,12 @@ def _dispersions(path: Path | None) -> Any:
 def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool) -> dict:
     """The dispersed runs, closed and open loop, summarised (a progress bar on stderr
     unless ``as_json``)."""
-    from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, path_limits, summarise
+    from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, outcome_summaries
 
     with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
         pairs = monte_carlo(plan, dispersions, runs, seed, progress=update)
-    limits = path_limits(plan)
-    stated = plan.terminal.stated_miss_m
-    return monte_carlo_report(
-        summarise([c for c, _ in pairs], limits, stated),
-        summarise([o for _, o in pairs], limits, stated),
-        seed,
-        stated,
-    )
+    loops = outcome_summaries(plan, [c for c, _ in pairs], [o for _, o in pairs])
+    return monte_carlo_report(loops["closed"], loops["open"], seed, plan.terminal.stated_miss_m)
 
 
 def _format_monte_carlo(summary: dict) -> str:
@@ -1600,7 +1598,29 @@ def _format_monte_carlo(summary: dict) -> str:
                     f"    {stem}: smallest margin {number(margin['smallest_margin'], unit)} "
                     f"(limit {number(margin['limit'], unit)})"
                 )
+        lines.extend(_format_dv_spent(s["dv_mps"]))
     return "\n".join(lines)
+
+
+def _format_dv_spent(dv: dict) -> list[str]:
+    """The dV lines of a loop's Monte Carlo summary (``dv_mps``)."""
+
+    def mps(value: float | None, unit: str = "") -> str:
+        return number(value, unit, decimals=2)
+
+    lines = ["    dV spent, p50 / p95 / max over the runs that flew it (planned; p95 - planned):"]
+    for name, s in dv.items():
+        planned = f"planned {mps(s['planned'], 'm/s')}"
+        if s["runs"] == 0:
+            lines.append(f"      {name}: no run flew it ({planned})")
+            continue
+        margin = s["p95_minus_planned"]
+        lines.append(
+            f"      {name}: {mps(s['p50'])} / {mps(s['p95'])} / {mps(s['max'], 'm/s')} "
+            f"({planned}; {'n/a' if margin is None else f'{margin:+.2f} m/s'}; "
+            f"{s['runs']} runs)"
+        )
+    return lines
 
 
 @app.command()

@@ -10,7 +10,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from ovtraj.cli import app
+from ovtraj.cli import _format_monte_carlo, app
 from ovtraj.config import load_scenario
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig, default_dispersions
@@ -18,13 +18,18 @@ from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import fly_plan
 from ovtraj.mission.montecarlo import (
+    CORRECTIONS,
+    IMPULSES,
+    MANOEUVRES,
     DispersedFlight,
+    RunOutcome,
     draw_run,
     fly_closed_loop,
     fly_open_loop,
+    planned_dv,
     summarise,
 )
-from ovtraj.mission.plan import build_plan, write_plan
+from ovtraj.mission.plan import build_plan, read_plan, write_plan
 from ovtraj.paths import config_path
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)
@@ -42,6 +47,14 @@ def plan(tmp_path_factory):
 @pytest.fixture(scope="module")
 def plan_file(plan, tmp_path_factory):
     return write_plan(plan, tmp_path_factory.mktemp("plan"), "chosen")[0]
+
+
+@pytest.fixture(scope="module")
+def undispersed(plan):
+    """Both loops flown with every error zero: (closed, open) outcomes."""
+    config = _scaled(default_dispersions(), 0.0)
+    zero = draw_run(config, 0, 0)
+    return fly_closed_loop(plan, zero, config), fly_open_loop(plan, zero)
 
 
 def _scaled(config: DispersionsConfig, factor: float, **overrides) -> DispersionsConfig:
@@ -70,16 +83,16 @@ def test_a_run_draws_the_same_errors_whatever_the_batch():
     assert np.std(density) == pytest.approx(config.entry.density_fraction, rel=0.15)
 
 
-def test_without_dispersions_both_loops_fly_the_plan(plan):
+def test_without_dispersions_both_loops_fly_the_plan(plan, undispersed):
     nominal = fly_plan(plan)
     zero = draw_run(_scaled(default_dispersions(), 0.0), 0, 0)
     # Open loop with no error is the replay itself, to the last bit.
     undisturbed = fly_plan(plan, perturbation=DispersedFlight(zero))
     assert undisturbed.miss_distance_m == nominal.miss_distance_m
-    assert fly_open_loop(plan, zero).landing_miss_m == nominal.miss_distance_m
+    closed, opened = undispersed
+    assert opened.landing_miss_m == nominal.miss_distance_m
     # Closed loop re-solves every stage from the (exact) estimate: it lands where the plan
     # says, within the guidance's range tolerance.
-    closed = fly_closed_loop(plan, zero, _scaled(default_dispersions(), 0.0))
     assert closed.landed, closed.reason
     assert closed.arrival_miss_m < 1.0
     assert abs(closed.landing_miss_m - plan.terminal.miss_distance_m) < 100.0
@@ -107,6 +120,95 @@ def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot
     assert opened["landed"] + sum(opened["failures"].values()) == 4
     for name, margin in closed["path_limit_margins"].items():
         assert 0.0 < margin["smallest_margin"] < margin["limit"], name
+    # The dV spent, both loops, against the plan file's impulses.
+    impulses = read_plan(plan_file).impulses()
+    for s in (closed, opened):
+        dv = s["dv_mps"]
+        assert list(dv) == ["total", *MANOEUVRES]
+        for impulse in impulses:
+            assert dv[impulse.name]["planned"] == impulse.dv_mps
+        assert dv["total"]["planned"] == sum(i.dv_mps for i in impulses)
+        assert dv[CORRECTIONS]["planned"] == 0.0
+        for name, figures in dv.items():
+            if figures["runs"]:
+                assert figures["p50"] <= figures["p95"] <= figures["max"], name
+                assert figures["p95_minus_planned"] == figures["p95"] - figures["planned"]
+    # Every closed run docks and flies every manoeuvre; the open loop executes each impulse
+    # it reaches (no correction: 0).
+    assert all(figures["runs"] == 4 for figures in closed["dv_mps"].values())
+    assert opened["dv_mps"]["rendezvous burn 1"]["runs"] == 4
+    assert opened["dv_mps"][CORRECTIONS]["max"] in (0.0, None)
+    # The corrections and the re-solved deorbit cost dV beyond the plan.
+    assert closed["dv_mps"][CORRECTIONS]["p50"] > 0.0
+    # Printed with its units beside the landing miss (what `fly --monte-carlo` shows).
+    text = _format_monte_carlo(mc)
+    assert text.count("dV spent") == 2 and text.count("total: ") == 2
+    assert f"deorbit burn: {closed['dv_mps']['deorbit burn']['p50']:.2f} / " in text
+
+
+def test_without_dispersions_both_loops_spend_the_planned_dv(plan, undispersed):
+    closed, opened = undispersed
+    assert [impulse.name for impulse in plan.impulses()] == list(IMPULSES)
+    assert list(closed.dv_mps) == list(opened.dv_mps) == list(MANOEUVRES)
+    # The closed loop re-solves each manoeuvre from the exact estimate of the plan's own
+    # state (the replayed insertion is the plan's to the bit), so each impulse differs from
+    # the plan's only by the numerics: the replay's DOP853 arcs (rtol 1e-12, atol 1e-9
+    # m/s) against the chain's heyoka ones, and the deorbit cut-off's root finder (scale
+    # within 1e-10: 7.6e-9 m/s of a 76 m/s burn). Measured: at most 5.7e-9 m/s (rendezvous
+    # burn 2, 1.5e-10 relative), the total 4e-9 m/s; 1e-7 m/s leaves 13x over the larger
+    # bound, far below any modelling slip (an error not zeroed, a correction fired: mm/s).
+    # No correction fires: from the exact estimate the predicted arrival miss is the
+    # plan's (1e-8 m), within the 1 m correction tolerance.
+    for impulse in plan.impulses():
+        assert closed.dv_mps[impulse.name] == pytest.approx(impulse.dv_mps, abs=1e-7)
+        # The open loop executes the stored vector unchanged: its norm, to the last bits.
+        assert opened.dv_mps[impulse.name] == pytest.approx(impulse.dv_mps, rel=1e-14)
+    assert closed.dv_mps[CORRECTIONS] == opened.dv_mps[CORRECTIONS] == 0.0
+    for outcome in undispersed:
+        assert outcome.dv_total_mps == sum(outcome.dv_mps[name] for name in MANOEUVRES)
+        assert outcome.dv_total_mps == pytest.approx(plan.totals.dv_total_mps, abs=1e-7)
+
+
+def test_the_dv_summary_counts_the_runs_that_flew_each_manoeuvre(plan):
+    planned = planned_dv(plan)
+    assert planned == {
+        "total": sum(i.dv_mps for i in plan.impulses()),
+        **{i.name: i.dv_mps for i in plan.impulses()},
+        CORRECTIONS: 0.0,
+    }
+    runs = []
+    for k, scale in enumerate((1.01, 1.03, 1.02, 0.99)):
+        run = RunOutcome(run=k, loop="closed", landed=True, landing_miss_m=100.0)
+        for name in MANOEUVRES:
+            run.spend(name, np.array([planned[name] * scale, 0.0, 0.0]))
+        runs.append(run)
+    stopped = RunOutcome(run=4, loop="closed", landed=False, failed_stage="transfer")
+    stopped.spend("rendezvous burn 1", np.array([0.0, 50.0, 0.0]))
+    stopped.spend(CORRECTIONS, np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.4, 0.0]))
+    assert stopped.dv_mps[CORRECTIONS] == pytest.approx(0.7) and stopped.dv_total_mps is None
+    dv = summarise([*runs, stopped], {}, 5000.0, planned)["dv_mps"]
+    json.dumps(dv, allow_nan=False)
+    assert list(dv) == ["total", *MANOEUVRES]
+    total = dv["total"]
+    assert total["runs"] == 4 and total["planned"] == planned["total"]
+    # numpy's "higher" percentiles: each one a run's value.
+    assert total["p50"] == pytest.approx(1.02 * planned["total"])
+    assert total["p95"] == total["max"] == pytest.approx(1.03 * planned["total"])
+    assert total["p95_minus_planned"] == pytest.approx(0.03 * planned["total"])
+    assert dv["rendezvous burn 1"]["runs"] == 5 and dv["rendezvous burn 1"]["max"] == 50.0
+    assert dv[CORRECTIONS]["max"] == pytest.approx(0.7)
+    assert dv[CORRECTIONS]["p95_minus_planned"] == pytest.approx(0.7)
+    # Without the plan's figures (and with no run at all) the section keeps its shape.
+    empty = summarise([stopped], {}, 5000.0)["dv_mps"]
+    assert empty["deorbit burn"] == {
+        "runs": 0,
+        "p50": None,
+        "p95": None,
+        "max": None,
+        "planned": None,
+        "p95_minus_planned": None,
+    }
+    assert empty["rendezvous burn 1"]["p50"] == 50.0 and empty["total"]["runs"] == 0
 
 
 def test_a_run_that_cannot_dock_is_a_failure_with_its_reason(plan):
@@ -117,7 +219,12 @@ def test_a_run_that_cannot_dock_is_a_failure_with_its_reason(plan):
     summary = summarise([outcome], {"max_load_g": 3.5}, 5000.0)
     assert summary["feasible_fraction"] == 0.0 and summary["failures"] == {"rendezvous": 1}
     assert summary["landing_miss_m"] is None
-    assert math.isfinite(json.loads(json.dumps(summary))["runs"])
+    assert math.isfinite(json.loads(json.dumps(summary, allow_nan=False))["runs"])
+    # It spent the rendezvous burns' dV (the arrival impulse came before the miss was
+    # known), not the transfer's nor the deorbit's: no total.
+    assert set(outcome.dv_mps) == {"rendezvous burn 1", CORRECTIONS, "rendezvous burn 2"}
+    assert outcome.dv_total_mps is None and summary["dv_mps"]["total"]["runs"] == 0
+    assert summary["dv_mps"]["transfer burn 1"]["p95"] is None
 
 
 def test_bad_dispersions_are_refused_naming_the_field(plan_file, tmp_path):
@@ -182,6 +289,21 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
     ].tolist()
     assert loop_summaries(plan, frame)["closed"] == closed
     assert loop_summaries(plan, frame)["open"] == first["open_loop"]
+    # The dV each run spent, stored per manoeuvre: the library's, the total their sum (a
+    # run that stopped before a manoeuvre: null for it and for the total).
+    columns = list(MANOEUVRES.values())
+    assert [c.dv_mps for c, _ in pairs] == [
+        {name: row[column] for name, column in MANOEUVRES.items()}
+        for _, row in frame[frame["loop"] == "closed"].iterrows()
+    ]
+    for _, row in frame.iterrows():
+        if row[columns].notna().all():
+            assert row["dv_total_mps"] == pytest.approx(row[columns].sum(), abs=1e-9)
+        else:
+            assert math.isnan(row["dv_total_mps"])
+    assert frame["dv_total_mps"].notna().any()
+    for s in (closed, first["open_loop"]):
+        assert set(s["dv_mps"]) == {"total", *MANOEUVRES}
     digests = _parquet_digests(run.directory)
     second = plan_monte_carlo_flow(str(plan_file), dispersions=str(dispersions))
     assert second["run_id"] == first["run_id"] and second["simulated_runs"] == 0

@@ -355,6 +355,9 @@ class LaunchMatchSettings(StrictModel):
         unit="kg", gt=0, le=10, description="SLSQP's stopping change of the payload"
     )
     max_iterations: int = bounded(ge=1, le=1000, description="SLSQP iterations")
+    polish_iterations: int = bounded(
+        ge=0, le=100, description="Gauss-Newton steps on the misses after SLSQP, payload held"
+    )
     time_limit_s: float = bounded(unit="s", gt=0, le=86400, description="wall time (safety net)")
 
 

@@ -44,6 +44,12 @@ by the stage's own method from the on-board estimate:
 Every run ends with its landing miss, whether it reached the terminal speed, and the
 path maxima, reported against the limits as margins (limit minus maximum). Nothing
 raises out of a run: a stage that fails ends it with the stage and the reason.
+
+Every run also records the dV it spent (:data:`MANOEUVRES`): the magnitude of each
+impulse as executed, after its errors (the deorbit burn as cut off on line), under the
+plan's name of the manoeuvre; the closed loop's mid-course corrections, which the plan
+does not hold, as ``rendezvous corrections`` (their sum; the open loop flies none: 0). A
+manoeuvre the run did not reach has no value, nor has the total.
 """
 
 from __future__ import annotations
@@ -92,19 +98,23 @@ from ovtraj.targets import target_state
 logger = logging.getLogger(__name__)
 
 __all__ = [
+    "MANOEUVRES",
     "RUN_SCHEMA",
     "STORED_RUN_SCHEMA",
     "DispersedFlight",
     "RunDraw",
     "RunOutcome",
     "draw_run",
+    "dv_statistics",
     "fly_closed_loop",
     "fly_open_loop",
     "loop_summaries",
     "monte_carlo",
     "monte_carlo_report",
+    "outcome_summaries",
     "outcomes_of",
     "path_limits",
+    "planned_dv",
     "simulate_batch",
     "summarise",
 ]
@@ -112,6 +122,19 @@ __all__ = [
 # Where the on-board estimate is drawn: before each corrected phase.
 NAVIGATION_POINTS = ("rendezvous", "arrival", "transfer", "deorbit")
 PATH_LIMITS = ("max_heat_rate_w_m2", "max_load_g", "max_dynamic_pressure_pa")
+# Every manoeuvre whose dV a run records, in time order, and its stored column: the plan's
+# impulses under the plan's names, and the closed loop's mid-course corrections (not planned).
+CORRECTIONS = "rendezvous corrections"
+MANOEUVRES = {
+    "rendezvous burn 1": "dv_rendezvous_1_mps",
+    CORRECTIONS: "dv_rendezvous_corrections_mps",
+    "rendezvous burn 2": "dv_rendezvous_2_mps",
+    "transfer burn 1": "dv_transfer_1_mps",
+    "transfer burn 2": "dv_transfer_2_mps",
+    "deorbit burn": "dv_deorbit_mps",
+}
+# The plan's impulses in the order of MissionPlan.impulses() (the index of Perturbation.burn).
+IMPULSES = tuple(name for name in MANOEUVRES if name != CORRECTIONS)
 
 RUN_SCHEMA = record_schema(
     [
@@ -122,13 +145,16 @@ RUN_SCHEMA = record_schema(
         ("reason", TEXT),
         ("landing_miss_m", FLOAT),
         ("arrival_miss_m", FLOAT),
+        *[(column, FLOAT) for column in MANOEUVRES.values()],
         ("dv_total_mps", FLOAT),
         *[(name, FLOAT) for name in PATH_LIMITS],
         ("wall_time_s", FLOAT),
     ],
     required=("run", "loop", "landed"),
 )
-"""One flown run of one loop (``closed``/``open``); ``wall_time_s`` is timing only."""
+"""One flown run of one loop (``closed``/``open``); ``wall_time_s`` is timing only. The
+``dv_*_mps`` columns: the dV each manoeuvre spent (:data:`MANOEUVRES`) and their sum, null
+for a manoeuvre the run did not reach (and then for the total)."""
 STORED_RUN_SCHEMA = pa.schema([f for f in RUN_SCHEMA if f.name != "wall_time_s"])
 """The stored rows (the wall times go to the batch markers)."""
 
@@ -292,7 +318,10 @@ def scaled_entry_model(model: EntryModel, density: float, lift: float, drag: flo
 
 @dataclass
 class RunOutcome:
-    """One run flown: reached the terminal speed or not, where, and the path maxima."""
+    """One run flown: reached the terminal speed or not, where, and the path maxima.
+
+    ``dv_mps``: the dV [m/s] each manoeuvre the run executed spent (keys of
+    :data:`MANOEUVRES`); ``dv_total_mps``: their sum once it executed all of them."""
 
     run: int
     loop: str  # "closed" or "open"
@@ -303,18 +332,27 @@ class RunOutcome:
     maxima: dict[str, float] = field(default_factory=dict)
     arrival_miss_m: float | None = None
     dv_total_mps: float | None = None
+    dv_mps: dict[str, float] = field(default_factory=dict)
+
+    def spend(self, manoeuvre: str, *executed: NDArray[np.float64]) -> None:
+        """Record ``manoeuvre`` as flown: the sum of its executed impulses' magnitudes
+        [m/s] (none: 0); the total once every manoeuvre is recorded."""
+        self.dv_mps[manoeuvre] = float(sum(np.linalg.norm(dv) for dv in executed))
+        if set(MANOEUVRES) <= set(self.dv_mps):
+            self.dv_total_mps = sum(self.dv_mps[name] for name in MANOEUVRES)
 
 
 def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
     """The plan flown as stored with the draw's errors (the replay, no correction)."""
+    flight = DispersedFlight(draw)
     with blas_threads(EVALUATION_BLAS_THREADS):
-        report: FlightReport = fly_plan(plan, perturbation=DispersedFlight(draw))
+        report: FlightReport = fly_plan(plan, perturbation=flight)
     maxima = {
         name: float(report.checks[name].value)
         for name in PATH_LIMITS
         if name in report.checks and report.checks[name].value is not None
     }
-    return RunOutcome(
+    outcome = RunOutcome(
         run=draw.run,
         loop="open",
         landed=bool(report.ok),
@@ -323,8 +361,14 @@ def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
         landing_miss_m=report.miss_distance_m,
         maxima=maxima,
         arrival_miss_m=report.rendezvous_arrival_miss_m,
-        dv_total_mps=float(sum(b.dv_mps for b in report.burns)) if report.burns else None,
     )
+    # The replay executes the k-th planned impulse as flight.burn(k, planned) once it has
+    # reported it; no correction between the rendezvous burns.
+    for k, planned in enumerate(plan.impulses()[: len(report.burns)]):
+        if IMPULSES[k] == "rendezvous burn 2":
+            outcome.spend(CORRECTIONS)
+        outcome.spend(IMPULSES[k], flight.burn(k, planned.eci))
+    return outcome
 
 
 class _Failed(Exception):
@@ -373,7 +417,6 @@ def _closed_loop(
     propagator = OrbitPropagator(earth, tol=scenario.tolerances.integrator)
     flight = DispersedFlight(draw)
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
-    spent = 0.0
 
     def estimate(point: str, truth: NDArray[np.float64]) -> NDArray[np.float64]:
         return truth + draw.navigation[point]
@@ -405,12 +448,14 @@ def _closed_loop(
         raise _Failed("rendezvous", f"re-targeting failed: {rdv.reason}")
     state = coast(state, t, rdv.burn1.t_s, "rendezvous")
     dv = flight.burn(0, np.asarray(rdv.burn1.eci_mps))
-    state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], rdv.burn1.t_s, spent + np.linalg.norm(dv)
+    state, t = state + np.r_[0.0, 0.0, 0.0, dv], rdv.burn1.t_s
+    outcome.spend("rendezvous burn 1", dv)
     t_arrival = rdv.burn2.t_s
     target = target_at(t_arrival)
     # Mid-course corrections: from the estimate, the velocity that reaches the target's
     # arrival position (differential correction under J2), executed with errors.
     t_burn1 = t
+    corrections = []
     for k, fraction in enumerate(config.closed_loop.rendezvous_corrections):
         t_fix = t_burn1 + fraction * (t_arrival - t_burn1)
         state = coast(state, t, t_fix, "rendezvous")
@@ -422,12 +467,15 @@ def _closed_loop(
         dv = draw.correction_scale[k] * _pointed(
             wanted - estimated[3:], draw.correction_pointing_rad[k]
         )
-        state, spent = state + np.r_[0.0, 0.0, 0.0, dv], spent + np.linalg.norm(dv)
+        state = state + np.r_[0.0, 0.0, 0.0, dv]
+        corrections.append(dv)
+    outcome.spend(CORRECTIONS, *corrections)
     state = coast(state, t, t_arrival, "rendezvous")
     # The second impulse matches the target's velocity, as the chaser estimates its own.
     matched = target[3:] - estimate("arrival", state)[3:]
     dv = flight.burn(1, matched)
-    state, spent = state + np.r_[0.0, 0.0, 0.0, dv], spent + np.linalg.norm(dv)
+    state = state + np.r_[0.0, 0.0, 0.0, dv]
+    outcome.spend("rendezvous burn 2", dv)
     outcome.arrival_miss_m = float(np.linalg.norm(state[:3] - target[:3]))
     capture = config.closed_loop.docking_capture_m
     if outcome.arrival_miss_m > capture:
@@ -458,7 +506,8 @@ def _closed_loop(
     for k, burn in ((2, transfer.burn1), (3, transfer.burn2)):
         state = coast(state, t, burn.t_s, "transfer")
         dv = flight.burn(k, np.asarray(burn.eci_mps))
-        state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], burn.t_s, spent + np.linalg.norm(dv)
+        state, t = state + np.r_[0.0, 0.0, 0.0, dv], burn.t_s
+        outcome.spend(IMPULSES[k], dv)
     t_prep = transfer.arrival_time_s
     state = coast(state, t, t_prep, "transfer")
     t = t_prep
@@ -477,8 +526,8 @@ def _closed_loop(
         scenario,
         config,
     )
-    state, t, spent = state + np.r_[0.0, 0.0, 0.0, dv], t_burn, spent + np.linalg.norm(dv)
-    outcome.dv_total_mps = float(spent)
+    state, t = state + np.r_[0.0, 0.0, 0.0, dv], t_burn
+    outcome.spend("deorbit burn", dv)
     # descent to the entry interface
     r0 = float(np.linalg.norm(state[:3]))
     horizon = scenario.deorbit.max_descent_revolutions * 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
@@ -688,19 +737,38 @@ def path_limits(plan: MissionPlan) -> dict[str, float]:
     }
 
 
-def loop_summaries(plan: MissionPlan, frame: pd.DataFrame) -> dict[str, dict[str, Any]]:
-    """:func:`summarise` of the stored rows of each loop (``closed``, ``open``)."""
-    limits, stated = path_limits(plan), plan.terminal.stated_miss_m
+def planned_dv(plan: MissionPlan) -> dict[str, float]:
+    """The dV [m/s] the plan spends on each manoeuvre of :data:`MANOEUVRES` (its impulses'
+    magnitudes; no mid-course correction: 0) and ``total``, their sum."""
+    planned = dict.fromkeys(MANOEUVRES, 0.0)
+    planned.update(
+        {name: impulse.dv_mps for name, impulse in zip(IMPULSES, plan.impulses(), strict=True)}
+    )
+    return {"total": sum(planned.values()), **planned}
+
+
+def outcome_summaries(
+    plan: MissionPlan, closed: list[RunOutcome], opened: list[RunOutcome]
+) -> dict[str, dict[str, Any]]:
+    """:func:`summarise` of each loop's runs (``closed``, ``open``) against the plan's
+    limits, stated miss and dV."""
+    limits, stated, planned = path_limits(plan), plan.terminal.stated_miss_m, planned_dv(plan)
     return {
-        loop: summarise(outcomes_of(frame, loop), limits, stated) for loop in ("closed", "open")
+        loop: summarise(outcomes, limits, stated, planned)
+        for loop, outcomes in (("closed", closed), ("open", opened))
     }
+
+
+def loop_summaries(plan: MissionPlan, frame: pd.DataFrame) -> dict[str, dict[str, Any]]:
+    """:func:`outcome_summaries` of the stored rows of each loop (``closed``, ``open``)."""
+    return outcome_summaries(plan, outcomes_of(frame, "closed"), outcomes_of(frame, "open"))
 
 
 def monte_carlo_report(
     closed: dict[str, Any], opened: dict[str, Any], seed: int, stated_miss_m: float
 ) -> dict[str, Any]:
     """The Monte Carlo as reported: the closed loop's figures (``runs``, ``landing_miss_m``,
-    ``feasible_fraction``, ...) with ``open_loop``'s beside them."""
+    ``feasible_fraction``, ``dv_mps``, ...) with ``open_loop``'s beside them."""
     return {
         "loop": "closed",
         "seed": int(seed),
@@ -711,19 +779,18 @@ def monte_carlo_report(
 
 
 def summarise(
-    outcomes: list[RunOutcome], limits: dict[str, float], stated_miss_m: float
+    outcomes: list[RunOutcome],
+    limits: dict[str, float],
+    stated_miss_m: float,
+    planned: dict[str, float] | None = None,
 ) -> dict[str, Any]:
     """The landing-miss percentiles over every run, a run that did not land counting as a
     miss beyond any distance (a percentile that falls on one is ``None``); the landed
-    fraction, the fraction within the stated miss, the failures by stage and the smallest
-    margin of each path limit over the runs that flew the entry."""
+    fraction, the fraction within the stated miss, the failures by stage, the smallest
+    margin of each path limit over the runs that flew the entry, and the dV spent
+    (:func:`dv_statistics` against ``planned``, the plan's: :func:`planned_dv`)."""
     landed = [o for o in outcomes if o.landed and o.landing_miss_m is not None]
     misses = np.array([o.landing_miss_m if o in landed else np.inf for o in outcomes], dtype=float)
-
-    def percentile(q: float) -> float | None:
-        value = float(np.percentile(misses, q, method="higher")) if len(misses) else math.inf
-        return value if math.isfinite(value) else None
-
     summary: dict[str, Any] = {
         "runs": len(outcomes),
         "landed": len(landed),
@@ -731,11 +798,7 @@ def summarise(
         "within_stated_miss_fraction": (
             float(np.sum(misses <= stated_miss_m)) / len(outcomes) if outcomes else 0.0
         ),
-        "landing_miss_m": (
-            {"p50": percentile(50), "p95": percentile(95), "max": percentile(100)}
-            if landed
-            else None
-        ),
+        "landing_miss_m": _percentiles(misses) if landed else None,
         "failures": _failures(outcomes),
     }
     margins = {}
@@ -747,7 +810,45 @@ def summarise(
             else None
         )
     summary["path_limit_margins"] = margins
+    summary["dv_mps"] = dv_statistics(outcomes, planned or {})
     return summary
+
+
+def _percentiles(values: NDArray[np.float64]) -> dict[str, float | None]:
+    """``p50``, ``p95`` and ``max`` of ``values`` (non-empty), each one of the values
+    (numpy's ``higher`` method); a non-finite one (a run counted beyond any value) is
+    ``None``."""
+
+    def percentile(q: float) -> float | None:
+        value = float(np.percentile(values, q, method="higher"))
+        return value if math.isfinite(value) else None
+
+    return {"p50": percentile(50), "p95": percentile(95), "max": percentile(100)}
+
+
+def dv_statistics(
+    outcomes: list[RunOutcome], planned: dict[str, float]
+) -> dict[str, dict[str, Any]]:
+    """The dV spent [m/s], ``total`` and each manoeuvre of :data:`MANOEUVRES`: ``runs``
+    (how many executed it; for the total, all of them), ``p50``, ``p95`` and ``max`` over
+    those runs (``None`` when none did), ``planned`` (``planned``'s value, ``None`` if it
+    has none) and ``p95_minus_planned``, the margin beyond the plan a tank sized at p95
+    carries."""
+    section = {}
+    for name in ("total", *MANOEUVRES):
+        flown = [o.dv_total_mps if name == "total" else o.dv_mps.get(name) for o in outcomes]
+        values = np.array([v for v in flown if v is not None and math.isfinite(v)], dtype=float)
+        stats = _percentiles(values) if len(values) else dict.fromkeys(("p50", "p95", "max"))
+        plan = planned.get(name)
+        section[name] = {
+            "runs": len(values),
+            **stats,
+            "planned": plan,
+            "p95_minus_planned": (
+                None if stats["p95"] is None or plan is None else stats["p95"] - plan
+            ),
+        }
+    return section
 
 
 def _failures(outcomes: list[RunOutcome]) -> dict[str, int]:
@@ -784,6 +885,7 @@ def simulate_batch(
                     "reason": outcome.reason,
                     "landing_miss_m": outcome.landing_miss_m,
                     "arrival_miss_m": outcome.arrival_miss_m,
+                    **{c: outcome.dv_mps.get(name) for name, c in MANOEUVRES.items()},
                     "dv_total_mps": outcome.dv_total_mps,
                     **{name: outcome.maxima.get(name) for name in PATH_LIMITS},
                     "wall_time_s": time.perf_counter() - start,
@@ -812,6 +914,11 @@ def outcomes_of(frame: pd.DataFrame, loop: str) -> list[RunOutcome]:
                 maxima={n: float(row[n]) for n in PATH_LIMITS if value(row, n) is not None},
                 arrival_miss_m=value(row, "arrival_miss_m"),
                 dv_total_mps=value(row, "dv_total_mps"),
+                dv_mps={
+                    name: float(row[column])
+                    for name, column in MANOEUVRES.items()
+                    if value(row, column) is not None
+                },
             )
         )
     return outcomes
