@@ -190,7 +190,8 @@ def test_records_refuse_an_undeclared_column_and_store_nan_as_null():
 def test_two_stores_of_one_config_and_seed_are_byte_identical(tmp_path):
     config = _write_config(tmp_path, _short_data())
     done = [
-        _cli("run", str(config), "--samples", "4", "--seed", "3", "--store", str(tmp_path / s))
+        # Seed 5: samples failing at the rendezvous and the deorbit, and two that land.
+        _cli("run", str(config), "--samples", "4", "--seed", "5", "--store", str(tmp_path / s))
         for s in ("a", "b")
     ]
     assert all(d.returncode == 0 for d in done), [d.stderr for d in done]
