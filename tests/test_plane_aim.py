@@ -165,10 +165,46 @@ def test_the_aim_stops_at_its_iteration_limit_with_the_best_iterate(aimed):
         aimed.scenario.earth.omega - aimed.plane.raan_rate_rad_s
     )
 
-    def insertion_at(offset):
-        return t_fit, leg.insertion_state
+    earth = aimed.scenario.earth
+    mean = state_to_mean(
+        leg.insertion_state[:3],
+        leg.insertion_state[3:],
+        mu=earth.mu,
+        radius=earth.radius,
+        j2=earth.j2,
+    )
 
-    once = aim_insertion(insertion_at, aimed.target_at, aimed.scenario.earth, settings)
+    def insertion_at(offset):
+        return t_fit, leg.insertion_state, mean
+
+    once = aim_insertion(insertion_at, aimed.target_at, earth, settings)
     assert not once.converged and once.iterations == 1 and once.raan_offset_rad == 0.0
     # Its residual is the whole offset the planes need: ~0.45 deg of plane at this altitude.
     assert 0.3 < math.degrees(once.plane_difference_rad) < 0.6
+
+
+def test_the_aim_converges_to_the_node_a_plain_iteration_reaches(aimed):
+    """The secant steps reach the plain fixed-point iteration's node, in fewer iterations."""
+    design = MissionDesign(287.0, 350.0, 0.0)
+    leg = launch_leg(aimed, design)
+    assert leg.aim.converged and leg.aim.iterations <= 4
+    plain = _with_insertion(aimed)
+    earth = aimed.scenario.earth
+    offsets, offset = [], 0.0
+    t_fit = leg.insertion_time_s - math.radians(leg.raan_offset_deg) / (
+        earth.omega - aimed.plane.raan_rate_rad_s
+    )
+    from ovtraj.launch.insertion import turned_east
+    from ovtraj.rendezvous.phasing import secular_phasing
+
+    base = leg.insertion_state
+    base_raan = aimed.plane.raan_at(leg.insertion_time_s) + math.radians(leg.raan_offset_deg)
+    for _ in range(12):  # x <- aimed(x), by hand
+        t = t_fit + offset / (earth.omega - aimed.plane.raan_rate_rad_s)
+        state = turned_east(base, aimed.plane.raan_at(t) + offset - base_raan)
+        phasing = secular_phasing(state, plain.target_at(t), earth)
+        drift = _nodal_rate(plain.target_at(t), earth) - _nodal_rate(state, earth)
+        offset = drift * (phasing.wait_s + 0.5 * phasing.transfer.transfer_time_s)
+        offsets.append(offset)
+    assert abs(offsets[-1] - offsets[-2]) < 1e-12
+    assert math.radians(leg.raan_offset_deg) == pytest.approx(offsets[-1], abs=math.radians(2e-7))

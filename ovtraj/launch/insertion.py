@@ -35,7 +35,7 @@ from scipy.optimize import Bounds, minimize
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import NonsingularElements, coe_to_rv
-from ovtraj.astro.frames import eci_to_ecef
+from ovtraj.astro.frames import ecef_to_eci, eci_to_ecef
 from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.config.mission import InsertionOrbit, LaunchMatchSettings
@@ -45,7 +45,13 @@ from ovtraj.launch.optimize import PAYLOAD_INDEX, OptimisationOutcome, PhaseReco
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
 
-__all__ = ["MATCH_PHASE", "InsertionPoint", "circular_insertion_state", "solve_launch_to"]
+__all__ = [
+    "MATCH_PHASE",
+    "InsertionPoint",
+    "circular_insertion_state",
+    "solve_launch_to",
+    "turned_east",
+]
 
 MATCH_PHASE = "match"
 """The phase a launch solved to an insertion records (its row's ``match_*`` columns)."""
@@ -53,6 +59,7 @@ MATCH_PHASE = "match"
 # Fixed-point iterations on the osculating plane whose mean plane is the one asked for: the
 # J2 short-period terms of i and the node are ~1e-3 rad, so each iteration gains ~3 digits.
 _PLANE_ITERATIONS = 6
+_PLANE_TOLERANCE_RAD = 1e-14  # a few ulp of the angles: converged
 
 
 def circular_insertion_state(
@@ -81,10 +88,19 @@ def circular_insertion_state(
     for _ in range(_PLANE_ITERATIONS):
         r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
         mean = state_to_mean(r, v, mu=earth.mu, radius=earth.radius, j2=earth.j2)
-        inclination += mean_inclination_rad - float(mean.i)
-        raan += math.remainder(mean_raan_rad - float(mean.raan), 2.0 * math.pi)
+        di = mean_inclination_rad - float(mean.i)
+        draan = math.remainder(mean_raan_rad - float(mean.raan), 2.0 * math.pi)
+        if max(abs(di), abs(draan)) < _PLANE_TOLERANCE_RAD:
+            break
+        inclination, raan = inclination + di, raan + draan
     r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
     return np.r_[np.asarray(r, dtype=float), np.asarray(v, dtype=float)]
+
+
+def turned_east(state: NDArray, angle_rad: float) -> NDArray:
+    """The ECI state (m, m/s) turned ``angle_rad`` east about the pole: its node moves east
+    by that much and, J2 being axisymmetric, nothing else of its mean elements changes."""
+    return np.r_[ecef_to_eci(state[:3], angle_rad), ecef_to_eci(state[3:], angle_rad)]
 
 
 @dataclass(frozen=True)

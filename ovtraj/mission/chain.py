@@ -29,14 +29,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.elements import orbital_period, rv_to_coe
+from ovtraj.astro.elements import NonsingularElements, orbital_period, rv_to_coe
+from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
@@ -45,7 +46,7 @@ from ovtraj.launch.exact import SolvedLaunch
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
-from ovtraj.launch.insertion import circular_insertion_state
+from ovtraj.launch.insertion import circular_insertion_state, turned_east
 from ovtraj.mission.plane import AimedInsertion, aim_insertion
 from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
@@ -335,20 +336,22 @@ def _launch_leg(
     # A drop dt later turns the node (omega_E - dOmega_T/dt) dt east of the target's.
     turn_rate = earth.omega - plane.raan_rate_rad_s
 
-    def insertion_at(raan_offset: float) -> tuple[float, np.ndarray]:
+    # The insertion with its node at 0; J2 being axisymmetric, any other node is this
+    # state turned east (its mean elements move in node only): one solve per design.
+    base = circular_insertion_state(orbit, altitude_m, u_ins, plane.inclination_rad, 0.0, earth)
+
+    def insertion_at(raan_offset: float) -> tuple[float, np.ndarray, NonsingularElements]:
         t_ins = t_fit + raan_offset / turn_rate
         if t_ins - flight_time < 0.0:  # the launch stage's rule: the first drop after 0 h
             t_ins += 2.0 * math.pi / turn_rate
         raan = plane.raan_at(t_ins) + raan_offset
-        state = circular_insertion_state(
-            orbit, altitude_m, u_ins, plane.inclination_rad, raan, earth
-        )
-        return t_ins, state
+        return t_ins, turned_east(base, raan), replace(base_mean, raan=base_mean.raan + raan)
 
     if settings is None or settings.plane == "launch":
-        t_ins, parked = insertion_at(0.0)
+        t_ins, parked = t_fit, turned_east(base, plane.raan_at(t_fit))
         aim = None
     else:
+        base_mean = state_to_mean(base[:3], base[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
         aim = aim_insertion(insertion_at, ctx.target_at, earth, settings.aim)
         t_ins, parked = aim.insertion_time_s, aim.state
     return LaunchLeg(

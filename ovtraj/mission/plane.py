@@ -76,40 +76,50 @@ class AimedInsertion:
 
 
 def aim_insertion(
-    insertion_at: Callable[[float], tuple[float, NDArray]],
+    insertion_at: Callable[[float], tuple[float, NDArray, NonsingularElements]],
     target_at: Callable[[float], NDArray],
     earth: EarthModel,
     settings: PlaneAimSettings,
 ) -> AimedInsertion:
     """Iterate node -> insertion -> wait -> node (module notes).
 
-    ``insertion_at(raan_offset_rad) -> (t_ins, state)``: the insertion whose mean node is
-    that far east of the target's; ``target_at(t) -> state``: the target's ECI state.
+    ``insertion_at(raan_offset_rad) -> (t_ins, state, mean)``: the insertion whose mean node
+    is that far east of the target's, and its mean elements; ``target_at(t) -> state``: the
+    target's ECI state. The map is nearly linear (slope ~0.03), so after two plain steps
+    each next offset is the secant's root of ``aimed(offset) - offset``; a secant step that
+    does not reduce the residual is replaced by a plain one.
     """
     tolerance = math.radians(settings.tolerance_deg)  # on the node
-    offset = 0.0
     best: AimedInsertion | None = None
+    history: list[tuple[float, float]] = []  # (offset, aimed - offset)
+    offset = 0.0
     for iteration in range(1, settings.max_iterations + 1):
-        t_ins, state = insertion_at(offset)
-        phasing = secular_phasing(state, target_at(t_ins), earth)
+        t_ins, state, mean = insertion_at(offset)
+        phasing = secular_phasing(state, target_at(t_ins), earth, mean_chaser=mean)
         if not math.isfinite(phasing.wait_s):  # equal periods: nothing drifts apart
-            return AimedInsertion(0.0, *insertion_at(0.0), math.inf, 0.0, iteration, False)
-        drift = nodal_rate(phasing.mean_target, earth) - nodal_rate(phasing.mean_chaser, earth)
-        t_aim = phasing.wait_s + 0.5 * phasing.transfer.transfer_time_s
-        aimed = drift * t_aim
-        residual = abs(aimed - offset)
+            t0, state0, _ = insertion_at(0.0)
+            return AimedInsertion(0.0, t0, state0, math.inf, 0.0, iteration, False)
+        drift = nodal_rate(phasing.mean_target, earth) - nodal_rate(mean, earth)
+        aimed = drift * (phasing.wait_s + 0.5 * phasing.transfer.transfer_time_s)
+        residual = aimed - offset
         candidate = AimedInsertion(
             offset,
             t_ins,
             state,
             phasing.wait_s,
-            abs(math.sin(float(phasing.mean_target.i))) * residual,
+            abs(math.sin(float(phasing.mean_target.i)) * residual),
             iteration,
-            residual <= tolerance,
+            abs(residual) <= tolerance,
         )
-        if best is None or residual < best.plane_difference_rad:
+        improved = best is None or candidate.plane_difference_rad < best.plane_difference_rad
+        if improved:
             best = candidate
         if candidate.converged:
             return candidate
+        history.append((offset, residual))
         offset = aimed
+        if len(history) >= 2 and improved:
+            (x0, g0), (x1, g1) = history[-2:]
+            if g1 != g0:
+                offset = x1 - g1 * (x1 - x0) / (g1 - g0)
     return best

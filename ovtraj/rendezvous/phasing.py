@@ -95,15 +95,22 @@ class SecularPhasing:
 
 
 def secular_phasing(
-    chaser_state: np.ndarray, target_state: np.ndarray, earth: EarthModel
+    chaser_state: np.ndarray,
+    target_state: np.ndarray,
+    earth: EarthModel,
+    *,
+    mean_chaser: NonsingularElements | None = None,
 ) -> SecularPhasing:
     """The rendezvous stage's first estimate of the wait (its step 2 before the Newton
     steps on the propagated phase): mean elements, Hohmann, J2 rates, lead, first wait.
-    States: ECI position [m] and velocity [m/s] at the same epoch."""
-    mean_c, mean_t = (
-        state_to_mean(s[:3], s[3:6], mu=earth.mu, radius=earth.radius, j2=earth.j2)
-        for s in (chaser_state, target_state)
-    )
+    States: ECI position [m] and velocity [m/s] at the same epoch; ``mean_chaser``: the
+    chaser state's mean elements when the caller has them (each costs ~0.4 ms)."""
+
+    def mean(state: np.ndarray) -> NonsingularElements:
+        return state_to_mean(state[:3], state[3:6], mu=earth.mu, radius=earth.radius, j2=earth.j2)
+
+    mean_c = mean(chaser_state) if mean_chaser is None else mean_chaser
+    mean_t = mean(target_state)
     transfer = hohmann(float(mean_c.a), float(mean_t.a), earth.mu)
     rate_t = mean_argument_of_latitude_rate(mean_t, earth)
     relative_rate = mean_argument_of_latitude_rate(mean_c, earth) - rate_t
