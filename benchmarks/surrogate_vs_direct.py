@@ -28,7 +28,8 @@ Goals (issue 21): hypervolume_ratio >= 0.99, evaluation_ratio <= 0.05 (30 of 600
 wall_ratio <= 0.25.
 
 Run: ``python benchmarks/surrogate_vs_direct.py [--seeds 2026 2027 2028] [--doe-samples 12]
-[--population 24] [--generations 25] [--workers 2] [--keep-stores DIR] [--json]``. The
+[--population 24] [--generations 25] [--workers 2] [--keep-stores DIR] [--config FILE]
+[--json]``. The
 pipelines' run stores are temporary and removed at the end; ``--keep-stores DIR`` keeps
 them in ``DIR/seed-<seed>`` (the path is printed) for inspection.
 """
@@ -252,6 +253,7 @@ def main() -> None:
     from ovtraj.config import load_scenario
     from ovtraj.launch.fit import find_launch_fit
     from ovtraj.optimize import Normalisation
+    from ovtraj.surrogate import SurrogateError
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[2026, 2027, 2028])
@@ -263,21 +265,32 @@ def main() -> None:
     parser.add_argument(
         "--keep-stores", type=Path, default=None, help="keep the pipelines' run stores here"
     )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=ROOT / "configs" / "scenario.yaml",
+        help="scenario (default: the shipped one); e.g. other surrogate settings",
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON object")
     args = parser.parse_args()
     keep = None if args.keep_stores is None else args.keep_stores.resolve()
     say = (lambda *_: None) if args.json else print
 
-    scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
+    scenario = load_scenario(args.config)
     normalisation = Normalisation.mission(scenario.mission.optimize)
     fit = find_launch_fit(scenario)
     pool, pool_start_s = ready_pool(args.workers)
     with pool:
         before = direct(scenario, normalisation, pool, args.population, args.generations)
-        seeds = [
-            pipeline(scenario, fit, seed, args.doe_samples, pool, args.workers, keep)
-            for seed in args.seeds
-        ]
+        seeds, skipped = [], []
+        for seed in args.seeds:
+            try:
+                seeds.append(
+                    pipeline(scenario, fit, seed, args.doe_samples, pool, args.workers, keep)
+                )
+            except SurrogateError as err:  # e.g. a DoE with too few feasible samples to fit
+                skipped.append({"seed": seed, "reason": str(err)})
+                say(f"seed {seed} skipped: {err}")
         after = direct(scenario, normalisation, pool, args.population, args.generations)
     if after["hypervolume"] != before["hypervolume"]:
         raise RuntimeError("the direct method's two runs differ: it is not deterministic")
@@ -311,6 +324,7 @@ def main() -> None:
         "wall_ratio": round(max(r["wall_ratio"] for r in seeds), 4),
         "direct": reference,
         "seeds": seeds,
+        "skipped_seeds": skipped,
         "pool_start_s": pool_start_s,
         "goals": GOALS,
     }

@@ -171,7 +171,12 @@ def test_part_inputs_are_checked_and_optional(scenario_data):
     surrogate.pop("part_inputs", None)
     assert build_scenario(scenario_data).mission.surrogate.part_inputs == {}
     surrogate["part_inputs"] = {"dv_rendezvous_mps": ["parking_altitude_km", "sin_wait_phase"]}
+    surrogate["burn_phase"] = True  # the burn's phase inputs replace the wait's
     with pytest.raises(ConfigError, match=r"part_inputs\.dv_rendezvous_mps.*burn_phase true"):
+        build_scenario(scenario_data)
+    surrogate["burn_phase"] = False
+    surrogate["part_inputs"] = {"dv_rendezvous_mps": ["parking_altitude_km", "sin_2u_burn"]}
+    with pytest.raises(ConfigError, match=r"part_inputs\.dv_rendezvous_mps.*burn_phase false"):
         build_scenario(scenario_data)
     surrogate["part_inputs"] = {"dv_rendezvous_mps": ["altitude"]}
     with pytest.raises(ConfigError, match=r"part_inputs\.dv_rendezvous_mps\.0"):

@@ -623,10 +623,15 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     designs = data.designs[:7]
     features = surrogates.features(designs)
     wait = surrogates.wait.predict(designs[:, :1])[WAIT]
-    # The phase input: twice the first burn's argument of latitude (surrogate.burn_phase).
-    burn = 2.0 * surrogates.burn_phase.burn(designs[:, 0])[1]
-    assert np.allclose(features[:, 3:5], np.column_stack([np.sin(burn), np.cos(burn)]))
-    assert surrogates.main.input_names[3:5] == ("sin_2u_burn", "cos_2u_burn")
+    # The phase input: the wait's phase in the target's period (surrogate.burn_phase false
+    # since issue 43: with the plane aimed, the rendezvous part is fitted on H_P0 alone and
+    # no part takes it; the burn's phase is tested below).
+    assert surrogates.burn_phase is None
+    period_phase = 2 * np.pi * np.mod(wait, surrogates.period_s) / surrogates.period_s
+    assert np.allclose(
+        features[:, 3:5], np.column_stack([np.sin(period_phase), np.cos(period_phase)])
+    )
+    assert surrogates.main.input_names[3:5] == ("sin_wait_phase", "cos_wait_phase")
     # The departure phase (surrogate.departure_phase): where on the target's orbit the OV
     # leaves it, from the pass model's separation time with the wait model's wait.
     departure = surrogates.pass_model.departure_phase_rad(designs, wait)
@@ -657,7 +662,7 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     # Each dV part on its own inputs (surrogate.part_inputs): the rendezvous is over before
     # H_dp and t_dsp act, so designs that differ in those alone share its prediction.
     own = {k: tuple(v) for k, v in scenario.mission.surrogate.part_inputs.items()}
-    assert own["dv_rendezvous_mps"] == ("parking_altitude_km", "sin_2u_burn", "cos_2u_burn")
+    assert own["dv_rendezvous_mps"] == ("parking_altitude_km",)
     assert surrogates.main.output_inputs == own == again.main.output_inputs
     later = designs.copy()
     later[:, 1], later[:, 2] = designs[::-1, 1], designs[::-1, 2]
@@ -671,6 +676,22 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     assert not np.allclose(
         moved, shared.surrogates.predict_parts(designs)["dv_rendezvous_mps"], rtol=1e-6
     )
+    # With the burn's phase (surrogate.burn_phase, the chain before issue 43): twice the
+    # first burn's argument of latitude, in closed form from H_P0.
+    burned = _with_surrogate(
+        scenario,
+        burn_phase=True,
+        part_inputs={
+            **scenario.mission.surrogate.part_inputs,
+            "dv_rendezvous_mps": ["parking_altitude_km", "sin_2u_burn", "cos_2u_burn"],
+        },
+    )
+    with_burn = fit_step(doe, data, burned, small["code"]).surrogates
+    burn = 2.0 * with_burn.burn_phase.burn(designs[:, 0])[1]
+    assert np.allclose(
+        with_burn.features(designs)[:, 3:5], np.column_stack([np.sin(burn), np.cos(burn)])
+    )
+    assert with_burn.main.input_names[3:5] == ("sin_2u_burn", "cos_2u_burn")
     # Without the phase input: one plain set of the three objectives.
     plain = _with_surrogate(scenario, phase_input=False)
     direct = fit_step(doe, data, plain, small["code"]).surrogates

@@ -115,6 +115,10 @@ class PassModel:
     # phase, :meth:`departure_phase_rad`); 0 in the models stored before them.
     target_argp0_rad: float = 0.0
     target_argp_rate: float = 0.0
+    # The launch aims at the target's plane at the rendezvous (issue 43,
+    # ovtraj/mission/plane.py): the drop and the insertion come later by the aimed node's
+    # turn; False in the models stored before it.
+    aimed_plane: bool = False
 
     @classmethod
     def of(
@@ -145,6 +149,8 @@ class PassModel:
             longitude_shift_rad=math.radians(settings.longitude_shift_deg),
             target_argp0_rad=target.argp0_rad,
             target_argp_rate=target.argp_rate,
+            aimed_plane=scenario.mission.insertion is not None
+            and scenario.mission.insertion.plane == "rendezvous",
         )
 
     def calibrated(
@@ -191,7 +197,7 @@ class PassModel:
         earth = self._earth
         mu = earth.mu
         parking = 1e3 * designs[:, 0]
-        insertion, drop = self._insertion_and_drop(parking)
+        insertion, drop = self._insertion_and_drop(parking, wait_s)
         separation = self._separation_s(designs, wait_s, insertion)
         preparation_radius = earth.radius + 1e3 * designs[:, 1]
         transfer = self.transfer_fraction * hohmann_time_s(self.target_a_m, preparation_radius, mu)
@@ -217,15 +223,35 @@ class PassModel:
         designs (m, 3) with phasing waits ``wait_s`` leaves it (J2 secular elements): where
         on the target's slightly eccentric orbit the transfer to H_dp starts."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        insertion, _ = self._insertion_and_drop(1e3 * designs[:, 0])
+        insertion, _ = self._insertion_and_drop(1e3 * designs[:, 0], wait_s)
         separation = self._separation_s(designs, wait_s, insertion)
         u = self.target_u0_rad + self.target_u_rate * separation
         return u - (self.target_argp0_rad + self.target_argp_rate * separation)
 
-    def _insertion_and_drop(self, parking_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The launch fit's insertion and drop times [s] at parking altitudes [m]."""
+    def _insertion_and_drop(
+        self, parking_m: np.ndarray, wait_s: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The insertion and drop times [s] at parking altitudes [m]: the launch fit's, and
+        with the plane aimed at the rendezvous the drop later by the aimed node's turn,
+        ``(dOmega_T/dt - dOmega_P/dt)(wait + T_H / 2) / (omega_E - dOmega_T/dt)``
+        (:mod:`ovtraj.mission.plane`, J2 secular rates of circular orbits)."""
         insertion_series, flight_series = self._series
         insertion = np.asarray(insertion_series(parking_m), float)
+        if self.aimed_plane:
+            earth = self._earth
+            radius = earth.radius + parking_m
+            parking_rate, _, _ = secular_rates(
+                radius,
+                0.0,
+                self.target_inclination_rad,
+                mu=earth.mu,
+                radius=earth.radius,
+                j2=earth.j2,
+            )
+            node = (self.target_raan_rate - np.asarray(parking_rate, float)) * (
+                np.asarray(wait_s, float) + 0.5 * hohmann_time_s(radius, self.target_a_m, earth.mu)
+            )
+            insertion = insertion + node / (earth.omega - self.target_raan_rate)
         return insertion, insertion - np.asarray(flight_series(parking_m), float)
 
     def _separation_s(

@@ -36,6 +36,11 @@ _STOPS = {
     "converged": "converged: every front point verified in the last round is feasible and "
     "its predicted objectives are within {tolerance:.1%} of the objective span of the real "
     "chain's values",
+    # With a hypervolume tolerance the loop converges only once the front is stable too.
+    "converged and stable": "converged: every front point verified in the last round is "
+    "feasible and its predicted objectives are within {tolerance:.1%} of the objective span of "
+    "the real chain's values, and the round added {gain} to the verified front's hypervolume, "
+    "under mission.verify.hypervolume_tolerance ({hypervolume_tolerance})",
     "front already evaluated": "converged: every point of the surrogate front has already "
     "been evaluated with the real chain",
     "front stable": "converged: the last round added {gain} to the verified front's "
@@ -61,8 +66,11 @@ def stop_explanation(summary: dict[str, Any], verify: Any) -> str:
     rounds = summary.get("iterations", [])
     errors = [i["max_error"] for i in rounds if "max_error" in i]
     gains = [i["hypervolume_gain"] for i in rounds if i.get("hypervolume_gain") is not None]
-    template = _STOPS.get(summary["stop_reason"], "stopped: {reason}")
     tolerance = verify.hypervolume_tolerance
+    reason = summary["stop_reason"]
+    if reason == "converged" and tolerance is not None and gains:
+        reason = "converged and stable"
+    template = _STOPS.get(reason, "stopped: {reason}")
     return template.format(
         gain=f"{gains[-1]:.2%}" if gains else "-",
         hypervolume_tolerance="-" if tolerance is None else f"{tolerance:.2%}",
