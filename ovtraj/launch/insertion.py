@@ -34,9 +34,8 @@ from numpy.typing import NDArray
 from scipy.optimize import Bounds, minimize
 
 from ovtraj.astro.constants import EarthModel
-from ovtraj.astro.elements import NonsingularElements, coe_to_rv
 from ovtraj.astro.frames import ecef_to_eci, eci_to_ecef
-from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
+from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.config.mission import InsertionOrbit, LaunchMatchSettings
 from ovtraj.deadline import Deadline
@@ -44,6 +43,7 @@ from ovtraj.launch.inputs import LaunchInput
 from ovtraj.launch.optimize import PAYLOAD_INDEX, OptimisationOutcome, PhaseRecord
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
+from ovtraj.targets import circular_orbit_state
 
 __all__ = [
     "MATCH_PHASE",
@@ -73,28 +73,29 @@ def circular_insertion_state(
     """ECI position [m] and velocity [m/s] of a circular insertion at ``altitude_m`` above
     the spherical Earth, at argument of latitude ``arg_latitude_rad``, in the plane of mean
     inclination and node ``mean_*_rad`` (module notes for ``orbit``)."""
-    a = earth.radius + altitude_m
     if orbit == "mean_circular":
-        r, v = mean_to_state(
-            NonsingularElements(
-                a=a, ex=0.0, ey=0.0, i=mean_inclination_rad, raan=mean_raan_rad, u=arg_latitude_rad
-            ),
-            mu=earth.mu,
-            radius=earth.radius,
-            j2=earth.j2,
+        return circular_orbit_state(
+            altitude_m,
+            mean_inclination_rad,
+            mean_raan_rad,
+            arg_latitude_rad,
+            element_set="mean",
+            earth=earth,
         )
-        return np.r_[r, v]
     inclination, raan = mean_inclination_rad, mean_raan_rad
     for _ in range(_PLANE_ITERATIONS):
-        r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
-        mean = state_to_mean(r, v, mu=earth.mu, radius=earth.radius, j2=earth.j2)
+        state = circular_orbit_state(
+            altitude_m, inclination, raan, arg_latitude_rad, element_set="osculating", earth=earth
+        )
+        mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
         di = mean_inclination_rad - float(mean.i)
         draan = math.remainder(mean_raan_rad - float(mean.raan), 2.0 * math.pi)
         if max(abs(di), abs(draan)) < _PLANE_TOLERANCE_RAD:
-            break
+            return state
         inclination, raan = inclination + di, raan + draan
-    r, v = coe_to_rv(a, 0.0, inclination, raan, 0.0, arg_latitude_rad, mu=earth.mu)
-    return np.r_[np.asarray(r, dtype=float), np.asarray(v, dtype=float)]
+    return circular_orbit_state(
+        altitude_m, inclination, raan, arg_latitude_rad, element_set="osculating", earth=earth
+    )
 
 
 def turned_east(state: NDArray, angle_rad: float) -> NDArray:

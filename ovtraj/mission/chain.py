@@ -47,7 +47,7 @@ from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
 from ovtraj.launch.insertion import circular_insertion_state, turned_east
-from ovtraj.mission.plane import AimedInsertion, aim_insertion
+from ovtraj.mission.plane import AimedInsertion, aim_insertion, drop_delay_s
 from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry.result import ReentryResult
@@ -333,17 +333,15 @@ def _launch_leg(
     t_fit, flight_time = launch["insertion_time_s"], launch["flight_time_s"]
     u_ins = math.radians(launch["insertion_u_deg"])
     plane, earth = ctx.plane, ctx.scenario.earth
-    # A drop dt later turns the node (omega_E - dOmega_T/dt) dt east of the target's.
-    turn_rate = earth.omega - plane.raan_rate_rad_s
 
     # The insertion with its node at 0; J2 being axisymmetric, any other node is this
     # state turned east (its mean elements move in node only): one solve per design.
     base = circular_insertion_state(orbit, altitude_m, u_ins, plane.inclination_rad, 0.0, earth)
 
     def insertion_at(raan_offset: float) -> tuple[float, np.ndarray, NonsingularElements]:
-        t_ins = t_fit + raan_offset / turn_rate
+        t_ins = t_fit + drop_delay_s(raan_offset, earth.omega, plane.raan_rate_rad_s)
         if t_ins - flight_time < 0.0:  # the launch stage's rule: the first drop after 0 h
-            t_ins += 2.0 * math.pi / turn_rate
+            t_ins += drop_delay_s(2.0 * math.pi, earth.omega, plane.raan_rate_rad_s)
         raan = plane.raan_at(t_ins) + raan_offset
         return t_ins, turned_east(base, raan), replace(base_mean, raan=base_mean.raan + raan)
 

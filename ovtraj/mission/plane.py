@@ -38,12 +38,12 @@ from dataclasses import dataclass
 from numpy.typing import NDArray
 
 from ovtraj.astro.constants import EarthModel
-from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.elements import FloatOrArray, NonsingularElements
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.config.mission import PlaneAimSettings
 from ovtraj.rendezvous.phasing import secular_phasing
 
-__all__ = ["AimedInsertion", "aim_insertion", "nodal_rate"]
+__all__ = ["AimedInsertion", "aim_insertion", "aimed_node_offset", "drop_delay_s", "nodal_rate"]
 
 
 def nodal_rate(mean: NonsingularElements, earth: EarthModel) -> float:
@@ -53,6 +53,24 @@ def nodal_rate(mean: NonsingularElements, earth: EarthModel) -> float:
         float(mean.a), e, float(mean.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
     )
     return float(rate)
+
+
+def aimed_node_offset(
+    drift_rad_s: FloatOrArray, wait_s: FloatOrArray, transfer_time_s: FloatOrArray
+) -> FloatOrArray:
+    """Node [rad] east of the target's that puts the planes together at the middle of the
+    transfer: ``drift (wait + T_H / 2)``, ``drift = dOmega_T/dt - dOmega_P/dt`` [rad/s],
+    the wait and the Hohmann time in s (module notes; floats or arrays)."""
+    return drift_rad_s * (wait_s + 0.5 * transfer_time_s)
+
+
+def drop_delay_s(
+    raan_offset_rad: FloatOrArray, omega_earth_rad_s: float, target_raan_rate_rad_s: float
+) -> FloatOrArray:
+    """How much later [s] the drop (and the insertion) comes for the node ``raan_offset_rad``
+    east of the target's: the Earth turns the launch's plane at ``omega_E - dOmega_T/dt``
+    relative to the target's (module notes; floats or arrays)."""
+    return raan_offset_rad / (omega_earth_rad_s - target_raan_rate_rad_s)
 
 
 @dataclass(frozen=True)
@@ -100,7 +118,7 @@ def aim_insertion(
             t0, state0, _ = insertion_at(0.0)
             return AimedInsertion(0.0, t0, state0, math.inf, 0.0, iteration, False)
         drift = nodal_rate(phasing.mean_target, earth) - nodal_rate(mean, earth)
-        aimed = drift * (phasing.wait_s + 0.5 * phasing.transfer.transfer_time_s)
+        aimed = aimed_node_offset(drift, phasing.wait_s, phasing.transfer.transfer_time_s)
         residual = aimed - offset
         candidate = AimedInsertion(
             offset,

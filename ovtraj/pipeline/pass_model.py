@@ -36,6 +36,7 @@ from ovtraj.config import Scenario
 from ovtraj.deorbit.inputs import EntryRegion, deorbit_input
 from ovtraj.deorbit.pass_estimate import first_pass_s
 from ovtraj.launch.fourier import FourierSeries
+from ovtraj.mission.plane import aimed_node_offset, drop_delay_s
 from ovtraj.rendezvous.hohmann import hohmann_time_s
 from ovtraj.targets import target_state
 
@@ -248,10 +249,12 @@ class PassModel:
                 radius=earth.radius,
                 j2=earth.j2,
             )
-            node = (self.target_raan_rate - np.asarray(parking_rate, float)) * (
-                np.asarray(wait_s, float) + 0.5 * hohmann_time_s(radius, self.target_a_m, earth.mu)
+            node = aimed_node_offset(
+                self.target_raan_rate - np.asarray(parking_rate, float),
+                np.asarray(wait_s, float),
+                hohmann_time_s(radius, self.target_a_m, earth.mu),
             )
-            insertion = insertion + node / (earth.omega - self.target_raan_rate)
+            insertion = insertion + drop_delay_s(node, earth.omega, self.target_raan_rate)
         return insertion, insertion - np.asarray(flight_series(parking_m), float)
 
     def _separation_s(
