@@ -16,6 +16,7 @@ from ovtraj.cli_progress import configure_logging, echo, progress_bar
 from ovtraj.config import ConfigError, Scenario, load_scenario
 from ovtraj.config.deorbit_burn import MonteCarloConfig
 from ovtraj.config.dispersions import MonteCarloExecution
+from ovtraj.config.io_limits import echoed
 from ovtraj.config.mission import DoeSettings
 from ovtraj.formatting import byte_size, duration, joined, number, quantity, split_unit, utc
 from ovtraj.records import json_text, plain
@@ -712,8 +713,8 @@ DaskAddressOpt = Annotated[
     str | None,
     typer.Option(
         "--dask-address",
-        help="scheduler of an existing Dask cluster, e.g. tcp://host:8786 (--runner dask; "
-        "default: the config's mission.doe.dask_address, else a local cluster)",
+        help="scheduler of an existing Dask cluster, e.g. tls://host:8786 (--runner dask; "
+        "default: $OVTRAJ_DASK_ADDRESS, else a local cluster; never from a scenario file)",
         show_default=False,
     ),
 ]
@@ -821,10 +822,12 @@ def _doe_execution(settings: Any, runner: str | None, dask_address: str | None) 
     config's ``mission.doe``; a bad choice is one line, exit 2."""
     from ovtraj.config.mission import RUNNERS
     from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.runs.runners import dask_address as chosen_address
 
     chosen = runner or settings.task_runner
     if chosen not in RUNNERS:
-        typer.echo(f"--runner {chosen}: must be one of {', '.join(RUNNERS)}", err=True)
+        shown = echoed(repr(chosen))
+        typer.echo(f"--runner {shown}: must be one of {', '.join(RUNNERS)}", err=True)
         raise typer.Exit(code=2)
     if dask_address and chosen != "dask":
         typer.echo(f"--dask-address needs --runner dask (the runner is {chosen})", err=True)
@@ -834,7 +837,7 @@ def _doe_execution(settings: Any, runner: str | None, dask_address: str | None) 
         "batch_size": settings.batch_size,
         "runner": chosen,
         "workers": settings.workers,
-        "dask_address": (dask_address or settings.dask_address) if chosen == "dask" else None,
+        "dask_address": chosen_address(dask_address) if chosen == "dask" else None,
         "dask": orchestration.dask,
         "time_limit_s": orchestration.flows.doe_s,
     }
@@ -953,7 +956,8 @@ def prune(
     kinds = tuple(only) if only else KINDS
     unknown = sorted(set(kinds) - set(KINDS))
     if unknown:
-        typer.echo(f"--only: {', '.join(unknown)} is not one of {', '.join(KINDS)}", err=True)
+        shown = ", ".join(echoed(repr(kind)) for kind in unknown)
+        typer.echo(f"--only: {shown} is not one of {', '.join(KINDS)}", err=True)
         raise typer.Exit(code=2)
     store = _store(store_root)
     results = load_orchestration().results.location()
@@ -993,8 +997,10 @@ def prune(
 def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
     """Check every file of a run against its recorded size, SHA-256 and schema.
 
-    Exit 0 when every covered file is intact, 1 with the list of bad files, 2 when
-    the run cannot be opened.
+    The checksums detect accidents; with OVTRAJ_STORE_KEY set, the manifest's and the
+    markers' seals are checked too, and one missing or wrong is reported as tampered.
+    Exit 0 when every covered file is intact, 1 with the list of bad or tampered files,
+    2 when the run cannot be opened.
     """
     from ovtraj.runs import StoreError
 
@@ -1012,15 +1018,23 @@ def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
                 "checked_files": report.checked_files,
                 "checked_bytes": report.checked_bytes,
                 "problems": [str(p) for p in report.problems],
+                "tampered": [str(p) for p in report.tampered],
                 "uncovered": [str(p) for p in report.uncovered],
             }
         )
         raise typer.Exit(code=0 if report.clean else 1)
+    for problem in report.tampered:
+        typer.echo(f"tampered: {problem}")
     for problem in report.problems:
         typer.echo(f"bad: {problem}")
     for path in report.uncovered:
         typer.echo(f"not covered by any marker (never read): {path}")
-    verdict = "clean" if report.clean else f"{len(report.problems)} bad file(s)"
+    found = [
+        f"{len(found)} {what} file(s)"
+        for found, what in ((report.tampered, "tampered"), (report.problems, "bad"))
+        if found
+    ]
+    verdict = "clean" if report.clean else ", ".join(found)
     typer.echo(
         f"run {stored.id}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
         f"MB checked: {verdict}"
@@ -1149,17 +1163,27 @@ def _pick(
     min_payload: float | None,
     default_weights: tuple[float, float, float] | None = None,
 ) -> Any:
+    """The pick of the options, checked before any work: one line naming the option, exit 2."""
+    import math
+
     from ovtraj.pipeline import Pick
+    from ovtraj.pipeline.pick import weights_problem
 
     parsed = default_weights
     if weights is not None:
         try:
             parsed = tuple(float(w) for w in weights.split(","))
+            problem = weights_problem(parsed)
         except ValueError:
-            typer.echo(
-                f"--weights must be three numbers separated by commas, got {weights}", err=True
-            )
+            problem = "must be three numbers separated by commas"
+        if problem is not None:
+            typer.echo(f"--weights {echoed(repr(weights))}: {problem}", err=True)
             raise typer.Exit(code=2) from None
+    limits = {"--max-time-h": max_time_h, "--max-dv": max_dv, "--min-payload": min_payload}
+    for option, value in limits.items():
+        if value is not None and not math.isfinite(value):  # their min= lets inf (1e400) by
+            typer.echo(f"{option} {value}: must be a finite number", err=True)
+            raise typer.Exit(code=2)
     return Pick(index, parsed, max_time_h, max_dv, min_payload)
 
 
@@ -1235,6 +1259,7 @@ def pipeline(
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
 
+    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
     scenario = _load(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
@@ -1290,7 +1315,6 @@ def pipeline(
         )
         result = run_pipeline(scenario, doe_run, store=store, code=code, steps=steps, progress=say)
         exits.close()
-        chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, fit, store, result, chosen)
     except (OptimiserStopped, PlanMismatch) as err:
         typer.echo(str(err), err=True)
@@ -1464,12 +1488,12 @@ def plan(
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
     from ovtraj.runs import StoreError
 
+    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
     try:
         store = _store(store_root)
         stored = family_root(store, run_id)
         scenario = _run_scenario(stored, None)
         result = find_pipeline(stored, pipeline_id)
-        chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)
         planned = write_mission_plan(scenario, _launch_fit_or_exit(scenario), store, result, chosen)
     except PlanMismatch as err:  # the plan does not fly its front point: an unmet result
         typer.echo(str(err), err=True)
@@ -1744,16 +1768,23 @@ def entry_point() -> None:
     input or a fault (named), 130 interrupted (SIGINT or SIGTERM; a run being written
     says ``interrupted`` in its manifest). ``OVTRAJ_DEBUG=1`` shows tracebacks.
     """
-    import os
     import signal
+
+    signal.signal(signal.SIGTERM, _terminated)
+    signal.signal(signal.SIGINT, _terminated)
+    _exit(run_command())
+
+
+def run_command(args: list[str] | None = None) -> int:
+    """Run the command line ``args`` (default: the process's) as :func:`entry_point`
+    does, and return its exit code instead of ending the process (the tests call it)."""
+    import os
 
     from ovtraj.files import StoreError
     from ovtraj.interrupts import interrupt_of
 
-    signal.signal(signal.SIGTERM, _terminated)
-    signal.signal(signal.SIGINT, _terminated)
     try:
-        code = app(standalone_mode=False)
+        code = app(args=args, standalone_mode=False)
         if code == 130:
             typer.echo("interrupted", err=True)
     except typer.Exit as done:
@@ -1777,9 +1808,13 @@ def entry_point() -> None:
         elif os.environ.get("OVTRAJ_DEBUG"):
             raise
         else:
-            typer.echo(f"ovtraj: internal error: {type(err).__name__}: {err}", err=True)
+            from ovtraj.formatting import printable
+
+            typer.echo(
+                f"ovtraj: internal error: {type(err).__name__}: {printable(str(err))}", err=True
+            )
             code = 2
-    _exit(code if isinstance(code, int) else 0)
+    return code if isinstance(code, int) else 0
 
 
 def _usage_error(err: Exception) -> None:

@@ -8,7 +8,10 @@
 - :func:`quantity`: any value of a result row, by its unit (``"s"`` a duration,
   ``"utc"`` an epoch), lists joined, ``None`` and NaN shown as ``-``;
 - :func:`split_unit`: a row key's name and the unit of its suffix
-  (``min_t_total_s`` -> ``min_t_total``, ``"s"``), for rows printed by key.
+  (``min_t_total_s`` -> ``min_t_total``, ``"s"``), for rows printed by key;
+- :func:`printable` and :func:`clipped`: a text from the user or a file made one
+  printable line, and cut to a length, for error lines
+  (:func:`ovtraj.config.io_limits.echoed` does both with the configured length).
 """
 
 from __future__ import annotations
@@ -18,7 +21,18 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["MISSING", "byte_size", "duration", "joined", "number", "quantity", "split_unit", "utc"]
+__all__ = [
+    "MISSING",
+    "byte_size",
+    "clipped",
+    "duration",
+    "joined",
+    "number",
+    "printable",
+    "quantity",
+    "split_unit",
+    "utc",
+]
 
 MISSING = "-"
 """What a missing value (``None``, NaN) is shown as."""
@@ -192,3 +206,25 @@ def split_unit(key: str) -> tuple[str, str]:
         if key.endswith(suffix) and len(key) > len(suffix):
             return key[: -len(suffix)], _SUFFIXES[suffix]
     return key, ""
+
+
+_ELLIPSIS = "..."
+
+
+def printable(text: str) -> str:
+    """``text`` with every non-printable character escaped as Python writes it (``\\n``,
+    ``\\x1b``, ``\\u2028``): echoed in an error line, a name from the user or a file
+    stays one line and sends no terminal control sequence."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def clipped(text: str, max_chars: int) -> str:
+    """``text`` if at most ``max_chars`` characters, else its start and its end around
+    ``...`` (``max_chars`` in all): a file name or a closing quote stays visible."""
+    if len(text) <= max_chars:
+        return text
+    keep = max(max_chars - len(_ELLIPSIS), 0)
+    head = (keep + 1) // 2
+    return text[:head] + _ELLIPSIS + text[len(text) - (keep - head) :]

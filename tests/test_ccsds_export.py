@@ -20,7 +20,8 @@ from typer.testing import CliRunner
 from ovtraj.astro.eme2000 import eme2000_to_teme, teme_to_eme2000
 from ovtraj.cli import app
 from ovtraj.config import load_scenario
-from ovtraj.config.export import default_export_settings
+from ovtraj.config.base import ConfigError, model_from_dict
+from ovtraj.config.export import CcsdsExportSettings, default_export_settings
 from ovtraj.launch.fit import find_launch_fit
 from ovtraj.mission.ccsds import export_plan, oem_text, opm_text
 from ovtraj.mission.chain import MissionContext, MissionDesign
@@ -310,3 +311,38 @@ def test_export_faults_are_one_line_with_their_exit_code(plan, plan_file, tmp_pa
     )
     assert result.exit_code == 1 and "entry interface" in result.output
     assert not (tmp_path / "u.oem").exists() and not (tmp_path / "x").exists()
+
+
+def test_control_characters_never_reach_a_message_header(plan, plan_file, settings, tmp_path):
+    """A newline in the originator wrote a header line of its own (``OBJECT_NAME =
+    FORGED`` after ``ORIGINATOR``; issue 44). Every text written into a message is
+    printable ASCII (CCSDS 502.0-B-3, KVN) or refused naming its field, nothing written."""
+    forged = tmp_path / "export.yaml"
+    forged.write_text(
+        config_path("ccsds_export.yaml")
+        .read_text()
+        .replace("originator: OVTRAJ", 'originator: "OVTRAJ\\nOBJECT_NAME = FORGED"')
+    )
+    out = tmp_path / "forged.opm"
+    args = ["export", str(plan_file), "--format", "opm", "--out", str(out)]
+    result = runner.invoke(app, [*args, "--settings", str(forged)])
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr.splitlines() == [
+        f"invalid configuration in {forged}: originator = 'OVTRAJ\\nOBJECT_NAME = FORGED': "
+        "character '\\n' at position 6: a CCSDS KVN value holds printable ASCII only "
+        "(codes 32-126, CCSDS 502.0-B-3)"
+    ]
+    assert not out.exists()
+    non_ascii = {**settings.model_dump(), "object_id": "OV-\u00e9t\u00e9"}
+    with pytest.raises(ConfigError, match="object_id = 'OV-\u00e9t\u00e9': character '\u00e9'"):
+        model_from_dict(CcsdsExportSettings, non_ascii, "test")
+    # from the plan file: the vehicle's name and an impulse's name
+    data = plan.to_dict()
+    data["scenario"]["vehicle"]["name"] = "OV\nOBJECT_ID = X"
+    with pytest.raises(PlanError, match=r"^the plan's vehicle\.name = 'OV\\nOBJECT_ID = X': "):
+        export_plan(MissionPlan.model_validate(data), "opm", out, settings)
+    data = plan.to_dict()
+    data["deorbit"]["burn"]["name"] = "deorbit\x1b[2J"
+    with pytest.raises(PlanError, match=r"^impulse name = 'deorbit\\x1b\[2J': character '\\x1b'"):
+        export_plan(MissionPlan.model_validate(data), "opm", out, settings)
+    assert not out.exists()

@@ -9,6 +9,7 @@ once per process.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import socket
@@ -32,6 +33,7 @@ from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.astro.teme import teme_to_eci
 from ovtraj.cli import app
 from ovtraj.config import ConfigError, OrbitElementsConfig, load_scenario, scenario_from_dict
+from ovtraj.config.base import model_from_dict
 from ovtraj.config.scenario import Scenario, TargetSourceSettings
 from ovtraj.config.target import default_source_settings
 from ovtraj.rendezvous import rendezvous_input
@@ -556,6 +558,166 @@ def test_silent_server_times_out_within_the_configured_time(settings, tmp_path):
         f"invalid configuration in {url}: no answer within url_timeout_s = 0.5 s"
     )
     assert 0.4 < elapsed < 2.0
+
+
+# --------------------------------------------------------------------------- #
+# URLs: one deadline, checked redirects, the cache keyed by the URL served (issue 44)
+# --------------------------------------------------------------------------- #
+class _Routes:
+    """A local server answering ``routes[path]() -> (status, headers, body)``, recording
+    the paths asked; a body given as a list of bytes is sent one item per second."""
+
+    def __init__(self, routes: dict, host: str = "127.0.0.1") -> None:
+        self.requests: list[str] = []
+        self.stop = threading.Event()
+        owner = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_GET(self) -> None:
+                owner.requests.append(self.path)
+                if self.path not in routes:
+                    self.send_error(404, "Not Found")
+                    return
+                status, headers, body = routes[self.path]()
+                try:
+                    if status is None:  # the status line itself, a byte a second
+                        for byte in body:
+                            self.wfile.write(bytes([byte]))
+                            self.wfile.flush()
+                            if owner.stop.wait(1.0):
+                                return
+                        return
+                    self.send_response(status)
+                    for key, value in headers.items():
+                        self.send_header(key, value)
+                    self.end_headers()
+                    for part in body if isinstance(body, list) else [body]:
+                        self.wfile.write(part)
+                        self.wfile.flush()
+                        if isinstance(body, list) and owner.stop.wait(1.0):
+                            return
+                except OSError:
+                    return  # the client gave up: what the deadline does
+
+            def log_message(self, *args) -> None:
+                pass
+
+        self.httpd = ThreadingHTTPServer((host, 0), Handler)
+        self.port = self.httpd.server_address[1]
+        self.thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        self.stop.set()
+        self.httpd.shutdown()
+        self.httpd.server_close()
+        self.thread.join(timeout=5)
+
+
+@pytest.fixture
+def serve():
+    started: list[_Routes] = []
+
+    def start(routes: dict, host: str = "127.0.0.1") -> _Routes:
+        started.append(_Routes(routes, host))
+        return started[-1]
+
+    yield start
+    for server in started:
+        server.close()
+
+
+def _ok(body: bytes):
+    return lambda: (200, {"Content-Type": "text/plain", "Content-Length": str(len(body))}, body)
+
+
+def _moved(location: str):
+    return lambda: (302, {"Location": location, "Content-Length": "0"}, b"")
+
+
+@pytest.mark.parametrize("part", ["status line", "body"])
+def test_a_server_sending_a_byte_a_second_ends_within_the_limit(part, serve, settings, tmp_path):
+    """Each read returns in time, the whole does not: the fetch ends at url_timeout_s
+    (2 s here) plus at most a second, one line naming the URL (it took 19 s with 20
+    bytes before: the limit was checked only after each 64 KiB read)."""
+    text = ISS_TLE.read_bytes()
+    if part == "body":
+        trickle = _ok([bytes([b]) for b in text[:20]])
+        route = lambda: (200, {"Content-Length": str(len(text))}, trickle()[2])  # noqa: E731
+    else:
+        route = lambda: (None, {}, b"HTTP/1.1 200 OK\r\nContent-Length: 20\r\n\r\n")  # noqa: E731
+    server = serve({"/iss.tle": route})
+    url = f"http://127.0.0.1:{server.port}/iss.tle"
+    start = time.monotonic()
+    with pytest.raises(ConfigError) as caught:
+        read_source(url, settings=_settings(settings, url_timeout_s=2.0), cache_dir=tmp_path)
+    elapsed = time.monotonic() - start
+    assert str(caught.value) == (
+        f"invalid configuration in {url}: no answer within url_timeout_s = 2 s"
+    )
+    assert elapsed < 2.0 + 1.0
+    assert not (tmp_path / "blobs").exists()  # nothing cached
+
+
+@pytest.mark.parametrize(
+    ("location", "scheme"), [("ftp://127.0.0.1/iss.tle", "ftp"), ("file:///etc/passwd", "file")]
+)
+def test_a_redirect_to_another_scheme_is_refused(location, scheme, serve, settings, tmp_path):
+    server = serve({"/iss.tle": _moved(location)})
+    url = f"http://127.0.0.1:{server.port}/iss.tle"
+    with pytest.raises(ConfigError) as caught:
+        read_source(url, settings=settings, cache_dir=tmp_path)
+    assert str(caught.value) == (
+        f"invalid configuration in {url}: redirected to {location}: a redirect to another "
+        "scheme is refused (only http -> https)"
+    )
+    assert server.requests == ["/iss.tle"]
+
+
+def test_a_redirect_to_another_host_only_if_allowed_cached_under_the_url_served(
+    serve, settings, tmp_path
+):
+    """127.0.0.1 -> localhost (another port): refused unless localhost is in
+    url_redirect_hosts. Allowed, the bytes are cached under the URL that served them,
+    the record naming both; asked again, the redirect is asked again (not cached) and
+    its target read from the cache."""
+    other = serve({"/iss.tle": _ok(ISS_TLE.read_bytes())})
+    served = f"http://localhost:{other.port}/iss.tle"
+    first = serve({"/iss.tle": _moved(served)})
+    requested = f"http://127.0.0.1:{first.port}/iss.tle"
+    with pytest.raises(ConfigError) as caught:
+        read_source(requested, settings=settings, cache_dir=tmp_path)
+    assert str(caught.value) == (
+        f"invalid configuration in {requested}: redirected to another host, localhost "
+        f"({served}): refused, not in url_redirect_hosts"
+    )
+    assert other.requests == [] and not (tmp_path / "urls").exists()
+
+    allowed = _settings(settings, url_redirect_hosts=["LocalHost"])
+    assert allowed.url_redirect_hosts == ["localhost"]
+    elements = read_source(requested, settings=allowed, cache_dir=tmp_path)
+    assert elements.catalog_number == 25544
+    (record,) = (tmp_path / "urls").iterdir()
+    assert record.name == f"{hashlib.sha256(served.encode()).hexdigest()}.json"
+    entry = json.loads(record.read_text())
+    assert (entry["url"], entry["requested_url"]) == (served, requested)
+
+    assert read_source(requested, settings=allowed, cache_dir=tmp_path) == elements
+    assert (len(first.requests), len(other.requests)) == (3, 1)  # 1 refused, 2 allowed
+
+
+def test_a_redirect_loop_and_an_empty_allow_list_in_the_resolved_scenario(
+    serve, settings, tmp_path
+):
+    server = serve({"/a": _moved("/b"), "/b": _moved("/a")})
+    url = f"http://127.0.0.1:{server.port}/a"
+    with pytest.raises(ConfigError, match=r"a redirect loop back to http://127\.0\.0\.1:\d+/a$"):
+        read_source(url, settings=settings, cache_dir=tmp_path)
+    # the setting added by issue 44 is left out while empty: run ids are unchanged
+    assert "url_redirect_hosts" not in settings.model_dump()
+    data = {**settings.model_dump(), "url_redirect_hosts": ["https://x"]}
+    with pytest.raises(ConfigError, match=r"url_redirect_hosts = \['https://x'\]: 'https://x' is"):
+        model_from_dict(TargetSourceSettings, data, "test")
 
 
 # --------------------------------------------------------------------------- #

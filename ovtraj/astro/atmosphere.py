@@ -143,9 +143,11 @@ class US76Table(BaseModel):
 
 
 def load_us76_table(path: str | Path) -> US76Table:
-    """Read the US76 figures from a YAML file."""
-    with open(path, encoding="utf-8") as fh:
-        return US76Table.model_validate(read_yaml(fh))
+    """Read the US76 figures from a YAML file (a regular file within
+    ``config_file_max_kib``, no YAML anchors: :func:`ovtraj.config.io_limits.read_config_file`)."""
+    from ovtraj.config.io_limits import read_config_file
+
+    return US76Table.model_validate(read_yaml(read_config_file(path)))
 
 
 def _readonly(values: ArrayLike) -> NDArray[np.float64]:

@@ -50,9 +50,11 @@ class EarthModel(BaseModel):
 
 
 def load_earth(path: str | Path) -> EarthModel:
-    """Read an Earth model from a YAML file."""
-    with open(path, encoding="utf-8") as fh:
-        return EarthModel.model_validate(read_yaml(fh))
+    """Read an Earth model from a YAML file (a regular file within
+    ``config_file_max_kib``, no YAML anchors: :func:`ovtraj.config.io_limits.read_config_file`)."""
+    from ovtraj.config.io_limits import read_config_file
+
+    return EarthModel.model_validate(read_yaml(read_config_file(path)))
 
 
 @lru_cache(maxsize=1)

@@ -30,6 +30,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
+from ovtraj.formatting import printable
 from ovtraj.paths import read_yaml
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -143,7 +144,8 @@ class ConfigError(ValueError):
     def __init__(self, problems: list[str], source: str = "") -> None:
         self.problems = problems
         self.source = source
-        head = f"invalid configuration{f' in {source}' if source else ''}:"
+        # the source is a path or a URL from the user: one printable line
+        head = f"invalid configuration{f' in {printable(source)}' if source else ''}:"
         if len(problems) == 1:
             super().__init__(f"{head} {problems[0]}")
         else:
@@ -182,8 +184,16 @@ def _allowed(info: FieldInfo | None) -> str | None:
     return extra.get("allowed") if isinstance(extra, dict) else None
 
 
-def format_validation_error(err: ValidationError, model: type[BaseModel]) -> list[str]:
-    """Turn pydantic's errors into one readable line each."""
+def format_validation_error(
+    err: ValidationError, model: type[BaseModel], *, echo_max_chars: int | None = None
+) -> list[str]:
+    """Turn pydantic's errors into one readable line each; a value echoed is cut to
+    ``echo_max_chars`` characters (default: ``configs/io_limits.yaml``'s)."""
+    from ovtraj.config.io_limits import echoed
+
+    def shown(value: Any) -> str:
+        return echoed(repr(value), echo_max_chars)
+
     lines = []
     for item in err.errors():
         loc = tuple(item["loc"])
@@ -209,13 +219,13 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
             "less_than_equal",
             "finite_number",
         }:
-            lines.append(f"{path} = {value!r}: out of range, allowed {allowed}")
+            lines.append(f"{path} = {shown(value)}: out of range, allowed {allowed}")
             continue
         if kind == BOOL_NOT_NUMBER:
             key = (item.get("ctx") or {}).get("key")
             if key is not None:  # inside a plain pydantic model (the Earth model)
                 path, value = f"{path}.{key}", value[key]
-            lines.append(f"{path} = {value!r}: {item['msg']}")
+            lines.append(f"{path} = {shown(value)}: {item['msg']}")
             continue
         msg = item["msg"].removeprefix("Value error, ")
         if kind == "string_type" and isinstance(value, (datetime.date, datetime.datetime)):
@@ -227,17 +237,23 @@ def format_validation_error(err: ValidationError, model: type[BaseModel]) -> lis
         elif value is None or isinstance(value, dict):
             lines.append(f"{path}: {msg}")
         else:
-            lines.append(f"{path} = {value!r}: {msg}{suffix}")
+            lines.append(f"{path} = {shown(value)}: {msg}{suffix}")
     return lines
 
 
 def model_from_dict(
-    model: type[ModelT], data: Any, source: str = "", *, source_dir: Path | None = None
+    model: type[ModelT],
+    data: Any,
+    source: str = "",
+    *,
+    source_dir: Path | None = None,
+    echo_max_chars: int | None = None,
 ) -> ModelT:
     """Validate a mapping into ``model``, raising :class:`ConfigError` (one line per field).
 
     ``source_dir`` is the folder relative paths in the data are relative to (the config
-    file's); validators find it in the validation context.
+    file's); validators find it in the validation context. ``echo_max_chars``: see
+    :func:`format_validation_error`.
     """
     if not isinstance(data, dict):
         raise ConfigError(
@@ -246,7 +262,9 @@ def model_from_dict(
     try:
         return model.model_validate(data, context={"source_dir": source_dir})
     except ValidationError as err:
-        raise ConfigError(format_validation_error(err, model), source) from None
+        raise ConfigError(
+            format_validation_error(err, model, echo_max_chars=echo_max_chars), source
+        ) from None
 
 
 def _key_path(keys: list[Any]) -> str:
@@ -277,11 +295,13 @@ def _unbuildable_value(text: str) -> str | None:
             try:
                 builder.construct_object(node, deep=True)
             except Exception as err:  # any constructor failure is the answer
+                from ovtraj.config.io_limits import echoed
+
                 kind = node.tag.rsplit(":", 1)[-1]
                 where = _key_path(keys) or "<root>"
                 return (
-                    f"{where} = {node.value} (line {node.start_mark.line + 1}): not a valid "
-                    f"YAML {kind} ({err}); quote it to give the text"
+                    f"{where} = {echoed(node.value)} (line {node.start_mark.line + 1}): not a "
+                    f"valid YAML {kind} ({echoed(str(err))}); quote it to give the text"
                 )
     return None
 
@@ -296,22 +316,34 @@ def parse_yaml(text: str) -> Any:
     try:
         return read_yaml(text)
     except yaml.YAMLError as err:
-        raise ValueError(f"not valid YAML: {err}") from None
+        raise ValueError(f"not valid YAML: {_yaml_problem(err)}") from None
     except Exception as err:  # the constructors raise ValueError, TypeError, OverflowError...
         where = _unbuildable_value(text)
         why = where or f"YAML cannot build a value: {type(err).__name__}: {err}"
         raise ValueError(why) from None
 
 
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """A YAML error as one line: ``line 2, column 2: while parsing a flow sequence; did
+    not find expected ',' or ']'`` (PyYAML's own text spans four lines)."""
+    mark = getattr(err, "problem_mark", None)
+    what = [getattr(err, "context", None), getattr(err, "problem", None)]
+    if mark is None or not any(what):
+        return " ".join(str(err).split())
+    return f"line {mark.line + 1}, column {mark.column + 1}: " + "; ".join(w for w in what if w)
+
+
 def load_model(model: type[ModelT], path: str | Path) -> ModelT:
-    """Read a YAML file and validate it into ``model``; every failure is a ConfigError."""
+    """Read a YAML file and validate it into ``model``; every failure is a ConfigError.
+
+    The file is read only if it is a regular file within ``config_file_max_kib``
+    (``configs/io_limits.yaml``), and YAML anchors and aliases are refused
+    (:func:`ovtraj.paths.read_yaml`).
+    """
+    from ovtraj.config.io_limits import read_config_file
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
-    except UnicodeDecodeError as err:
-        raise ConfigError([f"not a UTF-8 text file: {err}"], str(path)) from None
+    text = read_config_file(path)
     try:
         data = parse_yaml(text)
     except ValueError as err:

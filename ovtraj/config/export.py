@@ -3,7 +3,8 @@
 The export writes the planned trajectory as a CCSDS Orbit Ephemeris Message and the
 plan's manoeuvres as an Orbit Parameter Message (CCSDS 502.0-B-2, *Orbit Data
 Messages*, Blue Book, 2009: OEM and OPM version 2.0, KVN). These settings name the
-object and choose the sampling and the interpolation the OEM declares.
+object and choose the sampling and the interpolation the OEM declares. Every text
+written into a message is printable ASCII (:func:`kvn_value_problem`).
 """
 
 from __future__ import annotations
@@ -11,9 +12,27 @@ from __future__ import annotations
 from functools import lru_cache
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from ovtraj.config.base import StrictModel, bounded, load_model
+
+# The characters of a KVN message: printable ASCII and the blank, 32-126 (CCSDS
+# 502.0-B-3, Orbit Data Messages, 2023, the KVN chapter: lines of printable ASCII
+# characters and blanks; no control character, such as a tab, except the line ends).
+_KVN_CHARACTERS = range(ord(" "), ord("~") + 1)
+
+
+def kvn_value_problem(text: str) -> str | None:
+    """Why ``text`` cannot be written as a KVN value or comment (None when it can): a
+    character outside printable ASCII, such as a newline that would start a line of its
+    own in the message's header (issue 44)."""
+    for index, character in enumerate(text):
+        if ord(character) not in _KVN_CHARACTERS:
+            return (
+                f"character {character!r} at position {index}: a CCSDS KVN value holds "
+                "printable ASCII only (codes 32-126, CCSDS 502.0-B-3)"
+            )
+    return None
 
 
 class CcsdsExportSettings(StrictModel):
@@ -39,6 +58,14 @@ class CcsdsExportSettings(StrictModel):
         description="INTERPOLATION declared for a reader between the OEM's samples"
     )
     interpolation_degree: int = bounded(ge=1, le=15, description="INTERPOLATION_DEGREE")
+
+    @field_validator("originator", "object_id")
+    @classmethod
+    def _kvn_text(cls, value: str) -> str:
+        problem = kvn_value_problem(value)
+        if problem is not None:
+            raise ValueError(problem)
+        return value
 
 
 @lru_cache(maxsize=1)

@@ -18,7 +18,7 @@ from typing import Any, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from ovtraj.astro.constants import default_earth
-from ovtraj.config.base import StrictModel, bounded, parse_yaml
+from ovtraj.config.base import ConfigError, StrictModel, bounded, parse_yaml
 from ovtraj.paths import config_dir
 
 # The ten design variables of patent step 101, in the order of the design vector.
@@ -418,7 +418,11 @@ class LaunchSettings(StrictModel):
         try:
             datetime.date.fromisoformat(value)
         except ValueError:
-            raise ValueError(f"must be a calendar date YYYY-MM-DD, got {value!r}") from None
+            from ovtraj.config.io_limits import echoed
+
+            raise ValueError(
+                f"must be a calendar date YYYY-MM-DD, got {echoed(repr(value))}"
+            ) from None
         return value
 
     @model_validator(mode="after")
@@ -438,12 +442,12 @@ def _read_launcher(name: str, source_dir: Path | None) -> dict[str, Any]:
     if not path.is_absolute():
         beside = source_dir / path if source_dir is not None else None
         path = beside if beside is not None and beside.is_file() else config_dir() / path
+    from ovtraj.config.io_limits import read_config_file
+
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ValueError(f"cannot read launcher file {path}: {err.strerror}") from None
-    except UnicodeDecodeError as err:
-        raise ValueError(f"launcher file {path} is not UTF-8 text: {err}") from None
+        text = read_config_file(path)
+    except ConfigError as err:
+        raise ValueError(f"launcher file {path}: {'; '.join(err.problems)}") from None
     try:
         data = parse_yaml(text)
     except ValueError as err:

@@ -24,10 +24,11 @@ scenario, a hand-typed one does not need them (and dumps as before: ``name`` and
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from typing import Any, Literal
 
-from pydantic import Field, ValidationInfo, model_serializer, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_serializer, model_validator
 
 from ovtraj.config.base import ConfigError, StrictModel, bounded, load_model
 
@@ -40,6 +41,10 @@ READ_KEYS = ("tle_file", "omm_file", "url")
 # Samples of the SGP4 ephemeris one fit may use: one fit evaluation stays well under
 # 0.1 s (a day at one sample per minute is 1441).
 _MAX_FIT_SAMPLES = 100_000
+_BYTES_PER_MIB = 1 << 20
+# A host name as a redirect's host is compared with it: a DNS name or an IPv4 address
+# (letters, digits, dots and hyphens), no scheme, port or path.
+_HOST_NAME = re.compile(r"[a-z0-9]([a-z0-9.-]*[a-z0-9])?")
 
 
 class OrbitElementsConfig(StrictModel):
@@ -74,11 +79,51 @@ class TargetSourceSettings(StrictModel):
     max_age_days: float = bounded(
         unit="day", gt=0, le=3650, description="an element set this far from the epoch warns"
     )
-    url_timeout_s: float = bounded(unit="s", gt=0, le=600, description="URL fetch time-out")
+    url_timeout_s: float = bounded(
+        unit="s",
+        gt=0,
+        le=600,
+        description="a URL's whole fetch: connection, redirects, headers and body",
+    )
     url_cache_max_age_h: float = bounded(
         unit="h", ge=0, le=8760, description="a URL fetched this recently is read from the cache"
     )
-    url_max_mib: float = bounded(unit="MiB", gt=0, le=1024, description="largest URL download")
+    url_max_mib: float = bounded(
+        unit="MiB", gt=0, le=1024, description="largest URL download or element-set file"
+    )
+    url_redirect_hosts: list[str] = Field(
+        # Empty when absent: a scenario stored before the setting existed still validates,
+        # and refuses every redirect to another host.
+        default_factory=list,
+        description="hosts a URL may redirect to besides its own (none: no other host)",
+    )
+
+    @field_validator("url_redirect_hosts")
+    @classmethod
+    def _host_names(cls, hosts: list[str]) -> list[str]:
+        """Host names as the fetch compares them: lower case, no port, no scheme."""
+        from ovtraj.config.io_limits import echoed
+
+        names = [host.strip().lower() for host in hosts]
+        for name in names:
+            if not _HOST_NAME.fullmatch(name):
+                shown = echoed(repr(name))
+                raise ValueError(f"{shown} is not a host name (e.g. celestrak.org, no scheme)")
+        return names
+
+    @model_serializer(mode="wrap")
+    def _no_empty_allow_list(self, handler: Any) -> dict[str, Any]:
+        """``url_redirect_hosts`` left out while empty: the resolved scenario of a target
+        with a source (and so its run ids) is unchanged from before the setting."""
+        dumped = handler(self)
+        if not dumped.get("url_redirect_hosts"):
+            dumped.pop("url_redirect_hosts", None)
+        return dumped
+
+    @property
+    def max_bytes(self) -> int:
+        """``url_max_mib`` in bytes [B]: the largest download or element-set file."""
+        return int(self.url_max_mib * _BYTES_PER_MIB)
 
     @model_validator(mode="after")
     def _samples_in_reach(self) -> TargetSourceSettings:

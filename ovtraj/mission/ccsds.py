@@ -23,6 +23,11 @@ in the project). Positions in km, velocities in km/s, masses in kg (the standard
 
 The messages are a pure function of the plan and the settings: ``CREATION_DATE`` is the
 plan's launch day (a comment says so), so the same plan exports byte-identical files.
+
+Every text the settings or the plan put into a message (originator, object id, object
+name, code version, segment and impulse names) is printable ASCII, as KVN requires
+(CCSDS 502.0-B-3): a newline in one would write a header line of its own; anything else
+is refused naming the field (:func:`ovtraj.config.export.kvn_value_problem`).
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ from numpy.typing import NDArray
 from ovtraj.astro.eme2000 import teme_to_eme2000
 from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
 from ovtraj.config import scenario_from_dict
-from ovtraj.config.export import CcsdsExportSettings
+from ovtraj.config.export import CcsdsExportSettings, kvn_value_problem
+from ovtraj.config.io_limits import echoed
 from ovtraj.files import StoreError, write_bytes
 from ovtraj.maneuver.budget import burn_durations
 from ovtraj.mission.fly import EphemerisSegment, FlightReport, replay_ephemeris
@@ -70,25 +76,36 @@ def _julian_dates(day: Epoch, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArra
     return day.jd1 + whole, day.jd2 + rest / SECONDS_PER_DAY
 
 
+def _kvn(field: str, value: str) -> str:
+    """``value``, if a KVN message can hold it (printable ASCII: a newline in it would
+    write a header line of its own); :class:`PlanError` naming ``field`` otherwise."""
+    problem = kvn_value_problem(value)
+    if problem is not None:
+        raise PlanError(f"{field} = {echoed(repr(value))}: {problem}")
+    return value
+
+
 def _header(kind: str, plan: MissionPlan, settings: CcsdsExportSettings) -> list[str]:
     design = plan.design
+    code = _kvn("the plan's code_version", plan.code_version)
     return [
         f"CCSDS_{kind}_VERS = {VERSION}",
-        f"COMMENT ovtraj mission plan, code {plan.code_version}; design: parking "
+        f"COMMENT ovtraj mission plan, code {code}; design: parking "
         f"{design.parking_altitude_km:.3f} km, preparation {design.preparation_altitude_km:.3f} "
         f"km, separation delay {design.separation_delay_h:.4f} h",
         "COMMENT Converted from the project's TEME by IAU-76/80 precession-nutation (pyerfa); "
         "CREATION_DATE is the plan's launch day, so the same plan gives the same file",
         f"CREATION_DATE = {_epoch_text(plan.day, 0.0)}",
-        f"ORIGINATOR = {settings.originator}",
+        f"ORIGINATOR = {_kvn('originator', settings.originator)}",
     ]
 
 
 def _object(plan: MissionPlan, settings: CcsdsExportSettings) -> list[str]:
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    name = _kvn("the plan's vehicle.name", scenario.vehicle.name)
     return [
-        f"OBJECT_NAME = {scenario.vehicle.name}",
-        f"OBJECT_ID = {settings.object_id}",
+        f"OBJECT_NAME = {name}",
+        f"OBJECT_ID = {_kvn('object_id', settings.object_id)}",
         "CENTER_NAME = EARTH",
         f"REF_FRAME = {settings.ref_frame}",
         f"TIME_SYSTEM = {settings.time_system}",
@@ -117,7 +134,7 @@ def oem_text(
         lines += [
             "",
             "META_START",
-            f"COMMENT {segment.name}",
+            f"COMMENT {_kvn('segment name', segment.name)}",
             *_object(plan, settings),
             f"START_TIME = {_epoch_text(day, t0)}",
             f"STOP_TIME = {_epoch_text(day, t1)}",
@@ -175,7 +192,8 @@ def opm_text(plan: MissionPlan, settings: CcsdsExportSettings) -> str:
         dv_eme, _ = teme_to_eme2000(jd1, jd2, burn.eci[None, :], np.zeros((1, 3)))
         lines += [
             "",
-            f"COMMENT {burn.name}: impulsive, {float(np.linalg.norm(burn.eci)):.6f} m/s; mass "
+            f"COMMENT {_kvn('impulse name', burn.name)}: impulsive, "
+            f"{float(np.linalg.norm(burn.eci)):.6f} m/s; mass "
             f"burnt by the rocket equation, Isp {vehicle.isp_s:g} s",
             f"MAN_EPOCH_IGNITION = {_epoch_text(day, burn.t_s)}",
             "MAN_DURATION = 0.000",

@@ -33,9 +33,11 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config.base import format_validation_error
+from ovtraj.config.base import ConfigError, format_validation_error, parse_yaml
+from ovtraj.config.io_limits import echoed, read_config_file
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.files import StoreError, write_bytes
+from ovtraj.formatting import printable
 from ovtraj.launch.exact import SolvedLaunch, cached_launch_at, cached_launch_to, drop_state
 from ovtraj.launch.inputs import launch_input
 from ovtraj.launch.insertion import InsertionPoint
@@ -767,11 +769,20 @@ def plan_json(plan: MissionPlan) -> bytes:
     return (json.dumps(plan.to_dict(), indent=2, allow_nan=False) + "\n").encode("utf-8")
 
 
+class _WrittenOut(yaml.SafeDumper):
+    """Every value written where it is: :func:`read_plan` refuses anchors and aliases
+    (:func:`ovtraj.paths.read_yaml`), which PyYAML writes for an object met twice."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
 def plan_yaml(plan: MissionPlan) -> bytes:
     """The plan as YAML text (UTF-8), keys in schema order; floats round-trip exactly."""
-    return yaml.safe_dump(plan.to_dict(), sort_keys=False, allow_unicode=True, width=100).encode(
-        "utf-8"
+    text = yaml.dump(
+        plan.to_dict(), Dumper=_WrittenOut, sort_keys=False, allow_unicode=True, width=100
     )
+    return text.encode("utf-8")
 
 
 def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Path]:
@@ -802,32 +813,32 @@ def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Pat
 def read_plan(path: Path) -> MissionPlan:
     """A plan from its JSON or YAML file; :class:`PlanError` names the file and the field."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise PlanError(f"{path}: cannot read the plan file ({err})") from None
+    shown = printable(str(path))
     suffix = path.suffix.lower()
+    if suffix not in {".json", ".yaml", ".yml"}:
+        raise PlanError(f"{shown}: a plan file ends in .json, .yaml or .yml")
+    try:  # a regular file within config_file_max_kib (configs/io_limits.yaml)
+        text = read_config_file(path)
+    except ConfigError as err:
+        raise PlanError(f"{shown}: cannot read the plan file ({'; '.join(err.problems)})") from None
     try:
-        if suffix == ".json":
-            data = json.loads(text)
-        elif suffix in {".yaml", ".yml"}:
-            data = yaml.safe_load(text)
-        else:
-            raise PlanError(f"{path}: a plan file ends in .json, .yaml or .yml")
-    except (json.JSONDecodeError, yaml.YAMLError) as err:
-        kind = "JSON" if suffix == ".json" else "YAML"
-        raise PlanError(f"{path}: not valid {kind}: {err}") from None
+        data = json.loads(text) if suffix == ".json" else parse_yaml(text)
+    except json.JSONDecodeError as err:
+        raise PlanError(f"{shown}: not valid JSON: {err}") from None
+    except ValueError as err:  # parse_yaml: one line, YAML anchors and aliases refused
+        raise PlanError(f"{shown}: {err}") from None
     if not isinstance(data, dict):
-        raise PlanError(f"{path}: expected a mapping at the top level, got {type(data).__name__}")
+        raise PlanError(f"{shown}: expected a mapping at the top level, got {type(data).__name__}")
     version = data.get("schema_version")
     if version != SCHEMA_VERSION:
         raise PlanError(
-            f"{path}: schema_version = {version!r}: this code reads {SCHEMA_VERSION!r} plans"
+            f"{shown}: schema_version = {echoed(repr(version))}: this code reads "
+            f"{SCHEMA_VERSION!r} plans"
         )
     try:
         return MissionPlan.model_validate(data)
     except ValidationError as err:
         problems = format_validation_error(err, MissionPlan)
         raise PlanError(
-            "\n".join([f"{path}: invalid mission plan:", *(f"  - {p}" for p in problems)])
+            "\n".join([f"{shown}: invalid mission plan:", *(f"  - {p}" for p in problems)])
         ) from None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,13 +48,29 @@ def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pi
             asked.append(f"{label} = {limit:g}")
     if not keep.any():
         raise PipelineError(f"no front point meets {', '.join(asked)}")
-    weights = pick_weights(pick)
-    if weights.shape != (3,) or np.any(weights < 0) or not np.any(weights > 0):
-        raise PipelineError(
-            f"weights must be three non-negative numbers, not all zero; got {pick.weights}"
-        )
-    score = np.where(keep, weighted_scores(front, normalisation, weights), np.inf)
+    problem = weights_problem(pick.weights)
+    if problem is not None:
+        raise PipelineError(f"weights {pick.weights}: {problem}")
+    score = np.where(keep, weighted_scores(front, normalisation, pick_weights(pick)), np.inf)
     return front.iloc[int(np.argmin(score))]
+
+
+def weights_problem(weights: Sequence[float] | None) -> str | None:
+    """Why ``weights`` cannot weigh (T_total, dV_total, M_load), None when they can: three
+    finite, non-negative numbers, not all zero (a NaN weight made every score NaN, and
+    the first point was picked "with score nan"; issue 44). None: equal weights."""
+    if weights is None:
+        return None
+    values = np.asarray(weights, dtype=float)
+    if values.shape != (3,):
+        return f"three weights are needed (T, dV, M), got {values.size}"
+    if not np.all(np.isfinite(values)):
+        return "every weight must be a finite number"
+    if np.any(values < 0):
+        return "every weight must be non-negative"
+    if not np.any(values > 0):
+        return "the weights must not all be zero"
+    return None
 
 
 def pick_weights(pick: Pick) -> np.ndarray:

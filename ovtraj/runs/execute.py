@@ -7,22 +7,27 @@ import concurrent.futures
 import hashlib
 import json
 import logging
+import shutil
 import time
 from collections.abc import Callable
 from contextlib import nullcontext
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.config.io_limits import io_limits
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
+from ovtraj.formatting import byte_size, printable
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.parallel import blas_threads
 from ovtraj.runs.doe import latin_hypercube
 from ovtraj.runs.runners import BatchPool, ClusterError, batch_pool
 from ovtraj.runs.store import Run, RunStore, StoreError
+from ovtraj.storage import S3Path
 
 logger = logging.getLogger(__name__)
 
@@ -81,15 +86,53 @@ def prepare_run(
         resolved = scenario.resolved()
         base = store.latin_hypercube_run(resolved, seed, code, at_most=samples)
         if base is None:
+            check_free_disk(store, samples)
             samples_table = latin_hypercube(bounds, samples, seed)
             return store.create(resolved=resolved, samples=samples_table, seed=seed, code=code)
         have = int(base.manifest["samples"])
         if have == samples:
             return base
         parent, samples = base, samples - have
+    check_free_disk(store, samples)  # the parent's batches are adopted as hard links
     previous = parent.samples()
     more = latin_hypercube(bounds, samples, seed, first_id=int(previous["sample_id"].max()) + 1)
     return extend_run(scenario, parent, more, seed=seed, code=code, store=store)
+
+
+def doe_size_estimate(samples: int) -> float:
+    """Bytes [B] ``samples`` new DoE samples take in the run store: the measured
+    ``doe_bytes_per_sample`` of ``configs/io_limits.yaml`` times their number."""
+    return samples * io_limits().doe_bytes_per_sample
+
+
+def check_free_disk(store: RunStore, samples: int) -> None:
+    """Refuse a DoE of ``samples`` new samples whose estimated size is above the free
+    disk of the store's folder (:class:`StoreError` naming both), before it writes a
+    byte; say the estimate of a large one (above ``doe_estimate_shown_gib``). An object
+    store (``s3://``) reports no free space: its DoE is only announced."""
+    estimate = doe_size_estimate(samples)
+    limits = io_limits()
+    where = store.root
+    if not isinstance(where, S3Path):
+        folder = Path(where)
+        while not folder.exists() and folder != folder.parent:  # the store made on first write
+            folder = folder.parent
+        free = shutil.disk_usage(folder).free
+        if estimate > free:
+            raise StoreError(
+                f"{printable(str(where))}: a DoE of {samples} samples takes "
+                f"~{byte_size(round(estimate))} "
+                f"({byte_size(round(limits.doe_bytes_per_sample))} a sample, "
+                f"configs/io_limits.yaml), more than the {byte_size(free)} free on its disk"
+            )
+    if estimate > limits.doe_estimate_shown_bytes:
+        logger.info(
+            "a DoE of %d samples: ~%s in %s (%s a sample, measured)",
+            samples,
+            byte_size(round(estimate)),
+            where,
+            byte_size(round(limits.doe_bytes_per_sample)),
+        )
 
 
 def extend_run(

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, model_from_dict
+from ovtraj.config.io_limits import echoed
 from ovtraj.config.target import (
     READ_KEYS,
     SOURCE_KEYS,
@@ -31,6 +32,7 @@ from ovtraj.config.target import (
     TargetSourceSettings,
     default_source_settings,
 )
+from ovtraj.paths import read_text_file
 from ovtraj.target_sources.elements import SourceElements, select_element_set
 from ovtraj.target_sources.fetch import fetch_text, is_url
 from ovtraj.target_sources.fit import TargetFit, fit_target
@@ -62,16 +64,16 @@ def element_sets_from_text(text: str, where: str) -> list[SourceElements]:
     return tle_element_sets(text, where)
 
 
-def _file_text(source: str | Path, base_dir: Path | None) -> tuple[str, str]:
+def _file_text(
+    source: str | Path, base_dir: Path | None, settings: TargetSourceSettings
+) -> tuple[str, str]:
+    """The text of an element-set file and its path: a regular UTF-8 file within
+    ``url_max_mib`` (a file may be as large as a download: a whole catalogue)."""
     path = Path(source).expanduser()
     if not path.is_absolute():
         path = (Path(base_dir) if base_dir is not None else Path.cwd()) / path
-    try:
-        return path.read_text(encoding="utf-8"), str(path)
-    except OSError as err:
-        raise ConfigError([f"cannot read the file: {err.strerror}"], str(path)) from None
-    except UnicodeDecodeError:
-        raise ConfigError(["not a UTF-8 text file"], str(path)) from None
+    limit = f"url_max_mib = {settings.url_max_mib:g} MiB"
+    return read_text_file(path, max_bytes=settings.max_bytes, limit=limit), str(path)
 
 
 def read_source(
@@ -85,15 +87,9 @@ def read_source(
     """The element set of a TLE / OMM file or an http(s) URL (fetched through the cache)."""
     if is_url(str(source)):
         where = str(source).strip()
-        text = fetch_text(
-            where,
-            timeout_s=settings.url_timeout_s,
-            cache_max_age_h=settings.url_cache_max_age_h,
-            max_mib=settings.url_max_mib,
-            cache_dir=cache_dir,
-        )
+        text = fetch_text(where, settings=settings, cache_dir=cache_dir)
     else:
-        text, where = _file_text(source, base_dir)
+        text, where = _file_text(source, base_dir, settings)
     return select_element_set(element_sets_from_text(text, where), catalog_number, where)
 
 
@@ -132,9 +128,9 @@ def inline_target(
             raise ConfigError(["expected a file name or an http(s) URL as text"])
         if key == "url" and not is_url(value):
             raise ConfigError(["not an http:// or https:// address"])
-        settings = _settings(data) if key == "url" else None
+        settings = _settings(data)
         catalog_number = _catalog_number(data)
-        if settings is not None:
+        if key == "url":
             elements = read_source(
                 value,
                 settings=settings,
@@ -142,12 +138,13 @@ def inline_target(
                 cache_dir=cache_dir,
             )
         else:
-            text, where = _file_text(value, source_dir)
+            text, where = _file_text(value, source_dir, settings)
             elements = select_element_set(
                 element_sets_from_text(text, where), catalog_number, where
             )
     except ConfigError as err:
-        raise ConfigError([f"{key} = {value!r}: {p}" for p in err.problems]) from None
+        shown = echoed(repr(value))
+        raise ConfigError([f"{key} = {shown}: {p}" for p in err.problems]) from None
     resolved = {k: v for k, v in data.items() if k not in READ_KEYS}
     resolved.update(elements.config())
     return resolved

@@ -1,0 +1,95 @@
+"""What ovtraj reads and writes at most (``configs/io_limits.yaml``; issue 44).
+
+* the size of a config, scenario, launcher, dispersions, export-settings or plan file
+  (:func:`read_config_file`; element sets have ``url_max_mib`` of
+  ``configs/target_sources.yaml``), read only if it is a regular file
+  (:func:`ovtraj.paths.read_text_file`);
+* the characters of a value or a name echoed in an error line (:func:`echoed`);
+* the disk a DoE sample takes, for the estimate checked against the free disk before a
+  DoE writes (:func:`ovtraj.runs.execute.check_free_disk`).
+
+Like ``configs/orchestration.yaml`` these belong to no scenario: they never change a
+result or a run id.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from ovtraj.config.base import ConfigError, StrictModel, bounded, model_from_dict, parse_yaml
+from ovtraj.formatting import clipped, printable
+
+FILE = "io_limits.yaml"
+_BYTES_PER_KIB = 1024
+_BYTES_PER_GIB = 1 << 30
+
+
+class IoLimits(StrictModel):
+    """``configs/io_limits.yaml``."""
+
+    config_file_max_kib: float = bounded(
+        unit="KiB", gt=0, le=1024 * 1024, description="largest config, scenario or plan file read"
+    )
+    echo_max_chars: int = bounded(
+        ge=16, le=1_000_000, description="a value echoed in an error line is cut to this"
+    )
+    doe_bytes_per_sample: float = bounded(
+        unit="B", gt=0, le=1e12, description="disk a DoE sample takes in the run store"
+    )
+    doe_estimate_shown_gib: float = bounded(
+        unit="GiB", ge=0, le=1e6, description="a DoE estimated above this says its estimate"
+    )
+
+    @property
+    def config_file_max_bytes(self) -> int:
+        """``config_file_max_kib`` in bytes [B]."""
+        return int(self.config_file_max_kib * _BYTES_PER_KIB)
+
+    @property
+    def doe_estimate_shown_bytes(self) -> float:
+        """``doe_estimate_shown_gib`` in bytes [B]."""
+        return self.doe_estimate_shown_gib * _BYTES_PER_GIB
+
+
+@lru_cache(maxsize=1)
+def io_limits() -> IoLimits:
+    """The shipped ``configs/io_limits.yaml`` (``OVTRAJ_CONFIG_DIR`` moves it)."""
+    from ovtraj.paths import config_path, read_text_file
+
+    try:
+        path = config_path(FILE)
+    except FileNotFoundError as err:
+        raise ConfigError([str(err)], FILE) from None
+    # The file that caps every other file cannot be capped by itself: it is read only if
+    # it is a regular file (its size bounds the read), and a value of it echoed in an
+    # error can be no longer than the file.
+    text = read_text_file(path, max_bytes=None)
+    try:
+        data = parse_yaml(text)
+    except ValueError as err:
+        raise ConfigError([str(err)], str(path)) from None
+    return model_from_dict(IoLimits, data, str(path), echo_max_chars=max(len(text), 1))
+
+
+def read_config_file(path: str | Path) -> str:
+    """The text of a config, scenario or plan file: a regular UTF-8 file of at most
+    ``config_file_max_kib``; :class:`ConfigError` naming the file otherwise."""
+    from ovtraj.paths import read_text_file
+
+    limits = io_limits()
+    return read_text_file(
+        path,
+        max_bytes=limits.config_file_max_bytes,
+        limit=f"config_file_max_kib = {limits.config_file_max_kib:g} KiB ({FILE})",
+    )
+
+
+def echoed(text: str, max_chars: int | None = None) -> str:
+    """``text`` as one printable line of at most ``max_chars`` characters (default:
+    ``echo_max_chars``): every non-printable character escaped
+    (:func:`ovtraj.formatting.printable`), a longer text cut in the middle
+    (:func:`ovtraj.formatting.clipped`). For a value, echo ``repr(value)``."""
+    limit = io_limits().echo_max_chars if max_chars is None else max_chars
+    # cut before escaping too: escaping a long text costs its length in time
+    return clipped(printable(clipped(text, limit)), limit)
