@@ -10,7 +10,14 @@ replaced, atomically (``replace=True``). Every write returns the file's
 
 Reading: :func:`read_bytes`, :func:`read_json` and :func:`read_parquet` verify a
 file against its recorded digest (and a Parquet file against its declared schema)
-before anything is parsed, and refuse a changed file naming it. Every read reads and
+before anything is parsed, and refuse a changed file naming it. A local read opens
+regular files only, never through a final symbolic link and never waiting for a writer
+(a FIFO, a device or a link to ``/dev/zero`` is refused at once, named), and checks the
+size before reading: it must equal the recorded size, and no more is read; a file with
+no recorded size (a manifest, a marker) may have at most ``reads.unrecorded_file_max_mib``
+of ``configs/orchestration.yaml``. A recorded digest is a whole number of bytes up to
+``reads.stored_file_max_mib`` and 64 hexadecimal digits (:meth:`Digest.from_json`); a
+marker's file names stay inside its folder (:func:`marker_files`). Every read reads and
 hashes the file; the Parquet decoding of a payload already decoded in this process is
 reused (:class:`DecodedTables`, keyed by the SHA-256 just verified: the same digest is
 the same bytes, so the same table).
@@ -27,18 +34,21 @@ import functools
 import hashlib
 import json
 import os
+import re
 import secrets
 import socket
+import stat
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ovtraj.paths import file_kind
 from ovtraj.records import json_text
 from ovtraj.storage import PreconditionFailed, S3Path, StorageError, location
 
@@ -48,6 +58,7 @@ __all__ = [
     "StoreError",
     "decoded_tables",
     "file_digest",
+    "marker_files",
     "os_error_text",
     "parquet_bytes",
     "read_bytes",
@@ -66,6 +77,13 @@ TEMPORARY_SUFFIX = ".tmp"
 # zstd with byte-stream-split floats is 35-40 % smaller than snappy on trajectory tables.
 PARQUET_COMPRESSION = "zstd"
 PARQUET_COMPRESSION_LEVEL = 9
+SHA256_HEX = re.compile(r"[0-9a-f]{64}")  # hashlib's hexdigest(): what a marker records
+_BYTES_PER_MIB = 2**20
+# A store holds regular files only: a final symbolic link is not followed (ELOOP) and a
+# FIFO opens without waiting for a writer, so both are refused by the checks after opening.
+_OPEN_STORED = (
+    os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | os.O_CLOEXEC
+)
 
 
 class StoreError(RuntimeError):
@@ -88,10 +106,23 @@ class Digest:
 
     @classmethod
     def from_json(cls, data: Any) -> Digest:
-        try:
-            return cls(int(data["bytes"]), str(data["sha256"]))
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(f"not a file digest: {data!r}") from None
+        """A marker's record of a file; ValueError saying what is wrong (the caller names
+        the marker). The size must be a whole number of bytes within
+        ``reads.stored_file_max_mib``: JSON's ``1e400`` is an infinite float, ``true`` a
+        Python int, and neither is a size."""
+        if not isinstance(data, dict):
+            raise ValueError(f"not a file digest (a JSON {type(data).__name__}, not an object)")
+        size, sha256 = data.get("bytes"), data.get("sha256")
+        largest = int(read_settings().stored_file_max_mib * _BYTES_PER_MIB)
+        if type(size) is not int or not 0 <= size <= largest:
+            found = "a whole number outside it" if type(size) is int else f"a {type(size).__name__}"
+            raise ValueError(
+                f'recorded "bytes" is not a whole number of bytes from 0 to {largest} '
+                f"(reads.stored_file_max_mib of configs/orchestration.yaml); found {found}"
+            )
+        if not isinstance(sha256, str) or SHA256_HEX.fullmatch(sha256) is None:
+            raise ValueError('recorded "sha256" is not 64 lowercase hexadecimal digits')
+        return cls(size, sha256)
 
 
 def os_error_text(err: OSError) -> str:
@@ -106,8 +137,112 @@ def os_error_text(err: OSError) -> str:
 
 
 def file_digest(path: Path) -> Digest:
-    """Size and SHA-256 of a stored file."""
-    return Digest.of(read_bytes(path))
+    """Size [bytes] and SHA-256 of a stored file (a local one hashed as it is read, never
+    held in memory whole)."""
+    path = location(path)
+    if isinstance(path, S3Path):
+        return Digest.of(read_bytes(path))
+    fd, _ = _open_stored(path)
+    try:
+        with open(fd, "rb", closefd=False) as handle:
+            sha256 = hashlib.file_digest(handle, "sha256").hexdigest()
+            size = handle.tell()
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    finally:
+        os.close(fd)
+    return Digest(size, sha256)
+
+
+@functools.cache
+def read_settings() -> Any:
+    """``reads`` of ``configs/orchestration.yaml`` (:class:`~ovtraj.config.orchestration.
+    ReadSettings`), read once per process at its first read of a store file."""
+    from ovtraj.config.orchestration import load_orchestration
+
+    return load_orchestration().reads
+
+
+def _open_stored(path: Path) -> tuple[int, os.stat_result]:
+    """A descriptor of the regular file at the local ``path`` and its status; StoreError
+    naming it for anything else (missing, a symbolic link, a FIFO, a device...)."""
+    try:
+        fd = os.open(path, _OPEN_STORED)
+    except FileNotFoundError:
+        raise StoreError(f"{path}: missing") from None
+    except OSError as err:
+        if err.errno == errno.ELOOP and os.path.islink(path):
+            raise StoreError(f"{path}: a symbolic link, not a stored file; not read") from None
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise StoreError(f"{path}: {file_kind(info.st_mode)}, not a stored file; not read")
+    return fd, info
+
+
+def _read_local(path: Path, expected: Digest | None) -> bytes:
+    """The content of a local stored file, its size checked before anything is read: the
+    recorded size exactly, else at most ``reads.unrecorded_file_max_mib``."""
+    fd, info = _open_stored(path)
+    try:
+        if expected is not None and info.st_size != expected.size:
+            raise StoreError(
+                f"{path}: changed since it was stored ({info.st_size} bytes, "
+                f"{expected.size} recorded)"
+            )
+        if expected is None:
+            largest = int(read_settings().unrecorded_file_max_mib * _BYTES_PER_MIB)
+            if info.st_size > largest:
+                raise StoreError(
+                    f"{path}: {info.st_size} bytes, more than a file read without a recorded "
+                    f"size may have ({largest}: reads.unrecorded_file_max_mib of "
+                    "configs/orchestration.yaml); not read"
+                )
+        chunks, remaining = [], info.st_size
+        with open(fd, "rb", buffering=0, closefd=False) as handle:
+            while remaining > 0:  # a file that grows meanwhile is read up to the size checked
+                chunk = handle.read(remaining)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                remaining -= len(chunk)
+        return b"".join(chunks)
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    finally:
+        os.close(fd)
+
+
+def marker_files(marker: Path, content: Any) -> dict[str, Digest]:
+    """The files a marker (or manifest) ``content`` lists, by name relative to its folder,
+    each checked: a name that stays inside the folder (no absolute path, ``..`` or control
+    character) and a usable digest (:meth:`Digest.from_json`). StoreError naming the
+    marker otherwise."""
+    from ovtraj.config.io_limits import echoed
+
+    listed = content.get("files") if isinstance(content, dict) else None
+    if not isinstance(listed, dict):
+        raise StoreError(f"{marker}: lists no file digests")
+    digests = {}
+    for name, record in listed.items():
+        parts = PurePosixPath(name).parts
+        if (
+            not parts
+            or parts[0] == "/"
+            or any(part in (".", "..") for part in parts)
+            or not name.isprintable()
+            or "\\" in name
+        ):
+            raise StoreError(
+                f"{marker}: lists {echoed(repr(name))}, a file name that leaves its folder "
+                "or holds a control character (an absolute path, '..', a backslash); not read"
+            )
+        try:
+            digests[name] = Digest.from_json(record)
+        except ValueError as err:
+            raise StoreError(f"{marker}: {echoed(name)}: {err}") from None
+    return digests
 
 
 def _temporary_name(path: Path) -> Path:
@@ -222,14 +357,18 @@ def write_parquet(path: Path, table: pa.Table, schema: pa.Schema) -> Digest:
 
 
 def read_bytes(path: Path, expected: Digest | None = None) -> bytes:
-    """A stored file's content, checked against ``expected`` when given."""
+    """A stored file's content, checked against ``expected`` when given (a local file: a
+    regular file whose size is checked before it is read, see the module notes)."""
     path = location(path)
-    try:
-        payload = path.read_bytes()
-    except FileNotFoundError:
-        raise StoreError(f"{path}: missing") from None
-    except OSError as err:
-        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    if isinstance(path, S3Path):
+        try:
+            payload = path.read_bytes()
+        except FileNotFoundError:
+            raise StoreError(f"{path}: missing") from None
+        except OSError as err:
+            raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    else:
+        payload = _read_local(path, expected)
     if expected is not None:
         found = Digest.of(payload)
         if found.size != expected.size:
@@ -245,7 +384,9 @@ def read_bytes(path: Path, expected: Digest | None = None) -> bytes:
 def read_json(path: Path, expected: Digest | None = None) -> Any:
     try:
         return json.loads(read_bytes(path, expected).decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        # ValueError: also an integer of more digits than Python converts; RecursionError:
+        # arrays nested thousands deep.
         raise StoreError(f"{path}: unreadable JSON file ({err})") from None
 
 
@@ -296,10 +437,8 @@ class DecodedTables:
 @functools.cache
 def decoded_tables() -> DecodedTables:
     """This process's :class:`DecodedTables`, bounded by ``reads.decoded_tables_mib`` of
-    ``configs/orchestration.yaml`` (read at the first checked Parquet read)."""
-    from ovtraj.config.orchestration import load_orchestration
-
-    return DecodedTables(int(load_orchestration().reads.decoded_tables_mib * 2**20))
+    ``configs/orchestration.yaml`` (:func:`read_settings`)."""
+    return DecodedTables(int(read_settings().decoded_tables_mib * _BYTES_PER_MIB))
 
 
 def read_table(

@@ -15,11 +15,13 @@ holder under the lock's key.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
 import secrets
 import socket
+import stat
 import threading
 import time
 from collections.abc import Iterator
@@ -36,14 +38,29 @@ _POLL_S = 0.05
 # RENEW_S (a third), so a slow request or a clock offset of tens of seconds is tolerated.
 LEASE_S = 60.0
 RENEW_S = LEASE_S / 3.0
+# A lock file is a regular file of the store: never opened through a symbolic link (a
+# holder writes its name into it: a link would have it truncate a file elsewhere) and
+# never waiting on a FIFO.
+_NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | os.O_CLOEXEC
+
+
+def _regular(fd: int, path: Path) -> int:
+    """``fd`` if it is a regular file's; else closed, and StoreError naming ``path``."""
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise StoreError(f"{path}: not a regular file, so not a lock; left alone")
+    return fd
 
 
 def _open(path: Path) -> int:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        return os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | _NO_FOLLOW, 0o644)
     except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise StoreError(f"{path}: a symbolic link, so not a lock; left alone") from None
         raise StoreError(f"cannot write {path}: {os_error_text(err)}") from None
+    return _regular(fd, path)
 
 
 def _holder(path: Path) -> str:
@@ -124,7 +141,10 @@ def hold_directory(directory: Path, *, wait_s: float) -> Iterator[None]:
 
 
 def held(path: Path) -> bool:
-    """Whether some process holds the lock at ``path`` (shared or exclusive); read-only."""
+    """Whether some process holds the lock at ``path`` (shared or exclusive); read-only.
+    ``path`` is a lock file or a directory locked itself (:func:`hold_directory`); one
+    that is a symbolic link, a FIFO or a device counts as held: whatever asks (``ovtraj
+    prune``, a run's status) then leaves it alone."""
     path = location(path)
     if isinstance(path, S3Path):
         try:
@@ -132,11 +152,17 @@ def held(path: Path) -> bool:
         except StorageError as err:
             raise StoreError(f"{path}: unreadable ({err})") from None
     try:
-        fd = os.open(path, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY | _NO_FOLLOW)
     except FileNotFoundError:
         return False
     except OSError as err:
+        if err.errno == errno.ELOOP:
+            return True
         raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    mode = os.fstat(fd).st_mode
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        os.close(fd)
+        return True
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

@@ -11,7 +11,9 @@ launch fit and the Monte Carlo batches share one convention with the DoE batches
   without its marker is incomplete and never read;
 - a reader takes the digest from the marker and checks size, SHA-256 and (Parquet)
   the declared schema before parsing; a missing, changed or unlisted file is a
-  :class:`~ovtraj.files.StoreError` naming it.
+  :class:`~ovtraj.files.StoreError` naming it;
+- with a store key configured (``OVTRAJ_STORE_KEY``), the marker carries an HMAC seal,
+  checked on every read (:mod:`ovtraj.seals`): a rewritten marker is refused as tampered.
 
 A writer holds the product directory's lock (``flock`` on the directory itself: no
 lock file is left, the kernel releases it when the process ends). While the marker
@@ -42,6 +44,7 @@ from ovtraj.files import (
     write_parquet,
 )
 from ovtraj.locks import hold_directory
+from ovtraj.seals import read_authenticated, write_sealed
 from ovtraj.storage import location
 
 __all__ = ["Product", "ProductWriter", "digests_json", "directory_lock"]
@@ -71,8 +74,9 @@ class Product:
         return self.marker_path.is_file()
 
     def marker(self, expected: Digest | None = None) -> dict[str, Any]:
-        """The marker's content (checked against ``expected`` when a parent lists it)."""
-        content = read_json(self.marker_path, expected)
+        """The marker's content (checked against ``expected`` when a parent lists it, and
+        its seal when a store key is configured: :mod:`ovtraj.seals`)."""
+        content = read_authenticated(self.marker_path, expected)
         if not isinstance(content, dict) or not isinstance(content.get("files"), dict):
             raise StoreError(
                 f"{self.marker_path}: lists no file digests (not a complete product, or "
@@ -143,11 +147,12 @@ class ProductWriter:
         self.files[name] = digest
 
     def finish(self, document: Mapping[str, Any]) -> dict[str, Any]:
-        """Write the marker: ``document`` with the digests of every file written or added."""
+        """Write the marker: ``document`` with the digests of every file written or added
+        (sealed when a store key is configured: :mod:`ovtraj.seals`)."""
         if "files" in document:
             raise ValueError("the marker's 'files' are the writer's own")
         content = {**document, "files": digests_json(self.files)}
-        self.files[self.product.marker_name] = write_json(self.product.marker_path, content)
+        self.files[self.product.marker_name] = write_sealed(self.product.marker_path, content)
         return content
 
 

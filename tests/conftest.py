@@ -108,6 +108,28 @@ def scenario_data() -> dict[str, Any]:
         return copy.deepcopy(yaml.safe_load(fh))
 
 
+def shorten_launch_fit(data: dict[str, Any]) -> dict[str, Any]:
+    """A scenario's launch fit made quick, in place: five points (the fewest an order-1 fit
+    takes), the reference (300 km) among them; a smaller GA, coarser steps, looser and
+    shorter local phases: each point still feasible and the payload falling with altitude,
+    in ~7 s a flow run here, not ~40 s. The mission section goes (its design bounds need
+    the full fit range). Returns ``data``."""
+    launch = data["launch"]
+    launch["fit"].update(altitude_min_km=280.0, altitude_max_km=320.0, points=5, order=1)
+    launch["genetic"].update(population=16, generations=6)
+    launch["integration"].update(powered_step_s=4.0, coast_step_s=40.0)
+    launch["local"].update(
+        converged_residual=1.0,
+        slsqp_ftol=1e-5,
+        slsqp_max_iterations=30,
+        trust_constr_max_iterations=5,
+        stall_iterations=2,
+        stall_payload_kg=0.1,
+    )
+    data.pop("mission")
+    return data
+
+
 def build_scenario(data: dict[str, Any]) -> Scenario:
     return scenario_from_dict(data, "test")
 
@@ -127,3 +149,22 @@ def held_claim(run_dir: Path) -> tuple[int, int] | None:
         if found:
             return batch, int(found.group(1))
     return None
+
+
+def prefect_record(folder: Path, key: str) -> Path:
+    """A task result record ``folder/key`` as Prefect writes one (its own ``ResultStore``
+    on local storage), in a subprocess whose Prefect home is a folder beside ``folder``."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "from prefect.filesystems import LocalFileSystem\n"
+        "from prefect.results import ResultStore\n"
+        "store = ResultStore(result_storage=LocalFileSystem(basepath=sys.argv[1]))\n"
+        "store.write({'run_id': '0123456789abcdef', 'batch': 0}, key=sys.argv[2])\n"
+    )
+    env = dict(os.environ, PREFECT_HOME=str(folder.parent / f"{folder.name}-prefect-home"))
+    args = [sys.executable, "-c", script, str(folder), key]
+    subprocess.run(args, check=True, timeout=300, env=env, capture_output=True)
+    return folder / key

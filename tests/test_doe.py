@@ -288,8 +288,10 @@ def test_cli_run_runs_show_and_replay(tmp_path):
     replayed = runner.invoke(app, ["replay", rid, "--store", store])
     assert replayed.exit_code == 0
     assert "largest difference from the stored totals  0" in replayed.stdout
-    missing = runner.invoke(app, ["show", "nope", "--store", store])
+    missing = runner.invoke(app, ["show", "0123456789abcdef", "--store", store])
     assert missing.exit_code == 2 and "no such run" in missing.stderr
+    malformed = runner.invoke(app, ["show", "nope", "--store", store])
+    assert malformed.exit_code == 2 and "is not an id of this store" in malformed.stderr
 
 
 def test_a_deleted_run_is_recomputed_although_its_tasks_are_cached(prefect_server, tmp_path):

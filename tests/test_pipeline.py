@@ -39,7 +39,7 @@ from ovtraj.pipeline.loop import load_pipeline
 from ovtraj.runs import RunStore, StoreError, execute, prepare_run, run_doe
 from ovtraj.surrogate import SurrogateError
 from ovtraj.version import code_version
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, prefect_record
 
 OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
 
@@ -988,13 +988,15 @@ def test_prune_removes_superseded_runs_and_stale_fits_and_keeps_every_result(sma
     assert kinds == {"surrogates", "fronts"} and all(remove(item) for item in stale)
     again = find_pipeline(store.run(small["doe"].id))
     assert again.front.equals(result.front)
-    # Prefect's local results: a cache, listed and removed file by file.
+    # Prefect's local results: a cache, listed and removed record by record; a file that
+    # is not a result record is not Prefect's, and stays.
     results = tmp_path / "prefect-results"
     results.mkdir()
-    (results / "a").write_bytes(b"x" * 10)
+    record = prefect_record(results, "a")
+    (results / "b").write_bytes(b"x" * 10)
     cached = prunable(store, small["code"], kinds=("prefect-results",), prefect_results=results)
-    assert [(i.path.name, i.size_bytes) for i in cached] == [("a", 10)]
-    assert remove(cached[0]) and not (results / "a").exists()
+    assert [(i.path.name, i.size_bytes) for i in cached] == [("a", record.stat().st_size)]
+    assert remove(cached[0]) and not record.exists() and (results / "b").is_file()
     refused = runner.invoke(app, ["prune", "--store", str(store.root), "--only", "everything"])
     assert refused.exit_code == 2 and "--only" in refused.output
 

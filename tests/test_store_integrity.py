@@ -54,9 +54,17 @@ def _write_config(directory: Path, data: dict) -> Path:
     return path
 
 
-def _cli(*args: str, timeout: float = 600, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def _cli(
+    *args: str, timeout: float = 600, cwd: Path | None = None, env: dict | None = None
+) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [OVTRAJ, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False
+        [OVTRAJ, *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd,
+        check=False,
+        env=None if env is None else os.environ | env,
     )
 
 
@@ -360,8 +368,19 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
     config = _write_config(tmp_path, yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8")))
     store = tmpfs / "runs"
     args = ("run", str(config), "--samples", "6", "--seed", "5", "--store", str(store))
-    # 160 kB: the run's first files and a batch or two fit, then the disk is full.
+    # 160 kB: less than the DoE's estimate (configs/io_limits.yaml): refused, nothing written.
     line = _one_line_error(_cli(*args))
+    assert line.startswith(f"{store}: a DoE of 6 samples takes ~") and "free on its disk" in line
+    assert not store.exists() or not any(store.iterdir())
+    # An estimate that lets it start: the run's first files and a batch or two fit, then
+    # the disk is full.
+    configs = tmp_path / "configs"
+    shutil.copytree(REPO / "configs", configs)
+    limits = configs / "io_limits.yaml"
+    limits.write_text(
+        re.sub(r"doe_bytes_per_sample: \d+", "doe_bytes_per_sample: 1", limits.read_text())
+    )
+    line = _one_line_error(_cli(*args, env={"OVTRAJ_CONFIG_DIR": str(configs)}))
     assert line.startswith(f"cannot write {store}") and line.endswith("no space left on the device")
     (run_dir,) = store.iterdir()
     run = RunStore(store).run(run_dir.name)

@@ -3,7 +3,8 @@
 ``configs/orchestration.yaml`` (shipped; ``OVTRAJ_CONFIG_DIR`` moves it). These settings
 belong to no scenario: they never change a result or a run id, and a stored run's
 ``config.json`` does not carry them. The flows (``flows/``) read them when imported; the
-library never does.
+library reads only ``reads`` (at its first read of a store file) and ``store_key`` (when
+``OVTRAJ_STORE_KEY`` is set, :mod:`ovtraj.seals`).
 """
 
 from __future__ import annotations
@@ -121,6 +122,31 @@ class ReadSettings(StrictModel):
         le=1024 * 1024,
         description="Arrow memory kept of the decoded Parquet files, reused for the same bytes",
     )
+    stored_file_max_mib: float = bounded(
+        unit="MiB",
+        gt=0,
+        le=1024 * 1024,
+        description="largest size a marker may record for a stored file: a larger (or "
+        "non-integer, negative) recorded size is refused, naming the marker",
+    )
+    unrecorded_file_max_mib: float = bounded(
+        unit="MiB",
+        gt=0,
+        le=64 * 1024,
+        description="largest file read without a recorded size (a manifest, a marker, a "
+        "Prefect result record `ovtraj prune` parses)",
+    )
+
+
+class StoreKeySettings(StrictModel):
+    """The key of the stores' seals (:mod:`ovtraj.seals`), given by ``OVTRAJ_STORE_KEY``."""
+
+    min_bytes: int = bounded(
+        unit="bytes",
+        ge=16,
+        le=1024,
+        description="a shorter key is refused (HMAC-SHA256: at least its 32-byte output)",
+    )
 
 
 class OrchestrationConfig(StrictModel):
@@ -130,6 +156,7 @@ class OrchestrationConfig(StrictModel):
     results: ResultSettings
     concurrency: ConcurrencySettings
     reads: ReadSettings
+    store_key: StoreKeySettings
 
 
 def load_orchestration(path: str | Path | None = None) -> OrchestrationConfig:

@@ -17,7 +17,7 @@ from typing import Any
 from ovtraj.files import read_json
 from ovtraj.pipeline.loop import MARKER as PIPELINE_MARKER
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import MANIFEST
+from ovtraj.runs.store import MANIFEST, checked_id
 from ovtraj.storage import S3Path
 
 __all__ = [
@@ -141,8 +141,9 @@ def family_root(store: RunStore, run_id: str) -> Run:
     when it has some, else the first of its lineage that has, else the stored pipeline
     result whose DoE, final or infill run is ``run_id`` (a pruned run is found so).
 
-    Raises :class:`StoreError` naming the id when no run or pipeline result knows it."""
-    directory = store.root / run_id
+    Raises :class:`StoreError` naming the id when it is not an id (:func:`checked_id`) or
+    no run or pipeline result knows it."""
+    directory = store.root / checked_id(run_id)
     if (directory / MANIFEST).is_file():
         run = store.run(run_id)
         for rid in [run_id, *reversed(run.lineage())]:

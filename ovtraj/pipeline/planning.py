@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest, write_json
+from ovtraj.files import file_digest
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
@@ -15,6 +15,8 @@ from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.products import digests_json
 from ovtraj.runs import Run, RunStore, StoreError
+from ovtraj.runs.store import checked_id
+from ovtraj.seals import write_sealed
 from ovtraj.storage import location
 
 PLAN_MARKER_SUFFIX = ".files.json"
@@ -26,7 +28,10 @@ def pipeline_results(run: Run) -> list[PipelineResult]:
 
 
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
-    """The run's pipeline result: the one named, else the newest (its files checked)."""
+    """The run's pipeline result: the one named (a pipeline id, :func:`checked_id`), else the
+    newest (its files checked)."""
+    if pipeline is not None:
+        checked_id(pipeline, "pipeline id")
     stored = pipeline_summaries(run)
     if not stored:
         raise PipelineError(
@@ -117,7 +122,7 @@ def write_mission_plan(
     )
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
     files = {path.name: file_digest(path) for path in paths}
-    write_json(
+    write_sealed(
         directory / f"{name}{PLAN_MARKER_SUFFIX}",
         {"plan": name, "files": digests_json(files)},
         replace=True,  # the plots are views, drawn again with the plan

@@ -52,6 +52,7 @@ from ovtraj.products import Product
 from ovtraj.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.runs import Run
 from ovtraj.runs.doe import bounds_arrays
+from ovtraj.runs.store import ID_HEX_DIGITS
 from ovtraj.storage import location
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash
 
@@ -80,7 +81,7 @@ class OptimiserStopped(PipelineError):
 
 def content_id(content: dict[str, Any]) -> str:
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:ID_HEX_DIGITS]
 
 
 @dataclass

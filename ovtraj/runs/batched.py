@@ -18,7 +18,9 @@ Files are written with :mod:`ovtraj.files` (temporary name, then linked into pla
 file is never overwritten), a batch counts only once its marker exists, and an interrupted
 run resumes at the first missing batch. Every read is checked: a part's size, SHA-256 and
 schema against its marker, ``config.json`` against ``run.json``; a missing or changed file
-raises :class:`StoreError` naming it (the DoE store's conventions).
+raises :class:`StoreError` naming it (the DoE store's conventions). With a store key
+configured (``OVTRAJ_STORE_KEY``), ``run.json`` and the batch markers carry an HMAC seal,
+checked on every read (:mod:`ovtraj.seals`); ``summary.json``, a report, does not.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import pyarrow as pa
 from ovtraj.files import (
     Digest,
     StoreError,
+    marker_files,
     read_json,
     read_table,
     remove_file,
@@ -43,6 +46,7 @@ from ovtraj.files import (
 )
 from ovtraj.products import directory_lock
 from ovtraj.records import table_from_frame
+from ovtraj.seals import read_authenticated, write_sealed
 
 __all__ = ["STORE_FORMAT", "BatchedRun", "StoreError", "content_id", "part_name"]
 
@@ -97,13 +101,13 @@ class BatchedRun:
                 "status": "created",
                 "files": {"config.json": digest.to_json()},
             }
-            write_json(run.directory / cls.INFO, content, replace=True)
+            write_sealed(run.directory / cls.INFO, content, replace=True)
         return run
 
     @property
     def info(self) -> dict[str, Any]:
         path = self.directory / self.INFO
-        info = read_json(path)
+        info = read_authenticated(path)
         if not isinstance(info, dict) or info.get("format") != STORE_FORMAT:
             found = info.get("format", 1) if isinstance(info, dict) else None
             raise StoreError(
@@ -125,7 +129,7 @@ class BatchedRun:
 
     def update_info(self, **changes: Any) -> None:
         """Merge ``changes`` into ``run.json`` (the run's mutable index, replaced atomically)."""
-        write_json(self.directory / self.INFO, self.info | changes, replace=True)
+        write_sealed(self.directory / self.INFO, self.info | changes, replace=True)
 
     def _markers(self) -> dict[int, dict[str, Any]]:
         """Every complete batch's marker, by its first run number."""
@@ -134,11 +138,12 @@ class BatchedRun:
         for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
             if not path.stem.isdigit():
                 continue
-            marker = read_json(path)
+            marker = read_authenticated(path)
             if not isinstance(marker, dict) or not isinstance(marker.get("files"), dict):
                 raise StoreError(
                     f"{path}: not a batch marker of store format {STORE_FORMAT} (no file digests)"
                 )
+            marker_files(path, marker)  # names inside the run and usable digests, or refused
             found[int(path.stem)] = marker
         return found
 
@@ -185,7 +190,7 @@ class BatchedRun:
                 "files": {part_name(batch): digest.to_json()},
                 "timing": timing,  # [*keys, seconds] per row
             }
-            write_json(marker, content)
+            write_sealed(marker, content)
         return True
 
     def results(self) -> pd.DataFrame:

@@ -26,6 +26,10 @@ Guarantees:
   size, SHA-256 and schema, and refuse a changed file naming it (:class:`StoreError`);
   files without a marker (an interrupted batch) are never read. :meth:`Run.verify`
   checks a whole run.
+- *Tamper evidence, with a key.* The checksums detect accidents only. With a store key
+  configured (``OVTRAJ_STORE_KEY``), the manifest and every marker carry an HMAC seal,
+  checked on every read: a marker rewritten without the key is refused as tampered
+  (:mod:`ovtraj.seals`), and through its digests so is every data file it lists.
 - *Concurrent writers.* A process working on a run holds the run lock (shared) and
   claims each batch (exclusive lock) before computing it, so two processes never
   compute a batch twice; a killed process's locks are released by the kernel. The
@@ -53,6 +57,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -70,6 +75,7 @@ from ovtraj.files import (
     TEMPORARY_SUFFIX,
     Digest,
     StoreError,
+    marker_files,
     read_bytes,
     read_json,
     read_table,
@@ -83,15 +89,22 @@ from ovtraj.interrupts import interrupt_of
 from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.records import table_from_frame, table_from_rows
 from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
+from ovtraj.seals import authenticated, read_authenticated, seal_problem, write_sealed
 from ovtraj.storage import S3Path, location
 
-__all__ = ["Run", "RunStore", "StoreError", "VerifyReport", "run_id"]
+__all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
 
 DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
 MANIFEST = "manifest.json"
 RUN_FILES = ("config.json", "samples.parquet")
 # Waits on the manifest lock: a holder only reads and rewrites one small file.
 MANIFEST_LOCK_WAIT_S = 60.0
+# Run ids (:func:`run_id`) and the ids of a run's products (surrogate fits, fronts,
+# pipeline results: ovtraj.pipeline.steps.content_id) are this many hexadecimal digits of a
+# SHA-256. An id is a folder name of the store: one that is not such a string (``..``, a
+# ``/``, a newline that would forge a log line) is refused where it enters (:func:`checked_id`).
+ID_HEX_DIGITS = 16
+_ID = re.compile(f"[0-9a-f]{{{ID_HEX_DIGITS}}}")
 # Markers of a run's pipeline products (glob patterns under the run); each lists its
 # files, relative to its own folder, with their digests.
 PRODUCT_MARKERS = (
@@ -144,7 +157,21 @@ def run_id(
         "parent": parent,
     }
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:ID_HEX_DIGITS]
+
+
+def checked_id(value: Any, what: str = "run id") -> str:
+    """``value`` if it is an id of the store (see :data:`ID_HEX_DIGITS`), else
+    :class:`StoreError` naming it, escaped (a newline shows as ``\\n``) and cut
+    (:func:`ovtraj.config.io_limits.echoed`)."""
+    if not isinstance(value, str) or _ID.fullmatch(value) is None:
+        from ovtraj.config.io_limits import echoed
+
+        raise StoreError(
+            f"{what} {echoed(repr(value))} is not an id of this store ({ID_HEX_DIGITS} "
+            "lowercase hexadecimal digits, as `ovtraj runs` lists them)"
+        )
+    return value
 
 
 def dependency_versions() -> dict[str, str]:
@@ -182,10 +209,13 @@ class VerifyReport:
     checked_bytes: int = 0
     problems: list[str] = field(default_factory=list)
     uncovered: list[str] = field(default_factory=list)  # files no marker lists (never read)
+    # Manifests and markers whose seal is missing or wrong under the configured store key
+    # (ovtraj.seals); empty without a key, since checksums alone cannot tell tampering.
+    tampered: list[str] = field(default_factory=list)
 
     @property
     def clean(self) -> bool:
-        return not self.problems
+        return not self.problems and not self.tampered
 
 
 class Run:
@@ -210,6 +240,11 @@ class Run:
     # -- metadata -------------------------------------------------------------------------
     @property
     def manifest(self) -> dict[str, Any]:
+        """The manifest, its format checked, and its seal when a store key is configured."""
+        return authenticated(self.directory / MANIFEST, self._manifest_document())
+
+    def _manifest_document(self) -> dict[str, Any]:
+        """The manifest as stored (seal included, not checked), of this store format."""
         manifest = read_json(self.directory / MANIFEST)
         if not isinstance(manifest, dict):
             raise StoreError(f"{self.directory / MANIFEST}: not a run manifest")
@@ -241,12 +276,16 @@ class Run:
         """The run's ancestors, the root (a DoE run) first: recorded in the manifest when
         the run was created, else found by following the stored parents."""
         manifest = self.manifest
+        recorded_in = f"{self.directory / MANIFEST}: lineage"
         if "lineage" in manifest:
-            return list(manifest["lineage"])
+            lineage = manifest["lineage"]
+            if not isinstance(lineage, list):
+                raise StoreError(f"{recorded_in} is not a list of run ids")
+            return [checked_id(rid, recorded_in) for rid in lineage]
         chain: list[str] = []
         parent = manifest.get("parent")
         while parent and parent not in chain:
-            chain.insert(0, parent)
+            chain.insert(0, checked_id(parent, f"{recorded_in}: parent"))
             try:
                 parent = Run(self.directory.parent / parent).manifest.get("parent")
             except (StoreError, OSError):
@@ -261,7 +300,7 @@ class Run:
             manifest = self.manifest
             if all(manifest.get(k) == v for k, v in changes.items()):
                 return False
-            write_json(self.directory / MANIFEST, manifest | changes, replace=True)
+            write_sealed(self.directory / MANIFEST, manifest | changes, replace=True)
         return True
 
     def _lock(self, name: str) -> Path:
@@ -288,9 +327,10 @@ class Run:
         for path in folder.glob("*.json"):
             if not path.stem.isdigit():
                 continue
-            marker = read_json(path)
+            marker = read_authenticated(path)
             if not isinstance(marker, dict) or not isinstance(marker.get("files"), dict):
                 raise StoreError(f"{path}: not a batch marker of store format {SCHEMA_VERSION}")
+            marker_files(path, marker)  # names inside the run and usable digests, or refused
             found[int(path.stem)] = marker
         return dict(sorted(found.items()))
 
@@ -424,7 +464,7 @@ class Run:
                 )
                 files[target] = digest
             adopted = {**marker, "batch": new, "files": files, "adopted_from": [parent.id, old]}
-            write_json(self.directory / "batches" / f"{new}.json", adopted)
+            write_sealed(self.directory / "batches" / f"{new}.json", adopted)
         self.update_manifest(inherited_batches=len(stored))
         return len(stored)
 
@@ -516,7 +556,7 @@ class Run:
             "files": {name: digest.to_json() for name, digest in sorted(files.items())},
             "timing": timing,
         }
-        write_json(marker, content)
+        write_sealed(marker, content)
 
     # -- reading ----------------------------------------------------------------------------
     def _dataset(self, name: str) -> pd.DataFrame:
@@ -594,19 +634,31 @@ class Run:
 
         Covered files: the manifest's (config, samples), each batch marker's, and those
         listed by the markers of the run's surrogate fits, fronts and pipeline results.
-        Files that nothing lists are reported as uncovered (readers never use them).
+        Files that nothing lists are reported as uncovered (readers never use them). With
+        a store key configured, the manifest and every marker whose seal is missing or wrong
+        are reported as tampered (:mod:`ovtraj.seals`); the files such a marker lists are
+        still checked against its digests, for accidents.
         """
         report = VerifyReport(self.id)
         covered = {self.directory / MANIFEST}
         expected: list[tuple[Path, Any, pa.Schema | None]] = []
+
+        def check_seal(path: Path, document: Any) -> None:
+            problem = seal_problem(path, document)
+            if problem is not None:
+                report.tampered.append(problem)
+
         try:
-            manifest = self.manifest
+            manifest = self._manifest_document()
         except StoreError as err:
             report.problems.append(str(err))
             return report
+        check_seal(self.directory / MANIFEST, manifest)
+        recorded = manifest.get("files")
+        recorded = recorded if isinstance(recorded, dict) else {}
         for name in RUN_FILES:
             schema = DATASETS["samples"] if name == "samples.parquet" else None
-            expected.append((self.directory / name, manifest.get("files", {}).get(name), schema))
+            expected.append((self.directory / name, recorded.get(name), schema))
         for path in sorted((self.directory / "batches").glob("*")):
             covered.add(path)
             try:
@@ -614,6 +666,8 @@ class Run:
                 listed = marker["files"]
                 if not isinstance(listed, dict):
                     raise TypeError
+                check_seal(path, marker)
+                marker_files(path, marker)  # names inside the run and usable digests
             except StoreError as err:
                 report.problems.append(str(err))
                 continue
@@ -627,7 +681,8 @@ class Run:
             for marker_path in sorted(self.directory.glob(pattern)):
                 covered.add(marker_path)
                 try:
-                    listed = read_json(marker_path).get("files")
+                    marker = read_json(marker_path)
+                    listed = marker.get("files")
                 except StoreError as err:
                     report.problems.append(str(err))
                     continue
@@ -636,6 +691,12 @@ class Run:
                     continue
                 if not isinstance(listed, dict):
                     report.problems.append(f"{marker_path}: lists no file digests")
+                    continue
+                check_seal(marker_path, marker)
+                try:
+                    marker_files(marker_path, marker)  # names inside its folder, usable digests
+                except StoreError as err:
+                    report.problems.append(str(err))
                     continue
                 for relative, digest in listed.items():
                     expected.append((marker_path.parent / relative, digest, None))
@@ -649,8 +710,11 @@ class Run:
                     read_table(path, recorded, schema)
                 else:
                     read_bytes(path, recorded)
-            except (StoreError, ValueError) as err:
+            except StoreError as err:
                 report.problems.append(str(err))
+                continue
+            except ValueError as err:  # a manifest's record: the markers' are checked when read
+                report.problems.append(f"{self.directory / MANIFEST}: {path.name}: {err}")
                 continue
             report.checked_files += 1
             report.checked_bytes += recorded.size
@@ -718,11 +782,14 @@ class RunStore:
         ]
 
     def run(self, run_id: str) -> Run:
-        directory = self.root / run_id
+        """The stored run ``run_id`` (checked: :func:`checked_id`, then its manifest's format)."""
+        directory = self.root / checked_id(run_id)
         if not (directory / MANIFEST).is_file():
             raise StoreError(f"{directory}: no such run (no {MANIFEST})")
         run = Run(directory)
-        run.manifest  # noqa: B018 - refuses another store format, naming the file
+        # Refuses another store format, naming the file; the seal is checked by every read of
+        # the manifest, so that `verify` can open a tampered run to report it.
+        run._manifest_document()
         return run
 
     def create(
@@ -775,7 +842,7 @@ class RunStore:
                 "feasible": 0,
                 "files": {name: digest.to_json() for name, digest in files.items()},
             }
-            write_json(directory / MANIFEST, manifest, replace=True)
+            write_sealed(directory / MANIFEST, manifest, replace=True)
         return run
 
     def latin_hypercube_run(
