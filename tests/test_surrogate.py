@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pickle
 
 import numpy as np
@@ -338,9 +339,9 @@ def test_load_names_the_missing_or_corrupt_file(fitted, tmp_path):
     with pytest.raises(SurrogateError, match="reserved"):
         fit.save(tmp_path / "x", meta={"data_hash": "mine"})
     fit.save(tmp_path / "a", meta={})
-    models = tmp_path / "a" / "models.pkl"
+    models = tmp_path / "a" / "models.parquet"
     models.write_bytes(models.read_bytes()[:100])
-    with pytest.raises(SurrogateError, match=r"models\.pkl"):
+    with pytest.raises(SurrogateError, match=r"models\.parquet"):
         SurrogateSet.load(tmp_path / "a")
     fit.save(tmp_path / "b", meta={})
     (tmp_path / "b" / "validation.parquet").unlink()
@@ -350,18 +351,70 @@ def test_load_names_the_missing_or_corrupt_file(fitted, tmp_path):
     (tmp_path / "c" / "meta.json").write_text("{not json")
     with pytest.raises(SurrogateError, match=r"meta\.json: unreadable"):
         SurrogateSet.load(tmp_path / "c")
-    # A consistent but truncated pickle state (checksum updated) is still rejected.
+    # A consistent but changed model (one fitted value rewritten, checksum updated) is
+    # rejected: rebuilt, it does not reproduce its fitted predictions.
     fit.save(tmp_path / "d", meta={})
-    payload = pickle.dumps({"data_hash": "other"})
-    (tmp_path / "d" / "models.pkl").write_bytes(payload)
+    path = tmp_path / "d" / "models.parquet"
+    table = pq.read_table(path)
+    values = table.column("values").to_pylist()
+    row = table.column("array").to_pylist().index("y")
+    values[row][0] += 1.0
+    pq.write_table(
+        table.set_column(3, table.schema.field(3), pa.array(values, table.schema[3].type)), path
+    )
+    payload = path.read_bytes()
     meta = json.loads((tmp_path / "d" / "meta.json").read_text())
-    meta["files"]["models.pkl"] = {
+    meta["files"]["models.parquet"] = {
         "bytes": len(payload),
         "sha256": hashlib.sha256(payload).hexdigest(),
     }
     (tmp_path / "d" / "meta.json").write_text(json.dumps(meta))
-    with pytest.raises(SurrogateError, match=r"models\.pkl: does not match"):
+    with pytest.raises(SurrogateError, match=r"does not reproduce its fitted predictions"):
         SurrogateSet.load(tmp_path / "d")
+
+
+class _Payload:
+    """A pickle that, loaded, runs a shell command (writes a file)."""
+
+    def __init__(self, witness):
+        self.witness = witness
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.witness}",))
+
+
+def test_a_pickle_in_a_stored_set_never_runs(fitted, tmp_path):
+    """Issue 44: a models.pkl whose loading runs a command, listed with its right digests
+    in a marker of the old format (the pickle one) or beside the data of the current one,
+    is never unpickled: the load is refused, or rebuilt from the data alone."""
+    fit, _ = fitted
+    witness = tmp_path / "ran"
+    payload = pickle.dumps(_Payload(witness))
+    digest = {"bytes": len(payload), "sha256": hashlib.sha256(payload).hexdigest()}
+    # The marker of format 2 (models.pkl): refused by its format.
+    fit.save(tmp_path / "old", meta={})
+    (tmp_path / "old" / "models.parquet").unlink()
+    (tmp_path / "old" / "models.pkl").write_bytes(payload)
+    meta = json.loads((tmp_path / "old" / "meta.json").read_text())
+    del meta["files"]["models.parquet"]
+    meta["files"]["models.pkl"] = digest
+    meta["format"] = 2
+    (tmp_path / "old" / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(SurrogateError, match=r"unknown store format 2"):
+        SurrogateSet.load(tmp_path / "old")
+    # The current format with the pickle listed beside: read from its data only.
+    fit.save(tmp_path / "new", meta={})
+    (tmp_path / "new" / "models.pkl").write_bytes(payload)
+    meta = json.loads((tmp_path / "new" / "meta.json").read_text())
+    meta["files"]["models.pkl"] = digest
+    (tmp_path / "new" / "meta.json").write_text(json.dumps(meta))
+    probe = qmc.scale(qmc.LatinHypercube(d=3, seed=3).random(50), LOWER, UPPER)
+    back = SurrogateSet.load(tmp_path / "new")
+    np.testing.assert_array_equal(back.feasibility(probe), fit.feasibility(probe))
+    # The payload works: loading it (here, deliberately) writes the witness.
+    assert not witness.exists()
+    pickle.loads(payload)
+    assert witness.exists()
 
 
 def test_stored_tables_have_the_declared_schemas_and_every_file_is_checked(fitted, tmp_path):
@@ -371,8 +424,8 @@ def test_stored_tables_have_the_declared_schemas_and_every_file_is_checked(fitte
     directory = tmp_path / "set"
     written = fit.save(directory, meta={})
     meta = json.loads((directory / "meta.json").read_text())
-    assert meta["format"] == 2
-    assert set(meta["files"]) == {"models.pkl", "validation.parquet", "predictions.parquet"}
+    assert meta["format"] == 3
+    assert set(meta["files"]) == {"models.parquet", "validation.parquet", "predictions.parquet"}
     for name, recorded in meta["files"].items():
         payload = (directory / name).read_bytes()
         assert recorded == {"bytes": len(payload), "sha256": hashlib.sha256(payload).hexdigest()}
@@ -403,9 +456,9 @@ def test_stored_tables_have_the_declared_schemas_and_every_file_is_checked(fitte
     with pytest.raises(SurrogateError, match=r"validation\.parquet: missing"):
         SurrogateSet.load(directory)
     (directory / "validation.parquet").write_bytes(before["validation.parquet"])
-    del meta["files"]["models.pkl"]
+    del meta["files"]["models.parquet"]
     (directory / "meta.json").write_text(json.dumps(meta))
-    with pytest.raises(SurrogateError, match=r"meta\.json: lists no models\.pkl"):
+    with pytest.raises(SurrogateError, match=r"meta\.json: lists no models\.parquet"):
         SurrogateSet.load(directory)
 
 
@@ -414,7 +467,7 @@ def test_an_interrupted_save_is_completed_by_the_next_one(fitted, tmp_path):
     fit, _ = fitted
     directory = tmp_path / "set"
     directory.mkdir()
-    (directory / "models.pkl").write_bytes(b"half a pickle")
+    (directory / "models.parquet").write_bytes(b"half a table")
     (directory / "validation.parquet").write_bytes(b"not parquet")
     fit.save(directory, meta={})
     back = SurrogateSet.load(directory)

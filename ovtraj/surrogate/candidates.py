@@ -39,7 +39,7 @@ records its text and moves on to the next candidate.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -69,6 +69,7 @@ __all__ = [
     "fit_classifier",
     "fit_regressor",
     "min_regressor_samples",
+    "new_regressor",
 ]
 
 ALL_FEASIBLE = "all-feasible"
@@ -122,9 +123,10 @@ class _KPLS(_RandomStartChoice, RememberedLikelihoodMixin, KPLS):
     """SMT's KPLS, its random start optional, each likelihood point evaluated once."""
 
 
-def _smt_model(
+def new_regressor(
     name: str, dim: int, settings: SurrogateSettings, start: np.ndarray | None = None
 ) -> SurrogateModel | Any:
+    """The unfitted candidate ``name`` for ``dim`` inputs, with its configured options."""
     common: dict[str, Any] = {"print_global": False}
     kriging = {
         "n_start": settings.kriging_starts,
@@ -183,7 +185,19 @@ class Regressor:
         u = np.asarray(u, dtype=float)
         if self.columns is not None:
             u = u[:, list(self.columns)]
-        return np.asarray(self.model.predict_values(u)).reshape(-1)
+        return self.predict_fitted(u)
+
+    def predict_fitted(self, u: np.ndarray) -> np.ndarray:
+        """Unit-cube points (m, k) of the inputs the model was fitted on -> predictions."""
+        return np.asarray(self.model.predict_values(np.asarray(u, dtype=float))).reshape(-1)
+
+    def training(self) -> tuple[np.ndarray, np.ndarray]:
+        """The unit-cube inputs (n, k) and values (n,) the model was fitted on."""
+        if isinstance(self.model, _ExtraTrees):
+            u, y = self.model._training
+        else:  # SMT keeps them as its (unnamed) training set
+            u, y = self.model.training_points[None][0]
+        return np.asarray(u, dtype=float), np.asarray(y, dtype=float).reshape(-1)
 
 
 def fit_regressor(
@@ -202,7 +216,7 @@ def fit_regressor(
     need = min_regressor_samples(name, dim)
     if n < need:
         raise CandidateError(f"{name} needs at least {need} training samples in {dim}-D, got {n}")
-    model = _smt_model(name, dim, settings, start)
+    model = new_regressor(name, dim, settings, start)
     try:
         model.set_training_values(np.ascontiguousarray(u, dtype=float), np.asarray(y, float))
         model.train()
@@ -215,7 +229,12 @@ def fit_regressor(
     return regressor
 
 
-def _classifier(name: str, y: np.ndarray, settings: SurrogateSettings) -> ClassifierMixin:
+def _classifier(
+    name: str,
+    y: np.ndarray,
+    settings: SurrogateSettings,
+    fitted_kernel: tuple[float, float | list[float]] | None = None,
+) -> ClassifierMixin:
     if name == "svc":
         minority = int(min(np.count_nonzero(y), np.count_nonzero(~y)))
         if minority < 2:
@@ -234,10 +253,17 @@ def _classifier(name: str, y: np.ndarray, settings: SurrogateSettings) -> Classi
         # an explicit kernel makes the length scale and amplitude maximum-likelihood fits.
         amplitude = settings.gpc_amplitude_bounds
         length = settings.gpc_length_scale_bounds
+        start = (amplitude.lower, settings.gpc_length_scale)
+        constant, scale = start if fitted_kernel is None else fitted_kernel
         kernel = ConstantKernel(
-            amplitude.lower, constant_value_bounds=(amplitude.lower, amplitude.upper)
-        ) * RBFKernel(settings.gpc_length_scale, length_scale_bounds=(length.lower, length.upper))
-        return GaussianProcessClassifier(kernel=kernel, random_state=settings.seed)
+            constant, constant_value_bounds=(amplitude.lower, amplitude.upper)
+        ) * RBFKernel(scale, length_scale_bounds=(length.lower, length.upper))
+        # A fitted kernel is used as is: the fit's last step, the Laplace approximation
+        # with the maximum-likelihood hyperparameters, again.
+        optimizer = "fmin_l_bfgs_b" if fitted_kernel is None else None
+        return GaussianProcessClassifier(
+            kernel=kernel, optimizer=optimizer, random_state=settings.seed
+        )
     if name == "logistic":
         return LogisticRegression()
     raise CandidateError(f"unknown classifier {name!r} (allowed: svc, gpc, logistic)")
@@ -250,6 +276,8 @@ class FeasibilityClassifier:
     name: str
     estimator: Any | None
     constant: float | None = None
+    # the unit-cube inputs and flags it was fitted on (what rebuilds it when stored)
+    training: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def proba(self, u: np.ndarray) -> np.ndarray:
         """Unit-cube points (m, d) -> probability of feasibility (m,) in [0, 1]."""
@@ -262,15 +290,22 @@ class FeasibilityClassifier:
 
 
 def fit_classifier(
-    name: str, u: np.ndarray, y: np.ndarray, settings: SurrogateSettings
+    name: str,
+    u: np.ndarray,
+    y: np.ndarray,
+    settings: SurrogateSettings,
+    fitted_kernel: tuple[float, float | list[float]] | None = None,
 ) -> FeasibilityClassifier:
-    """Fit the scikit-learn candidate ``name`` on ``u`` (n, d) and feasibility ``y`` (n,) bool."""
+    """Fit the scikit-learn candidate ``name`` on ``u`` (n, d) and feasibility ``y`` (n,) bool.
+
+    ``fitted_kernel``: gpc's (amplitude, length scale) from an earlier fit, kept fixed.
+    """
     y = np.asarray(y, dtype=bool)
     if y.size == 0:
         raise CandidateError(f"{name}: no training samples")
     if y.all() or not y.any():
         return FeasibilityClassifier(name, None, 1.0 if y.all() else 0.0)
-    estimator = _classifier(name, y, settings)
+    estimator = _classifier(name, y, settings, fitted_kernel)
     try:
         with warnings.catch_warnings():
             # The classifiers' optimisers may stop at their iteration limit on tiny sets;
@@ -279,7 +314,7 @@ def fit_classifier(
             estimator.fit(np.asarray(u, dtype=float), y)
     except Exception as err:
         raise CandidateError(f"{name} training failed: {type(err).__name__}: {err}") from err
-    classifier = FeasibilityClassifier(name, estimator)
+    classifier = FeasibilityClassifier(name, estimator, training=(np.array(u, float), y.copy()))
     if not np.all(np.isfinite(classifier.proba(u))):
         raise CandidateError(f"{name} predicts non-finite probabilities")
     return classifier

@@ -9,24 +9,29 @@ in :mod:`ovtraj.surrogate.validation` and ``docs/surrogate.md``.
 
 Store layout of :meth:`SurrogateSet.save` (one directory)::
 
-    models.pkl            pickle of the fitted models, unit cube and names
+    models.parquet        the fitted models' arrays (training inputs and values, Kriging's
+                          fitted state), declared schema; rebuilt on load
+                          (:mod:`ovtraj.surrogate.model_data`)
     validation.parquet    one row per (model, candidate): CV and held-out metrics, errors
     predictions.parquet   CV and held-out predictions of the selected candidates
     meta.json             data hash, selection, settings, names, bounds, library versions,
-                          the caller's meta, and ``files``: the size and SHA-256 of the
-                          three files above (and of any plots the caller lists)
+                          each model's description (``models``: candidate, inputs, fitted
+                          hyperparameters), the caller's meta, and ``files``: the size
+                          and SHA-256 of the three files above (and of any plots the
+                          caller lists)
 
 The two tables have declared schemas (:data:`VALIDATION_SCHEMA`, :data:`PREDICTIONS_SCHEMA`).
 ``meta.json`` is the product's marker (:mod:`ovtraj.products`), written last; :meth:`load`
 checks every file against it (size, SHA-256, schema) before parsing, and names a missing or
-changed file. Pickles execute code when loaded: load only stores this project wrote.
+changed file. Nothing stored is an executable format (issue 44): the models are data,
+rebuilt with the same library calls and checked to reproduce their fitted predictions to
+the bit.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import pickle
 import platform
 import threading
 import warnings
@@ -57,6 +62,7 @@ from ovtraj.records import (
     table_from_frame,
     table_from_rows,
 )
+from ovtraj.seals import authenticated
 from ovtraj.storage import location
 from ovtraj.surrogate.candidates import (
     ALL_FEASIBLE,
@@ -66,6 +72,16 @@ from ovtraj.surrogate.candidates import (
     Regressor,
     fit_classifier,
     fit_regressor,
+)
+from ovtraj.surrogate.model_data import (
+    MODEL_ARRAYS_SCHEMA,
+    ModelData,
+    arrays_table,
+    classifier_data,
+    model_data,
+    rebuilt_classifier,
+    rebuilt_regressor,
+    regressor_data,
 )
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
@@ -94,8 +110,10 @@ __all__ = [
 ]
 
 FEASIBLE = "feasible"  # model name of the feasibility classifier in the tables
-STORE_FORMAT = 2  # 2: file digests (size, SHA-256) in meta.json, declared table schemas
-MODELS_FILE = "models.pkl"
+# 2: file digests (size, SHA-256) in meta.json, declared table schemas; 3: the models as
+# data (models.parquet and meta.json's "models"), no pickle (issue 44)
+STORE_FORMAT = 3
+MODELS_FILE = "models.parquet"
 VALIDATION_FILE = "validation.parquet"
 PREDICTIONS_FILE = "predictions.parquet"
 META_FILE = "meta.json"
@@ -278,18 +296,10 @@ class SurrogateSet:
 
     # -- storage --------------------------------------------------------------------------
 
-    def _state(self) -> dict[str, Any]:
-        return {
-            "format": STORE_FORMAT,
-            "input_names": self.input_names,
-            "output_names": self.output_names,
-            "lower": np.asarray(self.cube.lower).tolist(),
-            "upper": np.asarray(self.cube.upper).tolist(),
-            "regressors": self._regressors,
-            "classifier": self._classifier,
-            "selected": self.selected,
-            "data_hash": self.data_hash,
-        }
+    def _model_data(self) -> dict[str, ModelData]:
+        """Every model as data, outputs in order, then the feasibility classifier."""
+        models = {name: regressor_data(self._regressors[name]) for name in self.output_names}
+        return models | {FEASIBLE: classifier_data(self._classifier)}
 
     def save(
         self,
@@ -318,6 +328,7 @@ class SurrogateSet:
             "lower": np.asarray(self.cube.lower).tolist(),
             "upper": np.asarray(self.cube.upper).tolist(),
             "versions": _versions(),
+            "models": {},
         }
         reserved = {*own, "files", "timing"}
         clash = sorted(reserved & set(meta))
@@ -331,7 +342,13 @@ class SurrogateSet:
             json_text(document)
         except (TypeError, ValueError) as err:
             raise SurrogateError(f"save: meta is not JSON-serialisable ({err})") from None
-        payload = pickle.dumps(self._state(), protocol=pickle.HIGHEST_PROTOCOL)
+        # A set that could not be rebuilt from its data is never written. Fits, their
+        # predictions at the training inputs and rebuilds all run with one BLAS thread, as
+        # the fits did: a LAPACK factorisation's last bits depend on the thread count.
+        with _serial_blas():
+            models = self._model_data()
+            _rebuilt(models, self.output_names, self.cube.dim, self.settings)
+        own["models"] = document["models"] = {k: m.description() for k, m in models.items()}
         validation = table_from_frame(
             self.validation.drop(columns="fit_time_s"), STORED_VALIDATION_SCHEMA, "validation"
         )
@@ -343,7 +360,7 @@ class SurrogateSet:
         }
         predictions = _predictions_table(self.predictions)
         with Product(directory, META_FILE).writing() as out:
-            out.write_bytes(MODELS_FILE, payload)
+            out.write_table(MODELS_FILE, arrays_table(models), MODEL_ARRAYS_SCHEMA)
             out.write_table(VALIDATION_FILE, validation, STORED_VALIDATION_SCHEMA)
             out.write_table(PREDICTIONS_FILE, predictions, PREDICTIONS_SCHEMA)
             for name, digest in (views or {}).items():
@@ -363,7 +380,7 @@ class SurrogateSet:
         if not meta_path.is_file():
             raise SurrogateError(f"{meta_path}: missing (not a saved surrogate set)")
         try:
-            meta = read_json(meta_path, expected)
+            meta = authenticated(meta_path, read_json(meta_path, expected))
         except StoreError as err:
             raise SurrogateError(str(err)) from None
         found = meta.get("format") if isinstance(meta, dict) else None
@@ -379,18 +396,26 @@ class SurrogateSet:
         except (KeyError, TypeError, ValueError, ValidationError) as err:
             raise SurrogateError(f"{meta_path}: corrupt or outdated content ({err})") from None
         try:
-            blob = product.read_bytes(MODELS_FILE, meta)
+            arrays = product.read_table(MODELS_FILE, MODEL_ARRAYS_SCHEMA, meta)
             stored = product.read_table(VALIDATION_FILE, STORED_VALIDATION_SCHEMA, meta)
             validation = _validation_frame(_with_fit_times(stored, meta))
             predictions = product.read_frame(PREDICTIONS_FILE, PREDICTIONS_SCHEMA, meta)
         except StoreError as err:
             raise SurrogateError(str(err)) from None
         try:
-            state = pickle.loads(blob)
-        except Exception as err:
-            raise SurrogateError(f"{directory / MODELS_FILE}: corrupt pickle ({err})") from None
-        if not isinstance(state, dict) or state.get("data_hash") != meta.get("data_hash"):
-            raise SurrogateError(f"{directory / MODELS_FILE}: does not match {META_FILE}")
+            input_names = tuple(_names(meta, "input_names"))
+            output_names = tuple(_names(meta, "output_names"))
+            cube = UnitCube(_bounds(meta, "lower"), _bounds(meta, "upper"))
+            selected = {str(k): str(v) for k, v in dict(meta["selected"]).items()}
+            if len(input_names) != cube.dim:
+                raise ValueError(f"{len(input_names)} input names for {cube.dim} bounds")
+        except (KeyError, TypeError, ValueError, SurrogateError) as err:
+            raise SurrogateError(f"{meta_path}: corrupt or outdated content ({err})") from None
+        models = model_data(meta.get("models"), arrays, str(directory / MODELS_FILE))
+        with _serial_blas():  # as the fit (see save)
+            regressors, classifier = _rebuilt(
+                models, output_names, cube.dim, settings, str(meta_path)
+            )
         stored = meta.get("versions", {})
         current = _versions()
         changed = {k: (stored.get(k), v) for k, v in current.items() if stored.get(k) != v}
@@ -400,18 +425,67 @@ class SurrogateSet:
                 stacklevel=2,
             )
         return cls(
-            input_names=tuple(state["input_names"]),
-            output_names=tuple(state["output_names"]),
-            cube=UnitCube(np.asarray(state["lower"]), np.asarray(state["upper"])),
-            regressors=state["regressors"],
-            classifier=state["classifier"],
-            selected=state["selected"],
+            input_names=input_names,
+            output_names=output_names,
+            cube=cube,
+            regressors=regressors,
+            classifier=classifier,
+            selected=selected,
             validation=validation,
             predictions=predictions,
-            data_hash=state["data_hash"],
+            data_hash=str(meta["data_hash"]),
             settings=settings,
             meta=meta,
         )
+
+
+def _names(meta: dict[str, Any], key: str) -> list[str]:
+    names = meta[key]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise TypeError(f"{key!r} is not a list of names")
+    return names
+
+
+def _bounds(meta: dict[str, Any], key: str) -> np.ndarray:
+    values = np.asarray(meta[key], dtype=float)
+    if values.ndim != 1 or not np.isfinite(values).all():
+        raise ValueError(f"{key!r} is not a list of finite numbers")
+    return values
+
+
+def _rebuilt(
+    models: dict[str, ModelData],
+    output_names: Sequence[str],
+    dim: int,
+    settings: SurrogateSettings,
+    source: str = "save",
+) -> tuple[dict[str, Regressor], FeasibilityClassifier]:
+    """Every model rebuilt from its data (each checked to reproduce its fitted
+    predictions); SurrogateError naming ``source`` and the model otherwise."""
+    expected = {*output_names, FEASIBLE}
+    if set(models) != expected:
+        raise SurrogateError(f"{source}: models {sorted(models)}, expected {sorted(expected)}")
+
+    def named(name: str, build: Callable[[], Any]) -> Any:
+        try:
+            return build()
+        except SurrogateError as err:
+            raise SurrogateError(f"{source}: model {name!r}: {err}") from None
+
+    regressors = {}
+    for name in output_names:
+        data = models[name]
+        if data.constant is not None:
+            raise SurrogateError(f"{source}: model {name!r} is not a regressor")
+        columns = range(dim) if data.columns is None else data.columns
+        if data.arrays["u"].shape[1] != len(columns) or not set(columns) <= set(range(dim)):
+            raise SurrogateError(f"{source}: model {name!r}: inputs {list(columns)} of {dim}")
+        regressors[name] = named(name, lambda data=data: rebuilt_regressor(data, settings))
+    feasible = models[FEASIBLE]
+    if feasible.constant is None and feasible.arrays["u"].shape[1] != dim:
+        raise SurrogateError(f"{source}: model {FEASIBLE!r}: not fitted on the {dim} inputs")
+    classifier = named(FEASIBLE, lambda: rebuilt_classifier(feasible, settings))
+    return regressors, classifier
 
 
 def _versions() -> dict[str, str]:
