@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextvars
+import os
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -20,46 +21,51 @@ from prefect import get_run_logger
 
 from flows.runners import ClusterError, count_workers, task_runner
 from ovtraj.plots.embed import png_data_uri
+from ovtraj.result_records import is_result_record
 from tasks.common import ORCHESTRATION
+from tasks.results import checked_storage
 
 FLOW_TIMEOUTS = ORCHESTRATION.flows
 
 
 # -- task results -------------------------------------------------------------------------
 def result_storage() -> Any:
-    """Where task results go: a local folder (a ``Path``) or an fsspec URL's file system
-    (``configs/orchestration.yaml`` ``results.storage``; ``OVTRAJ_PREFECT_RESULTS``)."""
+    """Where task results go: a local folder or an fsspec URL's file system
+    (``configs/orchestration.yaml`` ``results.storage``; ``OVTRAJ_PREFECT_RESULTS``),
+    through a storage that reads only this project's plain JSON records
+    (``tasks/results.py``)."""
     location = ORCHESTRATION.results.location()
-    if "://" not in location:
-        return Path(location)
-    return _remote_storage(location)
+    return _saved_storage("remote" if "://" in location else "local", location)
 
 
-_REMOTE_BLOCKS: dict[tuple[str, str], Any] = {}
+_SAVED_BLOCKS: dict[tuple[str, str], Any] = {}
 
 
-def _remote_storage(url: str) -> Any:
-    """A ``RemoteFileSystem`` block at ``url``, saved on the Prefect server once per process
-    and API (Prefect takes a remote result storage only as a saved block); its name is a
-    hash of the URL, so every flow run on that server shares it."""
+def _saved_storage(kind: str, location: str) -> Any:
+    """A checked ``kind`` storage block at ``location`` (``tasks/results.py``), saved on
+    the Prefect server once per process and API (Prefect takes a result storage block only
+    when it is saved); its name is a hash of the location, so every flow run on that
+    server shares it."""
     import hashlib
 
-    from prefect.filesystems import RemoteFileSystem
     from prefect.settings import PREFECT_API_URL
 
-    key = (url, str(PREFECT_API_URL.value()))
-    block = _REMOTE_BLOCKS.get(key)
+    key = (location, str(PREFECT_API_URL.value()))
+    block = _SAVED_BLOCKS.get(key)
     if block is None:
-        block = RemoteFileSystem(basepath=url)
-        name = f"ovtraj-results-{hashlib.sha256(url.encode()).hexdigest()[:12]}"
-        block.save(name, overwrite=True)
-        _REMOTE_BLOCKS[key] = block
+        block = checked_storage(kind, location)
+        name = f"ovtraj-results-{hashlib.sha256(location.encode()).hexdigest()[:12]}"
+        block.save(name, overwrite=True, _sync=True)  # also when called in an event loop
+        _SAVED_BLOCKS[key] = block
     return block
 
 
 def prune_expired_results() -> int:
-    """Delete the local result files older than ``results.expiration_h`` (Prefect no longer
-    serves them); returns how many. An object-store location is left to its own rules."""
+    """Delete the local result records older than ``results.expiration_h`` (Prefect no
+    longer serves them); returns how many. Only result records count (regular files, no
+    link followed, whose JSON is a record's envelope:
+    :func:`ovtraj.result_records.is_result_record`); an object-store location is left to
+    its own rules."""
     location = ORCHESTRATION.results.location()
     folder = Path(location)
     if "://" in location or not folder.is_dir():
@@ -68,11 +74,11 @@ def prune_expired_results() -> int:
     removed = 0
     for path in folder.iterdir():
         try:
-            if path.is_file() and path.stat().st_mtime < cutoff:
-                path.unlink()
+            if os.lstat(path).st_mtime < cutoff and is_result_record(path):
+                path.unlink()  # a regular file: never a link's target
                 removed += 1
         except OSError:
-            continue  # another flow removed it, or it is not ours to remove
+            continue  # another flow removed it
     return removed
 
 

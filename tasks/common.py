@@ -67,11 +67,19 @@ EXPIRATION = datetime.timedelta(hours=ORCHESTRATION.results.expiration_h)
 TIMEOUTS = ORCHESTRATION.tasks
 
 
+def _plain_json() -> Any:
+    from tasks.results import plain_json  # it uses this module's process_cache
+
+    return plain_json()
+
+
 def cached(**options: Any) -> dict[str, Any]:
-    """The options of a cached task: :data:`CACHE_POLICY`, persisted results that expire."""
+    """The options of a cached task: :data:`CACHE_POLICY`, persisted results that expire,
+    as plain JSON (``tasks/results.py``)."""
     return {
         "cache_policy": CACHE_POLICY,
         "persist_result": True,
+        "result_serializer": _plain_json(),
         "cache_expiration": EXPIRATION,
         **options,
     }
