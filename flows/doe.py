@@ -42,6 +42,7 @@ from ovtraj.config.mission import DoeSettings
 from ovtraj.launch.fit import LaunchFit, find_launch_fit
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
+from ovtraj.runs.runners import dask_address as chosen_address
 from ovtraj.runs.store import Run
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import TIMEOUTS, code_version
@@ -51,12 +52,10 @@ from tasks.doe import mission_batch_task
 def execution(
     settings: DoeSettings, runner: str | None = None, dask_address: str | None = None
 ) -> tuple[str, int, str | None]:
-    """(runner, workers, Dask address): the parameters first, else ``mission.doe``."""
+    """(runner, workers, Dask address): the parameters first, else ``mission.doe``'s runner
+    and ``OVTRAJ_DASK_ADDRESS`` (never a scenario's address, issue 44)."""
     chosen = runner or settings.task_runner
-    if chosen != "dask":
-        address = dask_address
-    else:
-        address = dask_address or settings.dask_address
+    address = chosen_address(dask_address) if chosen == "dask" else dask_address
     check_runner(chosen, address)
     return chosen, settings.workers, address
 
@@ -211,8 +210,9 @@ async def doe_flow(
     """DoE of the mission chain; returns the run's summary (run id, counts, ranges).
 
     ``target``: a TLE/OMM file or URL that replaces the scenario's target. ``runner``
-    (``serial | threads | processes | dask``) and ``dask_address`` override
-    ``mission.doe.task_runner`` and ``mission.doe.dask_address``.
+    (``serial | threads | processes | dask``) overrides ``mission.doe.task_runner``;
+    ``dask_address``: the scheduler of the ``dask`` runner (else ``OVTRAJ_DASK_ADDRESS``,
+    else a local cluster).
 
     The flow's wall-time limit is ``flows.doe_s`` of ``configs/orchestration.yaml``,
     enforced inside (the batches not started are cancelled and the manifest ends

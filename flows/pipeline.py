@@ -135,7 +135,8 @@ def mission_flow(
     ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
     from an updated element set (a changed one gives a new run and launch fit, the same
     one reuses every stored result). ``runner`` (``serial | threads | processes |
-    dask``) and ``dask_address`` override ``mission.doe``'s for the DoE and infill batches.
+    dask``) overrides ``mission.doe``'s for the DoE and infill batches; ``dask_address``:
+    the ``dask`` runner's scheduler (else ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
     logger = get_run_logger()

@@ -119,6 +119,23 @@ def test_transfer_time_bounds_must_bracket_one(scenario_data):
     assert "rendezvous.transfer_time_bounds" in _refused(scenario_data)
 
 
+def test_a_scenario_never_names_a_dask_scheduler(scenario_data, monkeypatch):
+    """Issue 44: a shared scenario file naming a scheduler would make ``ovtraj run``
+    speak Dask's pickle protocol to it; the address comes from the command line, the flow
+    or the environment only."""
+    from ovtraj.runs.runners import DASK_ADDRESS_ENV, dask_address
+
+    scenario_data["mission"]["doe"]["dask_address"] = "tcp://203.0.113.9:8786"
+    message = _refused(scenario_data)
+    assert "mission.doe.dask_address" in message and "never names a Dask scheduler" in message
+    scenario_data["mission"]["doe"]["dask_address"] = None  # what stored configs hold
+    build_scenario(scenario_data)
+    monkeypatch.delenv(DASK_ADDRESS_ENV, raising=False)
+    assert dask_address(None) is None and dask_address("tls://a:1") == "tls://a:1"
+    monkeypatch.setenv(DASK_ADDRESS_ENV, "tls://b:2")
+    assert dask_address(None) == "tls://b:2" and dask_address("tls://a:1") == "tls://a:1"
+
+
 def test_missing_key_is_named(scenario_data):
     del scenario_data["target"]["orbit"]["eccentricity"]
     assert "target.orbit.eccentricity: required key is missing" in _refused(scenario_data)

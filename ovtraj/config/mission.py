@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+from typing import Any, Literal, get_args
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from ovtraj.config.base import StrictModel, bounded
 from ovtraj.config.launch import Bound
@@ -34,10 +35,26 @@ class DoeSettings(StrictModel):
     batch_size: int = bounded(ge=1, le=10000, description="samples per Prefect task")
     task_runner: Runner = Field(description="serial | threads | processes | dask (RUNNERS)")
     workers: int = bounded(ge=1, le=1024)
-    dask_address: str | None = Field(
-        default=None, description="scheduler of an existing Dask cluster; none: a local one"
+    dask_address: None = Field(
+        default=None,
+        description="always null: a scenario never names a Dask scheduler (Dask's protocol "
+        "unpickles what the scheduler sends, and scenario files are shared); give it on the "
+        "command line (--dask-address), as a flow parameter or in OVTRAJ_DASK_ADDRESS "
+        "(issue 44)",
     )
     task_retries: int = bounded(ge=0, le=10)
+
+    @field_validator("dask_address", mode="before")
+    @classmethod
+    def _no_scheduler_in_a_scenario(cls, value: Any) -> Any:
+        if value is not None:
+            raise PydanticCustomError(
+                "dask_address_in_scenario",
+                "a scenario never names a Dask scheduler (Dask unpickles what it sends): "
+                "give --dask-address, the flow's dask_address or OVTRAJ_DASK_ADDRESS",
+            )
+        return value
+
     store: str | None = Field(
         description="run store root, relative to the scenario file's folder; null: the "
         "workspace's runs/ (OVTRAJ_HOME, docs/mission.md)"

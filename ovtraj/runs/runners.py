@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import multiprocessing
+import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -33,6 +34,17 @@ from ovtraj.config.orchestration import DaskSettings
 
 class ClusterError(RuntimeError):
     """The Dask cluster cannot run the batches (unreachable, no worker, bad worker)."""
+
+
+DASK_ADDRESS_ENV = "OVTRAJ_DASK_ADDRESS"
+"""The Dask scheduler when neither the command line nor the flow names one (issue 44: never
+a scenario file, which is shared; Dask's protocol unpickles what the scheduler sends)."""
+
+
+def dask_address(given: str | None) -> str | None:
+    """The scheduler of the ``dask`` runner: ``given`` (``--dask-address``, the flow's
+    parameter), else :data:`DASK_ADDRESS_ENV`; ``None``: a local cluster."""
+    return given or os.environ.get(DASK_ADDRESS_ENV) or None
 
 
 def check_runner(runner: str, dask_address: str | None = None) -> None:
@@ -172,6 +184,11 @@ def connect(address: str | None, workers: int, settings: DaskSettings) -> Any:
                 f"Dask cluster at {address}: cannot reach the scheduler within "
                 f"{settings.connect_timeout_s:g} s (configs/orchestration.yaml "
                 f"dask.connect_timeout_s): {err}"
+            ) from None
+        except (TypeError, ValueError) as err:  # e.g. tls:// without Dask's TLS settings
+            raise ClusterError(
+                f"Dask cluster at {address}: cannot connect ({err}); a tls:// scheduler "
+                "needs Dask's TLS settings (docs/mission.md, 'A TLS-secured cluster')"
             ) from None
     else:
         cluster = LocalCluster(
