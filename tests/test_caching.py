@@ -23,7 +23,7 @@ import yaml
 from ovtraj.config import load_scenario
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.runs import execute
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, shorten_launch_fit
 
 CODE_A, CODE_B = "cache-test-a", "cache-test-b"
 CASE = REPO / "configs" / "cases" / "shuttle_deorbit.yaml"
@@ -114,22 +114,7 @@ def test_launch_fit_flow_recomputes_after_a_code_change_only(prefect_server, tmp
 
     data = _scenario(tmp_path)
     data["name"] = "launch-fit-cache-test"
-    # Five points (the fewest an order-1 fit takes), the reference (300 km) among them; a
-    # smaller GA, coarser steps, looser and shorter local phases: each point still feasible
-    # and the payload falling with altitude, in ~7 s a flow run here, not ~40 s.
-    launch = data["launch"]
-    launch["fit"].update(altitude_min_km=280.0, altitude_max_km=320.0, points=5, order=1)
-    launch["genetic"].update(population=16, generations=6)
-    launch["integration"].update(powered_step_s=4.0, coast_step_s=40.0)
-    launch["local"].update(
-        converged_residual=1.0,
-        slsqp_ftol=1e-5,
-        slsqp_max_iterations=30,
-        trust_constr_max_iterations=5,
-        stall_iterations=2,
-        stall_payload_kg=0.1,
-    )
-    data.pop("mission")  # its design bounds need the full fit range
+    shorten_launch_fit(data)
     config = _write(tmp_path, data)
     _set_code(monkeypatch, CODE_A)
     first = launch_fit_flow(config, output_dir=str(tmp_path / "a"), runner="threads")
