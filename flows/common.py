@@ -101,15 +101,6 @@ def prepared(task: Any, *, timeout_s: float | None = None, **options: Any) -> An
     return task.with_options(result_storage=result_storage(), **options)
 
 
-def task_states(futures: list[Any]) -> dict[str, int]:
-    """How many task runs ended in each state (``Completed``, ``Cached``...)."""
-    counts: dict[str, int] = {}
-    for future in futures:
-        name = future.state.name
-        counts[name] = counts.get(name, 0) + 1
-    return counts
-
-
 # -- names and tags -------------------------------------------------------------------------
 def config_label(config: str | None) -> str:
     """A config parameter as a short label (the file's stem)."""

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import time
-from pathlib import Path
+from contextlib import ExitStack
 from typing import Any
 
 from prefect import flow, get_run_logger
@@ -36,28 +36,17 @@ from flows.common import (
     run_tags,
     run_to_completion,
 )
-from flows.runners import check_runner, task_runner
+from flows.runners import task_runner
 from ovtraj.config import Scenario
-from ovtraj.config.mission import DoeSettings
 from ovtraj.launch.fit import LaunchFit, find_launch_fit
+from ovtraj.paths import scenario_file
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
-from ovtraj.runs.runners import dask_address as chosen_address
+from ovtraj.runs.runners import RunnerChoice, choose_runner
 from ovtraj.runs.store import Run
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import TIMEOUTS, code_version
 from tasks.doe import mission_batch_task
-
-
-def execution(
-    settings: DoeSettings, runner: str | None = None, dask_address: str | None = None
-) -> tuple[str, int, str | None]:
-    """(runner, workers, Dask address): the parameters first, else ``mission.doe``'s runner
-    and ``OVTRAJ_DASK_ADDRESS`` (never a scenario's address, issue 44)."""
-    chosen = runner or settings.task_runner
-    address = chosen_address(dask_address) if chosen == "dask" else dask_address
-    check_runner(chosen, address)
-    return chosen, settings.workers, address
 
 
 class RunIncomplete(RuntimeError):
@@ -161,7 +150,7 @@ def evaluate_run(
     deadline: float,
     limit: str,
     runner: Any = None,
-    choice: tuple[str, int, str | None] | None = None,
+    choice: RunnerChoice | None = None,
     stats: dict[str, Any] | None = None,
 ) -> Run:
     """Evaluate the run's pending batches under its concurrency slot; finish it.
@@ -183,7 +172,7 @@ def evaluate_run(
             if runner is not None:
                 stats.update(evaluate_batches(runner, scenario, run, fit, deadline, limit))
             else:
-                with task_runner(*choice) as started:
+                with task_runner(choice.runner, choice.workers, choice.dask_address) as started:
                     stats.update(evaluate_batches(started, scenario, run, fit, deadline, limit))
     except RunIncomplete:
         raise
@@ -193,12 +182,65 @@ def evaluate_run(
     return run
 
 
+class TaskBatches:
+    """The pipeline driver's :class:`ovtraj.pipeline.drive.BatchExecutor` on Prefect: each
+    batch a cached task (:func:`evaluate_run`) on the task runner of ``choice``, started
+    once for the DoE and every infill run. The flow run is named and tagged
+    ``<kind> <scenario> <run id>`` after the first run it evaluates (the DoE run)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        fit: LaunchFit,
+        choice: RunnerChoice,
+        *,
+        deadline: float,
+        limit: str,
+        kind: str,
+    ) -> None:
+        self.scenario, self.fit, self.choice = scenario, fit, choice
+        self.deadline, self.limit, self.kind = deadline, limit, kind
+        self._stack = ExitStack()
+        self._runner: Any = None
+        self._labelled = False
+
+    def __enter__(self) -> TaskBatches:
+        choice = self.choice
+        self._runner = self._stack.enter_context(
+            task_runner(choice.runner, choice.workers, choice.dask_address)
+        )
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._runner = None
+        self._stack.close()
+
+    def evaluate(self, run: Run) -> Run:
+        if not self._labelled:
+            self._labelled = True
+            name = self.scenario.name
+            label_flow_run(f"{self.kind} {name} {run.id}", run_tags(self.kind, name, run.id))
+        return evaluate_run(
+            self.scenario,
+            run,
+            self.fit,
+            deadline=self.deadline,
+            limit=self.limit,
+            runner=self._runner,
+        )
+
+    def side_pool(self) -> None:
+        """None: the task runner's workers run batches only (their results travel as
+        records; the fits and plots run in the flow's process)."""
+        return None
+
+
 LIMIT = "flows.doe_s of configs/orchestration.yaml"
 
 
 @flow(name="doe", flow_run_name=run_name("doe"), log_prints=True)
 async def doe_flow(
-    config: str = "configs/scenario.yaml",
+    config: str | None = None,
     samples: int | None = None,
     seed: int | None = None,
     append_to: str | None = None,
@@ -209,7 +251,8 @@ async def doe_flow(
 ) -> dict[str, Any]:
     """DoE of the mission chain; returns the run's summary (run id, counts, ranges).
 
-    ``target``: a TLE/OMM file or URL that replaces the scenario's target. ``runner``
+    ``config``: the scenario file (default: the shipped one). ``target``: a TLE/OMM file
+    or URL that replaces the scenario's target. ``runner``
     (``serial | threads | processes | dask``) overrides ``mission.doe.task_runner``;
     ``dask_address``: the scheduler of the ``dask`` runner (else ``OVTRAJ_DASK_ADDRESS``,
     else a local cluster).
@@ -242,7 +285,9 @@ def run_doe_flow(**parameters: Any) -> dict[str, Any]:
     return run_to_completion(lambda: doe_flow(**parameters))
 
 
-def ensure_launch_fit(config: str, scenario: Scenario, target: str | None = None) -> LaunchFit:
+def ensure_launch_fit(
+    config: str | None, scenario: Scenario, target: str | None = None
+) -> LaunchFit:
     """The scenario's stored launch fit; the launch-fit flow runs first when there is none."""
     fit = find_launch_fit(scenario)
     if fit is None:
@@ -252,12 +297,14 @@ def ensure_launch_fit(config: str, scenario: Scenario, target: str | None = None
         launch_fit_flow(config, target=target)
         fit = find_launch_fit(scenario)
     if fit is None:
-        raise RuntimeError(f"{config}: the launch-fit flow stored no fit for this scenario")
+        raise RuntimeError(
+            f"{scenario_file(config)}: the launch-fit flow stored no fit for this scenario"
+        )
     return fit
 
 
 def _doe(
-    config: str,
+    config: str | None,
     samples: int | None,
     seed: int | None,
     append_to: str | None,
@@ -271,11 +318,12 @@ def _doe(
     pruned = prune_expired_results()
     if pruned:
         logger.info("removed %d expired task result(s)", pruned)
-    scenario: Scenario = load_scenario_with_target(Path(config), target)
+    path = scenario_file(config)
+    scenario: Scenario = load_scenario_with_target(path, target)
     if scenario.mission is None:
-        raise ValueError(f"{config}: the scenario has no mission section")
+        raise ValueError(f"{path}: the scenario has no mission section")
     settings = scenario.mission.doe
-    choice = execution(settings, runner, dask_address)
+    choice = choose_runner(settings, runner, dask_address)
     fit = ensure_launch_fit(config, scenario, target)
     store = RunStore.for_scenario(scenario, config, store_root)
     parent = store.run(append_to) if append_to else None
@@ -294,8 +342,8 @@ def _doe(
         run.id,
         scenario.name,
         len(run.samples()),
-        choice[0],
-        f" at {choice[2]}" if choice[2] else "",
+        choice.runner,
+        f" at {choice.dask_address}" if choice.dask_address else "",
         run.url,
     )
     # The flow run carries the tags, the batches' task runs none (tasks.common.BATCH_TAGS).

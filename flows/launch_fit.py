@@ -29,6 +29,7 @@ from flows.common import (
 )
 from flows.runners import task_runner
 from ovtraj.launch.fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
+from ovtraj.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.launch import launch_point_task
 
@@ -42,7 +43,7 @@ CHAINS = 2
     timeout_seconds=FLOW_TIMEOUTS.launch_fit_s,
 )
 def launch_fit_flow(
-    config: str = "configs/scenario.yaml",
+    config: str | None = None,
     output_dir: str | None = None,
     target: str | None = None,
     runner: str = "processes",
@@ -50,14 +51,16 @@ def launch_fit_flow(
 ) -> dict[str, Any]:
     """Solve the altitude grid, fit payload, insertion time and u; save and summarise.
 
-    ``target``: a TLE/OMM file or URL that replaces the scenario's target (its plane).
+    ``config``: the scenario file (default: the shipped one). ``target``: a TLE/OMM file
+    or URL that replaces the scenario's target (its plane).
     ``runner``/``dask_address``: where the points run (two workers: one per chain).
     """
     logger = get_run_logger()
     prune_expired_results()
-    scenario = load_scenario_with_target(Path(config), target)
+    path = scenario_file(config)
+    scenario = load_scenario_with_target(path, target)
     if scenario.launch is None:
-        raise ValueError(f"{config}: the scenario has no launch section")
+        raise ValueError(f"{path}: the scenario has no launch section")
     settings = scenario.launch
     key = launch_fit_key(scenario)
     labels = run_tags("launch-fit", scenario.name, key)

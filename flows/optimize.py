@@ -42,18 +42,14 @@ def surrogate_front(
     fit_id: str,
     *,
     views: bool = True,
-    previous_front: str | None = None,
 ) -> dict[str, Any]:
-    """The front task on the run's fit (run again when its cached front is not stored);
-    ``previous_front``: the directory of the pipeline's previous round's front, its warm
-    start (``optimize.warm_start_generations``)."""
+    """The front task on the run's fit (run again when its cached front is not stored)."""
     return call_stored(
         prepared(surrogate_front_task),
         resolved_scenario=scenario.resolved(),
         run_url=run.url,
         fit_id=fit_id,
         views=views,
-        previous_front=previous_front,
     )
 
 

@@ -1,23 +1,26 @@
 """Flow: the whole mission pipeline (``flows/pipeline.py:mission_flow``).
 
-1. DoE: create (or reopen) the run and evaluate its batches as parallel tasks on the
-   configured task runner (the DoE flow's machinery);
-2. surrogates: fit and validate (a task cached on the training data's hash);
-3. optimisation: NSGA-II on the surrogates (a task cached on the fit);
-4. verification: evaluate front points with the real chain in child runs (the same
-   batch tasks), refit and repeat until the error on the front is below tolerance or
-   the budget of real evaluations is spent (``ovtraj.pipeline.run_pipeline``);
-5. plan: the picked point of the verified front becomes the mission plan (JSON, YAML,
-   plots), written in the pipeline's directory;
-6. artifacts: validation table, parity plots, verified front, verification table, and the
-   mission plan: its files and its plots, shown in the markdown (embedded PNGs, their
-   paths as captions).
+The library's one driver (:func:`ovtraj.pipeline.drive.drive_pipeline`, as ``ovtraj
+pipeline``), with the batches as cached Prefect tasks on the flow's task runner
+(:class:`flows.doe.TaskBatches`):
+
+1. DoE: create (or reopen) the run and evaluate its batches as parallel tasks;
+2. the loop: surrogates, NSGA-II on them, verification of front points with the real
+   chain in child runs (the same batch tasks) and infill, until the error on the front
+   is below tolerance or the budget of real evaluations is spent;
+3. plan: the picked point of the verified front becomes the mission plan (JSON, YAML,
+   plots, report), written in the pipeline's directory;
+4. artifacts: the last fit's validation table, the verified front, the verification
+   table, and the mission plan: its files and its plots, shown in the markdown (embedded
+   PNGs, their paths as captions).
+
+Fits and fronts are stored in the run and reused by content (a second flow run loads
+them); only the batches are tasks, cached on their inputs.
 """
 
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
@@ -26,90 +29,22 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 from flows.common import (
     FLOW_TIMEOUTS,
     embedded_plots,
-    label_flow_run,
-    prepared,
     prune_expired_results,
     run_name,
-    run_tags,
 )
-from flows.doe import ensure_launch_fit, evaluate_run, execution
-from flows.optimize import front_table, surrogate_front
-from flows.runners import task_runner
-from flows.surrogate import fit_run_surrogates, publish_validation
-from ovtraj.config import Scenario
-from ovtraj.launch.fit import LaunchFit
-from ovtraj.pipeline import (
-    PipelineResult,
-    PipelineSteps,
-    fit_step,
-    front_step,
-    pipeline_doe_run,
-    run_pipeline,
-)
-from ovtraj.pipeline.report import stop_explanation
-from ovtraj.runs import Run, RunStore
-from ovtraj.storage import location
+from flows.doe import TaskBatches, ensure_launch_fit
+from flows.optimize import front_table
+from flows.surrogate import publish_validation
+from ovtraj.paths import scenario_file
+from ovtraj.pipeline import Pick, PipelineResult
+from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
+from ovtraj.pipeline.planning import last_surrogates
+from ovtraj.runs import RunStore
+from ovtraj.runs.runners import choose_runner
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import code_version
-from tasks.pipeline import plan_task
 
 LIMIT = "flows.mission_s of configs/orchestration.yaml"
-
-
-def _steps(runner: Any, scenario: Scenario, fit: LaunchFit, deadline: float) -> PipelineSteps:
-    """The pipeline's steps as tasks: batches on the runner, fit and front cached."""
-
-    def fit_surrogates(
-        run: Run,
-        data: Any,
-        scenario: Scenario,
-        code: str,
-        candidates: Any = None,
-        views: bool = True,
-    ) -> Any:
-        publish_validation(fit_run_surrogates(scenario, run, candidates, views=views), run)
-        # loads what the task stored
-        return fit_step(run, data, scenario, code, candidates=candidates, views=views)
-
-    def front(
-        run: Run,
-        fitted: Any,
-        scenario: Scenario,
-        code: str,
-        views: bool = True,
-        previous: Any = None,
-    ) -> Any:
-        warm = previous is not None and scenario.mission.optimize.warm_start_generations
-        earlier = str(previous.directory) if warm else None
-        surrogate_front(scenario, run, fitted.fit_id, views=views, previous_front=earlier)
-        return front_step(run, fitted, scenario, code, views=views, previous=previous)
-
-    def evaluate(run: Run) -> Run:
-        return evaluate_run(scenario, run, fit, deadline=deadline, limit=LIMIT, runner=runner)
-
-    return PipelineSteps(evaluate=evaluate, fit=fit_surrogates, front=front)
-
-
-def mission_plan(
-    scenario: Scenario,
-    store: RunStore,
-    result: PipelineResult,
-    pick_index: int | None,
-    weights: list[float] | None,
-) -> dict[str, Any]:
-    """The plan task; run again when its cached plan is no longer on disk."""
-    task = prepared(plan_task)
-    parameters = {
-        "resolved_scenario": scenario.resolved(),
-        "store_url": str(store.root),
-        "pipeline_dir": str(result.directory),
-        "pick_index": pick_index,
-        "weights": None if weights is None else [float(w) for w in weights],
-    }
-    planned = task(**parameters)
-    if not location(planned["json"]).is_file():
-        planned = task.with_options(refresh_cache=True)(**parameters)
-    return planned
 
 
 @flow(
@@ -119,7 +54,7 @@ def mission_plan(
     log_prints=True,
 )
 def mission_flow(
-    config: str = "configs/scenario.yaml",
+    config: str | None = None,
     samples: int | None = None,
     seed: int | None = None,
     from_run: str | None = None,
@@ -132,6 +67,7 @@ def mission_flow(
 ) -> dict[str, Any]:
     """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths.
 
+    ``config``: the scenario file (default: the shipped scenario, as ``ovtraj``'s).
     ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
     from an updated element set (a changed one gives a new run and launch fit, the same
     one reuses every stored result). ``runner`` (``serial | threads | processes |
@@ -141,38 +77,31 @@ def mission_flow(
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
     logger = get_run_logger()
     prune_expired_results()
-    scenario = load_scenario_with_target(Path(config), target)
+    path = scenario_file(config)
+    scenario = load_scenario_with_target(path, target)
     if scenario.mission is None:
-        raise ValueError(f"{config}: the scenario has no mission section")
-    choice = execution(scenario.mission.doe, runner, dask_address)
+        raise ValueError(f"{path}: the scenario has no mission section")
+    choice = choose_runner(scenario.mission.doe, runner, dask_address)
     fit = ensure_launch_fit(config, scenario, target)
     store = RunStore.for_scenario(scenario, config, store_root)
-    code = code_version()
-    doe_run, scenario = pipeline_doe_run(
-        scenario,
-        store,
-        code,
+    request = PipelineRequest(
         samples=samples,
         seed=seed,
         from_run=from_run,
-        config=config if from_run else None,
+        config=config,
+        pick=Pick(index=pick_index, weights=None if weights is None else tuple(weights)),
     )
-    labels = run_tags("mission", scenario.name, doe_run.id)
-    label_flow_run(f"mission {scenario.name} {doe_run.id}", labels)
-    logger.info("DoE run %s: %d samples, runner %s", doe_run.id, len(doe_run.samples()), choice[0])
-    # The flow run carries the tags; its task runs their own (none on the batches: see
-    # tasks.common.BATCH_TAGS).
-    with task_runner(*choice) as runner_:
-        steps = _steps(runner_, scenario, fit, deadline)
-        steps.evaluate(doe_run)
-        result = run_pipeline(
-            scenario, doe_run, store=store, code=code, steps=steps, progress=logger.info
-        )
-    planned = mission_plan(scenario, store, result, pick_index, weights)
-    verdict = stop_explanation(result.summary, scenario.mission.verify)
-    logger.info(verdict)
+    logger.info("runner %s", choice.runner)
+    # The flow run is named and tagged after the DoE run, the first run it evaluates.
+    batches = TaskBatches(scenario, fit, choice, deadline=deadline, limit=LIMIT, kind="mission")
+    outcome = drive_pipeline(
+        scenario, fit, store, code_version(), batches, request, progress=logger.info
+    )
+    result, planned = outcome.result, outcome.planned
+    logger.info(outcome.verdict)
     logger.info("picked %s; report %s", planned.get("pick"), planned.get("report"))
-    _publish(result, planned, verdict)
+    _publish(result, planned, outcome.verdict)
+    _publish_last_fit(store, outcome)
     return {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
@@ -182,11 +111,25 @@ def mission_flow(
         "hypervolume": result.summary["hypervolume"],
         "stop_reason": result.summary["stop_reason"],
         "real_evaluations": result.summary["real_evaluations"],
-        "plan_json": planned["json"],
-        "plan_yaml": planned["yaml"],
-        "report": planned.get("report"),
+        "plan_json": str(planned["json"]),
+        "plan_yaml": str(planned["yaml"]),
+        "report": str(planned["report"]),
         "converged": result.summary["converged"],
     }
+
+
+def _publish_last_fit(store: RunStore, outcome: PipelineOutcome) -> None:
+    """The validation table of the pipeline's last surrogate fit (its models' choice)."""
+    surrogates = last_surrogates(store, outcome.result)
+    if surrogates is None:
+        return
+    last = outcome.result.summary["iterations"][-1]
+    frame = surrogates.validation
+    rows = frame.astype(object).where(frame.notna(), None).to_dict(orient="records")
+    rows = [{k: (round(v, 6) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
+    directory = store.root / last["run_id"] / "surrogates" / last["fit_id"]
+    summary = {"validation": rows, "fit_id": last["fit_id"], "directory": str(directory)}
+    publish_validation(summary, store.run(last["run_id"]))
 
 
 def _publish(result: PipelineResult, planned: dict[str, Any], verdict: str = "") -> None:
@@ -202,7 +145,9 @@ def _publish(result: PipelineResult, planned: dict[str, Any], verdict: str = "")
             table=front_table(result.verification),
             description="front points evaluated with the real chain: predicted, real, errors",
         )
-    plots = sorted(str(p) for p in result.directory.glob("*.png")) + planned["plots"]
+    plots = sorted(str(p) for p in result.directory.glob("*.png")) + [
+        str(p) for p in planned["plots"]
+    ]
     create_markdown_artifact(
         key="mission-plan",
         markdown="\n\n".join(

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from prefect import flow, get_run_logger, tags
 
 from flows.common import (
@@ -15,6 +13,7 @@ from flows.common import (
     run_tags,
 )
 from ovtraj.config import load_scenario
+from ovtraj.paths import scenario_file
 from tasks.rendezvous import rendezvous_task
 
 
@@ -24,10 +23,11 @@ from tasks.rendezvous import rendezvous_task
     timeout_seconds=FLOW_TIMEOUTS.rendezvous_s,
     log_prints=False,
 )
-def rendezvous_flow(config: str = "configs/scenario.yaml") -> dict:
-    """Load the scenario, solve the rendezvous (a cached task), log the key figures."""
+def rendezvous_flow(config: str | None = None) -> dict:
+    """Load the scenario (default: the shipped one), solve the rendezvous (a cached task),
+    log the key figures."""
     prune_expired_results()
-    scenario = load_scenario(Path(config))
+    scenario = load_scenario(scenario_file(config))
     labels = run_tags("rendezvous", scenario.name)
     label_flow_run(f"rendezvous {scenario.name}", labels)
     with tags(*labels):

@@ -25,7 +25,7 @@ from typing import Any
 from prefect.task_runners import ProcessPoolTaskRunner, ThreadPoolTaskRunner
 from threadpoolctl import threadpool_limits
 
-from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
+from ovtraj.parallel import EVALUATION_BLAS_THREADS
 from ovtraj.runs.runners import ClusterError, check_cluster, check_runner, count_workers
 from tasks.common import ORCHESTRATION
 

@@ -18,9 +18,15 @@ from typing import Any
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["Bounded", "blas_threads", "mapped", "started"]
+__all__ = ["EVALUATION_BLAS_THREADS", "Bounded", "blas_threads", "mapped", "started"]
 
 logger = logging.getLogger(__name__)
+
+# BLAS threads of every stored evaluation. Not a setting: a multi-threaded BLAS splits its
+# sums differently, so the same sample evaluated in a Dask worker (limited to one thread)
+# and in this process differed in the 12th digit; with one thread everywhere, every
+# runner stores byte-identical files (tests/test_runners.py).
+EVALUATION_BLAS_THREADS = 1
 
 
 @functools.cache

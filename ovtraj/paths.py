@@ -54,6 +54,12 @@ def config_path(name: str) -> Path:
     return path
 
 
+def scenario_file(config: str | Path | None) -> Path:
+    """The scenario file of a command or flow: ``config``, else the shipped
+    ``scenario.yaml`` (the same default for ``ovtraj`` and every flow, wherever it runs)."""
+    return Path(config) if config is not None else config_path("scenario.yaml")
+
+
 def reference_dir() -> Path:
     """Directory of the shipped reference data (read only)."""
     return REPO_ROOT / "data" / "reference" if source_checkout() else PACKAGE_DIR / "reference"

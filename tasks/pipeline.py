@@ -1,4 +1,4 @@
-"""Prefect tasks of the surrogate pipeline: fit, front (thin wrappers).
+"""Prefect tasks of the surrogate and optimize flows: fit, front (thin wrappers).
 
 Each task stores its outputs in the run (``ovtraj.pipeline.steps``) and returns a
 small summary. The fit is cached on the training data's hash with the settings and
@@ -14,11 +14,8 @@ from typing import Any
 from prefect import task
 
 from ovtraj.config import scenario_from_dict
-from ovtraj.optimize import Normalisation
-from ovtraj.pipeline import FrontOutcome, fit_step, front_step, training_data
-from ovtraj.pipeline.steps import load_front
+from ovtraj.pipeline import fit_step, front_step, training_data
 from ovtraj.runs.store import Run
-from ovtraj.storage import location
 from tasks.common import TIMEOUTS, cached, code_version, parameter, run_label
 
 
@@ -26,10 +23,6 @@ def _validation_rows(outcome: Any) -> list[dict[str, Any]]:
     frame = outcome.surrogates.validation
     rows = frame.astype(object).where(frame.notna(), None).to_dict(orient="records")
     return [{k: (round(v, 6) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
-
-
-def _plan_name() -> str:
-    return f"{run_label(parameter('pipeline_dir'))}/plan"
 
 
 def _fit_name() -> str:
@@ -86,65 +79,18 @@ def surrogate_front_task(
     run_url: str,
     fit_id: str,
     views: bool = True,
-    previous_front: str | None = None,
 ) -> dict[str, Any]:
-    """NSGA-II on the fitted surrogates (loaded from the run); ``views``: with its plot;
-    ``previous_front``: the directory of the previous round's front, its warm start."""
+    """NSGA-II on the fitted surrogates (loaded from the run); ``views``: with its plot."""
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
     code = code_version()
     fit = fit_step(run, training_data(run), scenario, code, views=views)
     if fit.fit_id != fit_id:
         raise RuntimeError(f"run {run.id}: surrogates {fit_id} expected, found {fit.fit_id}")
-    previous = None
-    if previous_front is not None:
-        where = location(previous_front)
-        normalisation = Normalisation.mission(scenario.mission.optimize)
-        previous = FrontOutcome(load_front(where, normalisation), where, where.name, reused=True)
-    outcome = front_step(run, fit, scenario, code, views=views, previous=previous)
+    outcome = front_step(run, fit, scenario, code, views=views)
     return {
         "front_id": outcome.front_id,
         "directory": str(outcome.directory),
         "points": len(outcome.front),
         "hypervolume": outcome.front.hypervolume,
-    }
-
-
-@task(
-    name="mission-plan",
-    task_run_name=_plan_name,
-    tags=["ovtraj", "plan"],
-    retries=1,
-    timeout_seconds=TIMEOUTS.mission_plan_s,
-    **cached(),
-)
-def plan_task(
-    resolved_scenario: dict[str, Any],
-    store_url: str,
-    pipeline_dir: str,
-    pick_index: int | None = None,
-    weights: list[float] | None = None,
-) -> dict[str, Any]:
-    """The mission plan of the picked point of a stored pipeline's verified front (one
-    chain evaluation; the plan, its plots and its ``.files.json`` written beside it)."""
-    from ovtraj.launch.fit import find_launch_fit
-    from ovtraj.pipeline import Pick
-    from ovtraj.pipeline.loop import load_pipeline
-    from ovtraj.pipeline.planning import write_mission_plan
-    from ovtraj.runs import RunStore
-    from ovtraj.storage import location
-
-    scenario = scenario_from_dict(resolved_scenario)
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        raise RuntimeError(f"no launch fit for scenario {scenario.name}: run the launch-fit flow")
-    result = load_pipeline(location(pipeline_dir))
-    pick = Pick(index=pick_index, weights=None if weights is None else tuple(weights))
-    planned = write_mission_plan(scenario, fit, RunStore(store_url), result, pick)
-    return {
-        "json": str(planned["json"]),
-        "yaml": str(planned["yaml"]),
-        "plots": [str(p) for p in planned["plots"]],
-        "report": str(planned["report"]),
-        "pick": planned["pick"],
     }

@@ -191,18 +191,13 @@ def _pipeline_data(tmp: Path) -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def pipeline(prefect_server, tmp_path_factory):
     """The mission flow with code A, once; then what each step computed again."""
-    import tasks.pipeline
     from flows.pipeline import mission_flow
-    from ovtraj.pipeline import planning
 
     tmp = tmp_path_factory.mktemp("cache-pipeline")
     config = _write(tmp, _pipeline_data(tmp))
-    calls: Counter = Counter()
     with pytest.MonkeyPatch.context() as patch:
         _set_code(patch, CODE_A)
-        _count(patch, tasks.pipeline, "fit_step", calls)
-        _count(patch, tasks.pipeline, "front_step", calls)
-        _count(patch, planning, "write_mission_plan", calls)
+        calls = _pipeline_work(patch)
         before = execute.EVALUATIONS["count"]
         first = mission_flow(config=config)
         evaluations = execute.EVALUATIONS["count"] - before
@@ -226,25 +221,42 @@ def _counted(monkeypatch: pytest.MonkeyPatch) -> Counter:
     return calls
 
 
+def _pipeline_work(monkeypatch: pytest.MonkeyPatch) -> Counter:
+    """Count the mission flow's work beyond the batches: a surrogate fit, an NSGA-II run
+    (not a load of a stored one) and a plan written (issue 45: the flow runs the library's
+    driver, its fits and fronts stored in the run and reused by content)."""
+    from ovtraj.pipeline import drive, steps
+
+    calls: Counter = Counter()
+    _count(monkeypatch, steps, "fit_mission_surrogates", calls)
+    _count(monkeypatch, steps, "surrogate_front", calls)
+    _count(monkeypatch, drive, "write_mission_plan", calls)
+    return calls
+
+
 def test_mission_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch):
     from flows.pipeline import mission_flow
 
     first = pipeline["first"]
     assert pipeline["evaluations"] == 10 + first["real_evaluations"]["infill"]
-    assert pipeline["calls"]["write_mission_plan"] == 1 and pipeline["calls"]["fit_step"] >= 1
-    calls = _counted(monkeypatch)
+    assert pipeline["calls"]["write_mission_plan"] == 1
+    assert pipeline["calls"]["fit_mission_surrogates"] >= 1
+    calls = _pipeline_work(monkeypatch)
     _set_code(monkeypatch, CODE_A)
     before = execute.EVALUATIONS["count"]
+    plan = Path(first["plan_json"]).read_bytes()
     again = mission_flow(config=pipeline["config"])
     assert execute.EVALUATIONS["count"] == before  # the store serves the batches
-    assert sum(calls.values()) == 0  # fits, fronts and the plan: served from the cache
+    # fits and fronts loaded from the run, not computed; the plan written again, the same
+    assert calls["fit_mission_surrogates"] == 0 and calls["surrogate_front"] == 0
+    assert calls["write_mission_plan"] == 1 and Path(again["plan_json"]).read_bytes() == plan
     assert again == first
     _set_code(monkeypatch, CODE_B)
     changed = mission_flow(config=pipeline["config"])
     assert changed["doe_run"] != first["doe_run"]
     assert execute.EVALUATIONS["count"] - before == 10 + changed["real_evaluations"]["infill"]
-    assert calls["fit_step"] >= 1 and calls["front_step"] >= 1
-    assert calls["write_mission_plan"] == 1
+    assert calls["fit_mission_surrogates"] >= 1 and calls["surrogate_front"] >= 1
+    assert calls["write_mission_plan"] == 2
 
 
 def test_surrogate_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch):

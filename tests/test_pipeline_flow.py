@@ -41,6 +41,11 @@ def flown(prefect_server, tmp_path_factory):
     before = execute.EVALUATIONS["count"]
     first = mission_flow(config=str(config))
     middle = execute.EVALUATIONS["count"]
+    # The same pipeline through the command line, into a store of its own (issue 45).
+    from ovtraj.cli import run_command
+
+    cli_store = tmp / "cli-runs"
+    cli_exit = run_command(["pipeline", str(config), "--store", str(cli_store), "--json"])
     from prefect.artifacts import Artifact
 
     artifacts = {key: Artifact.get(key) for key in ("verified-front", "surrogate-validation")}
@@ -50,6 +55,8 @@ def flown(prefect_server, tmp_path_factory):
         "artifacts": artifacts,
         "scenario": build_scenario(data),
         "store": RunStore(tmp / "runs"),
+        "cli_exit": cli_exit,
+        "cli_store": cli_store,
     }
 
 
@@ -87,3 +94,44 @@ def test_the_flows_second_round_starts_from_the_first_rounds_front(flown):
     assert len(warm) == 1 and len(markers) == 2
     assert warm[0]["warm_from"] in by_id
     assert warm[0]["nsga2"]["generations"] < by_id[warm[0]["warm_from"]]["nsga2"]["generations"]
+
+
+def _stored_files(root) -> dict[str, object]:
+    """Every file of a store: its bytes, or for a JSON marker its content without the
+    wall-clock data a store holds: creation times and the timing of batches and fits."""
+    import json
+
+    def timeless(value, key=""):
+        if isinstance(value, dict):
+            return {
+                k: timeless(v, k)
+                for k, v in value.items()
+                if k not in ("created_utc", "timing")
+                # a marker's digest of a nested marker: that one is compared without its times
+                and not (key == "files" and k.endswith(".json"))
+            }
+        if isinstance(value, list):
+            return [timeless(v) for v in value]
+        return value
+
+    files: dict[str, object] = {}
+    for path in sorted(root.rglob("*")):
+        if path.is_file() and not path.name.endswith(".lock"):
+            name = str(path.relative_to(root))
+            data = path.read_bytes()
+            files[name] = timeless(json.loads(data)) if path.suffix == ".json" else data
+    return files
+
+
+def test_the_flow_and_the_command_line_store_the_same_pipeline(flown):
+    """``mission_flow`` and ``ovtraj pipeline`` are adapters of one driver
+    (``ovtraj.pipeline.drive``): the same inputs give the same stored files, byte for byte
+    (JSON markers without their creation times and timing): runs, batches, fits, fronts, the
+    verified front, the plan, its plots and report."""
+    assert flown["cli_exit"] == 0
+    flow_files = _stored_files(flown["store"].root)
+    cli_files = _stored_files(flown["cli_store"])
+    assert sorted(flow_files) == sorted(cli_files)
+    assert any(name.endswith("report.html") for name in flow_files)
+    differing = [name for name in flow_files if flow_files[name] != cli_files[name]]
+    assert differing == []

@@ -2,7 +2,7 @@
 
 1. ``serial``, ``threads``, ``processes`` and ``dask`` (a local cluster) store
    byte-identical files for the same config and seed: each batch is evaluated with one
-   BLAS thread wherever it runs (``ovtraj.runs.execute.EVALUATION_BLAS_THREADS``);
+   BLAS thread wherever it runs (``ovtraj.parallel.EVALUATION_BLAS_THREADS``);
 2. a process of the ``processes`` pool killed (SIGKILL) mid-batch: the command fails with
    one line naming the batches, exit 2, the manifest says ``incomplete`` with their
    errors, nothing stored is lost, and the same command completes the run computing only

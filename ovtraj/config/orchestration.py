@@ -38,7 +38,6 @@ class TaskTimeouts(StrictModel):
     )
     fit_surrogates_s: float = bounded(unit="s", gt=0, le=7 * 86400)
     surrogate_front_s: float = bounded(unit="s", gt=0, le=86400)
-    mission_plan_s: float = bounded(unit="s", gt=0, le=86400)
 
 
 class FlowTimeouts(StrictModel):

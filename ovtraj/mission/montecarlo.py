@@ -85,14 +85,13 @@ from ovtraj.mission.fly import (
     fly_plan,
 )
 from ovtraj.mission.plan import MissionPlan
-from ovtraj.parallel import blas_threads
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.model import EntryModel
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
 from ovtraj.targets import target_state
 
 logger = logging.getLogger(__name__)

@@ -37,7 +37,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
@@ -52,7 +52,7 @@ from ovtraj.optimize import (
     non_dominated,
     spread_picks,
 )
-from ovtraj.pipeline.data import training_data
+from ovtraj.pipeline.data import TrainingData, training_data
 from ovtraj.pipeline.steps import (
     OBJECTIVE_NAMES,
     FitOutcome,
@@ -115,22 +115,74 @@ VERIFICATION_SCHEMA = record_schema(
 (null where the chain did not reach a value), and the errors."""
 
 
+class Evaluate(Protocol):
+    """Evaluate a run's pending batches; return it finished (the executor's ``evaluate``)."""
+
+    def __call__(self, run: Run, /) -> Run: ...
+
+
+class FitStep(Protocol):
+    """Fit (or load) the surrogates of a run's training data (:func:`.steps.fit_step`).
+    ``candidates``: the models an earlier round selected; ``views``: with parity plots."""
+
+    def __call__(
+        self,
+        run: Run,
+        data: TrainingData,
+        scenario: Scenario,
+        code: str,
+        /,
+        *,
+        candidates: dict[str, str] | None = None,
+        views: bool = True,
+    ) -> FitOutcome: ...
+
+
+class FrontStep(Protocol):
+    """NSGA-II on a fit (:func:`.steps.front_step`); ``previous``: the last round's front,
+    its warm start."""
+
+    def __call__(
+        self,
+        run: Run,
+        fit: FitOutcome,
+        scenario: Scenario,
+        code: str,
+        /,
+        *,
+        views: bool = True,
+        previous: FrontOutcome | None = None,
+    ) -> FrontOutcome: ...
+
+
+class Draw(Protocol):
+    """Draw views into a directory; returns their paths (:func:`.steps.draw_views`)."""
+
+    def __call__(self, views: list[View], directory: Path, /) -> list[Path]: ...
+
+
+class Predraw(Protocol):
+    """Begin drawing views elsewhere; returns the call that yields their PNG bytes
+    (:func:`.steps.start_drawing`)."""
+
+    def __call__(self, views: list[View], /) -> Callable[[], list[bytes]]: ...
+
+
 @dataclass
 class PipelineSteps:
-    """How each step runs: the library calls by default; the flow passes tasks."""
+    """How each step of the loop runs: the library's calls, the batches on an executor
+    (:mod:`.drive`).
 
-    evaluate: Callable[[Run], Run]  # evaluate a run's pending batches, return it finished
-    # (run, data, scenario, code, *, candidates, views)
-    fit: Callable[..., FitOutcome] = fit_step
-    # (run, fit, scenario, code, *, views, previous): ``previous`` the last round's front
-    front: Callable[..., FrontOutcome] = front_step
-    # (views, directory) -> paths: the plots of the result, e.g. on the pool's processes
-    draw: Callable[[list[View], Path], list[Path]] = draw_views
-    # (views) -> the call that returns their PNG bytes: each round's parity plots begun on
-    # the pool's processes right after its fit, while this process runs NSGA-II and the
-    # pool would wait (:func:`.steps.start_drawing`); the last round's are written at the
-    # end. None: drawn at the end by ``draw``.
-    predraw: Callable[[list[View]], Callable[[], list[bytes]]] | None = None
+    ``predraw``: each round's parity plots begun on a pool's processes right after its fit,
+    while this process runs NSGA-II and the pool would wait; the last round's are written
+    at the end. None: drawn at the end by ``draw``.
+    """
+
+    evaluate: Evaluate
+    fit: FitStep = fit_step
+    front: FrontStep = front_step
+    draw: Draw = draw_views
+    predraw: Predraw | None = None
 
 
 @dataclass
@@ -354,7 +406,7 @@ def _finish(
     spent: int,
     say: Callable[[str], None],
     last: tuple[FitOutcome, FrontOutcome, Run] | None,
-    draw: Callable[[list[View], Path], list[Path]],
+    draw: Draw,
     parity: Callable[[], list[bytes]] | None = None,
 ) -> PipelineResult:
     pid = pipeline_id(doe_run, scenario, code)

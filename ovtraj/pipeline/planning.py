@@ -22,11 +22,6 @@ from ovtraj.storage import location
 PLAN_MARKER_SUFFIX = ".files.json"
 
 
-def pipeline_results(run: Run) -> list[PipelineResult]:
-    """The pipeline results stored in a DoE run, oldest first (every file checked)."""
-    return [load_pipeline(directory) for directory, _ in pipeline_summaries(run)]
-
-
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
     """The run's pipeline result: the one named (a pipeline id, :func:`checked_id`), else the
     newest (its files checked)."""
@@ -117,7 +112,7 @@ def write_mission_plan(
         front=result.front,
         plan=plan,
         pick_text=pick_explanation(result.front, normalisation, pick, row),
-        surrogates=_last_surrogates(store, result),
+        surrogates=last_surrogates(store, result),
         plots=[result.directory / "front.png", *(location(p) for p in plots)],
     )
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
@@ -152,7 +147,7 @@ def stored_stage_rows(run: Run, sample_id: int) -> dict[str, dict[str, Any]]:
     return rows
 
 
-def _last_surrogates(store: RunStore, result: PipelineResult) -> Any:
+def last_surrogates(store: RunStore, result: PipelineResult) -> Any:
     """The pipeline's last surrogate fit; None when it is no longer stored (pruned as
     stale)."""
     from ovtraj.pipeline.features import load_surrogates

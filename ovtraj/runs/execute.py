@@ -10,8 +10,9 @@ import logging
 import shutil
 import time
 from collections.abc import Callable
-from contextlib import nullcontext
+from contextlib import AbstractContextManager, ExitStack, nullcontext
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
 import numpy as np
@@ -23,9 +24,14 @@ from ovtraj.config.orchestration import DaskSettings, load_orchestration
 from ovtraj.formatting import byte_size, printable
 from ovtraj.launch.fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
-from ovtraj.parallel import blas_threads
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, Bounded, blas_threads
 from ovtraj.runs.doe import latin_hypercube
-from ovtraj.runs.runners import BatchPool, ClusterError, batch_pool
+from ovtraj.runs.runners import (
+    BatchPool,
+    ClusterError,
+    RunnerChoice,
+    batch_pool,
+)
 from ovtraj.runs.store import Run, RunStore, StoreError
 from ovtraj.storage import S3Path
 
@@ -39,13 +45,6 @@ def split_batches(samples: pd.DataFrame, batch_size: int) -> list[pd.DataFrame]:
     if batch_size < 1:
         raise ValueError(f"batch_size must be >= 1, got {batch_size}")
     return [samples.iloc[i : i + batch_size] for i in range(0, len(samples), batch_size)]
-
-
-# BLAS threads of every stored evaluation. Not a setting: a multi-threaded BLAS splits its
-# sums differently, so the same sample evaluated in a Dask worker (limited to one thread)
-# and in this process differed in the 12th digit; with one thread everywhere, every
-# runner stores byte-identical files (tests/test_runners.py).
-EVALUATION_BLAS_THREADS = 1
 
 
 def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
@@ -338,6 +337,76 @@ def run_doe(
             f"run {run.id} incomplete: {len(failures)} batch(es) failed: {'; '.join(texts)}"
         )
     return run
+
+
+class PoolBatches:
+    """The library's :class:`ovtraj.pipeline.drive.BatchExecutor`: a run's batches on the
+    pool of ``choice`` (:func:`~ovtraj.runs.runners.batch_pool`), started once for the
+    DoE and every infill run, through :func:`run_doe`.
+
+    ``progress``: a line per batch (else this module's logger); ``progress_bar(label)``: a
+    context whose value is ``run_doe``'s ``on_progress`` (the CLI's bar), one per run.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        launch_fit: LaunchFit,
+        choice: RunnerChoice,
+        *,
+        dask: DaskSettings | None = None,
+        time_limit_s: float | None = None,
+        progress: Callable[[str], None] | None = None,
+        progress_bar: Callable[[str], AbstractContextManager[Any]] | None = None,
+    ) -> None:
+        self.scenario, self.launch_fit, self.choice = scenario, launch_fit, choice
+        orchestration = None if dask is not None else load_orchestration()
+        self.dask = dask or orchestration.dask
+        self.time_limit_s = time_limit_s
+        self.progress, self.progress_bar = progress, progress_bar
+        self._stack = ExitStack()
+        self.pool: BatchPool | None = None
+
+    def __enter__(self) -> PoolBatches:
+        choice = self.choice
+        self.pool = self._stack.enter_context(
+            batch_pool(choice.runner, choice.workers, choice.dask_address, self.dask)
+        )
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        trace: TracebackType | None,
+    ) -> None:
+        self.pool = None
+        self._stack.close()
+
+    def evaluate(self, run: Run) -> Run:
+        bar = nullcontext(None) if self.progress_bar is None else self.progress_bar(f"run {run.id}")
+        with bar as update:
+            return run_doe(
+                self.scenario,
+                run,
+                self.launch_fit,
+                batch_size=self.scenario.mission.doe.batch_size,
+                progress=self.progress,
+                on_progress=update,
+                pool=self.pool,
+                dask=self.dask,
+                time_limit_s=self.time_limit_s,
+            )
+
+    def side_pool(self) -> concurrent.futures.Executor | None:
+        """The pool's processes (not threads: those would only share this process's
+        core); on Dask bounded in time, since a cluster that lost every worker keeps
+        tasks pending (the work is then done here)."""
+        if self.pool is None or self.choice.runner not in ("processes", "dask"):
+            return None
+        if self.choice.runner == "dask":
+            return Bounded(self.pool.executor, self.dask.side_work_timeout_s)
+        return self.pool.executor
 
 
 class _SampleCount:

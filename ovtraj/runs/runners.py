@@ -28,7 +28,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from ovtraj.config.mission import RUNNERS
+from ovtraj.config.io_limits import echoed
+from ovtraj.config.mission import RUNNERS, DoeSettings
 from ovtraj.config.orchestration import DaskSettings
 
 
@@ -45,6 +46,41 @@ def dask_address(given: str | None) -> str | None:
     """The scheduler of the ``dask`` runner: ``given`` (``--dask-address``, the flow's
     parameter), else :data:`DASK_ADDRESS_ENV`; ``None``: a local cluster."""
     return given or os.environ.get(DASK_ADDRESS_ENV) or None
+
+
+@dataclass(frozen=True)
+class RunnerChoice:
+    """Where a DoE's batches run: the runner, its pool's size, the Dask scheduler (None:
+    a local cluster, or no Dask)."""
+
+    runner: str
+    workers: int
+    dask_address: str | None = None
+
+
+def choose_runner(
+    settings: DoeSettings,
+    runner: str | None = None,
+    given_address: str | None = None,
+    *,
+    as_options: bool = False,
+) -> RunnerChoice:
+    """The one runner choice of the CLI and the flows: ``runner`` (the option or the flow's
+    parameter), else ``mission.doe.task_runner``; the scheduler :func:`dask_address`.
+
+    A bad choice raises ``ValueError`` naming it: as the CLI's options with
+    ``as_options`` (``--runner``, ``--dask-address``), else as the flows' parameters.
+    """
+    chosen = runner or settings.task_runner
+    if as_options:
+        if chosen not in RUNNERS:
+            shown = echoed(repr(chosen))
+            raise ValueError(f"--runner {shown}: must be one of {', '.join(RUNNERS)}")
+        if given_address and chosen != "dask":
+            raise ValueError(f"--dask-address needs --runner dask (the runner is {chosen})")
+    address = dask_address(given_address) if chosen == "dask" else given_address
+    check_runner(chosen, address)
+    return RunnerChoice(chosen, settings.workers, address)
 
 
 def check_runner(runner: str, dask_address: str | None = None) -> None:
@@ -85,7 +121,8 @@ def check_worker(
 
     try:
         import ovtraj
-        import ovtraj.runs.execute  # the modules a batch job needs
+
+        importlib.import_module("ovtraj.runs.execute")  # the modules a batch job needs
 
         version = importlib.import_module("ovtraj.version")
         runners = importlib.import_module("ovtraj.runs.runners")
@@ -236,8 +273,7 @@ def batch_pool(
     if runner == "serial":
         yield BatchPool(runner, None)
     elif runner == "threads":
-        from ovtraj.parallel import blas_threads
-        from ovtraj.runs.execute import EVALUATION_BLAS_THREADS
+        from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 
         # process-wide, so set for the pool's life: a batch's own limit, restored when it
         # ends, would otherwise lift it under a batch still running in another thread
