@@ -203,10 +203,10 @@ def _command_doe(config: Path, store: Path, address: str) -> dict:
     """What ``ovtraj run CONFIG --store STORE --runner dask --dask-address ADDRESS`` does
     (the library's pool, no Prefect), in this process; the run's summary with the summed
     time of its batch jobs."""
-    from ovtraj.config import load_scenario
     from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.runs import RunStore, prepare_run, run_doe
+    from ovtraj.target_sources import load_scenario
     from ovtraj.version import code_version
 
     scenario = load_scenario(config)
@@ -279,10 +279,10 @@ def _timed_run(config: Path, store: Path, cluster: Cluster, workers: int, via: s
 
 def _serial_median(config: Path, samples: int) -> float:
     """Median evaluation of ``samples`` samples in this process (the library path)."""
-    from ovtraj.config import load_scenario
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
     from ovtraj.runs import latin_hypercube
+    from ovtraj.target_sources import load_scenario
 
     scenario = load_scenario(config)
     context = MissionContext(scenario, find_launch_fit(scenario))

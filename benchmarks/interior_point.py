@@ -76,7 +76,7 @@ def collect_problems(extra_designs: int, seed: int) -> list[correction.Correctio
     more from a Latin hypercube over the design bounds (``seed``)."""
     from ovtraj.mission import MissionDesign
     from ovtraj.mission.chain import DESIGN_NAMES
-    from ovtraj.runs.doe import latin_hypercube
+    from ovtraj.mission.design_space import latin_hypercube
 
     problems: list[correction.CorrectionProblem] = []
     solve = correction.correct_transfer

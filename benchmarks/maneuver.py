@@ -4,7 +4,7 @@ The impulsive stage of ``configs/cases/upper_stage_rendezvous.yaml`` (three impu
 minimum time, rendezvous, two-body, sum |dv| within eq. 14 and eq. 15 burn times within
 t_e) is searched from 20 seeds by
 
-* **IDE**: :func:`ovtraj.maneuver.de.improved_de` with the config's settings (the seed's
+* **IDE**: :func:`ovtraj.studies.maneuver.de.improved_de` with the config's settings (the seed's
   N = 5 n, F = 0.5, P_c = 0.1, 2000 generations), twice: accepting ties in the greedy
   selection (eq. 11 with ``<=``, Storn & Price; the config's choice) and refusing them
   (the seed's ``<`` as printed);
@@ -21,23 +21,27 @@ feasible time of flight is within ``SUCCESS_TOLERANCE_S`` of the best any run fo
 Printed per method: success rate, median / best / worst time of flight, median
 evaluations until success and in total, median wall time.
 
-Run: ``python benchmarks/maneuver.py [--seeds 20] [--generations N] [--scipy-defaults]``
-(about 6 minutes for the three default rows on this 2-core machine).
+Run: ``python benchmarks/maneuver.py [--seeds 20] [--generations N] [--scipy-defaults]
+[--json]`` (about 6 minutes for the three default rows on this 2-core machine): the runs
+and the table, then one JSON object with the figures per method as the last line
+(``--json``: only that).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ovtraj.maneuver import load_maneuver
-from ovtraj.maneuver.de import DEResult, improved_de, scipy_de
-from ovtraj.maneuver.impulsive import CONSTRAINT_NAMES, ImpulsiveModel
-from ovtraj.maneuver.solve import population_size
+from ovtraj.studies.maneuver import load_maneuver
+from ovtraj.studies.maneuver.de import DEResult, improved_de, scipy_de
+from ovtraj.studies.maneuver.impulsive import CONSTRAINT_NAMES, ImpulsiveModel
+from ovtraj.studies.maneuver.solve import population_size
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "configs" / "cases" / "upper_stage_rendezvous.yaml"
@@ -59,6 +63,11 @@ except ImportError:  # pragma: no cover - depends on the machine
 
 def _median(values):
     return statistics.median(values) if values else float("nan")
+
+
+def _finite(value: float) -> float | None:
+    """``value``, or None for NaN (strict JSON has no NaN)."""
+    return None if math.isnan(value) else float(value)
 
 
 def run_ide(problem, evaluate, seed, generations, accept_ties):
@@ -157,7 +166,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=SEEDS)
     parser.add_argument("--generations", type=int, default=None, help="default: the config's")
     parser.add_argument("--scipy-defaults", action="store_true")
+    parser.add_argument("--json", action="store_true", help="print only the JSON object")
     args = parser.parse_args()
+    say = (lambda *_: None) if args.json else print
 
     problem = load_maneuver(CASE)
     generations = args.generations or problem.optimizer.generations
@@ -182,9 +193,9 @@ def main() -> None:
     if pg is not None:
         methods.append(("pygmo DE", lambda s: run_pygmo(problem, model, s, generations)))
     else:
-        print("pygmo is not installed: its row is skipped")
+        say("pygmo is not installed: its row is skipped")
 
-    print(
+    say(
         f"{CASE.name}: {problem.n_variables} variables, N = {population_size(problem)}, "
         f"{generations} generations, {args.seeds} seeds"
     )
@@ -194,21 +205,22 @@ def main() -> None:
             result = run(seed)
             runs[name].append(result)
             tof = result.objective if result.feasible else float("nan")
-            print(
+            say(
                 f"  seed {seed:2d} {name:26s} t_f {tof:9.3f} s  {result.evaluations:6d} evals"
                 f"  {result.wall_time_s:6.2f} s"
             )
 
     best_known = min(r.objective for rs in runs.values() for r in rs if r.feasible)
     threshold = best_known + SUCCESS_TOLERANCE_S
-    print(f"\nbest time of flight found by any run: {best_known:.4f} s")
-    print(f"success: feasible and t_f <= {threshold:.4f} s (best + {SUCCESS_TOLERANCE_S:g} s)\n")
+    say(f"\nbest time of flight found by any run: {best_known:.4f} s")
+    say(f"success: feasible and t_f <= {threshold:.4f} s (best + {SUCCESS_TOLERANCE_S:g} s)\n")
     header = (
         f"| {'method':26s} | success | median t_f [s] | best t_f [s] | worst t_f [s] "
         f"| median evals to success | median evals | median wall [s] |"
     )
-    print(header)
-    print("|" + "|".join("-" * (len(c)) for c in header.split("|")[1:-1]) + "|")
+    say(header)
+    say("|" + "|".join("-" * (len(c)) for c in header.split("|")[1:-1]) + "|")
+    methods_figures = {}
     for name, results in runs.items():
         feasible = [r.objective for r in results if r.feasible]
         wins = [r for r in results if r.feasible and r.objective <= threshold]
@@ -216,13 +228,35 @@ def main() -> None:
         for r in wins:
             hit = next(e for e, f, _ in r.history if f <= threshold)
             to_success.append(hit)
-        print(
+        say(
             f"| {name:26s} | {len(wins):3d}/{len(results):<3d} "
             f"| {_median(feasible):14.3f} | {min(feasible, default=np.nan):12.3f} "
             f"| {max(feasible, default=np.nan):13.3f} | {_median(to_success):23.0f} "
             f"| {_median([r.evaluations for r in results]):12.0f} "
             f"| {_median([r.wall_time_s for r in results]):15.2f} |"
         )
+        methods_figures[name] = {
+            "successes": len(wins),
+            "runs": len(results),
+            "success_rate": round(len(wins) / len(results), 3),
+            "median_tof_s": _finite(_median(feasible)),
+            "best_tof_s": _finite(min(feasible, default=np.nan)),
+            "worst_tof_s": _finite(max(feasible, default=np.nan)),
+            "median_evaluations_to_success": _finite(_median(to_success)),
+            "median_evaluations": _finite(_median([r.evaluations for r in results])),
+            "median_wall_s": _finite(_median([r.wall_time_s for r in results])),
+        }
+    figures = {
+        "case": CASE.name,
+        "variables": problem.n_variables,
+        "population": population_size(problem),
+        "generations": generations,
+        "seeds": args.seeds,
+        "best_tof_s": best_known,
+        "success_tolerance_s": SUCCESS_TOLERANCE_S,
+        "methods": methods_figures,
+    }
+    print(json.dumps(figures))
 
 
 if __name__ == "__main__":

@@ -26,13 +26,13 @@ REFERENCE = (285.06, 326.96, 0.79)
 
 
 def main() -> None:
-    from ovtraj.config import load_scenario
     from ovtraj.config.dispersions import default_dispersions
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
     from ovtraj.mission.montecarlo import monte_carlo, outcome_summaries
     from ovtraj.mission.plan import build_plan
-    from ovtraj.paths import config_path
+    from ovtraj.store.paths import config_path
+    from ovtraj.target_sources import load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)

@@ -1,7 +1,7 @@
 """Optimal entry: our pseudospectral solver against independent transcriptions (issues 8, 22).
 
 Two peers, written here from scratch with CasADi and sharing no code with
-``ovtraj.reentry.pseudospectral`` (their own dynamics, atmosphere, nodes, guess):
+``ovtraj.studies.optimal_entry`` (their own dynamics, atmosphere, nodes, guess):
 
 * **LGR on the same mesh** (issue 22): Legendre-Gauss-Radau collocation in time (nodes
   from the roots of ``P_{n-1} + P_n``, a barycentric differentiation matrix), the whole
@@ -40,7 +40,7 @@ import casadi as ca
 import numpy as np
 import yaml
 
-from ovtraj.reentry.pseudospectral import load_optimal_entry, solve_optimal_entry
+from ovtraj.studies.optimal_entry import load_optimal_entry, solve_optimal_entry
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "configs" / "cases" / "suborbital_return.yaml"

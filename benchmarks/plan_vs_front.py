@@ -30,10 +30,12 @@ Goals (issue 43): every front point planned within 1 m/s, 60 s and 0.1 kg on see
 within 5 % of its Hohmann cost (median and p90).
 
 Run: ``python benchmarks/plan_vs_front.py [--seeds 2026 2027 2028] [--designs 40]
-[--chains aimed "patent plane" before] [--json]``; ``--json`` prints only the JSON object,
-otherwise the tables and that object as the last line. Run stores and cached launches go
-to a temporary folder, removed at the end. About 5-10 min here (the ``before`` plans
-solve the launch by the stage's own optimisation, ~3 s each).
+[--chains aimed "patent plane" before] [--plans N] [--config FILE] [--json]``; ``--json``
+prints only the JSON object, otherwise the tables and that object as the last line.
+``--plans N`` plans the first N points of each front only, ``--config`` runs another
+scenario (e.g. a smaller pipeline). Run stores and cached launches go to a temporary
+folder, removed at the end. About 5-10 min here (the ``before`` plans solve the launch by
+the stage's own optimisation, ~3 s each).
 """
 
 from __future__ import annotations
@@ -76,8 +78,9 @@ def chain_scenario(scenario, chain: str):
     return scenario.model_copy(update={"mission": mission})
 
 
-def front_vs_plans(scenario, fit, seed: int, folder: Path) -> dict:
-    """The default pipeline of ``seed``, then the plan of each verified front point."""
+def front_vs_plans(scenario, fit, seed: int, folder: Path, plans: int | None = None) -> dict:
+    """The default pipeline of ``seed``, then the plan of each verified front point (of
+    the first ``plans`` only, if given)."""
     from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
     from ovtraj.mission.plan import PlanError, PlanMismatch, check_front_point, plan_and_record
     from ovtraj.pipeline import PipelineSteps, run_pipeline
@@ -99,7 +102,7 @@ def front_vs_plans(scenario, fit, seed: int, folder: Path) -> dict:
     final = store.run(result.final_run)
     tolerance = scenario.mission.plan.front_tolerance
     points = []
-    for row in result.front.to_dict("records"):
+    for row in result.front.to_dict("records")[:plans]:
         design = MissionDesign(**{name: float(row[name]) for name in DESIGN_NAMES})
         point = {"front_index": int(row["front_index"]), "sample_id": int(row["sample_id"])}
         try:
@@ -161,7 +164,7 @@ def best_dv(points: list[dict], at_most_t_h: float | None = None, at_least_m: fl
 def design_space(scenario, fit, designs: int, seed: int) -> dict:
     """Smoothness and cost on a seeded hypercube of the design bounds."""
     from ovtraj.mission import MissionContext, MissionDesign, evaluate
-    from ovtraj.runs.doe import latin_hypercube
+    from ovtraj.mission.design_space import latin_hypercube
 
     context = MissionContext(scenario, fit)
     step_km = GOALS["smooth_step_m"] / 1e3
@@ -218,26 +221,38 @@ def _f(value, digits: int = 3) -> str:
 
 
 def main() -> None:
-    from ovtraj.config import load_scenario
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
+    from ovtraj.target_sources import load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[2026, 2027, 2028])
     parser.add_argument("--designs", type=int, default=40)
     parser.add_argument("--design-seed", type=int, default=43)
     parser.add_argument("--chains", nargs="+", choices=CHAINS, default=list(CHAINS))
+    parser.add_argument(
+        "--plans",
+        type=int,
+        default=None,
+        help="plan the first N points of each front only (default: every point)",
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=ROOT / "configs" / "scenario.yaml",
+        help="scenario (default: the shipped one); e.g. a smaller pipeline",
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON object")
     args = parser.parse_args()
     say = (lambda *_: None) if args.json else print
 
-    shipped = load_scenario(ROOT / "configs" / "scenario.yaml")
+    shipped = load_scenario(args.config)
     fit = find_launch_fit(shipped)
     figures: dict = {"chains": {}, "goals": GOALS}
     with tempfile.TemporaryDirectory(prefix="ovtraj-plan-vs-front-") as temporary:
         for chain in args.chains:
             scenario = chain_scenario(shipped, chain)
             seeds = [
-                front_vs_plans(scenario, fit, seed, Path(temporary) / f"{chain}-{seed}")
+                front_vs_plans(scenario, fit, seed, Path(temporary) / f"{chain}-{seed}", args.plans)
                 for seed in args.seeds
             ]
             points = [p for s in seeds for p in s["points"]]

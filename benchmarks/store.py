@@ -31,11 +31,11 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
-from ovtraj.config import load_scenario
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import STAGES, MissionContext
 from ovtraj.runs import RunStore, execute, latin_hypercube
 from ovtraj.runs.schemas import DATASETS
+from ovtraj.target_sources import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 GOAL_BYTES_PER_SAMPLE = 100_000  # issue 17, default settings

@@ -62,10 +62,10 @@ def _init(threads: int | None) -> None:
     sets them, the mission context built (the one its batches use), the surrogate and
     plotting libraries loaded."""
     global _CONTEXT
-    from ovtraj.config import load_scenario
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.runs.execute import mission_context
     from ovtraj.runs.runners import limit_threads
+    from ovtraj.target_sources import load_scenario
 
     limit_threads(threads)
     scenario = load_scenario(ROOT / "configs" / "scenario.yaml")
@@ -140,8 +140,8 @@ def _pymoo_nsga2(model, population: int, generations: int, seed: int) -> int:
 
 
 def direct(scenario, normalisation, pool, population: int, generations: int) -> dict:
+    from ovtraj.mission.design_space import bounds_arrays
     from ovtraj.optimize import hypervolume, non_dominated
-    from ovtraj.runs.doe import bounds_arrays
 
     lower, upper = bounds_arrays(scenario.mission.design_bounds)
     archive = []
@@ -250,10 +250,10 @@ def _pipeline(
 
 
 def main() -> None:
-    from ovtraj.config import load_scenario
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.optimize import Normalisation
     from ovtraj.surrogate import SurrogateError
+    from ovtraj.target_sources import load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[2026, 2027, 2028])

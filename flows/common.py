@@ -21,7 +21,7 @@ from prefect import get_run_logger
 
 from flows.runners import ClusterError, count_workers, task_runner
 from ovtraj.plots.embed import png_data_uri
-from ovtraj.result_records import is_result_record
+from ovtraj.store.result_records import is_result_record
 from tasks.common import ORCHESTRATION
 from tasks.results import checked_storage
 
@@ -64,7 +64,7 @@ def prune_expired_results() -> int:
     """Delete the local result records older than ``results.expiration_h`` (Prefect no
     longer serves them); returns how many. Only result records count (regular files, no
     link followed, whose JSON is a record's envelope:
-    :func:`ovtraj.result_records.is_result_record`); an object-store location is left to
+    :func:`ovtraj.store.result_records.is_result_record`); an object-store location is left to
     its own rules."""
     location = ORCHESTRATION.results.location()
     folder = Path(location)
@@ -225,7 +225,7 @@ def store_missing_batches(
 ) -> dict[int, str]:
     """Run ``task`` on the runs of ``todo`` a batch at a time (``parameters(runs)`` plus the
     batch's first run and its runs), each task storing its own batch in ``run`` (a
-    :class:`ovtraj.runs.batched.BatchedRun`); the failed batches by first run. A fault of
+    :class:`ovtraj.store.batched.BatchedRun`); the failed batches by first run. A fault of
     the runner marks the run ``failed`` in its ``run.json`` and is raised."""
     if not todo:
         return {}

@@ -30,13 +30,13 @@ from flows.common import (
     store_missing_batches,
 )
 from flows.runners import check_runner
-from ovtraj.deorbit.burn.montecarlo import monte_carlo_summary
-from ovtraj.deorbit.burn.plots import plot_dispersions
-from ovtraj.deorbit.burn.problem import load_deorbit_burn
-from ovtraj.deorbit.burn.published import published_comparison
-from ovtraj.deorbit.burn.store import MonteCarloRun
-from ovtraj.paths import store_root as store_root_of
-from ovtraj.records import plain
+from ovtraj.store.paths import store_root as store_root_of
+from ovtraj.store.records import plain
+from ovtraj.studies.deorbit_burn.montecarlo import monte_carlo_summary
+from ovtraj.studies.deorbit_burn.plots import plot_dispersions
+from ovtraj.studies.deorbit_burn.problem import load_deorbit_burn
+from ovtraj.studies.deorbit_burn.published import published_comparison
+from ovtraj.studies.deorbit_burn.store import MonteCarloRun
 from tasks.common import TIMEOUTS, code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
 

@@ -28,8 +28,8 @@ from flows.common import (
     run_tags,
 )
 from flows.runners import task_runner
-from ovtraj.launch.fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
-from ovtraj.paths import scenario_file
+from ovtraj.launch.launch_fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
+from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.launch import launch_point_task
 

@@ -35,8 +35,8 @@ from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.montecarlo import loop_summaries, monte_carlo_report
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import read_plan
-from ovtraj.paths import config_path
-from ovtraj.paths import store_root as store_root_of
+from ovtraj.store.paths import config_path
+from ovtraj.store.paths import store_root as store_root_of
 from tasks.common import TIMEOUTS, code_version
 from tasks.mission_monte_carlo import plan_mc_batch_task
 

@@ -25,7 +25,7 @@ from ovtraj.config import Scenario
 from ovtraj.pipeline import run_scenario
 from ovtraj.pipeline.steps import front_frame
 from ovtraj.runs import Run, RunStore
-from ovtraj.storage import location
+from ovtraj.store.backends import location
 from tasks.pipeline import surrogate_front_task
 
 

@@ -35,12 +35,12 @@ from flows.common import (
 from flows.doe import TaskBatches, ensure_launch_fit
 from flows.optimize import front_table
 from flows.surrogate import publish_validation
-from ovtraj.paths import scenario_file
 from ovtraj.pipeline import Pick, PipelineResult
 from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
 from ovtraj.pipeline.planning import last_surrogates
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import choose_runner
+from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import code_version
 

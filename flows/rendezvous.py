@@ -12,8 +12,8 @@ from flows.common import (
     run_name,
     run_tags,
 )
-from ovtraj.config import load_scenario
-from ovtraj.paths import scenario_file
+from ovtraj.store.paths import scenario_file
+from ovtraj.target_sources import load_scenario
 from tasks.rendezvous import rendezvous_task
 
 

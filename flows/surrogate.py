@@ -28,7 +28,7 @@ from ovtraj.config import Scenario
 from ovtraj.pipeline import run_scenario, training_data
 from ovtraj.pipeline.steps import MARKER
 from ovtraj.runs import Run, RunStore
-from ovtraj.storage import location
+from ovtraj.store.backends import location
 from ovtraj.surrogate import training_data_hash
 from tasks.pipeline import fit_surrogates_task
 

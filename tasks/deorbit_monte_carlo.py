@@ -9,9 +9,9 @@ from typing import Any
 
 from prefect import task
 
-from ovtraj.deorbit.burn.montecarlo import MonteCarloContext, simulate_runs
-from ovtraj.deorbit.burn.problem import deorbit_burn_from_dict
-from ovtraj.deorbit.burn.store import MonteCarloRun
+from ovtraj.studies.deorbit_burn.montecarlo import MonteCarloContext, simulate_runs
+from ovtraj.studies.deorbit_burn.problem import deorbit_burn_from_dict
+from ovtraj.studies.deorbit_burn.store import MonteCarloRun
 from tasks.common import TIMEOUTS, cached, parameter, process_cache, remember, run_label
 
 # Nominal plans kept per process: a few problems at once.

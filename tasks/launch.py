@@ -8,7 +8,7 @@ from prefect import task
 
 from ovtraj.config import scenario_from_dict
 from ovtraj.launch import launch_input, solve_launch
-from ovtraj.launch.fit import design_of, predicted_design
+from ovtraj.launch.launch_fit import design_of, predicted_design
 from tasks.common import TIMEOUTS, cached, parameter
 
 

@@ -14,7 +14,7 @@ let whoever can write there run code on every worker that gets a cache hit.
   serializer is :func:`plain_json`'s: Prefect decodes a record with the serializer
   the *record* names, whatever the task was configured with, so a record naming any other
   (``pickle``, ``compressed/pickle``, Prefect's ``json``) is refused before Prefect
-  reads it (:func:`ovtraj.result_records.check_record`): a warning in the task run's log
+  reads it (:func:`ovtraj.store.result_records.check_record`): a warning in the task run's log
   names the file, and Prefect, finding no usable cached result, runs the task again and
   writes a plain JSON record in its place.
 
@@ -34,11 +34,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
-
 from ovtraj.config.orchestration import load_orchestration
-from ovtraj.files import StoreError, read_bytes
-from ovtraj.result_records import SERIALIZER, RecordError, check_record
+from ovtraj.store.files import StoreError, read_bytes
+from ovtraj.store.records import json_default
+from ovtraj.store.result_records import SERIALIZER, RecordError, check_record
 from tasks.common import process_cache
 
 __all__ = ["checked_storage", "plain_json"]
@@ -48,11 +47,13 @@ _MAX_BYTES = int(load_orchestration().reads.unrecorded_file_max_mib * 2**20)
 
 
 def _number(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"a task result holds a {type(value).__name__}: only JSON data is stored")
+    """:func:`ovtraj.store.records.json_default`, refusing in the words of a task result."""
+    try:
+        return json_default(value)
+    except TypeError:
+        raise TypeError(
+            f"a task result holds a {type(value).__name__}: only JSON data is stored"
+        ) from None
 
 
 def _refusing(read: Callable[[], bytes]) -> bytes:
@@ -75,7 +76,7 @@ def _refusing(read: Callable[[], bytes]) -> bytes:
 
 def _local_record(path: Path) -> bytes:
     """A local record's bytes, read as the stores read an unrecorded file (a regular file,
-    no link followed, bounded size; :func:`ovtraj.files.read_bytes`), then checked."""
+    no link followed, bounded size; :func:`ovtraj.store.files.read_bytes`), then checked."""
     if not os.path.lexists(path):  # no cached result yet: Prefect's own words, not a refusal
         raise ValueError(f"Path {path} does not exist.")
     return _refusing(lambda: check_record(read_bytes(Path(path)), str(path)))

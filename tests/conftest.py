@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from ovtraj.astro.constants import EarthModel, default_earth
-from ovtraj.config import Scenario, load_scenario, scenario_from_dict
+from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.target_sources import load_scenario
 
 # Prefect must never try to reach the network from the test suite.
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
@@ -139,7 +140,7 @@ def held_claim(run_dir: Path) -> tuple[int, int] | None:
     (the tests that kill the process computing a batch)."""
     import re
 
-    from ovtraj import locks
+    from ovtraj.store import locks
 
     for lock in sorted((run_dir / "locks").glob("batch-*.lock")):
         batch = int(lock.stem.split("-")[1])

@@ -20,7 +20,7 @@ from ovtraj.astro.atmosphere import (
     US76Atmosphere,
     default_atmosphere,
 )
-from ovtraj.paths import config_path
+from ovtraj.store.paths import config_path
 
 KM = 1000.0
 # US76 constants, used only to place the references (Table 4 bases are geopotential).

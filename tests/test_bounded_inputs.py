@@ -26,7 +26,7 @@ import yaml
 
 from ovtraj.astro.constants import load_earth
 from ovtraj.cli import run_command
-from ovtraj.config import ConfigError, load_scenario
+from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
 from ovtraj.config.export import CcsdsExportSettings
 from ovtraj.config.io_limits import io_limits
@@ -36,7 +36,7 @@ from ovtraj.optimize import Normalisation
 from ovtraj.pipeline import Pick, PipelineError, pick_front_point
 from ovtraj.runs import RunStore
 from ovtraj.runs.execute import check_free_disk
-from ovtraj.target_sources import read_source
+from ovtraj.target_sources import load_scenario, read_source
 from tests.conftest import DEFAULT_SCENARIO, REPO
 
 OVTRAJ = Path(sys.executable).with_name("ovtraj")

@@ -16,17 +16,17 @@ import math
 import numpy as np
 import pytest
 
-from ovtraj.config import load_scenario
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import MissionContext, MissionDesign, reference
 from ovtraj.mission.chain import _launch_leg, rendezvous_settings
-from ovtraj.paths import config_path
 from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import target_mean_motion
 from ovtraj.rendezvous import stage
 from ovtraj.rendezvous.hohmann import hohmann
 from ovtraj.rendezvous.inputs import RendezvousInput
 from ovtraj.rendezvous.phasing import first_wait
+from ovtraj.store.paths import config_path
+from ovtraj.target_sources import load_scenario
 
 # The stage refines the wait on the osculating phase angle, whose J2 short-period terms
 # (~1e-3 rad against a relative rate of ~3e-5 rad/s) the mean-element model leaves out:
@@ -128,8 +128,8 @@ def test_the_departure_phase_explains_the_transfer_above_its_trend(scenario):
     from scipy.stats import qmc
 
     from ovtraj.mission import evaluate
+    from ovtraj.mission.design_space import bounds_arrays
     from ovtraj.pipeline.pass_model import PassModel
-    from ovtraj.runs.doe import bounds_arrays
 
     settings = reference.load_settings()
     context = reference.context(settings)

@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 import yaml
 
-from ovtraj.config import load_scenario
-from ovtraj.launch.fit import LaunchFit
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.runs import execute
+from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, shorten_launch_fit
 
 CODE_A, CODE_B = "cache-test-a", "cache-test-b"
@@ -157,7 +157,7 @@ def test_deorbit_monte_carlo_flow_recomputes_after_a_code_change_only(
     prefect_server, tmp_path, monkeypatch
 ):
     from flows.deorbit_monte_carlo import deorbit_monte_carlo_flow
-    from ovtraj.deorbit.burn.montecarlo import SIMULATIONS
+    from ovtraj.studies.deorbit_burn.montecarlo import SIMULATIONS
 
     data = yaml.safe_load(CASE.read_text(encoding="utf-8"))
     data["monte_carlo"].update(task_runner="threads", workers=1, store=str(tmp_path / "mc"))

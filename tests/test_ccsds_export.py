@@ -19,15 +19,15 @@ from typer.testing import CliRunner
 
 from ovtraj.astro.eme2000 import eme2000_to_teme, teme_to_eme2000
 from ovtraj.cli import app
-from ovtraj.config import load_scenario
 from ovtraj.config.base import ConfigError, model_from_dict
 from ovtraj.config.export import CcsdsExportSettings, default_export_settings
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.ccsds import export_plan, oem_text, opm_text
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError, build_plan, write_plan
-from ovtraj.paths import config_path
+from ovtraj.store.paths import config_path
+from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)
 runner = CliRunner()

@@ -222,7 +222,7 @@ def test_deorbit_burn_json_has_the_issue_keys_and_the_dispersion_statistics():
     )
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    from ovtraj.deorbit.burn.report import REPORT_KEYS
+    from ovtraj.studies.deorbit_burn.report import REPORT_KEYS
 
     assert set(REPORT_KEYS) - {"reason"} <= doc.keys()
     assert doc["converged"] is True and doc["strategy"] == 1
@@ -319,7 +319,7 @@ def test_json_alone_on_stdout_progress_on_stderr_and_quiet(tmp_path):
 def test_progress_bar_only_on_a_terminal_and_never_quiet(monkeypatch):
     from rich.console import Console
 
-    from ovtraj import cli_progress
+    from ovtraj.cli import progress as cli_progress
 
     def shown(*, quiet: bool = False, enabled: bool = True, terminal: bool = True) -> str:
         out = StringIO()

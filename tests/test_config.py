@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from ovtraj.config import ConfigError, load_scenario
+from ovtraj.config import ConfigError
+from ovtraj.target_sources import load_scenario
 from tests.conftest import build_scenario
 
 

@@ -16,10 +16,11 @@ import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from ovtraj.config import ConfigError, load_scenario
+from ovtraj.config import ConfigError
 from ovtraj.config.deorbit_burn import deorbit_burn_config_from_dict
 from ovtraj.config.maneuver import load_maneuver_config, maneuver_config_from_dict
 from ovtraj.config.optimal_entry import load_optimal_entry_config, optimal_entry_config_from_dict
+from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 CASES = REPO / "configs" / "cases"

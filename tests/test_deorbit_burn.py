@@ -30,10 +30,11 @@ import yaml
 from scipy.optimize import brentq
 
 from ovtraj.astro.elements import argument_of_latitude
+from ovtraj.astro.entry_prediction import predict_entry, state_perigee_radius
 from ovtraj.astro.frames import flight_path_angle
 from ovtraj.astro.propagation import ArgumentOfLatitudeCrossing
 from ovtraj.config import ConfigError
-from ovtraj.deorbit.burn import (
+from ovtraj.studies.deorbit_burn import (
     SIMULATIONS,
     burn_angle_study,
     deorbit_burn_from_dict,
@@ -42,12 +43,11 @@ from ovtraj.deorbit.burn import (
     run_monte_carlo,
     solve_deorbit_burn,
 )
-from ovtraj.deorbit.burn.flight import initial_state
-from ovtraj.deorbit.burn.intersection import intersection_coefficients, intersection_roots
-from ovtraj.deorbit.burn.montecarlo import STORED_RUN_SCHEMA, draw_dispersion
-from ovtraj.deorbit.burn.prediction import perigee_radius, predict_entry
-from ovtraj.deorbit.burn.solve import BurnSolver
-from ovtraj.deorbit.burn.store import MonteCarloRun, monte_carlo_run_id
+from ovtraj.studies.deorbit_burn.flight import initial_state
+from ovtraj.studies.deorbit_burn.intersection import intersection_coefficients, intersection_roots
+from ovtraj.studies.deorbit_burn.montecarlo import STORED_RUN_SCHEMA, draw_dispersion
+from ovtraj.studies.deorbit_burn.solve import BurnSolver
+from ovtraj.studies.deorbit_burn.store import MonteCarloRun, monte_carlo_run_id
 from tests.conftest import REPO
 
 CASE = REPO / "configs" / "cases" / "shuttle_deorbit.yaml"
@@ -96,7 +96,7 @@ def test_prediction_matches_the_propagated_entry_within_the_seed_accuracy(proble
     times = np.linspace(arc.t0, arc.t1, 120)
     states = arc.states(times)
     r_e = problem.entry.radius_m
-    low = perigee_radius(states[:, :3], states[:, 3:6], problem.earth.mu) <= r_e
+    low = state_perigee_radius(states[:, :3], states[:, 3:6], problem.earth.mu) <= r_e
     truth = []
     for t, s in zip(times[low], states[low], strict=True):
         end = sim.coast.propagate(s[:6], t, t + 1e4, events=[sim.entry_event])

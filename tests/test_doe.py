@@ -133,7 +133,7 @@ def test_interrupted_run_resumes_without_recomputing_finished_batches(
 
 
 def test_infeasible_deorbit_is_stored_with_its_reason(tmp_path, scenario):
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.runs import prepare_run, run_doe
 
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
@@ -228,7 +228,7 @@ def test_flow_runs_on_a_local_dask_cluster(prefect_server, tmp_path):
 
 
 def test_append_makes_a_child_run_that_reuses_the_parent_batches(tmp_path, scenario):
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.runs import prepare_run, run_doe
 
     store = RunStore(tmp_path)

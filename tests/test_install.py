@@ -180,11 +180,11 @@ def test_a_crash_is_one_line_and_exit_2_not_the_infeasible_code(installed):
 def test_the_installed_command_exports_and_flies_a_plan_with_the_shipped_settings(
     installed, tmp_path
 ):
-    from ovtraj.config import load_scenario
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
     from ovtraj.mission.plan import build_plan, write_plan
-    from ovtraj.paths import config_path
+    from ovtraj.store.paths import config_path
+    from ovtraj.target_sources import load_scenario
 
     scenario = load_scenario(config_path("scenario.yaml"))
     context = MissionContext(scenario, find_launch_fit(scenario))

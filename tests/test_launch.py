@@ -13,8 +13,8 @@ from typer.testing import CliRunner
 from ovtraj.cli import app
 from ovtraj.config import ConfigError
 from ovtraj.launch import launch_input, solve_launch
-from ovtraj.launch.fit import design_of
-from ovtraj.launch.optimize import Standing, is_better
+from ovtraj.launch.ascent_optimization import Standing, is_better
+from ovtraj.launch.launch_fit import design_of
 from ovtraj.launch.stage import insertion_time_s, nominal_azimuth_rad
 from tests.conftest import REPO, build_scenario
 

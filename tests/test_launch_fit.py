@@ -19,10 +19,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.files import StoreError
-from ovtraj.launch.fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.fourier import FourierRangeError
+from ovtraj.launch.launch_fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.result import LaunchResult
+from ovtraj.store.files import StoreError
 from tests.conftest import REPO
 
 REFERENCE = REPO / "data" / "reference" / "launch_fit" / "iss-like-rendezvous"
@@ -139,7 +139,7 @@ def test_a_stored_fit_is_never_overwritten(default_fit, tmp_path):
 
 
 def test_launch_row_nan_is_null():
-    """LaunchResult.to_row uses ovtraj.records.plain: NaN (also numpy's) becomes None."""
+    """LaunchResult.to_row uses ovtraj.store.records.plain: NaN (also numpy's) becomes None."""
     result = LaunchResult(
         feasible=False,
         reason="made up",

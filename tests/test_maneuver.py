@@ -20,7 +20,7 @@ from scipy.optimize import fsolve
 from ovtraj.astro.elements import rv_to_coe
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import ConfigError
-from ovtraj.maneuver import (
+from ovtraj.studies.maneuver import (
     burn_duration,
     comparison_rows,
     dv_budget_seed,
@@ -29,9 +29,9 @@ from ovtraj.maneuver import (
     rocket_capacity,
     solve_maneuver,
 )
-from ovtraj.maneuver.de import improved_de
-from ovtraj.maneuver.lambert import lambert
-from ovtraj.maneuver.thrust import Burn, fly
+from ovtraj.studies.maneuver.de import improved_de
+from ovtraj.studies.maneuver.lambert import lambert
+from ovtraj.studies.maneuver.thrust import Burn, fly
 from tests.conftest import REPO
 
 CASE = REPO / "configs" / "cases" / "upper_stage_rendezvous.yaml"

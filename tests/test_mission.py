@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import STAGES, MissionContext, MissionDesign, evaluate
 
 

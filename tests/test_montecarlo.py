@@ -10,11 +10,11 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from ovtraj.cli import _format_monte_carlo, app
-from ovtraj.config import load_scenario
+from ovtraj.cli import app
+from ovtraj.cli.mission import _format_monte_carlo
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig, default_dispersions
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import fly_plan
 from ovtraj.mission.montecarlo import (
@@ -30,7 +30,8 @@ from ovtraj.mission.montecarlo import (
     summarise,
 )
 from ovtraj.mission.plan import build_plan, read_plan, write_plan
-from ovtraj.paths import config_path
+from ovtraj.store.paths import config_path
+from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)
 runner = CliRunner()

@@ -74,7 +74,7 @@ def s3(tmp_path_factory):
 @pytest.fixture
 def client(s3, monkeypatch):
     """An in-process S3 client on the test server (a fresh bucket per test)."""
-    from ovtraj import storage
+    from ovtraj.store import backends as storage
 
     for key, value in s3.items():
         monkeypatch.setenv(key, value)
@@ -155,8 +155,8 @@ def test_run_show_replay_verify_and_refit_on_the_object_store(s3, client, tmp_pa
 
 
 def test_objects_are_created_once_and_checked_when_read(client):
-    from ovtraj.files import Digest, StoreError, read_bytes, write_bytes
-    from ovtraj.storage import S3Path
+    from ovtraj.store.backends import S3Path
+    from ovtraj.store.files import Digest, StoreError, read_bytes, write_bytes
 
     _, bucket = client
     path = S3Path(bucket, "a/b.bin")
@@ -173,9 +173,9 @@ def test_objects_are_created_once_and_checked_when_read(client):
 
 
 def test_a_lease_excludes_others_until_released_or_stale(client):
-    from ovtraj import locks
-    from ovtraj.files import StoreError
-    from ovtraj.storage import S3Path
+    from ovtraj.store import locks
+    from ovtraj.store.backends import S3Path
+    from ovtraj.store.files import StoreError
 
     _, bucket = client
     path = S3Path(bucket, "run/locks/batch-0.lock")

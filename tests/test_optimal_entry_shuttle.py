@@ -18,12 +18,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ovtraj.paths import config_path
-from ovtraj.reentry.pseudospectral import load_optimal_entry, solve_optimal_entry
-from ovtraj.reentry.pseudospectral.flight import fly
-from ovtraj.reentry.pseudospectral.mesh import refined_edges
-from ovtraj.reentry.pseudospectral.solve import _energy_refusal
-from ovtraj.reentry.pseudospectral.transcription import transcribe
+from ovtraj.store.paths import config_path
+from ovtraj.studies.optimal_entry import load_optimal_entry, solve_optimal_entry
+from ovtraj.studies.optimal_entry.flight import fly
+from ovtraj.studies.optimal_entry.mesh import refined_edges
+from ovtraj.studies.optimal_entry.solve import _energy_refusal
+from ovtraj.studies.optimal_entry.transcription import transcribe
 
 # Betts (2010), sec. 6.1: (final latitude [deg], final time [s]).
 PUBLISHED = {
@@ -120,8 +120,8 @@ def test_refinement_splits_the_segments_over_their_share():
 
 def test_unequal_segments_place_the_points_inside_their_edges():
     problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
-    from ovtraj.reentry.pseudospectral.formulation import formulate
-    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+    from ovtraj.studies.optimal_entry.formulation import formulate
+    from ovtraj.studies.optimal_entry.guess import guess_trajectory
 
     form = formulate(problem, "time", guess_trajectory(problem))
     edges = np.array([0.0, 0.1, 0.15, 0.6, 1.0])
@@ -138,8 +138,8 @@ def test_unequal_segments_place_the_points_inside_their_edges():
 def test_meshes_of_one_problem_share_its_node_functions_and_they_equal_its_rates():
     import casadi as ca
 
-    from ovtraj.reentry.pseudospectral.formulation import formulate
-    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+    from ovtraj.studies.optimal_entry.formulation import formulate
+    from ovtraj.studies.optimal_entry.guess import guess_trajectory
 
     problem = load_optimal_entry(config_path("cases/shuttle_crossrange_heating.yaml"))
     ocp = formulate(problem, "time", guess_trajectory(problem)).ocp
@@ -186,10 +186,10 @@ def test_compiled_flight_equals_the_numpy_model_under_scipy(case):
     """The numba re-flight against flight.py's numpy model integrated by scipy's DOP853:
     the same points and states, for splined and piecewise-linear controls and a terminal
     energy."""
-    from ovtraj.reentry.pseudospectral import flight
-    from ovtraj.reentry.pseudospectral.feasibility import control_table
-    from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable, fly_compiled
-    from ovtraj.reentry.pseudospectral.guess import target_energy
+    from ovtraj.studies.optimal_entry import flight
+    from ovtraj.studies.optimal_entry.feasibility import control_table
+    from ovtraj.studies.optimal_entry.flight_kernel import ControlTable, fly_compiled
+    from ovtraj.studies.optimal_entry.guess import target_energy
 
     problem = load_optimal_entry(config_path(f"cases/{case}"))
     t = np.linspace(0.0, 400.0, 30)
@@ -223,7 +223,7 @@ def test_compiled_flight_equals_the_numpy_model_under_scipy(case):
 
 
 def test_a_compiled_flight_with_nan_controls_fails_instead_of_hanging():
-    from ovtraj.reentry.pseudospectral.flight_kernel import ControlTable, fly_compiled
+    from ovtraj.studies.optimal_entry.flight_kernel import ControlTable, fly_compiled
 
     problem = load_optimal_entry(config_path("cases/shuttle_crossrange.yaml"))
     nan = ControlTable.constant(math.nan, 0.0)
@@ -246,8 +246,8 @@ def test_the_blockwise_constraint_jacobian_equals_casadis_whole_one(case, method
     ones); it must be CasADi's Jacobian of the whole constraint vector, entry for entry."""
     import casadi as ca
 
-    from ovtraj.reentry.pseudospectral.formulation import formulate
-    from ovtraj.reentry.pseudospectral.guess import guess_trajectory
+    from ovtraj.studies.optimal_entry.formulation import formulate
+    from ovtraj.studies.optimal_entry.guess import guess_trajectory
 
     problem = load_optimal_entry(config_path(f"cases/{case}"))
     trajectory = guess_trajectory(problem)
@@ -269,7 +269,7 @@ def test_the_compiled_us76_equals_the_librarys_from_the_ground_to_its_top():
     """The re-flight's US76 (both regions: the closed form below 86 km, the density nodes
     and temperature segments above) against ovtraj.astro.atmosphere."""
     from ovtraj.astro.atmosphere import default_atmosphere
-    from ovtraj.reentry.pseudospectral.flight_kernel import _us76, _us76_arrays
+    from ovtraj.studies.optimal_entry.flight_kernel import _us76, _us76_arrays
 
     atmosphere = default_atmosphere()
     scalars, arrays = _us76_arrays(atmosphere)

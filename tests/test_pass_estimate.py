@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config import load_scenario
 from ovtraj.deorbit.inputs import deorbit_input
 from ovtraj.deorbit.pass_estimate import first_pass_s
 from ovtraj.deorbit.stage import burn_estimate, first_burn_time_s, forecast_of
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import evaluate, reference
-from ovtraj.paths import config_path
 from ovtraj.pipeline.pass_model import PassModel
-from ovtraj.targets import circular_orbit_state
+from ovtraj.store.paths import config_path
+from ovtraj.target_sources import load_scenario
+from ovtraj.target_state import circular_orbit_state
 
 # Crossing times: mean vs osculating argument of latitude under J2 (~1e-3 rad, ~1 s) and
 # the crossing found by an event on the integrated orbit.

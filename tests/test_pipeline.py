@@ -24,7 +24,7 @@ import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline import (
@@ -515,7 +515,7 @@ def test_any_verification_or_front_is_stored_with_the_declared_schema(tmp_path):
     """NaN (a real value the chain did not reach) and all-null columns are nulls of the
     declared type; no verified point at all is an empty table of the declared schema."""
     from ovtraj.pipeline import loop
-    from ovtraj.records import table_from_frame
+    from ovtraj.store.records import table_from_frame
 
     designs = {name: [300.0, 310.0] for name in DESIGN_NAMES}
     front = pd.DataFrame(
@@ -575,7 +575,7 @@ def test_target_draconic_period_against_the_propagated_orbit(scenario):
     """The argument of latitude's mean rate, measured on a J2 propagation (second method)."""
     from ovtraj.astro.propagation import OrbitPropagator
     from ovtraj.pipeline.features import target_draconic_period
-    from ovtraj.targets import target_state
+    from ovtraj.target_state import target_state
 
     state = target_state(scenario.target.orbit, scenario)
     propagator = OrbitPropagator(scenario.earth, tol=1e-12)
@@ -719,12 +719,12 @@ def test_pinned_deorbit_burns_stay_out_of_the_deorbit_part_alone(small):
     import dataclasses
 
     from ovtraj.mission import reference
+    from ovtraj.mission.design_space import bounds_arrays
     from ovtraj.pipeline.features import (
         DEORBIT_WAIT,
         fit_mission_surrogates,
         pinned_deorbit_burns,
     )
-    from ovtraj.runs.doe import bounds_arrays
 
     # The regime: a burn the deorbit's correction pinned at the preparation orbit's start
     # (its wait 0) pays for reaching the pass (1 of 600 designs of a seeded hypercube with the
@@ -759,9 +759,9 @@ def test_pinned_deorbit_burns_stay_out_of_the_deorbit_part_alone(small):
 def test_no_prediction_leaves_its_physical_range_on_a_dense_grid(small):
     """Issue 21: T_total above the stay + t_dsp it contains, M_load inside the launch fit's
     range, each dV part above its two-body floor, on a 31 x 21 x 13 grid (8463 designs)."""
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
+    from ovtraj.mission.design_space import bounds_arrays
     from ovtraj.pipeline.features import DV_PARTS
-    from ovtraj.runs.doe import bounds_arrays
 
     doe, scenario = small["doe"], small["scenario"]
     surrogates = fit_step(doe, training_data(doe), scenario, small["code"]).surrogates

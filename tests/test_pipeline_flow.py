@@ -11,12 +11,12 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from ovtraj.files import read_parquet
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
 from ovtraj.mission.fly import fly_plan
 from ovtraj.mission.plan import read_plan
 from ovtraj.runs import RunStore, execute
+from ovtraj.store.files import read_parquet
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 

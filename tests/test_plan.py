@@ -10,10 +10,9 @@ import pytest
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.propagation.reference import propagate_dop853
-from ovtraj.config import load_scenario
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.deorbit.result import DeorbitResult
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import (
     LaunchLeg,
     MissionContext,
@@ -31,8 +30,9 @@ from ovtraj.mission.plan import (
     read_plan,
     write_plan,
 )
-from ovtraj.paths import config_path
 from ovtraj.plots.mission import mission_plots
+from ovtraj.store.paths import config_path
+from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)
 INFEASIBLE = MissionDesign(343.17, 352.06, 1.58)  # the phasing wait exceeds its limit

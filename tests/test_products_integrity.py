@@ -1,8 +1,8 @@
 """Stored products and printed results (issue 17): one records module, checked stores.
 
 - every former private copy of ``plain`` (``_plain``, ``_finite``, ``_json_default``,
-  ``_json_safe``) is gone and its user gives null for NaN (``ovtraj.records.plain``);
-- the product primitives (:mod:`ovtraj.products`): marker written last, checked reads,
+  ``_json_safe``) is gone and its user gives null for NaN (``ovtraj.store.records.plain``);
+- the product primitives (:mod:`ovtraj.store.products`): marker written last, checked reads,
   an interrupted write completed, a stored file never overwritten;
 - the deorbit-burn Monte Carlo store: declared schema, digests in the batch markers,
   a rewritten value or a missing part refused naming the file.
@@ -26,22 +26,22 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from ovtraj.deorbit.burn.montecarlo import RUN_SCHEMA, STORED_RUN_SCHEMA
-from ovtraj.deorbit.burn.store import MonteCarloRun
-from ovtraj.files import StoreError
-from ovtraj.products import Product, directory_lock
+from ovtraj.store.files import StoreError
+from ovtraj.store.products import Product, directory_lock
+from ovtraj.studies.deorbit_burn.montecarlo import RUN_SCHEMA, STORED_RUN_SCHEMA
+from ovtraj.studies.deorbit_burn.store import MonteCarloRun
 
 NAN = np.float64(math.nan)
 
 FORMER_COPIES = {
     "ovtraj.launch.result": "_plain",
-    "ovtraj.maneuver.result": "_plain",
-    "ovtraj.reentry.pseudospectral.result": "_plain",
-    "ovtraj.deorbit.burn.result": "_plain",
-    "ovtraj.deorbit.burn.report": "_plain",
+    "ovtraj.studies.maneuver.result": "_plain",
+    "ovtraj.studies.optimal_entry.result": "_plain",
+    "ovtraj.studies.deorbit_burn.result": "_plain",
+    "ovtraj.studies.deorbit_burn.report": "_plain",
     "flows.deorbit_monte_carlo": "_plain",
     "ovtraj.mission.fly": "_finite",
-    "ovtraj.deorbit.burn.store": "_json_default",
+    "ovtraj.studies.deorbit_burn.store": "_json_default",
     "ovtraj.cli": "_json_safe",
 }
 
@@ -64,10 +64,10 @@ def _all_nan(cls, **given):
 
 
 def test_result_rows_give_null_for_nan():
-    from ovtraj.deorbit.burn.result import DeorbitBurnResult
-    from ovtraj.maneuver.result import ManeuverResult
     from ovtraj.mission.fly import FlightReport
-    from ovtraj.reentry.pseudospectral.result import OptimalEntryResult
+    from ovtraj.studies.deorbit_burn.result import DeorbitBurnResult
+    from ovtraj.studies.maneuver.result import ManeuverResult
+    from ovtraj.studies.optimal_entry.result import OptimalEntryResult
 
     row = _all_nan(DeorbitBurnResult).to_row()
     assert row and all(value is None for value in row.values())
@@ -90,8 +90,8 @@ def test_result_rows_give_null_for_nan():
 
 
 def test_deorbit_burn_report_gives_null_for_nan(monkeypatch):
-    from ovtraj.deorbit.burn import report as report_module
-    from ovtraj.deorbit.burn.result import DeorbitBurnResult
+    from ovtraj.studies.deorbit_burn import report as report_module
+    from ovtraj.studies.deorbit_burn.result import DeorbitBurnResult
 
     @dataclasses.dataclass
     class Record:
@@ -121,8 +121,8 @@ def test_deorbit_burn_report_gives_null_for_nan(monkeypatch):
 
 def test_monte_carlo_statistics_give_null_for_nan():
     """The flow's and the CLI's statistics rows: one run per strategy has no spread."""
-    from ovtraj.deorbit.burn.montecarlo import monte_carlo_summary
-    from ovtraj.records import plain
+    from ovtraj.store.records import plain
+    from ovtraj.studies.deorbit_burn.montecarlo import monte_carlo_summary
 
     frame = _frame(runs=[0], strategies=[1])
     rows = [plain(row) for row in monte_carlo_summary(frame).to_dict(orient="records")]

@@ -128,7 +128,7 @@ def test_a_product_folder_that_is_a_link_or_being_written_is_kept(family, tmp_pa
             "-c",
             "import sys\n"
             "from pathlib import Path\n"
-            "from ovtraj.locks import hold_directory\n"
+            "from ovtraj.store.locks import hold_directory\n"
             "with hold_directory(Path(sys.argv[1]), wait_s=0):\n"
             "    print('held', flush=True)\n"
             "    sys.stdin.read()\n",

@@ -31,25 +31,25 @@ from scipy.optimize import brentq
 
 from ovtraj.astro.atmosphere import default_atmosphere
 from ovtraj.config import ConfigError
-from ovtraj.files import StoreError
-from ovtraj.reentry.pseudospectral import (
+from ovtraj.store.files import StoreError
+from ovtraj.studies.optimal_entry import (
     load_optimal_entry,
     optimal_entry_from_dict,
     solve_optimal_entry,
     write_histories,
 )
-from ovtraj.reentry.pseudospectral.atmosphere import us76_atmosphere
-from ovtraj.reentry.pseudospectral.collocation import (
+from ovtraj.studies.optimal_entry.atmosphere import us76_atmosphere
+from ovtraj.studies.optimal_entry.collocation import (
     collocation_scheme,
     legendre_gauss,
     legendre_gauss_radau,
 )
-from ovtraj.reentry.pseudospectral.feasibility import check_feasibility
-from ovtraj.reentry.pseudospectral.geometry import GreatCircle
-from ovtraj.reentry.pseudospectral.nlp import IPOPT_SUCCESS, NlpSettings, solve_nlp
-from ovtraj.reentry.pseudospectral.ocp import Guess, OptimalControlProblem
-from ovtraj.reentry.pseudospectral.result import CONTROLS_SCHEMA, STATES_SCHEMA
-from ovtraj.reentry.pseudospectral.transcription import transcribe
+from ovtraj.studies.optimal_entry.feasibility import check_feasibility
+from ovtraj.studies.optimal_entry.geometry import GreatCircle
+from ovtraj.studies.optimal_entry.nlp import IPOPT_SUCCESS, NlpSettings, solve_nlp
+from ovtraj.studies.optimal_entry.ocp import Guess, OptimalControlProblem
+from ovtraj.studies.optimal_entry.result import CONTROLS_SCHEMA, STATES_SCHEMA
+from ovtraj.studies.optimal_entry.transcription import transcribe
 
 REPO = Path(__file__).resolve().parents[1]
 CASE = REPO / "configs" / "cases" / "suborbital_return.yaml"

@@ -9,11 +9,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from ovtraj.config import load_scenario
-from ovtraj.launch.fit import find_launch_fit, launch_fit_key
+from ovtraj.launch.launch_fit import find_launch_fit, launch_fit_key
 from ovtraj.runs import RunStore, execute, prepare_run, run_doe
 from ovtraj.runs.store import run_id
-from ovtraj.target_sources import load_scenario_with_target
+from ovtraj.target_sources import load_scenario, load_scenario_with_target
 from tests.conftest import DEFAULT_SCENARIO, REPO
 
 EXAMPLE_TLE = REPO / "configs" / "targets" / "iss-like-2026-12-01.tle"
@@ -43,7 +42,7 @@ def test_the_example_tle_is_the_default_targets_orbit(scenario):
     """tools/example_tle.py fitted SGP4 to the hand-typed target at the epoch."""
     import numpy as np
 
-    from ovtraj.targets import target_state
+    from ovtraj.target_state import target_state
 
     replanned = load_scenario_with_target(DEFAULT_SCENARIO, str(EXAMPLE_TLE))
     typed = target_state(scenario.target.orbit, scenario)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from ovtraj.result_records import SERIALIZER, RecordError, check_record, record_serializer
+from ovtraj.store.result_records import SERIALIZER, RecordError, check_record, record_serializer
 from tests.conftest import DEFAULT_SCENARIO
 from tests.test_caching import _count, _set_code
 

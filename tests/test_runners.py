@@ -82,12 +82,12 @@ def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
 def test_runs_in_a_row_share_the_started_pool_they_are_given(tmp_path):
     """The pipeline's DoE and infill runs on one pool: a run leaves a pool it did not
     start running, and stores what the serial runner stores."""
-    from ovtraj.config import load_scenario
     from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.runs import prepare_run, run_doe
     from ovtraj.runs.execute import EVALUATIONS
     from ovtraj.runs.runners import batch_pool
+    from ovtraj.target_sources import load_scenario
 
     scenario = load_scenario(_config(tmp_path, samples=2, batch_size=1, workers=2))
     fit = find_launch_fit(scenario)

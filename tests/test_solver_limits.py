@@ -207,7 +207,7 @@ def test_reentry_newton_stops_at_its_iteration_limit():
     ],
 )
 def test_optimal_entry_stops_at_its_limits(changes, expected):
-    from ovtraj.reentry.pseudospectral import optimal_entry_from_dict, solve_optimal_entry
+    from ovtraj.studies.optimal_entry import optimal_entry_from_dict, solve_optimal_entry
 
     data = _case("suborbital_return.yaml", "solver", **changes)
     with _Clock() as clock:
@@ -232,7 +232,7 @@ def test_the_cli_exits_1_when_the_optimal_entry_runs_out_of_time(tmp_path: Path)
 
 
 def test_maneuver_search_stops_at_its_time_limit():
-    from ovtraj.maneuver import maneuver_from_dict, solve_maneuver
+    from ovtraj.studies.maneuver import maneuver_from_dict, solve_maneuver
 
     data = _case("upper_stage_rendezvous.yaml", "optimizer", time_limit_s=1e-6)
     with _Clock() as clock:
@@ -245,7 +245,7 @@ def test_maneuver_search_stops_at_its_time_limit():
 
 
 def test_scipy_de_stops_at_its_time_limit():
-    from ovtraj.maneuver.de import scipy_de
+    from ovtraj.studies.maneuver.de import scipy_de
 
     def evaluate(x):
         return x.sum(axis=1), np.zeros((len(x), 1))
@@ -276,7 +276,7 @@ def test_scipy_de_stops_at_its_time_limit():
     ],
 )
 def test_finite_burns_stop_at_their_limits(changes, expected):
-    from ovtraj.maneuver import maneuver_from_dict, solve_maneuver
+    from ovtraj.studies.maneuver import maneuver_from_dict, solve_maneuver
 
     data = _case("upper_stage_rendezvous.yaml", "finite_burn", **changes)
     data["optimizer"]["generations"] = 150  # a feasible impulse plan, quickly
@@ -296,7 +296,7 @@ def test_finite_burns_stop_at_their_limits(changes, expected):
     ],
 )
 def test_deorbit_burn_iteration_stops_at_its_limits(changes, expected):
-    from ovtraj.deorbit.burn import deorbit_burn_from_dict, solve_deorbit_burn
+    from ovtraj.studies.deorbit_burn import deorbit_burn_from_dict, solve_deorbit_burn
 
     result = solve_deorbit_burn(
         deorbit_burn_from_dict(_case("shuttle_deorbit.yaml", "guidance", **changes))

@@ -28,12 +28,12 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from ovtraj.files import Digest, StoreError, read_bytes, write_bytes
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import MissionContext
-from ovtraj.records import SchemaError, plain, record_schema, table_from_rows
 from ovtraj.runs import RunStore, execute, latin_hypercube
 from ovtraj.runs.schemas import DATASETS
+from ovtraj.store.files import Digest, StoreError, read_bytes, write_bytes
+from ovtraj.store.records import SchemaError, plain, record_schema, table_from_rows
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
@@ -279,7 +279,7 @@ def test_a_file_decoded_before_is_still_verified_on_every_read(tmp_path):
     time, so a file changed after its first read is refused, not served from memory."""
     import pyarrow as pa
 
-    from ovtraj.files import decoded_tables, parquet_bytes, read_table
+    from ovtraj.store.files import decoded_tables, parquet_bytes, read_table
 
     table = pa.table({"sample_id": pa.array([0, 1, 2], pa.int64()), "x": [1.0, 2.0, 3.0]})
     path = tmp_path / "part.parquet"
@@ -304,7 +304,7 @@ def test_a_file_decoded_before_is_still_verified_on_every_read(tmp_path):
 def test_decoded_tables_keep_the_most_recent_within_their_bound():
     import pyarrow as pa
 
-    from ovtraj.files import DecodedTables, parquet_bytes
+    from ovtraj.store.files import DecodedTables, parquet_bytes
 
     payloads = [parquet_bytes(pa.table({"x": np.arange(1000.0) + k})) for k in range(4)]
     size = DecodedTables(limit_bytes=0).get("any", payloads[0]).nbytes  # each table's
@@ -320,12 +320,12 @@ def test_decoded_tables_keep_the_most_recent_within_their_bound():
 
 
 def test_a_full_disk_is_one_error_naming_the_file_and_leaves_no_temporary(tmp_path, monkeypatch):
-    import ovtraj.files
+    import ovtraj.store.files
 
     def full(fd):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(ovtraj.files.os, "fsync", full)
+    monkeypatch.setattr(ovtraj.store.files.os, "fsync", full)
     with pytest.raises(StoreError) as caught:
         write_bytes(tmp_path / "x" / "part.parquet", b"payload")
     assert str(caught.value) == f"cannot write {tmp_path / 'x' / 'part.parquet'}: no space " + (
@@ -552,7 +552,7 @@ def test_decoded_tables_serve_reader_threads_within_their_bound():
 
     import pyarrow as pa
 
-    from ovtraj.files import DecodedTables, parquet_bytes
+    from ovtraj.store.files import DecodedTables, parquet_bytes
 
     payloads = [parquet_bytes(pa.table({"x": np.full(200, float(k))})) for k in range(24)]
     keys = [Digest.of(p).sha256 for p in payloads]

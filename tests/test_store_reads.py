@@ -20,9 +20,9 @@ from pathlib import Path
 
 import pytest
 
-from ovtraj import locks
-from ovtraj.files import StoreError
 from ovtraj.runs import RunStore
+from ovtraj.store import locks
+from ovtraj.store.files import StoreError
 from tests.conftest import DEFAULT_SCENARIO
 
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))

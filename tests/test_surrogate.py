@@ -18,8 +18,8 @@ from sklearn.metrics import r2_score
 from sklearn.model_selection import KFold
 from smt.surrogate_models import QP, RBF
 
-from ovtraj.files import StoreError
 from ovtraj.plots.surrogate import parity_plots
+from ovtraj.store.files import StoreError
 from ovtraj.surrogate import (
     SurrogateError,
     SurrogateSet,
@@ -29,7 +29,7 @@ from ovtraj.surrogate import (
 )
 from ovtraj.surrogate import candidates as candidates_module
 from ovtraj.surrogate import validation as validation_module
-from ovtraj.surrogate.fit import PREDICTIONS_SCHEMA, STORED_VALIDATION_SCHEMA
+from ovtraj.surrogate.surrogate_set import PREDICTIONS_SCHEMA, STORED_VALIDATION_SCHEMA
 from ovtraj.surrogate.validation import holdout_mask
 
 NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
@@ -662,7 +662,7 @@ def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
 def test_a_shortlist_compares_the_first_fits_best_candidates_only(fitted, settings):
     """``selection: shortlist``: each output's two lowest-CV-RMSE candidates of a fit, and
     its classifier; a fit given them compares only those, with the same figures."""
-    from ovtraj.surrogate.fit import shortlist
+    from ovtraj.surrogate.surrogate_set import shortlist
 
     fit = fitted[0]
     kept = shortlist(fit.validation, 2)

@@ -1,5 +1,5 @@
 """Tamper evidence (issue 44, row 4): HMAC seals on manifests and markers under a key
-kept outside the store (``OVTRAJ_STORE_KEY``, :mod:`ovtraj.seals`).
+kept outside the store (``OVTRAJ_STORE_KEY``, :mod:`ovtraj.store.seals`).
 
 An attacker who can write the store but has no key rewrites a totals file and its batch
 marker with the new size and SHA-256, as the checksums alone cannot see. The stores are
@@ -22,14 +22,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from ovtraj.deorbit.burn.store import MonteCarloRun
-from ovtraj.files import StoreError
-from ovtraj.launch.fit import find_launch_fit
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionDesign, MissionRecord, reference
-from ovtraj.paths import reference_dir
-from ovtraj.products import Product
 from ovtraj.runs import RunStore, execute, latin_hypercube
-from ovtraj.seals import STORE_KEY_ENV, TamperedError
+from ovtraj.store.files import StoreError
+from ovtraj.store.paths import reference_dir
+from ovtraj.store.products import Product
+from ovtraj.store.seals import STORE_KEY_ENV, TamperedError
+from ovtraj.studies.deorbit_burn.store import MonteCarloRun
 from tests.test_products_integrity import _frame
 
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))

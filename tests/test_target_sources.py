@@ -32,7 +32,7 @@ from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.astro.teme import teme_to_eci
 from ovtraj.cli import app
-from ovtraj.config import ConfigError, OrbitElementsConfig, load_scenario, scenario_from_dict
+from ovtraj.config import ConfigError, OrbitElementsConfig, scenario_from_dict
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.scenario import Scenario, TargetSourceSettings
 from ovtraj.config.target import default_source_settings
@@ -43,10 +43,11 @@ from ovtraj.target_sources import (
     element_sets_from_text,
     fit_target,
     fitted_target,
+    load_scenario,
     read_source,
     scenario_with_target_source,
 )
-from ovtraj.targets import target_state
+from ovtraj.target_state import target_state
 from tests.conftest import DEFAULT_SCENARIO, REPO
 
 DATA = REPO / "tests" / "data" / "targets"
@@ -134,7 +135,7 @@ def test_fitted_mean_elements_follow_sgp4_over_a_day(
     assert fit.max_error_m / 1e3 < bound_km
     # The fit beats flying SGP4's own state at the epoch with the J2 model.
     t = np.linspace(0.0, fit.span_s, 97)
-    from ovtraj.target_sources.ephemeris import sgp4_eci
+    from ovtraj.element_sets.ephemeris import sgp4_eci
 
     r_ref, v_ref = sgp4_eci(elements, fit.epoch, t, omega=default_earth().omega)
     propagator = OrbitPropagator(default_earth(), tol=1e-12)
@@ -159,7 +160,7 @@ def test_tle_elements_typed_as_mean_elements_are_another_orbit(settings):
     )
     r0, v0 = mean_to_state(typed, mu=earth.mu, radius=earth.radius, j2=earth.j2)
     t = np.linspace(0.0, 86400.0, 1441)
-    from ovtraj.target_sources.ephemeris import sgp4_eci
+    from ovtraj.element_sets.ephemeris import sgp4_eci
 
     r_ref, _ = sgp4_eci(elements, elements.epoch, t, omega=earth.omega)
     flown = OrbitPropagator(earth, tol=1e-12).propagate_grid(np.r_[r0, v0], 0.0, t)[:, :3]
@@ -396,16 +397,18 @@ def test_hand_typed_target_dumps_as_before(shipped):
 
 
 def test_scenario_with_a_tle_file_beside_it(tmp_path, monkeypatch):
-    """``tle_file`` relative to the scenario's folder (the validation context's
-    ``source_dir``, which the loader sets; not the current directory) is read at load
-    time and inlined; the stages get the fitted state; the resolved scenario replays
-    with the file gone."""
+    """``tle_file`` relative to the scenario's folder (not the current directory) is read
+    by the loader and inlined; the stages get the fitted state; the resolved scenario
+    replays with the file gone. Validation alone reads no file (issue 45): it refuses a
+    ``tle_file`` it was given, naming the loader."""
     (tmp_path / "targets").mkdir()
     (tmp_path / "targets" / "iss.tle").write_text(ISS_TLE.read_text(), encoding="utf-8")
     path = _scenario_file(tmp_path, tle_file="targets/iss.tle")
     monkeypatch.chdir(REPO)
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    scenario = Scenario.model_validate(data, context={"source_dir": tmp_path})
+    with pytest.raises(ConfigError, match="tle_file: a file or URL is read by the scenario loader"):
+        scenario_from_dict(data)
+    scenario = load_scenario(path)
     target = scenario.resolved()["target"]
     assert "tle_file" not in target and target["tle"] == ISS_TLE.read_text().splitlines()
     fit = fitted_target(scenario)

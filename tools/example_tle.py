@@ -20,9 +20,10 @@ from scipy.optimize import least_squares
 from sgp4.api import WGS72, Satrec
 from sgp4.exporter import export_tle
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config import load_scenario
-from ovtraj.targets import target_state
+from ovtraj.target_sources import load_scenario
+from ovtraj.target_state import target_state
 
 ROOT = Path(__file__).resolve().parents[1]
 OUTPUT = ROOT / "configs" / "targets" / "iss-like-2026-12-01.tle"
@@ -33,7 +34,7 @@ SGP4_EPOCH0 = Epoch.from_iso("1949-12-31T00:00:00Z")
 def _satrec(x: np.ndarray, epoch_days: float) -> Satrec:
     """SGP4 of nonsingular mean elements ``(n [rad/min], ex, ey, i, raan, u) [rad]``."""
     n, ex, ey, i, raan, u = x
-    argp = math.atan2(ey, ex) % (2.0 * math.pi)
+    argp = math.atan2(ey, ex) % TWO_PI
     sat = Satrec()
     sat.sgp4init(
         WGS72,
@@ -46,9 +47,9 @@ def _satrec(x: np.ndarray, epoch_days: float) -> Satrec:
         math.hypot(ex, ey),
         argp,
         i,
-        (u - argp) % (2.0 * math.pi),
+        (u - argp) % TWO_PI,
         n,
-        raan % (2.0 * math.pi),
+        raan % TWO_PI,
     )
     return sat
 

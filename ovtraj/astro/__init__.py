@@ -1,1 +1,1 @@
-"""Astrodynamics core: constants, time, frames, elements, atmosphere, propagation."""
+"""Astrodynamics core: angles, constants, time, frames, elements, atmosphere, propagation."""

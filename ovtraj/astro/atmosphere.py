@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from ovtraj.paths import config_path, read_yaml
+from ovtraj.store.paths import config_path, read_yaml
 
 __all__ = [
     "Atmosphere",

@@ -8,12 +8,13 @@ only has to pass a different :class:`EarthModel`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from ovtraj.paths import config_path, read_yaml
+from ovtraj.store.paths import config_path, read_yaml
 
 
 class EarthModel(BaseModel):
@@ -61,3 +62,13 @@ def load_earth(path: str | Path) -> EarthModel:
 def default_earth() -> EarthModel:
     """The project's Earth model, ``configs/earth.yaml``."""
     return load_earth(config_path("earth.yaml"))
+
+
+@dataclass(frozen=True)
+class EarthConstants:
+    """mu [m^3/s^2], equatorial radius [m], J2 [-] (0 when J2 is off), g0 [m/s^2]."""
+
+    mu: float
+    radius: float
+    j2: float
+    g0: float

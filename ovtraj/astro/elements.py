@@ -4,8 +4,10 @@ Conventions
 -----------
 * SI units: metres, seconds, radians. States are arrays shaped ``(..., 3)``;
   every function vectorises over the leading axes and also accepts scalars.
-* Angles returned by the state -> elements conversions are wrapped to
-  ``[0, 2*pi)``; the inclination lies in ``[0, pi]``.
+* Angles returned by the state -> elements conversions are reduced with
+  ``numpy.mod(angle, 2*pi)``: ``[0, 2*pi)``, except that an angle within half an ulp
+  below 0 comes out as ``2*pi`` (:mod:`ovtraj.astro.angles`); the inclination lies in
+  ``[0, pi]``.
 * The gravitational parameter ``mu`` [m^3/s^2] is always a keyword argument:
   nothing here reads a configuration.
 
@@ -35,12 +37,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.vectors import cross
 
 FloatOrArray = float | NDArray[np.float64]
 
 _EPS = float(np.finfo(float).eps)
-_TWO_PI = 2.0 * np.pi
 # A computed eccentricity (or sin i) this small is rounding noise from r and v
 # (their products carry a few ulps), so the angle it would define is arbitrary.
 _DEGENERATE_TOL = 256.0 * _EPS
@@ -115,15 +117,6 @@ def _scalar_or_array(x: NDArray[np.float64]) -> FloatOrArray:
     return x[()] if np.ndim(x) == 0 else x
 
 
-def _wrap_2pi(angle: ArrayLike) -> NDArray[np.float64]:
-    return np.mod(angle, _TWO_PI)
-
-
-def _wrap_pi(angle: ArrayLike) -> NDArray[np.float64]:
-    """Wrap to [-pi, pi): for differences of angles."""
-    return np.mod(np.asarray(angle) + np.pi, _TWO_PI) - np.pi
-
-
 def _dot(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.einsum("...k,...k->...", x, y)
 
@@ -157,14 +150,54 @@ def _in_plane_basis(
     return node_hat, ahead_hat
 
 
-def _eccentricity_vector(
+def eccentricity_vector(
     r: NDArray[np.float64], v: NDArray[np.float64], mu: float
 ) -> NDArray[np.float64]:
-    """Eccentricity vector e = ((v^2 - mu/r) r - (r.v) v) / mu (Vallado 2013, Algorithm 9)."""
-    r_norm = _norm(r)[..., None]
-    v_sq = _dot(v, v)[..., None]
-    r_dot_v = _dot(r, v)[..., None]
+    """Eccentricity vector [-] of states ``r`` [m], ``v`` [m/s] shaped (..., 3).
+
+    e = ((v^2 - mu/|r|) r - (r.v) v) / mu (Vallado 2013, Algorithm 9, RV2COE), its
+    magnitude the eccentricity and its direction the periapsis; ``mu`` [m^3/s^2]. The
+    dot products are taken with ``numpy.einsum`` over the last axis, for one state as
+    for many: :func:`eccentricity_vector_from_dots` is the same formula on dot
+    products the caller already holds.
+    """
+    return eccentricity_vector_from_dots(
+        r, v, _norm(r)[..., None], _dot(v, v)[..., None], _dot(r, v)[..., None], mu
+    )
+
+
+def eccentricity_vector_from_dots(
+    r: NDArray[np.float64],
+    v: NDArray[np.float64],
+    r_norm: FloatOrArray,
+    v_sq: FloatOrArray,
+    r_dot_v: FloatOrArray,
+    mu: float,
+) -> NDArray[np.float64]:
+    """:func:`eccentricity_vector` from ``|r|`` [m], ``v.v`` [m^2/s^2] and ``r.v``
+    [m^2/s] computed by the caller (broadcast against ``r`` and ``v``).
+
+    For callers that need these products anyway (vis-viva, angular momentum) and take
+    them with their own routine: a BLAS dot product (``r @ v``) and ``numpy.einsum`` can
+    differ in the last bit, so passing them keeps each caller's results as they were.
+    """
     return ((v_sq - mu / r_norm) * r - r_dot_v * v) / mu
+
+
+def perigee_radius(a: FloatOrArray, e: FloatOrArray) -> FloatOrArray:
+    """Periapsis radius r_p = a (1 - e) [unit of ``a``] of a conic of semi-major axis
+    ``a`` and eccentricity ``e`` [-], a hyperbola (a < 0, e > 1) included (Vallado 2013,
+    ch. 1, conic sections). Equal to :func:`perigee_radius_from_semi_latus_rectum` with
+    p = a (1 - e^2) up to rounding."""
+    return a * (1.0 - e)
+
+
+def perigee_radius_from_semi_latus_rectum(p: FloatOrArray, e: FloatOrArray) -> FloatOrArray:
+    """Periapsis radius r_p = p / (1 + e) [unit of ``p``]: the trajectory equation
+    r = p / (1 + e cos(nu)) at nu = 0 (Vallado 2013, ch. 1; Battin, "An Introduction to
+    the Mathematics and Methods of Astrodynamics", rev. ed., 1999, p. 117), with
+    p = h^2 / mu the semi-latus rectum; regular for every conic, the parabola included."""
+    return p / (1.0 + e)
 
 
 def _semi_major_axis(
@@ -227,7 +260,7 @@ def _plane_geometry(
     safe_node_norm = np.where(equatorial, 1.0, node_norm)
     x_hat = np.broadcast_to(np.array([1.0, 0.0, 0.0]), node.shape)
     node_hat = np.where(equatorial[..., None], x_hat, node / safe_node_norm[..., None])
-    raan = np.where(equatorial, 0.0, _wrap_2pi(np.arctan2(node[..., 1], node[..., 0])))
+    raan = np.where(equatorial, 0.0, np.mod(np.arctan2(node[..., 1], node[..., 0]), TWO_PI))
     ahead_hat = cross(h_hat, node_hat)
     return _PlaneGeometry(h_hat=h_hat, node_hat=node_hat, ahead_hat=ahead_hat, i=i, raan=raan)
 
@@ -288,8 +321,8 @@ def mean_to_eccentric_anomaly(
         raise ValueError("Kepler's equation here is for elliptic orbits, 0 <= e < 1")
     if M.ndim == 0:
         return _eccentric_anomaly_single(float(M), float(e), tol, max_iter)
-    revolutions = np.round(M / _TWO_PI)
-    M_reduced = M - _TWO_PI * revolutions
+    revolutions = np.round(M / TWO_PI)
+    M_reduced = M - TWO_PI * revolutions
     E = np.where(M_reduced > 0.0, M_reduced + e, M_reduced - e)
     for _ in range(max_iter):
         step = (E - e * np.sin(E) - M_reduced) / (1.0 - e * np.cos(E))
@@ -298,14 +331,14 @@ def mean_to_eccentric_anomaly(
             break
     else:
         raise RuntimeError(f"Kepler's equation did not converge in {max_iter} iterations")
-    return _scalar_or_array(E + _TWO_PI * revolutions)
+    return _scalar_or_array(E + TWO_PI * revolutions)
 
 
 def _eccentric_anomaly_single(M: float, e: float, tol: float, max_iter: int) -> float:
     """:func:`mean_to_eccentric_anomaly` of one angle on floats (the same iteration; the
     J2 mean-element inversion solves ~6 per state, a third of its time on 0-d arrays)."""
-    revolutions = round(M / _TWO_PI)
-    M_reduced = M - _TWO_PI * revolutions
+    revolutions = round(M / TWO_PI)
+    M_reduced = M - TWO_PI * revolutions
     E = M_reduced + e if M_reduced > 0.0 else M_reduced - e
     for _ in range(max_iter):
         step = (E - e * math.sin(E) - M_reduced) / (1.0 - e * math.cos(E))
@@ -314,7 +347,7 @@ def _eccentric_anomaly_single(M: float, e: float, tol: float, max_iter: int) -> 
             break
     else:
         raise RuntimeError(f"Kepler's equation did not converge in {max_iter} iterations")
-    return E + _TWO_PI * revolutions
+    return E + TWO_PI * revolutions
 
 
 def true_to_mean_anomaly(nu: ArrayLike, e: ArrayLike) -> FloatOrArray:
@@ -368,7 +401,7 @@ def mean_motion(a: ArrayLike, *, mu: float) -> FloatOrArray:
 def orbital_period(a: ArrayLike, *, mu: float) -> FloatOrArray:
     """Keplerian period T = 2 pi sqrt(a^3 / mu) [s]; a > 0 [m], mu [m^3/s^2]."""
     a = _as_float(a)
-    return _scalar_or_array(_TWO_PI * np.sqrt(a**3 / mu))
+    return _scalar_or_array(TWO_PI * np.sqrt(a**3 / mu))
 
 
 # --------------------------------------------------------------------------- #
@@ -433,10 +466,12 @@ def rv_to_coe(
     """
     r, v = np.broadcast_arrays(_as_float(r), _as_float(v))
     plane = _plane_geometry(r, v, equatorial_tol)
-    ecc_vec = _eccentricity_vector(r, v, mu)
+    ecc_vec = eccentricity_vector(r, v, mu)
     e = _norm(ecc_vec)
     circular = e <= circular_tol
-    argp = np.where(circular, 0.0, _wrap_2pi(_angle_about(plane.node_hat, ecc_vec, plane.h_hat)))
+    argp = np.where(
+        circular, 0.0, np.mod(_angle_about(plane.node_hat, ecc_vec, plane.h_hat), TWO_PI)
+    )
     u = _angle_about(plane.node_hat, r, plane.h_hat)
     return ClassicalElements(
         a=_scalar_or_array(_semi_major_axis(r, v, mu)),
@@ -444,7 +479,7 @@ def rv_to_coe(
         i=_scalar_or_array(plane.i),
         raan=_scalar_or_array(plane.raan),
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(_wrap_2pi(u - argp)),
+        nu=_scalar_or_array(np.mod(u - argp, TWO_PI)),
     )
 
 
@@ -457,7 +492,7 @@ def argument_of_latitude(r: ArrayLike, v: ArrayLike) -> FloatOrArray:
     """
     r, v = np.broadcast_arrays(_as_float(r), _as_float(v))
     plane = _plane_geometry(r, v, _DEGENERATE_TOL)
-    return _scalar_or_array(_wrap_2pi(_angle_about(plane.node_hat, r, plane.h_hat)))
+    return _scalar_or_array(np.mod(_angle_about(plane.node_hat, r, plane.h_hat), TWO_PI))
 
 
 # --------------------------------------------------------------------------- #
@@ -495,7 +530,7 @@ def rv_to_nonsingular(
     """
     r, v = np.broadcast_arrays(_as_float(r), _as_float(v))
     plane = _plane_geometry(r, v, equatorial_tol)
-    ecc_vec = _eccentricity_vector(r, v, mu)
+    ecc_vec = eccentricity_vector(r, v, mu)
     return NonsingularElements(
         a=_scalar_or_array(_semi_major_axis(r, v, mu)),
         ex=_scalar_or_array(_dot(ecc_vec, plane.node_hat)),
@@ -503,7 +538,7 @@ def rv_to_nonsingular(
         i=_scalar_or_array(plane.i),
         raan=_scalar_or_array(plane.raan),
         u=_scalar_or_array(
-            _wrap_2pi(np.arctan2(_dot(r, plane.ahead_hat), _dot(r, plane.node_hat)))
+            np.mod(np.arctan2(_dot(r, plane.ahead_hat), _dot(r, plane.node_hat)), TWO_PI)
         ),
     )
 
@@ -517,21 +552,21 @@ def classical_to_nonsingular(coe: ClassicalElements) -> NonsingularElements:
         ey=_scalar_or_array(e * np.sin(argp)),
         i=coe.i,
         raan=coe.raan,
-        u=_scalar_or_array(_wrap_2pi(argp + _as_float(coe.nu))),
+        u=_scalar_or_array(np.mod(argp + _as_float(coe.nu), TWO_PI)),
     )
 
 
 def nonsingular_to_classical(el: NonsingularElements) -> ClassicalElements:
     """Back to classical elements; argp = atan2(ey, ex), which is 0 when e = 0."""
     ex, ey = _as_float(el.ex), _as_float(el.ey)
-    argp = _wrap_2pi(np.arctan2(ey, ex))
+    argp = np.mod(np.arctan2(ey, ex), TWO_PI)
     return ClassicalElements(
         a=el.a,
         e=_scalar_or_array(np.hypot(ex, ey)),
         i=el.i,
         raan=el.raan,
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(_wrap_2pi(_as_float(el.u) - argp)),
+        nu=_scalar_or_array(np.mod(_as_float(el.u) - argp, TWO_PI)),
     )
 
 
@@ -583,14 +618,14 @@ def rv_to_equinoctial(r: ArrayLike, v: ArrayLike, *, mu: float) -> EquinoctialEl
     p = w_hat[..., 0] / (1.0 + w_hat[..., 2])
     q = -w_hat[..., 1] / (1.0 + w_hat[..., 2])
     f_hat, g_hat = _equinoctial_basis(p, q)
-    ecc_vec = _eccentricity_vector(r, v, mu)
+    ecc_vec = eccentricity_vector(r, v, mu)
     return EquinoctialElements(
         a=_scalar_or_array(_semi_major_axis(r, v, mu)),
         h=_scalar_or_array(_dot(ecc_vec, g_hat)),
         k=_scalar_or_array(_dot(ecc_vec, f_hat)),
         p=_scalar_or_array(p),
         q=_scalar_or_array(q),
-        L=_scalar_or_array(_wrap_2pi(np.arctan2(_dot(r, g_hat), _dot(r, f_hat)))),
+        L=_scalar_or_array(np.mod(np.arctan2(_dot(r, g_hat), _dot(r, f_hat)), TWO_PI)),
     )
 
 
@@ -605,21 +640,21 @@ def classical_to_equinoctial(coe: ClassicalElements) -> EquinoctialElements:
         k=_scalar_or_array(e * np.cos(varpi)),
         p=_scalar_or_array(tan_half_i * np.sin(raan)),
         q=_scalar_or_array(tan_half_i * np.cos(raan)),
-        L=_scalar_or_array(_wrap_2pi(varpi + _as_float(coe.nu))),
+        L=_scalar_or_array(np.mod(varpi + _as_float(coe.nu), TWO_PI)),
     )
 
 
 def equinoctial_to_classical(el: EquinoctialElements) -> ClassicalElements:
     """Inverse of :func:`classical_to_equinoctial`; raan := 0 when i = 0, argp := 0 when e = 0."""
     h, k, p, q = (_as_float(x) for x in (el.h, el.k, el.p, el.q))
-    raan = _wrap_2pi(np.arctan2(p, q))
+    raan = np.mod(np.arctan2(p, q), TWO_PI)
     e = np.hypot(h, k)
-    argp = np.where(e > 0.0, _wrap_2pi(np.arctan2(h, k) - raan), 0.0)
+    argp = np.where(e > 0.0, np.mod(np.arctan2(h, k) - raan, TWO_PI), 0.0)
     return ClassicalElements(
         a=el.a,
         e=_scalar_or_array(e),
         i=_scalar_or_array(2.0 * np.arctan(np.hypot(p, q))),
         raan=_scalar_or_array(raan),
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(_wrap_2pi(_as_float(el.L) - raan - argp)),
+        nu=_scalar_or_array(np.mod(_as_float(el.L) - raan - argp, TWO_PI)),
     )

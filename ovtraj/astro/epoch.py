@@ -28,6 +28,8 @@ from datetime import UTC, datetime, timedelta
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_two_pi
+
 __all__ = [
     "J2000_JD",
     "JULIAN_CENTURY_DAYS",
@@ -57,8 +59,6 @@ _IAU82_GMST_S1_EXCESS = 8640184.812866
 _IAU82_GMST_S2 = 0.093104
 _IAU82_GMST_S3 = -6.2e-6
 
-_TWO_PI = 2.0 * math.pi
-
 # Algorithm 14 ignores the Gregorian century rule, so it is right only between
 # 1900 March 1 and 2100 February 28 (Vallado, remark after Alg. 14).
 _JULIAN_DATE_FIRST_VALID = (1900, 3, 1)
@@ -74,12 +74,6 @@ _ISO_FORMAT_HINT = (
     "ISO 8601 date-time, e.g. '2026-03-01T12:00:00Z', '2026-03-01T14:00:00+02:00' "
     "or '2026-03-01T12:00:00' (naive = UTC)"
 )
-
-
-def _wrap_two_pi(angle: np.ndarray) -> np.ndarray:
-    """Reduce angles to [0, 2pi); np.mod alone can return 2pi for tiny negatives."""
-    wrapped = np.mod(angle, _TWO_PI)
-    return np.where(wrapped >= _TWO_PI, 0.0, wrapped)
 
 
 def _date_key(year: ArrayLike, month: ArrayLike, day: ArrayLike) -> np.ndarray:
@@ -174,7 +168,7 @@ def gmst_rad(jd1: ArrayLike, jd2: ArrayLike = 0.0) -> float | np.ndarray:
         + _IAU82_GMST_S0
         + t_ut1 * (_IAU82_GMST_S1_EXCESS + t_ut1 * (_IAU82_GMST_S2 + t_ut1 * _IAU82_GMST_S3))
     )
-    return _as_float_or_array(_wrap_two_pi(gmst_s * (_TWO_PI / SECONDS_PER_DAY)))
+    return _as_float_or_array(wrap_to_two_pi(gmst_s * (TWO_PI / SECONDS_PER_DAY)))
 
 
 @dataclass(frozen=True, order=True)

@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.astro.vectors import cross
 
 __all__ = [
@@ -51,14 +52,6 @@ __all__ = [
     "rsw_to_eci",
     "spherical_to_ecef_state",
 ]
-
-_TWO_PI = 2.0 * np.pi
-
-
-def _wrap_two_pi(angle: np.ndarray) -> np.ndarray:
-    """Reduce angles to [0, 2pi); np.mod alone can return 2pi for tiny negatives."""
-    wrapped = np.mod(angle, _TWO_PI)
-    return np.where(wrapped >= _TWO_PI, 0.0, wrapped)
 
 
 def _scalar_or_array(value: np.ndarray) -> float | np.ndarray:
@@ -405,7 +398,7 @@ def heading(r_eci: ArrayLike, v_rel_eci: ArrayLike) -> float | np.ndarray:
     basis = local_north_east_up(lat, lon)
     v_north = _dot(basis[..., 0, :], v_rel_eci)
     v_east = _dot(basis[..., 1, :], v_rel_eci)
-    return _scalar_or_array(_wrap_two_pi(np.arctan2(v_east, v_north)))
+    return _scalar_or_array(wrap_to_two_pi(np.arctan2(v_east, v_north)))
 
 
 def great_circle_distance(

@@ -64,6 +64,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
 from ovtraj.astro.elements import (
     FloatOrArray,
     NonsingularElements,
@@ -75,7 +76,6 @@ from ovtraj.astro.elements import (
 )
 
 _EPS = float(np.finfo(float).eps)
-_TWO_PI = 2.0 * np.pi
 # The fixed-point inversion contracts by a factor ~J2 per step; it stops when
 # the relative correction is at rounding level (a few ulps) in every element.
 _INVERSION_TOL = 64.0 * _EPS
@@ -88,10 +88,6 @@ def _as_float(x: ArrayLike) -> NDArray[np.float64]:
 
 def _scalar_or_array(x: NDArray[np.float64]) -> FloatOrArray:
     return x[()] if np.ndim(x) == 0 else x
-
-
-def _wrap_pi(angle: ArrayLike) -> NDArray[np.float64]:
-    return np.mod(np.asarray(angle) + np.pi, _TWO_PI) - np.pi
 
 
 # --------------------------------------------------------------------------- #
@@ -208,8 +204,8 @@ def propagate_mean(
         ex=_scalar_or_array(ex_t),
         ey=_scalar_or_array(ey_t),
         i=_scalar_or_array(np.array(i_t)),
-        raan=_scalar_or_array(np.mod(raan + np.asarray(raan_dot) * dt, _TWO_PI)),
-        u=_scalar_or_array(np.mod(u_t, _TWO_PI)),
+        raan=_scalar_or_array(np.mod(raan + np.asarray(raan_dot) * dt, TWO_PI)),
+        u=_scalar_or_array(np.mod(u_t, TWO_PI)),
     )
 
 
@@ -264,7 +260,7 @@ def _short_period_corrections(
     cos_2u_m_f, sin_2u_m_f = np.cos(2.0 * u - f), np.sin(2.0 * u - f)
     cos_2u_p_f, sin_2u_p_f = np.cos(2.0 * u + f), np.sin(2.0 * u + f)
     # true minus mean anomaly (equation of the centre), bounded by ~2e
-    centre = _wrap_pi(u - lam)
+    centre = wrap_to_pi(u - lam)
 
     da = (
         a
@@ -333,8 +329,8 @@ def _from_lambda_tuple(x: tuple[NDArray[np.float64], ...]) -> NonsingularElement
         ex=_scalar_or_array(ex),
         ey=_scalar_or_array(ey),
         i=_scalar_or_array(i),
-        raan=_scalar_or_array(np.mod(raan, _TWO_PI)),
-        u=_scalar_or_array(np.mod(u, _TWO_PI)),
+        raan=_scalar_or_array(np.mod(raan, TWO_PI)),
+        u=_scalar_or_array(np.mod(u, TWO_PI)),
     )
 
 
@@ -384,7 +380,7 @@ def osculating_to_mean(
         image = _mean_to_osculating_lambda(x, radius=radius, j2=j2)
         residual = [t - y for t, y in zip(target, image, strict=True)]
         for k in angle_slots:
-            residual[k] = _wrap_pi(residual[k])
+            residual[k] = wrap_to_pi(residual[k])
         x = tuple(xk + rk for xk, rk in zip(x, residual, strict=True))
         # One array of every correction (a is relative): one reduction per iteration.
         scaled = np.abs(np.array(residual, dtype=float))

@@ -1,4 +1,5 @@
-"""Configuration: pydantic models of scenarios and settings, loaded from YAML."""
+"""Configuration: pydantic models of scenarios and settings (validation only: a scenario
+file is read by :func:`ovtraj.target_sources.load_scenario`, its target sources too)."""
 
 from ovtraj.config.base import ConfigError
 from ovtraj.config.scenario import (
@@ -10,7 +11,6 @@ from ovtraj.config.scenario import (
     TargetConfig,
     TolerancesConfig,
     VehicleConfig,
-    load_scenario,
     scenario_from_dict,
 )
 
@@ -24,6 +24,5 @@ __all__ = [
     "TargetConfig",
     "TolerancesConfig",
     "VehicleConfig",
-    "load_scenario",
     "scenario_from_dict",
 ]

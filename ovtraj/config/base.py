@@ -30,8 +30,8 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
-from ovtraj.formatting import printable
-from ovtraj.paths import read_yaml
+from ovtraj.errors import ConfigError
+from ovtraj.store.paths import read_yaml
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -135,26 +135,6 @@ def bounded(
         json_schema_extra={"allowed": allowed},
         **kwargs,
     )
-
-
-class ConfigError(ValueError):
-    """A configuration that cannot be used: one line naming the file and the field, or
-    a heading and one line per offending field when there are several."""
-
-    def __init__(self, problems: list[str], source: str = "") -> None:
-        self.problems = problems
-        self.source = source
-        # the source is a path or a URL from the user: one printable line
-        head = f"invalid configuration{f' in {printable(source)}' if source else ''}:"
-        if len(problems) == 1:
-            super().__init__(f"{head} {problems[0]}")
-        else:
-            super().__init__("\n".join([head, *(f"  - {p}" for p in problems)]))
-
-    def __reduce__(self) -> tuple[type[ConfigError], tuple[list[str], str]]:
-        # Raised in a worker process, it is pickled back: rebuilt from its problems, not
-        # from the formatted message (which a list of problems would read as characters).
-        return type(self), (self.problems, self.source)
 
 
 def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[FieldInfo | None, list]:
@@ -338,14 +318,19 @@ def load_model(model: type[ModelT], path: str | Path) -> ModelT:
 
     The file is read only if it is a regular file within ``config_file_max_kib``
     (``configs/io_limits.yaml``), and YAML anchors and aliases are refused
-    (:func:`ovtraj.paths.read_yaml`).
+    (:func:`ovtraj.store.paths.read_yaml`).
     """
+    path = Path(path)
+    return model_from_dict(model, yaml_data(path), str(path), source_dir=path.resolve().parent)
+
+
+def yaml_data(path: Path) -> Any:
+    """The data of the YAML file ``path``, read and parsed as :func:`load_model` does
+    (ConfigError naming the file)."""
     from ovtraj.config.io_limits import read_config_file
 
-    path = Path(path)
     text = read_config_file(path)
     try:
-        data = parse_yaml(text)
+        return parse_yaml(text)
     except ValueError as err:
         raise ConfigError([str(err)], str(path)) from None
-    return model_from_dict(model, data, str(path), source_dir=path.resolve().parent)

@@ -5,7 +5,7 @@ is the seed's published case): Earth constants, the waiting orbit, the vehicle (
 specific impulse), the entry requirements, the guidance settings (cut-off strategy, burn
 angle, gain k_u of seed eq. 27, tolerances), the burn-angle study, the Monte Carlo
 dispersions and the published figures the results are compared with. Angles are in degrees
-and distances in km in the file (the key names say so); :mod:`ovtraj.deorbit.burn.problem`
+and distances in km in the file (the key names say so); :mod:`ovtraj.studies.deorbit_burn.problem`
 converts to SI once. Every bounded field names its unit and allowed range, so a bad value is
 refused as ``guidance.gain_ku = 1.5: out of range, allowed [0.1, 0.9]``.
 """

@@ -3,7 +3,7 @@
 * the size of a config, scenario, launcher, dispersions, export-settings or plan file
   (:func:`read_config_file`; element sets have ``url_max_mib`` of
   ``configs/target_sources.yaml``), read only if it is a regular file
-  (:func:`ovtraj.paths.read_text_file`);
+  (:func:`ovtraj.store.paths.read_text_file`);
 * the characters of a value or a name echoed in an error line (:func:`echoed`);
 * the disk a DoE sample takes, for the estimate checked against the free disk before a
   DoE writes (:func:`ovtraj.runs.execute.check_free_disk`).
@@ -55,7 +55,7 @@ class IoLimits(StrictModel):
 @lru_cache(maxsize=1)
 def io_limits() -> IoLimits:
     """The shipped ``configs/io_limits.yaml`` (``OVTRAJ_CONFIG_DIR`` moves it)."""
-    from ovtraj.paths import config_path, read_text_file
+    from ovtraj.store.paths import config_path, read_text_file
 
     try:
         path = config_path(FILE)
@@ -75,7 +75,7 @@ def io_limits() -> IoLimits:
 def read_config_file(path: str | Path) -> str:
     """The text of a config, scenario or plan file: a regular UTF-8 file of at most
     ``config_file_max_kib``; :class:`ConfigError` naming the file otherwise."""
-    from ovtraj.paths import read_text_file
+    from ovtraj.store.paths import read_text_file
 
     limits = io_limits()
     return read_text_file(

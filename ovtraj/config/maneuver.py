@@ -5,7 +5,7 @@ working time), the chaser's and the target's orbits, the manoeuvre (end conditio
 objective, number of impulses, time-of-flight bounds, dynamics, budget rules), the
 improved differential evolution (IDE) or scipy's, the Lambert solver, the finite-thrust
 correction and the integrator. Angles are in degrees and lengths in km in the file (the
-key names say so); :mod:`ovtraj.maneuver.problem` converts to SI once. Bad values are
+key names say so); :mod:`ovtraj.studies.maneuver.problem` converts to SI once. Bad values are
 refused with one line per field naming the allowed range (:class:`ConfigError`).
 """
 

@@ -5,7 +5,7 @@ vehicle and aerodynamics, atmosphere, fixed initial state, terminal conditions (
 or bounded), state and control bounds, path limits, objective, transcription, solver,
 initial-guess and feasibility-check settings. Angles are in degrees, altitudes in km,
 heat rate in kW/m^2 and dynamic pressure in kPa in the file (the key names say so);
-:mod:`ovtraj.reentry.pseudospectral.problem` converts to SI once and refuses problems
+:mod:`ovtraj.studies.optimal_entry.problem` converts to SI once and refuses problems
 that cannot be posed (terminal energy not below the initial one, an initial state
 outside the state bounds, ...), naming the field.
 """

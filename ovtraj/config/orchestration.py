@@ -4,7 +4,7 @@
 belong to no scenario: they never change a result or a run id, and a stored run's
 ``config.json`` does not carry them. The flows (``flows/``) read them when imported; the
 library reads only ``reads`` (at its first read of a store file) and ``store_key`` (when
-``OVTRAJ_STORE_KEY`` is set, :mod:`ovtraj.seals`).
+``OVTRAJ_STORE_KEY`` is set, :mod:`ovtraj.store.seals`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 from pydantic import Field
 
 from ovtraj.config.base import StrictModel, bounded, load_model
-from ovtraj.paths import config_path, workspace
+from ovtraj.store.paths import config_path, workspace
 
 FILE = "orchestration.yaml"
 # Overrides results.storage (a folder or an fsspec URL): the tests' own result storage.
@@ -113,7 +113,7 @@ class ConcurrencySettings(StrictModel):
 
 
 class ReadSettings(StrictModel):
-    """Checked reads of the stores (:mod:`ovtraj.files`)."""
+    """Checked reads of the stores (:mod:`ovtraj.store.files`)."""
 
     decoded_tables_mib: float = bounded(
         unit="MiB",
@@ -138,7 +138,7 @@ class ReadSettings(StrictModel):
 
 
 class StoreKeySettings(StrictModel):
-    """The key of the stores' seals (:mod:`ovtraj.seals`), given by ``OVTRAJ_STORE_KEY``."""
+    """The key of the stores' seals (:mod:`ovtraj.store.seals`), given by ``OVTRAJ_STORE_KEY``."""
 
     min_bytes: int = bounded(
         unit="bytes",

@@ -6,14 +6,13 @@ conversion to SI happens once, in the properties and helpers of these models.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 
 from ovtraj.astro.constants import EarthModel, default_earth
 from ovtraj.astro.epoch import Epoch
-from ovtraj.config.base import StrictModel, bounded, load_model, model_from_dict
+from ovtraj.config.base import StrictModel, bounded, model_from_dict
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
@@ -228,8 +227,3 @@ class Scenario(StrictModel):
 def scenario_from_dict(data: Any, source: str = "") -> Scenario:
     """Validate a mapping into a :class:`Scenario`, raising :class:`ConfigError`."""
     return model_from_dict(Scenario, data, source)
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file."""
-    return load_model(Scenario, path)

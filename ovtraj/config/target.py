@@ -8,15 +8,16 @@ A target is given by exactly one of
   file or inline as a mapping of its fields;
 * ``url``: an http(s) address serving a TLE or an OMM.
 
-A file or URL is read when the scenario is validated and replaced by its inline
-form (``tle:`` lines or ``omm:`` fields), so the resolved scenario (what a run
+A file or URL is read by the scenario loader (:func:`ovtraj.target_sources.load_scenario`,
+never by validation) and replaced by its inline form (``tle:`` lines or ``omm:`` fields),
+so the resolved scenario (what a run
 stores and what its id hashes) carries the element set itself: a replay needs
 neither the file nor the network, and a changed element set is a changed
 scenario. Relative files are relative to the scenario file's folder. How SGP4's
 ephemeris becomes the project's mean elements is in ``docs/targets.md``.
 
 The fit and fetch settings (``source_settings``) default to the shipped
-``configs/target_sources.yaml``, as the Earth model defaults to
+``configs/target_sources.yaml`` (added by the loader), as the Earth model defaults to
 ``configs/earth.yaml``; a target with a source always carries them in the resolved
 scenario, a hand-typed one does not need them (and dumps as before: ``name`` and
 ``orbit``).
@@ -28,9 +29,12 @@ import re
 from functools import lru_cache
 from typing import Any, Literal
 
-from pydantic import Field, ValidationInfo, field_validator, model_serializer, model_validator
+from pydantic import Field, field_validator, model_serializer, model_validator
 
+from ovtraj.astro.elements import perigee_radius
 from ovtraj.config.base import ConfigError, StrictModel, bounded, load_model
+from ovtraj.element_sets.elements import SourceElements
+from ovtraj.element_sets.inline import inline_elements
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -59,7 +63,7 @@ class OrbitElementsConfig(StrictModel):
     true_anomaly_deg: float = bounded(unit="deg", ge=-360, le=360)
 
     def perigee_altitude_km(self, radius_m: float) -> float:
-        return self.semi_major_axis_km * (1.0 - self.eccentricity) - radius_m / 1e3
+        return perigee_radius(self.semi_major_axis_km, self.eccentricity) - radius_m / 1e3
 
 
 class TargetSourceSettings(StrictModel):
@@ -144,7 +148,7 @@ class TargetSourceSettings(StrictModel):
 @lru_cache(maxsize=1)
 def default_source_settings() -> TargetSourceSettings:
     """The shipped ``configs/target_sources.yaml``."""
-    from ovtraj.paths import config_path
+    from ovtraj.store.paths import config_path
 
     return load_model(TargetSourceSettings, config_path("target_sources.yaml"))
 
@@ -171,40 +175,33 @@ class TargetConfig(StrictModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _read_the_source(cls, data: Any, info: ValidationInfo) -> Any:
-        """Exactly one source; a file or URL is read now and inlined (``tle`` / ``omm``)."""
+    def _one_inline_source(cls, data: Any) -> Any:
+        """Exactly one source, given inline: a file or URL is read by the scenario loader
+        (:func:`ovtraj.target_sources.load_scenario`), never by validation (issue 45)."""
         if not isinstance(data, dict):
             return data
         given = [key for key in SOURCE_KEYS if data.get(key) is not None]
         if len(given) != 1:
             found = ", ".join(given) if given else "none"
             raise ValueError(f"needs exactly one of {', '.join(SOURCE_KEYS)} (found: {found})")
-        if given[0] == "orbit":
-            return data
-        if data.get("source_settings") is None:
-            try:
-                settings = default_source_settings()
-            except (ConfigError, FileNotFoundError) as err:
-                raise ValueError(f"source_settings: no default ({err})") from None
-            data = {**data, "source_settings": settings.model_dump()}
-        if given[0] not in READ_KEYS:
-            return data
-        from ovtraj.target_sources.resolve import inline_target  # reads files and URLs
-
-        source_dir = (info.context or {}).get("source_dir") if info is not None else None
-        try:
-            return inline_target(data, source_dir)
-        except ConfigError as err:
-            raise ValueError("; ".join(err.problems)) from None
+        if given[0] in READ_KEYS:
+            raise ValueError(
+                f"{given[0]}: a file or URL is read by the scenario loader "
+                "(ovtraj.target_sources.load_scenario), not by validation"
+            )
+        if given[0] != "orbit" and data.get("source_settings") is None:
+            raise ValueError(
+                "source_settings: needed with a tle or omm element set (the scenario loader "
+                "adds the shipped configs/target_sources.yaml)"
+            )
+        return data
 
     @model_validator(mode="after")
     def _source_is_readable(self) -> TargetConfig:
         if self.orbit is not None:
             return self
-        from ovtraj.target_sources.resolve import target_elements
-
         try:
-            target_elements(self)  # the inline element set parses (checksums, fields)
+            self.elements()  # the inline element set parses (checksums, fields)
         except ConfigError as err:
             raise ValueError("; ".join(err.problems)) from None
         return self
@@ -225,9 +222,12 @@ class TargetConfig(StrictModel):
         of the element set's SGP4 mean elements (a plausibility check, no fit)."""
         if self.orbit is not None:
             return self.orbit.perigee_altitude_km(radius_m)
-        from ovtraj.target_sources.resolve import target_elements
+        return self.elements().perigee_radius_km() - radius_m / 1e3
 
-        return target_elements(self).perigee_radius_km() - radius_m / 1e3
+    def elements(self) -> SourceElements:
+        """The inline element set (``tle`` or ``omm``), parsed and checked against
+        ``catalog_number``; :class:`ConfigError` for a hand-typed orbit."""
+        return inline_elements(self.tle, self.omm, self.catalog_number)
 
     @property
     def source_key(self) -> str:

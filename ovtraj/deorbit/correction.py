@@ -32,6 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
+from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.elements import perigee_radius_from_semi_latus_rectum
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, flight_path_angle, rsw_basis
 from ovtraj.astro.propagation import AltitudeCrossing, OrbitPropagator, PropagationResult
 from ovtraj.config.deorbit import DeorbitSolverConfig
@@ -130,7 +132,7 @@ class DescentModel:
         if energy >= 0.0 or not descent.ok:
             return descent.t, descent.state
         a = -mu / (2.0 * energy)
-        period = 2.0 * math.pi * math.sqrt(a**3 / mu)
+        period = TWO_PI * math.sqrt(a**3 / mu)
         # The arc starts near apoapsis: its lowest point is about half a period later.
         t_low = min(burn_t_s + 0.5 * period, descent.t)
         state = self.propagator.propagate(after, burn_t_s, t_low).state
@@ -147,7 +149,7 @@ def _perigee_radius(state: NDArray, mu: float) -> float:
     ey = (vz * hx - vx * hz) / mu - ry / r_norm
     ez = (vx * hy - vy * hx) / mu - rz / r_norm
     p = (hx * hx + hy * hy + hz * hz) / mu
-    return p / (1.0 + math.sqrt(ex * ex + ey * ey + ez * ez))
+    return perigee_radius_from_semi_latus_rectum(p, math.sqrt(ex * ex + ey * ey + ez * ez))
 
 
 @dataclass

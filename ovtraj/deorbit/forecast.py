@@ -29,12 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, great_circle_distance
 from ovtraj.astro.propagation import LatitudeCrossing, OrbitPropagator, PropagationResult
 from ovtraj.astro.vectors import cross
 from ovtraj.deorbit.inputs import EntryRegion
-
-TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True)

@@ -7,15 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ovtraj.astro.angles import wrap_to_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.deorbit import DeorbitSolverConfig, PreparationOrbitConfig
 from ovtraj.config.scenario import Scenario
-from ovtraj.targets import circular_orbit_state
-
-
-def _wrap_pi(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+from ovtraj.target_state import circular_orbit_state
 
 
 @dataclass(frozen=True)
@@ -43,7 +40,7 @@ class EntryRegion:
 
     def offsets(self, latitude_rad: float, longitude_rad: float) -> tuple[float, float]:
         """(latitude, longitude) of a point minus the entry point's [rad], longitude wrapped."""
-        return latitude_rad - self.latitude_rad, _wrap_pi(longitude_rad - self.longitude_rad)
+        return latitude_rad - self.latitude_rad, wrap_to_pi(longitude_rad - self.longitude_rad)
 
     def contains(self, latitude_rad: float, longitude_rad: float, slack: float = 0.0) -> bool:
         """Inside the box, each half-width enlarged by the fraction ``slack``."""
@@ -109,7 +106,7 @@ def deorbit_input(
         integrator_tol=scenario.tolerances.integrator,
         entry=EntryRegion(
             latitude_rad=math.radians(entry.latitude_deg),
-            longitude_rad=_wrap_pi(math.radians(entry.longitude_deg)),
+            longitude_rad=wrap_to_pi(math.radians(entry.longitude_deg)),
             latitude_tol_rad=math.radians(entry.latitude_tolerance_deg),
             longitude_tol_rad=math.radians(entry.longitude_tolerance_deg),
             altitude_m=entry.altitude_km * 1e3,

@@ -22,12 +22,11 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.deorbit.estimate import descent_central_angle_rad, tangential_deorbit
 from ovtraj.deorbit.inputs import EntryRegion
-
-TWO_PI = 2.0 * math.pi
 
 
 def descent_angle_rad(radius_m: ArrayLike, entry: EntryRegion, earth: EarthModel) -> NDArray:
@@ -102,7 +101,7 @@ def first_pass_s(
             - (earth_angle_at_zero_rad + earth.rotation_rate_rad_s * absolute)
         )
         shifted = longitude + longitude_shift_rad
-        offset = np.mod(shifted - entry.longitude_rad + math.pi, TWO_PI) - math.pi
+        offset = wrap_to_pi(shifted - entry.longitude_rad)
         usable = (
             (np.abs(offset) <= entry.longitude_tol_rad)
             & (t <= horizon_s)

@@ -11,7 +11,7 @@ import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.deorbit.correction import CONSTRAINT_NAMES
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 
 def _deg(x: float | None) -> float | None:

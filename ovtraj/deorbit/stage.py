@@ -22,6 +22,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.frames import (
     ecef_to_geocentric,
     eci_to_ecef,
@@ -38,8 +39,6 @@ from ovtraj.deorbit.estimate import TangentialDeorbit, tangential_deorbit
 from ovtraj.deorbit.forecast import Forecast, TrackPass, forecast_passes
 from ovtraj.deorbit.inputs import DeorbitInput
 from ovtraj.deorbit.result import DeorbitResult
-
-TWO_PI = 2.0 * math.pi
 
 
 def propagator_for(inp: DeorbitInput) -> OrbitPropagator:

@@ -57,7 +57,6 @@ VEL = slice(3, 6)
 MASS = 6
 IDEAL, GRAVITY, AERO, STEERING, BACK_PRESSURE = 7, 8, 9, 10, 11
 STATE_SIZE = 12
-LOSS_NAMES = ("gravity", "aero", "steering", "back_pressure")
 
 # Column order of a design array (SI, absolute azimuth).
 AZIMUTH, ALPHA_1, T_12, ALPHA_2, T_23, COAST, PITCH_RATE_2, PITCH_3, PITCH_RATE_3, PAYLOAD = range(

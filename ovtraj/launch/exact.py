@@ -7,7 +7,7 @@ design variables of the stage's optimisation (patent step 101) at the design's e
 parking altitude.
 
 :func:`solve_launch_at` solves it by one continuation step from the fit's solved grid,
-as the grid itself was solved (:mod:`ovtraj.launch.fit`):
+as the grid itself was solved (:mod:`ovtraj.launch.launch_fit`):
 - the secant through the two grid launches that bracket the altitude predicts the
   design;
 - the stage's local phases (SLSQP, then trust-constr) start from that prediction,
@@ -39,16 +39,16 @@ from ovtraj.astro.frames import ecef_to_eci_state
 from ovtraj.config import Scenario
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.config.mission import LaunchMatchSettings
-from ovtraj.files import StoreError
 from ovtraj.launch.ascent import initial_state
-from ovtraj.launch.fit import LaunchFit, design_of, launch_fit_key, predicted_design
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import LaunchInput, launch_input
 from ovtraj.launch.insertion import MATCH_PHASE, InsertionPoint, solve_launch_to
+from ovtraj.launch.launch_fit import LaunchFit, design_of, launch_fit_key, predicted_design
 from ovtraj.launch.result import PHASES, LaunchResult
 from ovtraj.launch.stage import ascent_model, solve_launch
-from ovtraj.paths import workspace
-from ovtraj.products import Product
+from ovtraj.store.files import StoreError
+from ovtraj.store.paths import workspace
+from ovtraj.store.products import Product
 from ovtraj.version import code_version
 
 __all__ = [
@@ -184,7 +184,7 @@ def cached_launch_at(
 ) -> SolvedLaunch:
     """The launch at ``altitude_m``: read from the cache, or solved and stored there.
 
-    Raises :class:`~ovtraj.files.StoreError` naming the file when a cached product fails
+    Raises :class:`~ovtraj.store.files.StoreError` naming the file when a cached product fails
     its checksum (nothing is solved over it) or cannot be written.
     """
     key = launch_solve_key(scenario, altitude_m)
@@ -204,7 +204,7 @@ def cached_launch_to(
     """The launch flown to ``point`` (:func:`solve_launch_to_point`, the settings of
     ``mission.insertion.launch_match``): read from the cache, or solved and stored there.
     Its key adds the point, the node offset and those settings to :func:`launch_solve_key`'s
-    content. Raises :class:`~ovtraj.files.StoreError` as :func:`cached_launch_at`."""
+    content. Raises :class:`~ovtraj.store.files.StoreError` as :func:`cached_launch_at`."""
     settings = scenario.mission.insertion.launch_match
     content = {
         "solve": launch_solve_key(scenario, altitude_m),

@@ -47,11 +47,6 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-PATENT_REFERENCE = (
-    "patent CN 2021-07-16 'whole-process trajectory optimisation based on a proxy model', "
-    "section 5.1"
-)
-
 # Normalised starting frequencies W (rad per unit s, i.e. per whole altitude range):
 # 0.2*pi ... 1.0*pi. At W <= pi the fitted range spans at most half a period of the
 # fundamental, so a monotone, nearly linear output is captured by the first harmonics

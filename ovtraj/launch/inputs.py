@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import nonsingular_to_classical
 from ovtraj.astro.epoch import Epoch
@@ -22,7 +22,7 @@ from ovtraj.config.launch import (
     Opportunity,
 )
 from ovtraj.config.scenario import Scenario
-from ovtraj.targets import target_state
+from ovtraj.target_state import target_state
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ def target_plane_at(scenario: Scenario, day: Epoch) -> TargetPlane:
     raan_rate, _, _ = secular_rates(
         float(coe.a), float(coe.e), float(coe.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
     )
-    return TargetPlane(float(mean.i), float(mean.raan) % (2 * math.pi), float(raan_rate))
+    return TargetPlane(float(mean.i), float(mean.raan) % TWO_PI, float(raan_rate))
 
 
 def launch_input(scenario: Scenario, *, altitude_km: float | None = None) -> LaunchInput:

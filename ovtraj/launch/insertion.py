@@ -33,17 +33,18 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import Bounds, minimize
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.frames import ecef_to_eci, eci_to_ecef
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.config.mission import InsertionOrbit, LaunchMatchSettings
 from ovtraj.deadline import Deadline
+from ovtraj.launch.ascent_optimization import PAYLOAD_INDEX, OptimisationOutcome, PhaseRecord
 from ovtraj.launch.inputs import LaunchInput
-from ovtraj.launch.optimize import PAYLOAD_INDEX, OptimisationOutcome, PhaseRecord
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
-from ovtraj.targets import circular_orbit_state
+from ovtraj.target_state import circular_orbit_state
 
 __all__ = [
     "MATCH_PHASE",
@@ -89,7 +90,7 @@ def circular_insertion_state(
         )
         mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
         di = mean_inclination_rad - float(mean.i)
-        draan = math.remainder(mean_raan_rad - float(mean.raan), 2.0 * math.pi)
+        draan = math.remainder(mean_raan_rad - float(mean.raan), TWO_PI)
         if max(abs(di), abs(draan)) < _PLANE_TOLERANCE_RAD:
             return state
         inclination, raan = inclination + di, raan + draan

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ovtraj.astro.elements import eccentricity_vector
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.launch.ascent import AscentModel, AscentOutcome, simulate
@@ -184,8 +185,7 @@ def _mean_inclination(r: NDArray, v: NDArray, mu: float, radius: float, j2: floa
     """Mean inclination [rad] of near-circular rows, osculating inclination of the others."""
     h = np.cross(r, v)
     inclination = np.arccos(np.clip(h[:, 2] / np.linalg.norm(h, axis=1), -1.0, 1.0))
-    r_norm = np.linalg.norm(r, axis=1, keepdims=True)
-    e_vec = np.cross(v, h) / mu - r / r_norm
+    e_vec = eccentricity_vector(r, v, mu)
     near_circular = np.linalg.norm(e_vec, axis=1) < _MEAN_ELEMENTS_MAX_ECCENTRICITY
     if np.any(near_circular):
         try:

@@ -9,18 +9,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import ClassicalElements
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.frames import ecef_to_geocentric
 from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.launch.ascent_optimization import PhaseRecord
 from ovtraj.launch.frame import launch_to_ecef
-from ovtraj.launch.optimize import PhaseRecord
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
-TWO_PI = 2.0 * math.pi
-
-# The optimisation phases a result may record (ovtraj.launch.optimize.optimise_launch),
+# The optimisation phases a result may record (ovtraj.launch.ascent_optimization.optimise_launch),
 # each with the columns of PHASE_COLUMNS in the row (prefix: the name, "-" as "_").
 PHASES = ("genetic", "seed", "slsqp", "trust-constr")
 PHASE_COLUMNS = (

@@ -23,6 +23,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
 from ovtraj.astro.atmosphere import TabulatedAtmosphere, default_atmosphere
 from ovtraj.astro.elements import rv_to_coe
 from ovtraj.astro.frames import ecef_to_eci, ecef_to_geocentric
@@ -37,9 +38,9 @@ from ovtraj.launch.ascent import (
     AscentModel,
     DropPoint,
 )
+from ovtraj.launch.ascent_optimization import OptimisationOutcome, optimise_launch
 from ovtraj.launch.frame import launch_frame_axes
 from ovtraj.launch.inputs import LaunchInput
-from ovtraj.launch.optimize import OptimisationOutcome, optimise_launch
 from ovtraj.launch.problem import (
     EQUALITY_NAMES,
     INEQUALITY_NAMES,
@@ -49,8 +50,6 @@ from ovtraj.launch.problem import (
 )
 from ovtraj.launch.result import LaunchResult, trajectory_table
 from ovtraj.launch.vehicle import LauncherModel
-
-TWO_PI = 2.0 * math.pi
 
 
 @lru_cache(maxsize=4)
@@ -142,7 +141,7 @@ def solve_launch(
     search from a known design: inside the GA's first population, or as the local
     phases' start when ``global_search`` is off. Never raises on a numerical
     failure: the result comes back infeasible with the reason. ``on_progress(done, total,
-    phase)`` follows the optimiser (:func:`~ovtraj.launch.optimize.optimise_launch`).
+    phase)`` follows the optimiser (:func:`~ovtraj.launch.ascent_optimization.optimise_launch`).
     """
     start = time.perf_counter()
     try:
@@ -205,7 +204,7 @@ def finish_launch(
     r_norm, v_norm = float(np.linalg.norm(r_eci)), float(np.linalg.norm(v_eci))
     radius_target = earth.radius + inp.target_altitude_m
     plane = inp.target_plane
-    raan_error = (float(mean.raan) - plane.raan_at(t_ins) + math.pi) % TWO_PI - math.pi
+    raan_error = wrap_to_pi(float(mean.raan) - plane.raan_at(t_ins))
 
     state = asc.state[0]
     launcher = problem.model.launcher

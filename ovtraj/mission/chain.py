@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.elements import NonsingularElements, orbital_period, rv_to_coe
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
@@ -43,17 +44,17 @@ from ovtraj.config import Scenario
 from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.deorbit.result import DeorbitResult
 from ovtraj.launch.exact import SolvedLaunch
-from ovtraj.launch.fit import LaunchFit
 from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.inputs import TargetPlane, target_plane_at
 from ovtraj.launch.insertion import circular_insertion_state, turned_east
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission.plane import AimedInsertion, aim_insertion, drop_delay_s
-from ovtraj.records import BOOL, FLOAT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import RendezvousInput, RendezvousResult, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.targets import target_state
+from ovtraj.store.records import BOOL, FLOAT, TEXT, record_schema
+from ovtraj.target_state import target_state
 
 _DAY_S = 86400.0
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
@@ -341,7 +342,7 @@ def _launch_leg(
     def insertion_at(raan_offset: float) -> tuple[float, np.ndarray, NonsingularElements]:
         t_ins = t_fit + drop_delay_s(raan_offset, earth.omega, plane.raan_rate_rad_s)
         if t_ins - flight_time < 0.0:  # the launch stage's rule: the first drop after 0 h
-            t_ins += drop_delay_s(2.0 * math.pi, earth.omega, plane.raan_rate_rad_s)
+            t_ins += drop_delay_s(TWO_PI, earth.omega, plane.raan_rate_rad_s)
         raan = plane.raan_at(t_ins) + raan_offset
         return t_ins, turned_east(base, raan), replace(base_mean, raan=base_mean.raan + raan)
 

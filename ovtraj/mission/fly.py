@@ -49,7 +49,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.frames import ecef_to_eci, ecef_to_eci_state, spherical_to_ecef_state
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.elements import eccentricity_vector_from_dots, perigee_radius
+from ovtraj.astro.frames import (
+    ecef_to_eci,
+    ecef_to_eci_state,
+    great_circle_distance,
+    spherical_to_ecef_state,
+)
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.formatting import duration, number, utc
@@ -58,11 +65,11 @@ from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import launch_input
 from ovtraj.launch.stage import ascent_model, launch_problem
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
-from ovtraj.records import plain
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.model import EntryModel
-from ovtraj.targets import target_state
+from ovtraj.store.records import plain
+from ovtraj.target_state import target_state
 from ovtraj.version import code_version
 
 INTEGRATORS = (
@@ -227,7 +234,7 @@ def _j2_rhs(mu: float, radius: float, j2: float) -> Any:
     return rhs
 
 
-class _Orbit:
+class ReplayOrbit:
     """DOP853 arcs of one spacecraft with the replay's tolerances."""
 
     def __init__(self, scenario: Scenario) -> None:
@@ -309,23 +316,31 @@ def _perigee_altitude(state: np.ndarray, mu: float, radius: float) -> float:
     """Osculating two-body perigee altitude [m] of a Cartesian state."""
     r, v = state[:3], state[3:]
     rn = float(np.linalg.norm(r))
-    energy = 0.5 * float(v @ v) - mu / rn
+    v_sq = float(v @ v)
+    energy = 0.5 * v_sq - mu / rn
     a = -mu / (2.0 * energy)
-    e_vec = ((float(v @ v) - mu / rn) * r - float(r @ v) * v) / mu
-    return a * (1.0 - float(np.linalg.norm(e_vec))) - radius
+    e_vec = eccentricity_vector_from_dots(r, v, rn, v_sq, float(r @ v), mu)
+    return perigee_radius(a, float(np.linalg.norm(e_vec))) - radius
 
 
 # --- entry state and reentry --------------------------------------------------------------
 
 
-def _relative_entry(state: np.ndarray, theta: float, omega: float, radius: float) -> dict:
-    """Geocentric position and Earth-relative velocity of an ECI state (spherical Earth)."""
+def relative_entry(state: np.ndarray, theta: float, omega: float, radius: float) -> dict:
+    """Geocentric position and Earth-relative velocity of an ECI state (spherical Earth).
+
+    ``state`` (6,) [m, m/s], ``theta`` the Earth rotation angle [rad], ``omega`` its rate
+    [rad/s], ``radius`` the Earth's [m]. Keys: latitude, longitude in [-pi, pi), flight-path
+    angle, heading from north in [0, 2 pi) and the inertial flight-path angle [rad],
+    altitude [m], relative and inertial speed [m/s]. The replay's entry state and the
+    Monte Carlo's (:mod:`ovtraj.mission.montecarlo`).
+    """
     r, v = state[:3], state[3:]
     x, y, z = (float(c) for c in r)
     rn = float(np.linalg.norm(r))
     lat = math.atan2(z, math.hypot(x, y))
     lon_inertial = math.atan2(y, x)
-    lon = (lon_inertial - theta + math.pi) % (2.0 * math.pi) - math.pi
+    lon = wrap_to_pi(lon_inertial - theta)
     v_rel = v - omega * np.array([-y, x, 0.0])
     speed = float(np.linalg.norm(v_rel))
     fpa = math.asin(float(r @ v_rel) / (rn * speed))
@@ -337,7 +352,7 @@ def _relative_entry(state: np.ndarray, theta: float, omega: float, radius: float
         ]
     )
     east = np.array([-math.sin(lon_inertial), math.cos(lon_inertial), 0.0])
-    heading = math.atan2(float(v_rel @ east), float(v_rel @ north)) % (2.0 * math.pi)
+    heading = math.atan2(float(v_rel @ east), float(v_rel @ north)) % TWO_PI
     inertial_fpa = math.asin(float(r @ v) / (rn * float(np.linalg.norm(v))))
     return {
         "latitude_rad": lat,
@@ -349,14 +364,6 @@ def _relative_entry(state: np.ndarray, theta: float, omega: float, radius: float
         "inertial_speed_mps": float(np.linalg.norm(v)),
         "inertial_fpa_rad": inertial_fpa,
     }
-
-
-def _haversine(lat1: float, lon1: float, lat2: float, lon2: float, radius: float) -> float:
-    s = (
-        math.sin(0.5 * (lat2 - lat1)) ** 2
-        + math.cos(lat1) * math.cos(lat2) * math.sin(0.5 * (lon2 - lon1)) ** 2
-    )
-    return 2.0 * radius * math.asin(math.sqrt(min(max(s, 0.0), 1.0)))
 
 
 @dataclass
@@ -553,12 +560,12 @@ def _replay(
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     earth = scenario.earth
     day = plan.day
-    orbit = _Orbit(scenario)
+    orbit = ReplayOrbit(scenario)
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
     floor_m = scenario.limits.min_perigee_altitude_km * 1e3
 
     # 0. the ascent from the drop to insertion
-    state, t = _fly_ascent(plan, scenario, report, perturbation)
+    state, t = fly_ascent(plan, scenario, report, perturbation)
     if recorder is not None:
         _record_ascent(plan, scenario, recorder)
     # 1. orbital arcs from the flown insertion, each planned impulse at its epoch
@@ -605,7 +612,7 @@ def _replay(
 
     # 2. descent to the entry interface
     r0 = float(np.linalg.norm(state[:3]))
-    period = 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
+    period = TWO_PI * math.sqrt(r0**3 / earth.mu)
     horizon = scenario.deorbit.max_descent_revolutions * period
     state, t_entry, entered, _ = orbit.arc(
         state,
@@ -620,7 +627,7 @@ def _replay(
             f"within {horizon:.0f} s of the deorbit burn"
         )
     theta = day.gmst_rad() + earth.omega * t_entry
-    rel = _relative_entry(state, theta, earth.omega, earth.radius)
+    rel = relative_entry(state, theta, earth.omega, earth.radius)
     planned = plan.reentry.entry
     report.entry_time_difference_s = t_entry - planned.t_s
     report.entry_position_difference_m = float(
@@ -701,7 +708,7 @@ def _replay(
         "epoch_utc": entry_epoch.plus_seconds(flight.time_s).iso(),
         "t_s": t_entry + flight.time_s,
         "latitude_deg": math.degrees(float(x[2])),
-        "longitude_deg": math.degrees((float(x[1]) + math.pi) % (2.0 * math.pi) - math.pi),
+        "longitude_deg": math.degrees(wrap_to_pi(float(x[1]))),
         "altitude_m": altitude,
         "speed_mps": float(x[3]),
         "fpa_deg": math.degrees(float(x[4])),
@@ -716,16 +723,20 @@ def _replay(
     )
     site = reentry.landing_site
     lat, lon = float(x[2]), float(x[1])
-    report.miss_distance_m = _haversine(
-        lat, lon, math.radians(site.latitude_deg), math.radians(site.longitude_deg), earth.radius
+    report.miss_distance_m = great_circle_distance(
+        lat,
+        lon,
+        math.radians(site.latitude_deg),
+        math.radians(site.longitude_deg),
+        radius=earth.radius,
     )
     predicted = plan.terminal
-    report.prediction_distance_m = _haversine(
+    report.prediction_distance_m = great_circle_distance(
         lat,
         lon,
         math.radians(predicted.latitude_deg),
         math.radians(predicted.longitude_deg),
-        earth.radius,
+        radius=earth.radius,
     )
     report.matches_prediction = report.prediction_distance_m <= predicted.prediction_tolerance_m
     if not flight.reached:
@@ -757,13 +768,15 @@ def _ascent(plan: MissionPlan, scenario: Scenario) -> tuple[Any, Any, np.ndarray
     return inp, problem.model, design
 
 
-def _fly_ascent(
+def fly_ascent(
     plan: MissionPlan,
     scenario: Scenario,
     report: FlightReport,
     perturbation: Perturbation = NOMINAL,
 ) -> tuple[np.ndarray, float]:
-    """Fly the plan's programme from the drop: the ECI state and time of insertion."""
+    """Fly the plan's programme from the drop: the ECI state (6,) [m, m/s] and time [s, on
+    the plan's clock] of insertion; the ascent's insertion differences and path-limit
+    checks go into ``report``. The replay's ascent and the Monte Carlo's."""
     earth = scenario.earth
     inp, model, design = _ascent(plan, scenario)
     flown = perturbation.ascent(inp)
@@ -850,7 +863,7 @@ def _apply(burn: PlannedImpulse, state: np.ndarray) -> BurnReplay:
 
 
 def _arrival_miss(
-    plan: MissionPlan, scenario: Scenario, orbit: _Orbit, chaser: np.ndarray
+    plan: MissionPlan, scenario: Scenario, orbit: ReplayOrbit, chaser: np.ndarray
 ) -> float:
     """Distance [m] from the chaser to the target at the planned arrival (docking) epoch."""
     offset = plan.day.seconds_since(scenario.epoch)

@@ -32,7 +32,7 @@ by the stage's own method from the on-board estimate:
    with errors;
 4. the deorbit solved again from the estimate at the end of the transfer; the burn is
    cut off on-line by the osculating-element entry prediction of seed 004
-   (:func:`ovtraj.deorbit.burn.prediction.predict_entry`, strategy 1): along the
+   (:func:`ovtraj.astro.entry_prediction.predict_entry`, strategy 1): along the
    actually pointed direction, the engine stops when the predicted entry argument of
    latitude reaches the one the nominal burn predicts from the same estimate, which
    absorbs the magnitude error;
@@ -66,33 +66,34 @@ import pyarrow as pa
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.constants import EarthConstants
+from ovtraj.astro.entry_prediction import predict_entry
 from ovtraj.astro.frames import great_circle_distance
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.deorbit import deorbit_input, solve_deorbit
-from ovtraj.deorbit.burn.prediction import predict_entry
-from ovtraj.deorbit.burn.problem import EarthConstants
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.mission.chain import rendezvous_settings
 from ovtraj.mission.fly import (
     FlightReport,
     Perturbation,
     ReplayFailed,
-    _fly_ascent,
-    _Orbit,
-    _relative_entry,
+    ReplayOrbit,
+    fly_ascent,
     fly_plan,
+    relative_entry,
 )
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.model import EntryModel
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.targets import target_state
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema
+from ovtraj.target_state import target_state
 
 logger = logging.getLogger(__name__)
 
@@ -414,7 +415,7 @@ def _closed_loop(
 ) -> None:
     earth = scenario.earth
     day = plan.day
-    orbit = _Orbit(scenario)
+    orbit = ReplayOrbit(scenario)
     propagator = OrbitPropagator(earth, tol=scenario.tolerances.integrator)
     flight = DispersedFlight(draw)
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
@@ -430,7 +431,7 @@ def _closed_loop(
 
     # 1. the ascent, dispersed
     scratch = FlightReport(ok=False, reason=None, landed_within_stated_miss=False, stated_miss_m=0)
-    state, t = _fly_ascent(plan, scenario, scratch, flight)
+    state, t = fly_ascent(plan, scenario, scratch, flight)
     # 2. rendezvous re-targeted from the estimated insertion
     offset = day.seconds_since(scenario.epoch)
     target0 = target_state(scenario.target.orbit, scenario)
@@ -531,12 +532,12 @@ def _closed_loop(
     outcome.spend("deorbit burn", dv)
     # descent to the entry interface
     r0 = float(np.linalg.norm(state[:3]))
-    horizon = scenario.deorbit.max_descent_revolutions * 2.0 * math.pi * math.sqrt(r0**3 / earth.mu)
+    horizon = scenario.deorbit.max_descent_revolutions * TWO_PI * math.sqrt(r0**3 / earth.mu)
     state, t_entry, entered, _ = orbit.arc(state, t, t + horizon, floor_m=entry_altitude_m)
     if not entered:
         raise _Failed("deorbit", "the descent does not reach the entry interface")
     theta = day.gmst_rad() + earth.omega * t_entry
-    rel = _relative_entry(state, theta, earth.omega, earth.radius)
+    rel = relative_entry(state, theta, earth.omega, earth.radius)
     # 5. the entry, guidance re-solved in flight
     _guided_entry(plan, scenario, day.plus_seconds(t_entry), rel, flight, config, outcome)
 
@@ -593,7 +594,7 @@ def _cut_off(
 
     def gap(scale: float) -> float:
         u = entry_u(scale * magnitude * direction)
-        return (u - target + math.pi) % (2.0 * math.pi) - math.pi
+        return wrap_to_pi(u - target)
 
     lo, hi = config.closed_loop.cutoff_scale_bounds
     if not (math.isfinite(gap(lo)) and math.isfinite(gap(hi))) or gap(lo) * gap(hi) > 0.0:

@@ -1,6 +1,6 @@
 """Stored Monte Carlo runs of a mission plan (:mod:`ovtraj.mission.montecarlo`).
 
-A run directory of :class:`ovtraj.runs.batched.BatchedRun`: ``config.json`` holds the plan
+A run directory of :class:`ovtraj.store.batched.BatchedRun`: ``config.json`` holds the plan
 and the dispersions that count for results, each batch's part holds a row per run and loop
 (``closed``, ``open``) of :data:`~ovtraj.mission.montecarlo.STORED_RUN_SCHEMA`. The run id
 hashes the plan, the dispersions (not their ``execution`` settings), the number of runs, the
@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA
-from ovtraj.runs.batched import BatchedRun, content_id
+from ovtraj.store.batched import BatchedRun, content_id
 
 __all__ = ["PlanMonteCarloRun", "plan_monte_carlo_id"]
 

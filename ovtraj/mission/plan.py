@@ -36,7 +36,6 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, format_validation_error, parse_yaml
 from ovtraj.config.io_limits import echoed, read_config_file
 from ovtraj.deorbit.result import DeorbitResult
-from ovtraj.files import StoreError, write_bytes
 from ovtraj.formatting import printable
 from ovtraj.launch.exact import SolvedLaunch, cached_launch_at, cached_launch_to, drop_state
 from ovtraj.launch.inputs import launch_input
@@ -49,13 +48,14 @@ from ovtraj.mission.chain import (
     evaluate,
     launch_leg,
 )
-from ovtraj.records import json_text
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS
 from ovtraj.reentry.model import EntryModel
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import Impulse, RendezvousResult
-from ovtraj.storage import location
+from ovtraj.store.backends import location
+from ovtraj.store.files import StoreError, write_bytes
+from ovtraj.store.records import json_text
 from ovtraj.version import code_version
 
 SCHEMA_VERSION = "ovtraj.mission-plan/2"
@@ -753,7 +753,7 @@ def _bank_profile(
 
 
 def _json_data(value: Any) -> Any:
-    """Plain JSON data (:func:`ovtraj.records.json_text`); raises PlanError otherwise."""
+    """Plain JSON data (:func:`ovtraj.store.records.json_text`); raises PlanError otherwise."""
     try:
         text = json_text(value, indent=None)
     except (TypeError, ValueError) as err:
@@ -771,7 +771,7 @@ def plan_json(plan: MissionPlan) -> bytes:
 
 class _WrittenOut(yaml.SafeDumper):
     """Every value written where it is: :func:`read_plan` refuses anchors and aliases
-    (:func:`ovtraj.paths.read_yaml`), which PyYAML writes for an object met twice."""
+    (:func:`ovtraj.store.paths.read_yaml`), which PyYAML writes for an object met twice."""
 
     def ignore_aliases(self, data: Any) -> bool:
         return True

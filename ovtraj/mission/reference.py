@@ -19,12 +19,13 @@ import pandas as pd
 import pyarrow as pa
 from pydantic import Field
 
-from ovtraj.config import Scenario, load_scenario
+from ovtraj.config import Scenario
 from ovtraj.config.base import StrictModel, bounded, load_model
 from ovtraj.mission.chain import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
-from ovtraj.paths import config_path, reference_dir
-from ovtraj.products import Product
-from ovtraj.records import table_from_rows
+from ovtraj.store.paths import config_path, reference_dir
+from ovtraj.store.products import Product
+from ovtraj.store.records import table_from_rows
+from ovtraj.target_sources import load_scenario
 
 SETTINGS_FILE = "mission_reference.yaml"
 MARKER = "meta.json"
@@ -82,7 +83,7 @@ def reference_directory() -> Path:
 
 def designs(scenario: Scenario, settings: ReferenceSettings) -> list[MissionDesign]:
     """The reference designs: ``settings.designs`` of a seeded hypercube over the bounds."""
-    from ovtraj.runs.doe import latin_hypercube
+    from ovtraj.mission.design_space import latin_hypercube
 
     table = latin_hypercube(scenario.mission.design_bounds, settings.designs, settings.seed)
     return [
@@ -93,7 +94,7 @@ def designs(scenario: Scenario, settings: ReferenceSettings) -> list[MissionDesi
 
 def context(settings: ReferenceSettings) -> MissionContext:
     """The shipped scenario's context with its stored launch fit."""
-    from ovtraj.launch.fit import find_launch_fit
+    from ovtraj.launch.launch_fit import find_launch_fit
 
     scenario = load_scenario(config_path(settings.scenario))
     fit = find_launch_fit(scenario)

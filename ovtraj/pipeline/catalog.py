@@ -14,11 +14,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ovtraj.files import read_json
 from ovtraj.pipeline.loop import MARKER as PIPELINE_MARKER
 from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.runs.store import MANIFEST, checked_id
-from ovtraj.storage import S3Path
+from ovtraj.store.backends import S3Path
+from ovtraj.store.files import read_json
 
 __all__ = [
     "CatalogEntry",

@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ovtraj.config import Scenario, load_scenario, scenario_from_dict
+from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import MISSION_OBJECTIVES
 from ovtraj.runs import Run, RunStore, prepare_run
 from ovtraj.runs.store import StoreError, results_config
+from ovtraj.target_sources import load_scenario
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from types import TracebackType
 from typing import Any, Protocol
 
 from ovtraj.config import Scenario
-from ovtraj.launch.fit import LaunchFit
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.pipeline.data import pipeline_doe_run
 from ovtraj.pipeline.loop import PipelineResult, PipelineSteps, run_pipeline
 from ovtraj.pipeline.pick import Pick

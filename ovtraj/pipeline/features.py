@@ -50,6 +50,8 @@ from typing import Any, get_args
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.elements import perigee_radius
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.config import Scenario
 from ovtraj.config.mission import (
@@ -58,15 +60,15 @@ from ovtraj.config.mission import (
     WAIT_PHASE_INPUTS,
     DvPart,
 )
-from ovtraj.files import Digest, StoreError, read_json
-from ovtraj.launch.fit import find_launch_fit
 from ovtraj.launch.fourier import FourierSeries
+from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import PassModel, target_mean_elements
-from ovtraj.products import Product
 from ovtraj.rendezvous.hohmann import hohmann_impulses_mps
-from ovtraj.storage import location
+from ovtraj.store.backends import location
+from ovtraj.store.files import Digest, StoreError, read_json
+from ovtraj.store.products import Product
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 from ovtraj.surrogate.validation import holdout_mask
 
@@ -105,7 +107,7 @@ def target_draconic_period(scenario: Scenario) -> float:
     earth = scenario.earth
     a, e, i = _target_mean_orbit(scenario)
     _, argp_dot, m_dot = secular_rates(a, e, i, mu=earth.mu, radius=earth.radius, j2=earth.j2)
-    return 2.0 * math.pi / (float(argp_dot) + float(m_dot))
+    return TWO_PI / (float(argp_dot) + float(m_dot))
 
 
 @dataclass(frozen=True)
@@ -143,7 +145,7 @@ class DvFloors:
         return cls(
             mu=earth.mu,
             earth_radius_m=earth.radius,
-            target_perigee_radius_m=a * (1.0 - e),
+            target_perigee_radius_m=perigee_radius(a, e),
             entry_radius_m=earth.radius + scenario.deorbit.entry.altitude_km * 1e3,
         )
 
@@ -239,7 +241,7 @@ class MissionSurrogates:
         if self.burn_phase is not None:
             phase = self.burn_phase.phase_rad(designs)
         else:
-            phase = 2.0 * np.pi * np.mod(wait, self.period_s) / self.period_s
+            phase = TWO_PI * np.mod(wait, self.period_s) / self.period_s
         columns = [designs, np.sin(phase), np.cos(phase)]
         if self.departure_phase:
             departure = self.pass_model.departure_phase_rad(designs, wait)

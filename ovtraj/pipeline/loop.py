@@ -43,7 +43,6 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import (
     Normalisation,
@@ -68,12 +67,13 @@ from ovtraj.pipeline.steps import (
     unit_designs,
     write_views,
 )
-from ovtraj.products import Product
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
-from ovtraj.storage import location
-from ovtraj.surrogate.fit import shortlist
+from ovtraj.store.backends import location
+from ovtraj.store.files import file_digest
+from ovtraj.store.products import Product
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
+from ovtraj.surrogate.surrogate_set import shortlist
 
 logger = logging.getLogger(__name__)
 

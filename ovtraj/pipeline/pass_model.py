@@ -38,7 +38,7 @@ from ovtraj.deorbit.pass_estimate import first_pass_s
 from ovtraj.launch.fourier import FourierSeries
 from ovtraj.mission.plane import aimed_node_offset, drop_delay_s
 from ovtraj.rendezvous.hohmann import hohmann_time_s
-from ovtraj.targets import target_state
+from ovtraj.target_state import target_state
 
 
 def target_mean_elements(scenario: Scenario) -> NonsingularElements:

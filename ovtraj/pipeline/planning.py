@@ -5,19 +5,19 @@ from __future__ import annotations
 from typing import Any
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest
-from ovtraj.launch.fit import LaunchFit
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.catalog import pipeline_summaries
 from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.report import pick_explanation, write_report
-from ovtraj.products import digests_json
 from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.runs.store import checked_id
-from ovtraj.seals import write_sealed
-from ovtraj.storage import location
+from ovtraj.store.backends import location
+from ovtraj.store.files import file_digest
+from ovtraj.store.products import digests_json
+from ovtraj.store.seals import write_sealed
 
 PLAN_MARKER_SUFFIX = ".files.json"
 

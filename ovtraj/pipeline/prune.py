@@ -14,7 +14,7 @@ Three kinds, each safe by construction:
 * **Prefect task results**: the result records of the local result storage
   (``configs/orchestration.yaml`` ``results``), a cache: a later flow run recomputes a
   task whose result is gone; every result of a run is in the run store. Only files that
-  parse as Prefect result records count (:func:`ovtraj.result_records.is_result_record`;
+  parse as Prefect result records count (:func:`ovtraj.store.result_records.is_result_record`;
   parsed as JSON, never deserialized); anything else there is left alone. Remove them
   when no flow is running.
 
@@ -42,13 +42,13 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ovtraj import locks
-from ovtraj.files import read_json
 from ovtraj.pipeline.catalog import pipeline_summaries, tree_bytes
 from ovtraj.pipeline.steps import MARKER
-from ovtraj.result_records import is_result_record
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.storage import S3Path
+from ovtraj.store import locks
+from ovtraj.store.backends import S3Path
+from ovtraj.store.files import read_json
+from ovtraj.store.result_records import is_result_record
 
 __all__ = ["PruneItem", "prunable", "remove"]
 

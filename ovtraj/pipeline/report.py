@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ovtraj.files import write_bytes
 from ovtraj.formatting import number, utc
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.features import PASS_MODEL, unregressed
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.plots.embed import png_data_uri
+from ovtraj.store.files import write_bytes
 
 __all__ = ["pick_explanation", "stop_explanation", "write_report"]
 

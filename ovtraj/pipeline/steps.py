@@ -9,7 +9,7 @@ Layout inside a run's directory::
                             NSGA-II figures)
 
 Each ``meta.json`` is written last and lists the size and SHA-256 of every file of its
-directory (:mod:`ovtraj.products`); readers check them and the declared schemas.
+directory (:mod:`ovtraj.store.products`); readers check them and the declared schemas.
 
 The plots (``parity-*.png``, ``front.png``) are views: with ``views=False`` a step stores
 its data without them (the pipeline's rounds do: it draws the last round's views in its
@@ -37,8 +37,8 @@ import pandas as pd
 import pyarrow as pa
 
 from ovtraj.config import Scenario
-from ovtraj.files import file_digest, write_bytes
 from ovtraj.mission import DESIGN_NAMES
+from ovtraj.mission.design_space import bounds_arrays
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
 from ovtraj.parallel import mapped, started
@@ -48,12 +48,12 @@ from ovtraj.pipeline.features import (
     fit_mission_surrogates,
     load_surrogates,
 )
-from ovtraj.products import Product
-from ovtraj.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.runs import Run
-from ovtraj.runs.doe import bounds_arrays
 from ovtraj.runs.store import ID_HEX_DIGITS
-from ovtraj.storage import location
+from ovtraj.store.backends import location
+from ovtraj.store.files import file_digest, write_bytes
+from ovtraj.store.products import Product
+from ovtraj.store.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash
 
 OBJECTIVE_NAMES = tuple(o.name for o in MISSION_OBJECTIVES)

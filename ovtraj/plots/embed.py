@@ -10,7 +10,7 @@ from __future__ import annotations
 import base64
 from pathlib import Path
 
-from ovtraj.storage import location
+from ovtraj.store.backends import location
 
 __all__ = ["png_data_uri"]
 

@@ -32,11 +32,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import wrap_to_pi
 from ovtraj.astro.epoch import Epoch
+from ovtraj.astro.frames import great_circle_distance
 from ovtraj.config import Scenario
 from ovtraj.plots.coastlines import draw_coastlines, split_at_wrap, with_breaks
 from ovtraj.plots.render import figure, write_png
-from ovtraj.storage import location
+from ovtraj.store.backends import location
 
 __all__ = ["PHASES", "limit_labels", "mission_figures", "mission_plots"]
 
@@ -99,7 +101,7 @@ def _tracks(trajectories: dict[str, pd.DataFrame], scenario: Scenario) -> dict[s
         r = table[["chaser_x_m", "chaser_y_m", "chaser_z_m"]].to_numpy(dtype=float)
         v = table[["chaser_vx_mps", "chaser_vy_mps", "chaser_vz_mps"]].to_numpy(dtype=float)
         lat = np.degrees(np.arctan2(r[:, 2], np.hypot(r[:, 0], r[:, 1])))
-        lon = np.degrees(_wrap(np.arctan2(r[:, 1], r[:, 0]) - theta0 - earth.omega * t))
+        lon = np.degrees(wrap_to_pi(np.arctan2(r[:, 1], r[:, 0]) - theta0 - earth.omega * t))
         tracks[stage] = pd.DataFrame(
             {
                 "t_s": t,
@@ -143,10 +145,6 @@ def _when(scenario: Scenario) -> str:
     if scenario.launch is not None:
         return f"scenario {scenario.name}, launch day {scenario.launch.launch_date_utc}"
     return f"scenario {scenario.name}, epoch {scenario.epoch_utc}"
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _wrap_deg(angle: np.ndarray | float) -> np.ndarray:
@@ -237,12 +235,6 @@ def _point(lon: float, centre: float) -> float:
     return float(_wrap_deg(lon - centre)) + centre
 
 
-def _haversine_km(lat1: float, lon1: float, lat2: float, lon2: float, radius_m: float) -> float:
-    p1, p2, dl = math.radians(lat1), math.radians(lat2), math.radians(lon2 - lon1)
-    h = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
-    return 2.0 * radius_m * math.asin(math.sqrt(min(h, 1.0))) / 1e3
-
-
 def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, centre: float) -> None:
     """Coastlines, the phases, the entry region and the points on a lon/lat axes."""
     draw_coastlines(ax, centre=centre)
@@ -313,14 +305,14 @@ def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, cent
         )
         label = "terminal point"
         if site is not None:
-            miss = _haversine_km(
-                last["latitude_deg"],
-                last["longitude_deg"],
-                site.latitude_deg,
-                site.longitude_deg,
-                scenario.earth.radius,
+            miss_m = great_circle_distance(
+                math.radians(last["latitude_deg"]),
+                math.radians(last["longitude_deg"]),
+                math.radians(site.latitude_deg),
+                math.radians(site.longitude_deg),
+                radius=scenario.earth.radius,
             )
-            label += f" ({miss:.1f} km from the site)"
+            label += f" ({miss_m / 1e3:.1f} km from the site)"
         ax.plot(
             _point(last["longitude_deg"], centre),
             last["latitude_deg"],

@@ -13,8 +13,8 @@ import io
 from pathlib import Path
 from typing import Any
 
-from ovtraj.files import write_bytes
-from ovtraj.storage import location
+from ovtraj.store.backends import location
+from ovtraj.store.files import write_bytes
 
 __all__ = ["DPI", "figure", "png_bytes", "write_png"]
 

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.plots.render import figure, write_png
-from ovtraj.storage import location
+from ovtraj.store.backends import location
 from ovtraj.surrogate import SurrogateSet
 
 __all__ = ["display_unit", "parity_figure", "parity_plots"]

@@ -44,6 +44,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+
 # Status codes of a trajectory.
 TERMINAL, CRASHED, SKIPPED, TIME_LIMIT, DIVERGED = 0, 1, 2, 3, 4
 STATUS_TEXT = {
@@ -149,15 +151,20 @@ def _range_and_bearing_trig(
     return angle, bearing
 
 
+# The flight loop's angle wrap: ovtraj.astro.angles.wrap_to_pi compiled (numba calls only
+# compiled functions).
+_wrap_to_pi = njit(cache=True, error_model="numpy")(wrap_to_pi)
+
+
 @njit(cache=True, error_model="numpy")
 def _wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi) [rad]."""
+    """:func:`ovtraj.astro.angles.wrap_to_pi` of ``angle`` [rad]: in [-pi, pi)."""
     shifted = angle + math.pi
-    if 0.0 <= shifted < 2.0 * math.pi:
+    if 0.0 <= shifted < TWO_PI:
         # The modulo would return ``shifted`` itself (exact): skip its library call, a
-        # few % of a flight (issue 20).
+        # few % of a flight (issue 20). The same result as the kernel's, bit for bit.
         return shifted - math.pi
-    return shifted % (2.0 * math.pi) - math.pi
+    return _wrap_to_pi(angle)
 
 
 # The packed model (:func:`pack`): the float parameters (``P_*``), the table sizes
@@ -334,17 +341,6 @@ def _stage(
     return point_mass_rates_trig(
         r, v, cl_, sl, cg, sg, cp, sp, cb, sign * sb, aero[0], aero[1], mu / (r * r), omega
     )
-
-
-@njit(cache=True, error_model="numpy")
-def _derivatives(
-    x: np.ndarray,
-    sign: float,
-    p: np.ndarray,
-    tables: Tables,
-    out: np.ndarray,
-) -> None:
-    out[:] = derivatives_packed(x, sign, pack(p, tables))
 
 
 @njit(cache=True, error_model="numpy")

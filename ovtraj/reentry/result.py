@@ -9,7 +9,7 @@ from typing import Any
 import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 
 def _deg(x: float | None) -> float | None:

@@ -16,6 +16,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
 from ovtraj.deadline import Deadline
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS, STATUS_TEXT
 from ovtraj.reentry.guidance import BankGuidance, Limits, Shot, unit_bounds
@@ -156,7 +157,7 @@ def _result(
         terminal_latitude_rad=float(x[2]),
         terminal_longitude_rad=float(x[1]),
         terminal_fpa_rad=float(x[4]),
-        terminal_heading_rad=float(x[5] % (2.0 * math.pi)),
+        terminal_heading_rad=float(x[5] % TWO_PI),
         max_heat_rate_w_m2=flight.max_heat_rate_w_m2,
         max_heat_rate_time_s=flight.max_heat_rate_time_s,
         max_load_g=flight.max_load_g,

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ovtraj.astro.angles import principal_angle
+
 
 @dataclass(frozen=True)
 class HohmannTransfer:
@@ -81,10 +83,4 @@ def lead_angle(transfer: HohmannTransfer, target_rate_rad_s: float) -> float:
     eq. 6-29, with the target's mean angular rate), wrapped to (-pi, pi]:
     negative when the target must trail (transfer to a lower orbit).
     """
-    return wrap_angle(math.pi - target_rate_rad_s * transfer.transfer_time_s)
-
-
-def wrap_angle(angle: float) -> float:
-    """Angle wrapped to (-pi, pi]."""
-    wrapped = math.remainder(angle, 2.0 * math.pi)
-    return math.pi if wrapped == -math.pi else wrapped
+    return principal_angle(math.pi - target_rate_rad_s * transfer.transfer_time_s)

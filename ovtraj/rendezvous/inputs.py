@@ -9,7 +9,7 @@ import numpy as np
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.scenario import ParkingOrbitConfig, Scenario
 from ovtraj.rendezvous.result import RendezvousInput
-from ovtraj.targets import circular_orbit_state, target_state
+from ovtraj.target_state import circular_orbit_state, target_state
 
 
 def parking_state(

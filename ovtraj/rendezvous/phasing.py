@@ -9,11 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ovtraj.astro.angles import TWO_PI, principal_angle
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import FloatOrArray, NonsingularElements
 from ovtraj.astro.j2_elements import secular_rates, state_to_mean
 from ovtraj.astro.vectors import cross
-from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle, wrap_angle
+from ovtraj.rendezvous.hohmann import HohmannTransfer, hohmann, lead_angle
 
 
 def phase_angle(chaser_state: np.ndarray, target_position: np.ndarray) -> float:
@@ -54,7 +55,7 @@ def first_wait(phase0: ArrayLike, lead: ArrayLike, relative_rate: ArrayLike) -> 
     """
     phase0, lead, rate = (np.asarray(v, dtype=float) for v in (phase0, lead, relative_rate))
     gap = np.where(rate > 0, phase0 - lead, lead - phase0)
-    wait = np.mod(gap, 2.0 * math.pi) / np.abs(rate)
+    wait = np.mod(gap, TWO_PI) / np.abs(rate)
     return float(wait) if wait.ndim == 0 else wait
 
 
@@ -68,7 +69,7 @@ def refine_wait(
 ) -> float:
     """Newton steps on the propagated phase: phase(t) = lead, slope -relative_rate."""
     for _ in range(iterations):
-        error = wrap_angle(phase_at(wait_s) - lead)
+        error = principal_angle(phase_at(wait_s) - lead)
         wait_s = max(0.0, wait_s + error / relative_rate)
     return wait_s
 

@@ -13,7 +13,7 @@ from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.propagation import PropagationResult
 from ovtraj.config.scenario import RendezvousSettings
-from ovtraj.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
 
 TransferKind = Literal["rendezvous", "transfer"]
 

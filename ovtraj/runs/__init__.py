@@ -1,6 +1,6 @@
 """DoE runs of the mission chain and their Parquet run store (issue 6)."""
 
-from ovtraj.runs.doe import latin_hypercube
+from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe, split_batches
 from ovtraj.runs.store import Run, RunStore, StoreError, run_id
 

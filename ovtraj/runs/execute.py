@@ -22,10 +22,10 @@ from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.io_limits import io_limits
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
 from ovtraj.formatting import byte_size, printable
-from ovtraj.launch.fit import LaunchFit
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
+from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, Bounded, blas_threads
-from ovtraj.runs.doe import latin_hypercube
 from ovtraj.runs.runners import (
     BatchPool,
     ClusterError,
@@ -33,7 +33,7 @@ from ovtraj.runs.runners import (
     batch_pool,
 )
 from ovtraj.runs.store import Run, RunStore, StoreError
-from ovtraj.storage import S3Path
+from ovtraj.store.backends import S3Path
 
 logger = logging.getLogger(__name__)
 

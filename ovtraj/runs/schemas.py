@@ -28,11 +28,11 @@ import pyarrow as pa
 from ovtraj.deorbit.result import ROW_SCHEMA as DEORBIT_ROW
 from ovtraj.deorbit.result import TRAJECTORY_SCHEMA as DEORBIT_TRAJECTORY
 from ovtraj.mission.chain import DESIGN_NAMES, LAUNCH_ROW_SCHEMA, STAGES, TOTALS_SCHEMA
-from ovtraj.records import FLOAT, INT, record_schema
 from ovtraj.reentry.result import ROW_SCHEMA as REENTRY_ROW
 from ovtraj.reentry.result import TRAJECTORY_SCHEMA as REENTRY_TRAJECTORY
 from ovtraj.rendezvous.result import ROW_SCHEMA as RENDEZVOUS_ROW
 from ovtraj.rendezvous.result import TRAJECTORY_SCHEMA as RENDEZVOUS_TRAJECTORY
+from ovtraj.store.records import FLOAT, INT, record_schema
 
 __all__ = [
     "DATASETS",

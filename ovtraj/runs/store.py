@@ -29,7 +29,7 @@ Guarantees:
 - *Tamper evidence, with a key.* The checksums detect accidents only. With a store key
   configured (``OVTRAJ_STORE_KEY``), the manifest and every marker carry an HMAC seal,
   checked on every read: a marker rewritten without the key is refused as tampered
-  (:mod:`ovtraj.seals`), and through its digests so is every data file it lists.
+  (:mod:`ovtraj.store.seals`), and through its digests so is every data file it lists.
 - *Concurrent writers.* A process working on a run holds the run lock (shared) and
   claims each batch (exclusive lock) before computing it, so two processes never
   compute a batch twice; a killed process's locks are released by the kernel. The
@@ -69,9 +69,13 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from ovtraj import locks, paths
 from ovtraj.config import Scenario
-from ovtraj.files import (
+from ovtraj.interrupts import interrupt_of
+from ovtraj.mission import STAGES, MissionRecord
+from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
+from ovtraj.store import locks, paths
+from ovtraj.store.backends import S3Path, location
+from ovtraj.store.files import (
     TEMPORARY_SUFFIX,
     Digest,
     StoreError,
@@ -85,12 +89,8 @@ from ovtraj.files import (
     write_json,
     write_parquet,
 )
-from ovtraj.interrupts import interrupt_of
-from ovtraj.mission import STAGES, MissionRecord
-from ovtraj.records import table_from_frame, table_from_rows
-from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION, TIMING_COLUMNS, stored_trajectory
-from ovtraj.seals import authenticated, read_authenticated, seal_problem, write_sealed
-from ovtraj.storage import S3Path, location
+from ovtraj.store.records import table_from_frame, table_from_rows
+from ovtraj.store.seals import authenticated, read_authenticated, seal_problem, write_sealed
 
 __all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
 
@@ -210,7 +210,7 @@ class VerifyReport:
     problems: list[str] = field(default_factory=list)
     uncovered: list[str] = field(default_factory=list)  # files no marker lists (never read)
     # Manifests and markers whose seal is missing or wrong under the configured store key
-    # (ovtraj.seals); empty without a key, since checksums alone cannot tell tampering.
+    # (ovtraj.store.seals); empty without a key, since checksums alone cannot tell tampering.
     tampered: list[str] = field(default_factory=list)
 
     @property
@@ -411,7 +411,7 @@ class Run:
 
     @contextmanager
     def claim(self, batch: int, *, wait_s: float = 0.0) -> Iterator[bool]:
-        """Claim batch ``batch`` for this process (see :func:`ovtraj.locks.hold`).
+        """Claim batch ``batch`` for this process (see :func:`ovtraj.store.locks.hold`).
 
         Whoever holds the claim may compute and write the batch; it first clears what
         an interrupted attempt left of it (files that no marker covers).
@@ -636,7 +636,7 @@ class Run:
         listed by the markers of the run's surrogate fits, fronts and pipeline results.
         Files that nothing lists are reported as uncovered (readers never use them). With
         a store key configured, the manifest and every marker whose seal is missing or wrong
-        are reported as tampered (:mod:`ovtraj.seals`); the files such a marker lists are
+        are reported as tampered (:mod:`ovtraj.store.seals`); the files such a marker lists are
         still checked against its digests, for accidents.
         """
         report = VerifyReport(self.id)
@@ -754,7 +754,7 @@ def _link(source: Path | S3Path, target: Path | S3Path, digest: Digest) -> None:
 
 
 class RunStore:
-    """All runs under a root directory (default: the workspace's ``runs/``, ovtraj.paths)."""
+    """All runs under a root directory (default: the workspace's ``runs/``, ovtraj.store.paths)."""
 
     def __init__(self, root: str | Path | None = None) -> None:
         self.root = paths.store_root(None, None, root)

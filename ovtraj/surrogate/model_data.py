@@ -44,7 +44,7 @@ import numpy as np
 import pyarrow as pa
 
 from ovtraj.config.mission import SurrogateSettings
-from ovtraj.records import FLOAT, INT, TEXT, record_schema
+from ovtraj.store.records import FLOAT, INT, TEXT, record_schema
 from ovtraj.surrogate.candidates import (
     ALL_FEASIBLE,
     KRIGING,

@@ -14,7 +14,7 @@ the inputs; the LAPACK calls are scipy's own, with its arguments):
   4.5-5.2 -> 3.4-4.2 s per pipeline, the hypervolumes unchanged (issue 21,
   docs/optimize.md).
 
-The scan cannot find anything here: :func:`ovtraj.surrogate.fit.fit_surrogates` refuses
+The scan cannot find anything here: :func:`ovtraj.surrogate.surrogate_set.fit_surrogates` refuses
 non-finite inputs and feasible outputs before any fit, the correlations are
 ``exp(-sum theta d^2)`` in [0, 1] with ``theta`` inside SMT's bounds, and a fit whose
 predictions at its own samples are not finite is refused

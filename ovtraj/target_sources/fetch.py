@@ -5,7 +5,7 @@ The cache lives in the workspace next to the run store
 (``<workspace>/target_sources/``, see :func:`default_cache_dir`):
 
 * ``blobs/<sha256>``: the bytes of every response, named by their SHA-256 and
-  never changed (:func:`ovtraj.files.write_bytes`);
+  never changed (:func:`ovtraj.store.files.write_bytes`);
 * ``urls/<sha256 of the URL served>.json``: the latest fetch that URL served,
   ``{"url", "requested_url", "sha256", "bytes", "fetched_utc"}`` (``url`` served the
   bytes; ``requested_url`` was asked for, another one when it redirected), replaced
@@ -53,10 +53,10 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj import __version__
-from ovtraj.config.base import ConfigError
 from ovtraj.config.io_limits import echoed
 from ovtraj.config.target import TargetSourceSettings
-from ovtraj.files import Digest, StoreError, read_bytes, read_json, write_bytes, write_json
+from ovtraj.errors import ConfigError
+from ovtraj.store.files import Digest, StoreError, read_bytes, read_json, write_bytes, write_json
 
 __all__ = ["default_cache_dir", "fetch_text", "is_url"]
 
@@ -75,7 +75,7 @@ def is_url(source: str) -> bool:
 
 def default_cache_dir() -> Path:
     """``<workspace>/target_sources``: beside the run store (``<workspace>/runs``)."""
-    from ovtraj import paths
+    from ovtraj.store import paths
 
     return paths.workspace() / "target_sources"
 

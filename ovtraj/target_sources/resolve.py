@@ -1,7 +1,8 @@
 """From a scenario's target (or a file, URL or scenario on the command line) to its orbit.
 
-* :func:`inline_target` reads a ``tle_file`` / ``omm_file`` / ``url`` target when the
-  scenario is validated and puts the element set inline (``tle:`` / ``omm:``);
+* :func:`load_scenario` reads a scenario file; :func:`inline_target` reads its
+  ``tle_file`` / ``omm_file`` / ``url`` target and puts the element set inline (``tle:`` /
+  ``omm:``) before validation, which reads nothing;
 * :func:`scenario_with_target_source` is the same for a flow: a scenario (or its
   dict) with its target replaced by a TLE / OMM file, a URL or an inline record;
 * :func:`fitted_target` fits a scenario's element set once per process (cached) and
@@ -32,12 +33,12 @@ from ovtraj.config.target import (
     TargetSourceSettings,
     default_source_settings,
 )
-from ovtraj.paths import read_text_file
-from ovtraj.target_sources.elements import SourceElements, select_element_set
+from ovtraj.element_sets.elements import SourceElements, select_element_set
+from ovtraj.element_sets.omm import looks_like_omm, omm_element_sets
+from ovtraj.element_sets.tle import tle_element_sets
+from ovtraj.store.paths import read_text_file
 from ovtraj.target_sources.fetch import fetch_text, is_url
-from ovtraj.target_sources.fit import TargetFit, fit_target
-from ovtraj.target_sources.omm import looks_like_omm, omm_element_sets, omm_elements
-from ovtraj.target_sources.tle import tle_element_sets, tle_elements
+from ovtraj.target_sources.mean_elements_fit import TargetFit, fit_target
 
 if TYPE_CHECKING:
     from ovtraj.config.scenario import Scenario
@@ -47,10 +48,11 @@ __all__ = [
     "fit_source",
     "fitted_target",
     "inline_target",
+    "load_scenario",
     "load_scenario_with_target",
     "read_source",
+    "resolved_target",
     "scenario_with_target_source",
-    "target_elements",
 ]
 
 _SCENARIO_SUFFIXES = (".yaml", ".yml")
@@ -150,30 +152,41 @@ def inline_target(
     return resolved
 
 
-def target_elements(target: TargetConfig) -> SourceElements:
-    """The element set of a scenario target given by ``tle`` or ``omm`` (parsed, checked)."""
-    if target.tle is not None:
-        elements = _tle_cached(tuple(target.tle))
-    elif target.omm is not None:
-        elements = _omm_cached(json.dumps(target.omm, sort_keys=True))
-    else:
-        raise ConfigError(["target: hand-typed orbit, no TLE / OMM element set"])
-    wanted = target.catalog_number
-    if wanted is not None and wanted != elements.catalog_number:
-        raise ConfigError(
-            [f"catalog_number = {wanted} but the element set is of {elements.catalog_number}"]
-        )
-    return elements
+def resolved_target(
+    data: Mapping[str, Any], source_dir: Path | None, cache_dir: Path | None = None
+) -> dict[str, Any]:
+    """A target mapping ready for validation (:class:`~ovtraj.config.target.TargetConfig`):
+    its ``tle_file`` / ``omm_file`` / ``url`` read and put inline (:func:`inline_target`),
+    and the shipped ``configs/target_sources.yaml`` as the ``source_settings`` of a real
+    element set that names none. A hand-typed orbit, or a mapping without exactly one
+    source (validation names the problem), is returned as it is."""
+    target = dict(data)
+    given = [key for key in SOURCE_KEYS if target.get(key) is not None]
+    if len(given) != 1 or given[0] == "orbit":
+        return target
+    if target.get("source_settings") is None:
+        target["source_settings"] = default_source_settings().model_dump()
+    if given[0] in READ_KEYS:
+        target = inline_target(target, source_dir, cache_dir)
+    return target
 
 
-@lru_cache(maxsize=64)
-def _tle_cached(lines: tuple[str, ...]) -> SourceElements:
-    return tle_elements(lines, "target.tle")
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario YAML file; its target's file or URL is read here
+    (relative files relative to the scenario file's folder) and put inline, so that
+    validation reads nothing (issue 45). :class:`ConfigError` naming the file and field."""
+    from ovtraj.config.base import yaml_data
+    from ovtraj.config.scenario import scenario_from_dict
 
-
-@lru_cache(maxsize=64)
-def _omm_cached(fields_json: str) -> SourceElements:
-    return omm_elements(json.loads(fields_json), "target.omm")
+    path = Path(path)
+    data = yaml_data(path)
+    if isinstance(data, dict) and isinstance(data.get("target"), Mapping):
+        try:
+            target = resolved_target(data["target"], path.resolve().parent)
+        except ConfigError as err:
+            raise ConfigError([f"target: {p}" for p in err.problems], str(path)) from None
+        data = {**data, "target": target}
+    return scenario_from_dict(data, str(path))
 
 
 def scenario_with_target_source(
@@ -212,8 +225,6 @@ def scenario_with_target_source(
         target["catalog_number"] = catalog_number
     if isinstance(source, Mapping):
         target.update(source)
-        if any(target.get(k) is not None for k in READ_KEYS):
-            target = inline_target(target, base_dir, cache_dir)
     else:
         elements = read_source(
             source,
@@ -223,7 +234,7 @@ def scenario_with_target_source(
             cache_dir=cache_dir,
         )
         target.update(elements.config())
-    data["target"] = target
+    data["target"] = resolved_target(target, base_dir, cache_dir)
     return data
 
 
@@ -250,7 +261,7 @@ def _fit_cached(key: str) -> TargetFit:
     if target.source_settings is None:  # refused by TargetConfig already
         raise ConfigError([f"{_SETTINGS_KEY}: missing"])
     return fit_target(
-        target_elements(target),
+        target.elements(),
         Epoch.from_iso(content["epoch_utc"]),
         earth=EarthModel.model_validate(content["earth"]),
         tol=content["tol"],
@@ -281,8 +292,7 @@ def fit_source(
     ``epoch_utc`` (ISO 8601) and ``span_h`` [h] override. Every bad input is a
     :class:`ConfigError`.
     """
-    from ovtraj.config.scenario import load_scenario
-    from ovtraj.paths import config_path
+    from ovtraj.store.paths import config_path
 
     is_scenario = not is_url(source) and Path(source).suffix.lower() in _SCENARIO_SUFFIXES
     if is_scenario:
@@ -297,7 +307,7 @@ def fit_source(
         scenario = load_scenario(Path(source))
         if not scenario.target.has_source:
             raise ConfigError(["target: hand-typed orbit, no TLE / OMM / URL to fit"], source)
-        elements = target_elements(scenario.target)
+        elements = scenario.target.elements()
         default_epoch = scenario.epoch
     else:
         scenario = load_scenario(config_path("scenario.yaml"))
@@ -338,7 +348,7 @@ def load_scenario_with_target(config: str | Path, target: str | None = None) -> 
     parameter: a scheduled re-plan from an updated element set with no edit of the
     scenario file.
     """
-    from ovtraj.config.scenario import load_scenario, scenario_from_dict
+    from ovtraj.config.scenario import scenario_from_dict
 
     scenario = load_scenario(config)
     if target is None:

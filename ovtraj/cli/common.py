@@ -1,0 +1,210 @@
+"""What every ``ovtraj`` command shares: the typer app and its callback (``--version``,
+``--quiet``, ``--verbose``), the options several command families take (the scenario,
+``--json``, ``--target``, ``--store``), loading the scenario, and printing a result (a
+table of labelled rows, or one JSON object on one line)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+import typer.core
+
+from ovtraj import __version__
+from ovtraj.cli.progress import configure_logging
+from ovtraj.config import ConfigError, Scenario
+from ovtraj.formatting import joined, quantity, split_unit
+from ovtraj.store.paths import config_path
+from ovtraj.store.records import json_text, plain
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Whole-mission trajectory planning of a small reusable orbital vehicle.",
+    # Markdown, not rich markup: rich would take a unit such as `[m/s]` in a help text
+    # for a style tag and drop it.
+    rich_markup_mode="markdown",
+)
+
+
+def _flag_type(option: Any, ctx: Any) -> str | None:
+    """The type column of an option's help: none for a flag (typer 0.29 shows `<bool>`)."""
+    return None if getattr(option, "is_flag", False) else _OPTION_TYPE(option, ctx)
+
+
+# typer's own hook for the column; left alone by a typer that no longer has it.
+_OPTION_TYPE = getattr(typer.core.TyperOption, "display_type_rich", None)
+if _OPTION_TYPE is not None:
+    typer.core.TyperOption.display_type_rich = _flag_type
+
+ConfigArg = Annotated[
+    Path | None,
+    typer.Argument(
+        help="scenario YAML file (default: the shipped scenario, `ovtraj paths`)",
+        show_default=False,
+    ),
+]
+JsonOpt = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="print one JSON object on stdout, nothing else (progress and logs on stderr)",
+    ),
+]
+TargetOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--target",
+        help="TLE/OMM file or URL replacing the scenario's target (default: the scenario's)",
+        show_default=False,
+    ),
+]
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"ovtraj {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="show the version")
+    ] = False,
+    quiet: Annotated[
+        bool,
+        typer.Option("--quiet", "-q", help="warnings and errors only on stderr, no progress bars"),
+    ] = False,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="debug messages on stderr too")
+    ] = False,
+) -> None:
+    """ovtraj command line. Results go to stdout; progress bars (while stderr is a
+    terminal), progress messages and warnings to stderr, one line each."""
+    if quiet and verbose:
+        typer.echo("--quiet and --verbose: choose one", err=True)
+        raise typer.Exit(code=2)
+    configure_logging(quiet=quiet, verbose=verbose)
+
+
+def _load(config: Path | None, target: str | None = None) -> Scenario:
+    """The scenario (the shipped one when ``config`` is None), its target replaced by the
+    TLE/OMM file or URL ``target`` when given."""
+    # Here, not at the top: the target sources load the SGP4 fit (scipy, heyoka, numba,
+    # ~1 s) that `ovtraj --help` and the store's commands never need.
+    from ovtraj.target_sources import load_scenario, load_scenario_with_target
+
+    try:
+        path = config if config is not None else config_path("scenario.yaml")
+        return load_scenario(path) if target is None else load_scenario_with_target(path, target)
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
+    """A title and aligned ``label  value`` lines (a value not yet text through
+    :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits)."""
+    typer.echo(title)
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        shown = value if isinstance(value, str) else quantity(value)
+        typer.echo(f"  {key:<{width}}  {shown}")
+
+
+# A table row of a result: (label, key of the row or function of the row, unit[, digits]);
+# the unit "s" shows a duration, "utc" an epoch (ovtraj.formatting.quantity).
+RowSpec = list[tuple[Any, ...]]
+
+
+def _rows(row: dict[str, Any], spec: RowSpec) -> list[tuple[str, str]]:
+    """``(label, text)`` of every row of ``spec`` the result has a value for."""
+    shown = []
+    for label, how, unit, *digits in spec:
+        value = how(row) if callable(how) else row.get(how)
+        if value is not None and value != "":
+            shown.append((label, quantity(value, unit, *digits)))
+    return shown
+
+
+def _keyed_rows(row: dict[str, Any], digits: int = 4) -> list[tuple[str, str]]:
+    """Every field of a flat row, labelled by its key without the unit suffix and shown
+    in that unit with ``digits`` significant digits (``min_t_total_s`` -> ``min t total
+    142.003 h``)."""
+    shown = []
+    for key, value in row.items():
+        name, unit = split_unit(key)
+        shown.append((name.replace("_", " "), quantity(value, unit, digits)))
+    return shown
+
+
+def _joined(
+    row: dict[str, Any],
+    pattern: str,
+    names: tuple[str, ...],
+    unit: str,
+    decimals: int = 3,
+    sep: str = " / ",
+) -> str | None:
+    """``a / b / c unit`` of ``row[pattern.format(name)]`` with ``decimals`` each; None
+    when the stage did not get there."""
+    values = [row.get(pattern.format(name)) for name in names]
+    if any(v is None for v in values):
+        return None
+    return joined(values, unit, sep=sep, decimals=decimals)
+
+
+def _print_json(value: Any) -> None:
+    """One JSON object, on one line of stdout."""
+    typer.echo(json_text(value, indent=None))
+
+
+def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
+    """Print a stage result (JSON or a table: feasible, the reason if any, ``rows``);
+    exit 1 when it is infeasible."""
+    row = plain(result.to_row())
+    if as_json:
+        _print_json(row)
+    else:
+        shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
+        if row.get("reason"):
+            shown.append(("reason", row["reason"]))
+        _print_rows(title, shown + _rows(row, rows))
+    if not result.feasible:
+        raise typer.Exit(code=1)
+
+
+def _store(root: str | None, scenario: Scenario | None = None, config: Path | None = None) -> Any:
+    """``--store``, else the scenario's store (relative to its file ``config``), else the
+    workspace's (ovtraj.store.paths)."""
+    from ovtraj.runs import RunStore
+
+    if scenario is not None:
+        return RunStore.for_scenario(scenario, config, root)
+    return RunStore(root)
+
+
+StoreOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--store",
+        help="run store root, a folder or s3://bucket/prefix (default: the scenario's "
+        "mission.doe.store for a command given a scenario, else runs in the workspace, "
+        "`ovtraj paths`)",
+        show_default=False,
+    ),
+]
+
+
+def _limits(model: Any, name: str) -> dict[str, Any]:
+    """A config field's bounds as typer's ``min``/``max``: the command refuses what the
+    config would (one definition of each range, in ``ovtraj.config``)."""
+    limits: dict[str, Any] = {}
+    for constraint in model.model_fields[name].metadata:
+        if getattr(constraint, "ge", None) is not None:
+            limits["min"] = constraint.ge
+        if getattr(constraint, "le", None) is not None:
+            limits["max"] = constraint.le
+    return limits

@@ -1,0 +1,193 @@
+"""The mission plan's commands: fly it through the real dynamics (with its dispersed
+Monte Carlo runs) and export it as a CCSDS OEM or OPM (fly, export)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from ovtraj.cli.common import JsonOpt, _limits, _print_json, app
+from ovtraj.cli.progress import progress_bar
+from ovtraj.config import ConfigError
+from ovtraj.config.base import load_model
+from ovtraj.config.dispersions import DispersionsConfig, MonteCarloExecution, default_dispersions
+from ovtraj.formatting import number, split_unit
+
+
+@app.command()
+def fly(
+    plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
+    monte_carlo: Annotated[
+        int,
+        typer.Option(
+            "--monte-carlo",
+            min=0,
+            max=_limits(MonteCarloExecution, "runs")["max"],
+            help="also fly this many dispersed runs, closed loop and open loop (0: none)",
+        ),
+    ] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="seed of the dispersed runs")] = 0,
+    dispersions_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--dispersions",
+            help="dispersions YAML (default: the shipped configs/dispersions.yaml)",
+            show_default=False,
+        ),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Replay a mission plan through the real dynamics from the carrier's drop: landing miss
+    and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights
+    (a progress bar on stderr)."""
+    from ovtraj.mission.fly import fly_plan, format_flight_report
+    from ovtraj.mission.plan import PlanError, read_plan
+
+    try:
+        plan = read_plan(plan_file)
+        dispersions = _dispersions(dispersions_file) if monte_carlo else None
+    except PlanError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    report = fly_plan(plan)
+    row = report.to_dict()
+    if monte_carlo:
+        row["monte_carlo"] = _monte_carlo(plan, dispersions, monte_carlo, seed, as_json)
+    if as_json:
+        _print_json(row)
+    else:
+        typer.echo(format_flight_report(report))
+        if monte_carlo:
+            typer.echo(_format_monte_carlo(row["monte_carlo"]))
+    if not report.landed_within_stated_miss:
+        raise typer.Exit(code=1)
+
+
+def _dispersions(path: Path | None) -> Any:
+    return default_dispersions() if path is None else load_model(DispersionsConfig, path)
+
+
+def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool) -> dict:
+    """The dispersed runs, closed and open loop, summarised (a progress bar on stderr
+    unless ``as_json``)."""
+    from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, outcome_summaries
+
+    with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
+        pairs = monte_carlo(plan, dispersions, runs, seed, progress=update)
+    loops = outcome_summaries(plan, [c for c, _ in pairs], [o for _, o in pairs])
+    return monte_carlo_report(loops["closed"], loops["open"], seed, plan.terminal.stated_miss_m)
+
+
+def _format_monte_carlo(summary: dict) -> str:
+    stated_km = number(summary["stated_miss_m"] / 1e3, "km")
+    lines = [f"monte carlo (seed {summary['seed']}): stated miss {stated_km}"]
+    for loop, s in (("closed loop", summary), ("open loop", summary["open_loop"])):
+        miss = s["landing_miss_m"]
+
+        def km(value: float | None) -> str:
+            return "a failed run" if value is None else number(value / 1e3, "km")
+
+        shown = (
+            "no run landed"
+            if miss is None
+            else f"miss p50 {km(miss['p50'])}, p95 {km(miss['p95'])}, max {km(miss['max'])} "
+            "(a failed run counts as beyond any miss)"
+        )
+        lines.append(
+            f"  {loop}: {s['landed']}/{s['runs']} landed "
+            f"({s['within_stated_miss_fraction']:.0%} within the stated miss); {shown}"
+        )
+        if s["failures"]:
+            failed = ", ".join(f"{stage} {n}" for stage, n in s["failures"].items())
+            lines.append(f"    failed: {failed}")
+        for name, margin in s["path_limit_margins"].items():
+            if margin is not None:
+                stem, unit = split_unit(name)
+                lines.append(
+                    f"    {stem}: smallest margin {number(margin['smallest_margin'], unit)} "
+                    f"(limit {number(margin['limit'], unit)})"
+                )
+        lines.extend(_format_dv_spent(s["dv_mps"]))
+    return "\n".join(lines)
+
+
+def _format_dv_spent(dv: dict) -> list[str]:
+    """The dV lines of a loop's Monte Carlo summary (``dv_mps``)."""
+
+    def mps(value: float | None, unit: str = "") -> str:
+        return number(value, unit, decimals=2)
+
+    lines = ["    dV spent, p50 / p95 / max over the runs that flew it (planned; p95 - planned):"]
+    for name, s in dv.items():
+        planned = f"planned {mps(s['planned'], 'm/s')}"
+        if s["runs"] == 0:
+            lines.append(f"      {name}: no run flew it ({planned})")
+            continue
+        margin = s["p95_minus_planned"]
+        lines.append(
+            f"      {name}: {mps(s['p50'])} / {mps(s['p95'])} / {mps(s['max'], 'm/s')} "
+            f"({planned}; {'n/a' if margin is None else f'{margin:+.2f} m/s'}; "
+            f"{s['runs']} runs)"
+        )
+    return lines
+
+
+@app.command()
+def export(
+    plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
+    fmt: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="oem: the whole trajectory (CCSDS 502.0 OEM 2.0); opm: the insertion state "
+            "and the five impulses (OPM 2.0)",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="file to write (never overwritten)")],
+    settings_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--settings",
+            help="export settings YAML (default: the shipped configs/ccsds_export.yaml)",
+        ),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Export a mission plan as a CCSDS OEM or OPM (KVN, EME2000, UTC) for GMAT, Orekit, STK."""
+    from ovtraj.config.export import CcsdsExportSettings, default_export_settings
+    from ovtraj.mission.ccsds import FORMATS, UnflownPlan, export_plan
+    from ovtraj.mission.plan import PlanError, read_plan
+
+    fmt = fmt.lower()
+    if fmt not in FORMATS:
+        typer.echo(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}", err=True)
+        raise typer.Exit(code=2)
+    try:
+        settings = (
+            default_export_settings()
+            if settings_file is None
+            else load_model(CcsdsExportSettings, settings_file)
+        )
+        path, report = export_plan(read_plan(plan_file), fmt, out, settings)
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    except UnflownPlan as err:
+        typer.echo(f"{plan_file}: {err}", err=True)
+        raise typer.Exit(code=1) from None
+    except PlanError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    written = path.resolve()
+    if as_json:
+        row = {"format": fmt, "path": str(written), "frame": settings.ref_frame}
+        if report is not None:
+            row["replay_miss_distance_m"] = report.miss_distance_m
+        _print_json(row)
+    else:
+        typer.echo(f"{fmt}: {written}")

@@ -1,0 +1,339 @@
+"""The surrogate pipeline's commands: the whole pipeline, the surrogate front of a stored
+run, the mission plan of a front point (pipeline, optimize, plan)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from ovtraj.cli.common import (
+    ConfigArg,
+    JsonOpt,
+    StoreOpt,
+    TargetOpt,
+    _load,
+    _print_json,
+    _print_rows,
+    _store,
+    app,
+)
+from ovtraj.cli.doe import (
+    DaskAddressOpt,
+    RunnerOpt,
+    SamplesOpt,
+    SeedOpt,
+    _launch_fit_or_exit,
+    _runner_choice,
+)
+from ovtraj.cli.picking import (
+    MaxDvOpt,
+    MaxTimeOpt,
+    MinLoadOpt,
+    PickIndexOpt,
+    WeightsOpt,
+    _pick,
+    _print_plan,
+)
+from ovtraj.cli.progress import echo, progress_bar
+from ovtraj.config import ConfigError, Scenario
+from ovtraj.formatting import number
+
+if TYPE_CHECKING:  # the driver and the runners load the numerics: imported when run
+    from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest
+    from ovtraj.runs.runners import RunnerChoice
+
+
+def _run_scenario(stored: Any, config: Path | None) -> Scenario:
+    from ovtraj.pipeline import run_scenario
+
+    try:
+        return run_scenario(stored, config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _print_front(front: Any) -> None:
+    typer.echo(
+        "  front  sample   H_P0 [km]  H_dp [km]  t_dsp [h]   T [h]  dV [m/s]  M [kg]  origin"
+    )
+    for row in front.itertuples(index=False):
+        typer.echo(
+            f"  {row.front_index:5d}  {row.sample_id:6d}  {row.parking_altitude_km:9.2f}  "
+            f"{row.preparation_altitude_km:9.2f}  {row.separation_delay_h:9.2f}  "
+            f"{row.t_total_s / 3600:6.1f}  {row.dv_total_mps:8.2f}  {row.m_load_kg:6.1f}  "
+            f"{row.origin}"
+        )
+    typer.echo(
+        "  H_P0: parking (launch insertion) altitude, H_dp: preparation orbit altitude, "
+        "t_dsp: separation delay after docking; T, dV lower and M (payload) higher is better"
+    )
+
+
+@app.command()
+def pipeline(
+    config: ConfigArg = None,
+    samples: SamplesOpt = None,
+    seed: SeedOpt = None,
+    from_run: Annotated[
+        str | None, typer.Option("--run", help="start from this stored DoE run (no new DoE)")
+    ] = None,
+    refit: Annotated[
+        bool, typer.Option("--refit", help="refit and re-optimise even when stored")
+    ] = False,
+    pick: PickIndexOpt = None,
+    weights: WeightsOpt = None,
+    max_time_h: MaxTimeOpt = None,
+    max_dv: MaxDvOpt = None,
+    min_payload: MinLoadOpt = None,
+    store_root: StoreOpt = None,
+    target: TargetOpt = None,
+    runner: RunnerOpt = None,
+    dask_address: DaskAddressOpt = None,
+    require_converged: Annotated[
+        bool,
+        typer.Option(
+            "--require-converged",
+            help="exit 1 when the verification loop stops before its tolerance is met "
+            "(the front, plan and report are stored all the same)",
+        ),
+    ] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan
+    and its HTML report. Says whether the verification loop converged and why it stopped."""
+    from ovtraj.pipeline.drive import PipelineRequest
+
+    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
+    scenario = _load(config, target)
+    if scenario.mission is None:
+        typer.echo(f"{config}: the scenario has no mission section", err=True)
+        raise typer.Exit(code=2)
+    fit = _launch_fit_or_exit(scenario, target)
+    choice = _runner_choice(scenario.mission.doe, runner, dask_address)
+    request = PipelineRequest(samples, seed, from_run, config, refit, chosen)
+    outcome = _drive(scenario, fit, _store(store_root, scenario, config), choice, request, as_json)
+    doe_run, result, planned = outcome.doe_run, outcome.result, outcome.planned
+    verdict, converged = outcome.verdict, outcome.converged
+    front_plot = Path(result.directory / "front.png").resolve()
+    # The last round's views, drawn with the result: parity plots and the surrogate front.
+    views = sorted(
+        path.resolve() for path in Path(result.directory).glob("*.png") if path.name != "front.png"
+    )
+    if as_json:
+        _print_plan(
+            planned,
+            True,
+            {
+                "doe_run": doe_run.id,
+                "final_run": result.final_run,
+                "pipeline_id": result.pipeline_id,
+                "converged": converged,
+                "stop_reason": result.summary["stop_reason"],
+                "verdict": verdict,
+                "real_evaluations": result.summary["real_evaluations"],
+                "hypervolume": result.summary["hypervolume"],
+                "front_points": len(result.front),
+                "front": str(Path(result.front_path).resolve()),
+                "front_plot": str(front_plot),
+                "views": [str(p) for p in views],
+            },
+        )
+    else:
+        typer.echo(
+            f"verified front of DoE run {doe_run.id} (pipeline {result.pipeline_id}, final "
+            f"run {result.final_run}):"
+        )
+        _print_front(result.front)
+        typer.echo(verdict)
+        typer.echo(f"front: {Path(result.front_path).resolve()}")
+        typer.echo(f"plot: {front_plot}")
+        for path in views:
+            typer.echo(f"plot: {path}")
+        _print_plan(planned, False, {})
+    if require_converged and not converged:
+        raise typer.Exit(code=1)
+
+
+def _drive(
+    scenario: Scenario,
+    fit: Any,
+    store: Any,
+    choice: RunnerChoice,
+    request: PipelineRequest,
+    as_json: bool,
+) -> PipelineOutcome:
+    """The library's driver (:func:`ovtraj.pipeline.drive.drive_pipeline`, as the mission
+    flow) with the batches on the library's pool of ``choice``, a progress bar per run; a
+    failure is one line on stderr, exit 1 (the optimiser stopped, a plan that does not fly
+    its front point) or 2."""
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.mission.plan import PlanMismatch
+    from ovtraj.pipeline import OptimiserStopped, PipelineError
+    from ovtraj.pipeline.drive import drive_pipeline
+    from ovtraj.runs import StoreError
+    from ovtraj.runs.execute import BatchesFailed, PoolBatches
+    from ovtraj.runs.runners import ClusterError
+    from ovtraj.surrogate import SurrogateError
+    from ovtraj.version import code_version
+
+    say = logging.getLogger("ovtraj.pipeline").info if as_json else echo
+    orchestration = load_orchestration()
+    batches = PoolBatches(
+        scenario,
+        fit,
+        choice,
+        dask=orchestration.dask,
+        time_limit_s=orchestration.flows.doe_s,
+        progress=say,
+        progress_bar=lambda label: progress_bar(label, enabled=not as_json),
+    )
+    try:
+        return drive_pipeline(scenario, fit, store, code_version(), batches, request, progress=say)
+    except (OptimiserStopped, PlanMismatch) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
+    except (
+        StoreError,
+        PipelineError,
+        SurrogateError,
+        ValueError,
+        ClusterError,
+        BatchesFailed,
+    ) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+@app.command()
+def optimize(
+    run_id: str,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config",
+            help="surrogate/optimisation settings from this scenario YAML (default: the run's own)",
+            show_default=False,
+        ),
+    ] = None,
+    refit: Annotated[
+        bool, typer.Option("--refit", help="refit and re-optimise even when stored")
+    ] = False,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation)."""
+    from ovtraj.pipeline import (
+        OptimiserStopped,
+        PipelineError,
+        fit_step,
+        front_step,
+        training_data,
+    )
+    from ovtraj.pipeline.features import unregressed
+    from ovtraj.runs import StoreError
+    from ovtraj.surrogate import SurrogateError
+    from ovtraj.version import code_version
+
+    try:
+        stored = _store(store_root).run(run_id)
+        scenario = _run_scenario(stored, config)
+        code = code_version()
+        fitted = fit_step(stored, training_data(stored), scenario, code, refit=refit)
+        front = front_step(stored, fitted, scenario, code, refit=refit)
+    except OptimiserStopped as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
+    except (StoreError, PipelineError, SurrogateError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    validation = fitted.surrogates.validation
+    chosen = validation[validation["selected"].astype(bool)]
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "surrogates": str(fitted.directory.resolve()),
+                "loaded_from_store": fitted.reused,
+                "models": [
+                    *(
+                        {"model": row.model, "candidate": row.candidate}
+                        for row in chosen.itertuples(index=False)
+                    ),
+                    *(
+                        {"model": output, "candidate": model}
+                        for output, model in unregressed(fitted.surrogates).items()
+                    ),
+                ],
+                "front": str((front.directory / "front.parquet").resolve()),
+                "front_points": len(front.front),
+                "hypervolume": front.front.hypervolume,
+                "identical_to_stored_front": front.matches_stored,
+            }
+        )
+        raise typer.Exit(code=1 if front.matches_stored is False else 0)
+    rows = [
+        ("surrogates", str(fitted.directory.resolve())),
+        ("loaded from the store", fitted.reused),
+    ]
+    for row in chosen.itertuples(index=False):
+        rows.append((f"{row.model} model", row.candidate))
+    for output, model in unregressed(fitted.surrogates).items():
+        rows.append((f"{output} model", model))
+    rows += [
+        ("front", str((front.directory / "front.parquet").resolve())),
+        ("front points", len(front.front)),
+        ("hypervolume", number(front.front.hypervolume, "", 6)),
+    ]
+    if front.matches_stored is not None:
+        rows.append(("identical to the stored front", front.matches_stored))
+    _print_rows(f"surrogate front of run {stored.id}", rows)
+    if front.matches_stored is False:
+        raise typer.Exit(code=1)
+
+
+@app.command()
+def plan(
+    run_id: Annotated[
+        str,
+        typer.Argument(
+            help="any run of a pipeline family: its DoE run, an infill run (also a pruned "
+            "one) or the final run"
+        ),
+    ],
+    pick: PickIndexOpt = None,
+    weights: WeightsOpt = None,
+    max_time_h: MaxTimeOpt = None,
+    max_dv: MaxDvOpt = None,
+    min_payload: MinLoadOpt = None,
+    pipeline_id: Annotated[
+        str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
+    ] = None,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Write the mission plan (JSON and YAML), its plots and its HTML report, of a point
+    of the verified front of a run's pipeline result."""
+    from ovtraj.mission.plan import PlanError, PlanMismatch
+    from ovtraj.pipeline import PipelineError
+    from ovtraj.pipeline.catalog import family_root
+    from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
+    from ovtraj.runs import StoreError
+
+    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
+    try:
+        store = _store(store_root)
+        stored = family_root(store, run_id)
+        scenario = _run_scenario(stored, None)
+        result = find_pipeline(stored, pipeline_id)
+        planned = write_mission_plan(scenario, _launch_fit_or_exit(scenario), store, result, chosen)
+    except PlanMismatch as err:  # the plan does not fly its front point: an unmet result
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=1) from None
+    except (StoreError, PipelineError, PlanError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    _print_plan(planned, as_json, {"doe_run": stored.id, "pipeline_id": result.pipeline_id})

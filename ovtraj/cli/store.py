@@ -1,0 +1,253 @@
+"""The run store's commands: list the runs, show, verify and replay one, prune what the
+store can lose (runs, show, prune, verify, replay)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, app
+from ovtraj.config.io_limits import echoed
+from ovtraj.formatting import byte_size, number, utc
+
+
+@app.command()
+def runs(store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+    """List the stored runs by family: each DoE run, then the runs that extend it (a
+    pipeline's infill rounds, `run --append`), with their pipeline results and sizes."""
+    from ovtraj.pipeline.catalog import store_catalog
+    from ovtraj.runs import StoreError
+
+    store = _store(store_root)
+    try:
+        entries = store_catalog(store)
+    except (StoreError, OSError) as err:
+        typer.echo(f"{store.root}: {err}", err=True)
+        raise typer.Exit(code=2) from None
+    if as_json:
+        _print_json({"store": str(store.root.resolve()), "runs": [e.to_json() for e in entries]})
+        return
+    if not entries:
+        typer.echo(f"no runs in {store.root.resolve()}")
+        return
+    table = Table(
+        title=f"runs in {store.root.resolve()}", title_justify="left", box=None, pad_edge=False
+    )
+    for column, justify in (
+        ("run", "left"),
+        ("created (UTC)", "left"),
+        ("scenario", "left"),
+        ("origin", "left"),
+        ("samples", "right"),
+        ("feasible", "right"),
+        ("status", "left"),
+        ("pipeline results", "left"),
+        ("size", "right"),
+    ):
+        table.add_column(column, justify=justify, no_wrap=column == "run")
+    for e in entries:
+        indent = "  " * e.depth + ("└ " if e.depth else "")
+        if e.error is not None:
+            table.add_row(indent + e.run_id, "-", "-", "-", "-", "-", f"error: {e.error}")
+            continue
+        table.add_row(
+            indent + e.run_id,
+            utc(e.created_utc),
+            e.scenario or "-",
+            e.origin or "-",
+            str(e.samples),
+            f"{e.feasible}/{e.evaluated}",
+            e.status or "-",
+            ", ".join(e.pipelines) or "-",
+            "-" if e.size_bytes is None else byte_size(e.size_bytes),
+        )
+    # On a terminal the table fits its width; elsewhere (a pipe, a file) every row is whole.
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console = Console(highlight=False, width=10_000)
+    console.print(table)
+    families = sum(1 for e in entries if e.depth == 0)
+    total = sum(e.size_bytes or 0 for e in entries)
+    typer.echo(
+        f"{len(entries)} runs in {families} families, {byte_size(total)} on disk "
+        "(a file shared by hard link counted once); `ovtraj prune` lists what can go"
+    )
+
+
+@app.command()
+def show(run_id: str, store_root: StoreOpt = None) -> None:
+    """Print a run's manifest and summary as one JSON object."""
+    from ovtraj.runs import StoreError
+
+    try:
+        stored = _store(store_root).run(run_id)
+        manifest, summary = stored.manifest, stored.summary()
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(json.dumps({"manifest": manifest, "summary": summary}, indent=2, default=str))
+
+
+PruneKinds = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--only",
+        help="what to prune: children (superseded child runs), fits (surrogate fits and "
+        "fronts of another code version), prefect-results (Prefect's local task results); "
+        "repeat the option for several (default: all three)",
+        show_default=False,
+    ),
+]
+
+
+@app.command()
+def prune(
+    store_root: StoreOpt = None,
+    only: PruneKinds = None,
+    yes: Annotated[
+        bool, typer.Option("--yes", help="delete (without it: only list what would go)")
+    ] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """List, and with --yes delete, what the store can lose without losing a result:
+    child runs whose samples a later complete run holds (never a family's DoE run nor a
+    pipeline's final run), surrogate fits and fronts no longer loaded by this code
+    version, and Prefect's task results (a cache). See docs/mission.md."""
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.pipeline.prune import KINDS, prunable, remove
+    from ovtraj.runs import StoreError
+    from ovtraj.version import code_version
+
+    kinds = tuple(only) if only else KINDS
+    unknown = sorted(set(kinds) - set(KINDS))
+    if unknown:
+        shown = ", ".join(echoed(repr(kind)) for kind in unknown)
+        typer.echo(f"--only: {shown} is not one of {', '.join(KINDS)}", err=True)
+        raise typer.Exit(code=2)
+    store = _store(store_root)
+    results = load_orchestration().results.location()
+    try:
+        items = prunable(
+            store,
+            code_version(),
+            kinds=kinds,
+            prefect_results=None if "://" in results else Path(results),
+        )
+        removed = [item for item in items if yes and remove(item)]
+    except (StoreError, OSError) as err:
+        typer.echo(f"prune: {err}", err=True)
+        raise typer.Exit(code=2) from None
+    freed = sum(item.size_bytes for item in removed)
+    if as_json:
+        _print_json(
+            {
+                "store": str(store.root.resolve()),
+                "deleted": yes,
+                "items": [i.to_json() | {"removed": i in removed} for i in items],
+                "freed_bytes": freed,
+            }
+        )
+        return
+    for item in items:
+        done = "deleted" if item in removed else "would delete" if not yes else "kept (in use)"
+        typer.echo(f"{done}: {item.path} ({byte_size(item.size_bytes)}): {item.reason}")
+    total = sum(item.size_bytes for item in items)
+    if yes:
+        typer.echo(f"{len(removed)} of {len(items)} items deleted, {byte_size(freed)} freed")
+    else:
+        typer.echo(f"{len(items)} items, {byte_size(total)}: nothing deleted (add --yes to delete)")
+
+
+@app.command()
+def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+    """Check every file of a run against its recorded size, SHA-256 and schema.
+
+    The checksums detect accidents; with OVTRAJ_STORE_KEY set, the manifest's and the
+    markers' seals are checked too, and one missing or wrong is reported as tampered.
+    Exit 0 when every covered file is intact, 1 with the list of bad or tampered files,
+    2 when the run cannot be opened.
+    """
+    from ovtraj.runs import StoreError
+
+    try:
+        stored = _store(store_root).run(run_id)
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    report = stored.verify()
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "clean": report.clean,
+                "checked_files": report.checked_files,
+                "checked_bytes": report.checked_bytes,
+                "problems": [str(p) for p in report.problems],
+                "tampered": [str(p) for p in report.tampered],
+                "uncovered": [str(p) for p in report.uncovered],
+            }
+        )
+        raise typer.Exit(code=0 if report.clean else 1)
+    for problem in report.tampered:
+        typer.echo(f"tampered: {problem}")
+    for problem in report.problems:
+        typer.echo(f"bad: {problem}")
+    for path in report.uncovered:
+        typer.echo(f"not covered by any marker (never read): {path}")
+    found = [
+        f"{len(found)} {what} file(s)"
+        for found, what in ((report.tampered, "tampered"), (report.problems, "bad"))
+        if found
+    ]
+    verdict = "clean" if report.clean else ", ".join(found)
+    typer.echo(
+        f"run {stored.id}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
+        f"MB checked: {verdict}"
+    )
+    if not report.clean:
+        raise typer.Exit(code=1)
+
+
+@app.command()
+def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+    """Re-derive the mission totals from the stored stage rows (no simulation)."""
+    from ovtraj.runs import StoreError
+    from ovtraj.runs import replay as replay_run
+
+    try:
+        stored = _store(store_root).run(run_id)
+        derived = replay_run(stored)
+        totals = stored.totals()
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    merged = derived.merge(totals, on="sample_id", suffixes=("", "_stored"))
+    differences = {}
+    for column in ("t_total_s", "dv_total_mps", "m_load_kg"):
+        a, b = merged[column].to_numpy(float), merged[f"{column}_stored"].to_numpy(float)
+        both = np.isfinite(a) & np.isfinite(b)
+        differences[column] = float(np.max(np.abs(a[both] - b[both]))) if both.any() else 0.0
+    worst = max(differences.values())
+    if as_json:
+        _print_json(
+            {
+                "run_id": stored.id,
+                "samples": len(derived),
+                "feasible": int(derived["feasible"].sum()),
+                "largest_difference": worst,
+                "largest_differences": differences,
+            }
+        )
+        return
+    rows = [
+        ("samples", len(derived)),
+        ("feasible", int(derived["feasible"].sum())),
+        ("largest difference from the stored totals", worst),
+    ]
+    _print_rows(f"replay of {stored.id} (no simulation)", rows)

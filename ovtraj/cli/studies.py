@@ -1,0 +1,223 @@
+"""The study commands: a problem of its own YAML file, not a scenario's stage
+(optimal-entry, maneuver, deorbit-burn; the seed studies 001, 003 and 004)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from ovtraj.cli.common import JsonOpt, RowSpec, _limits, _print_json, _print_rows, _rows, app
+from ovtraj.cli.progress import progress_bar
+from ovtraj.config import ConfigError
+from ovtraj.config.deorbit_burn import MonteCarloConfig
+from ovtraj.formatting import duration, number
+from ovtraj.store.paths import workspace
+from ovtraj.store.records import plain
+
+_OPTIMAL_ENTRY_ROWS: RowSpec = [
+    ("reason", "reason", ""),
+    ("status", "status", ""),
+    ("objective", "objective", ""),
+    (
+        "formulation",
+        lambda row: (
+            f"{row['independent']}, {row['method']} {row['segments']}x{row['nodes_per_segment']}"
+            f" ({row['refinements']} mesh refinements)"
+        ),
+        "",
+    ),
+    ("objective value", "objective_value", "", 6),
+    ("final time", "final_time_s", "s"),
+    ("range", "range_km", "km", 5),
+    ("cross-range", "crossrange_km", "km"),
+    ("final latitude", "final_latitude_deg", "deg", 6),
+    ("final altitude", "final_altitude_km", "km"),
+    ("final speed", "final_speed_mps", "m/s"),
+    ("final flight-path angle", "final_fpa_deg", "deg"),
+    ("max load", "max_load_g", "g"),
+    ("max dynamic pressure", "max_dynamic_pressure_kpa", "kPa"),
+    ("max heat rate", "max_heat_rate", "kW/m^2"),
+    ("NLP iterations", "nlp_iterations", ""),
+    ("solve time", "solve_time_s", "s"),
+    ("feasibility error", "feasibility_error_km", "km", 3),
+    ("feasibility error, angle", "feasibility_error_deg", "deg", 3),
+    (
+        "re-flight, each interpolation",
+        lambda row: (
+            ", ".join(
+                f"{key[len('feasibility_') : -len('_position_km')]} {number(value, 'km', 3)}"
+                for key, value in row.items()
+                if key.startswith("feasibility_") and key.endswith("_position_km")
+            )
+            or None
+        ),
+        "",
+    ),
+]
+
+IndependentOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--independent",
+        help="independent variable: energy | time (default: the config's)",
+        show_default=False,
+    ),
+]
+TranscriptionOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--transcription",
+        help="collocation: lg | lgr (default: the config's)",
+        show_default=False,
+    ),
+]
+
+
+@app.command("optimal-entry")
+def optimal_entry(
+    config: Annotated[Path, typer.Argument(help="optimal-entry YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+    independent: IndependentOpt = None,
+    transcription: TranscriptionOpt = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="where the histories go, in a subfolder named by their content "
+            "(default: optimal_entry in the workspace, `ovtraj paths`)",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Optimal lifting entry by Gauss pseudospectral collocation (seed 001)."""
+    from ovtraj.studies.optimal_entry import (
+        load_optimal_entry,
+        solve_optimal_entry,
+        write_histories,
+    )
+
+    try:
+        problem = load_optimal_entry(config)
+        result = solve_optimal_entry(problem, independent=independent, transcription=transcription)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    # One subfolder per distinct result: stored histories are never overwritten.
+    root = (out or workspace() / "optimal_entry").resolve()
+    paths = write_histories(result, root, content_named=True)
+    row = {k: v for k, v in plain(result.to_row()).items() if v is not None}
+    if as_json:
+        _print_json(row | {k: str(v) for k, v in paths.items()})
+    else:
+        shown: list[tuple[str, Any]] = [("converged", row["converged"])]
+        shown += _rows(row, _OPTIMAL_ENTRY_ROWS)
+        shown += [(f"{name} file", str(path)) for name, path in paths.items()]
+        _print_rows(f"optimal entry: {result.name}", shown)
+    if not result.converged:
+        raise typer.Exit(code=1)
+
+
+_MANEUVER_ROWS: RowSpec = [
+    ("reason", "reason", ""),
+    ("time of flight", "time_of_flight_s", "s"),
+    ("time of flight, impulses", "impulsive_time_of_flight_s", "s"),
+    ("impulse epochs", "impulse_epochs_s", "s"),
+    ("impulses", "impulse_dv_mps", "m/s"),
+    ("total dv, impulses", "total_dv_mps", "m/s", 5),
+    ("dv budget (eq. 14)", "dv_budget_mps", "m/s", 5),
+    ("dv capacity, burn-time limit", "dv_capacity_mps", "m/s", 5),
+    ("finite burns, total dv", "finite_total_dv_mps", "m/s", 5),
+    ("total burn time", "total_burn_time_s", "s"),
+    ("final position error", "final_position_error_m", "m", 3),
+    ("final velocity error", "final_velocity_error_mps", "m/s", 3),
+    ("DE generations / evaluations", lambda d: f"{d['generations']} / {d['evaluations']}", ""),
+    ("wall time", "wall_time_s", "s"),
+]
+
+
+@app.command()
+def maneuver(
+    config: Annotated[Path, typer.Argument(help="manoeuvre YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+) -> None:
+    """Quick multi-impulse manoeuvre of an upper stage, then finite burns (seed 003)."""
+    from ovtraj.studies.maneuver import comparison_rows, load_maneuver, solve_maneuver
+
+    try:
+        problem = load_maneuver(config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    result = solve_maneuver(problem)
+    if as_json:
+        _print_json(result.to_json())
+    else:
+        doc = plain(result.to_json())
+        shown: list[tuple[str, Any]] = [("converged", doc["converged"])]
+        shown += _rows(doc, _MANEUVER_ROWS)
+        for k, burn in enumerate(doc["burns"], start=1):
+            shown.append(
+                (
+                    f"burn {k}",
+                    f"from {duration(burn['start_s'])} for {duration(burn['duration_s'])}, "
+                    f"{number(burn['dv_mps'], 'm/s', 5)}, mass "
+                    f"{number(burn['mass_before_kg'], '', 6)} -> "
+                    f"{number(burn['mass_after_kg'], 'kg', 6)}",
+                )
+            )
+        _print_rows(f"manoeuvre: {config.stem}", shown)
+        comparison = comparison_rows(problem, result)
+        if comparison:
+            typer.echo("published vs ours")
+            width = max(len(q) for q, _, _ in comparison)
+            for name, published, ours in comparison:
+                typer.echo(f"  {name:<{width}}  {published:>24}  {ours}")
+    if not result.converged:
+        raise typer.Exit(code=1)
+
+
+@app.command("deorbit-burn")
+def deorbit_burn(
+    config: Annotated[Path, typer.Argument(help="deorbit-burn YAML file", show_default=False)],
+    as_json: JsonOpt = False,
+    monte_carlo: Annotated[
+        int | None,
+        typer.Option(
+            "--monte-carlo",
+            **_limits(MonteCarloConfig, "runs"),
+            help="also fly this many dispersed runs (default: none; a progress bar on stderr)",
+            show_default=False,
+        ),
+    ] = None,
+    strategy: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            max=2,
+            help="cut-off: 1 argument of latitude, 2 flight-path angle (default: the config's "
+            "strategy; with --monte-carlo, the config's strategies)",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Finite-thrust deorbit burn by osculating-element prediction (seed 004)."""
+    from ovtraj.studies.deorbit_burn import deorbit_burn_report, format_report, load_deorbit_burn
+
+    try:
+        problem = load_deorbit_burn(config)
+    except (ConfigError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    with progress_bar("Monte Carlo", enabled=bool(monte_carlo) and not as_json) as update:
+        report = deorbit_burn_report(
+            problem, strategy=strategy, monte_carlo_runs=monte_carlo, on_progress=update
+        )
+    if as_json:
+        # The solve's fields at the top level, the history and statistics alongside.
+        flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
+        _print_json(flat)
+    else:
+        typer.echo(format_report(report))
+    if not report["result"]["converged"]:
+        raise typer.Exit(code=1)

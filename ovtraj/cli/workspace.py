@@ -1,0 +1,26 @@
+"""The ``paths`` command: where ovtraj reads its shipped files and writes its results."""
+
+from __future__ import annotations
+
+from ovtraj.cli.common import JsonOpt, _print_json, _print_rows, app
+from ovtraj.store import paths as where
+
+
+@app.command()
+def paths(as_json: JsonOpt = False) -> None:
+    """Where ovtraj reads its shipped files and writes its results (the workspace)."""
+    found = {
+        "configs": str(where.config_dir()),
+        "reference": str(where.reference_dir()),
+        "default_scenario": str(where.config_dir() / "scenario.yaml"),
+        "workspace": str(where.workspace()),
+        "run_store": str(where.store_root(None, None, None)),
+        "launch_fits": str(where.workspace() / "launch_fit"),
+        "source_checkout": where.source_checkout(),
+    }
+    if as_json:
+        _print_json(found)
+    else:
+        labels = {"workspace": "workspace (OVTRAJ_HOME)"}
+        rows = [(labels.get(k, k.replace("_", " ")), v) for k, v in found.items()]
+        _print_rows("ovtraj paths", rows)

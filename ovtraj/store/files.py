@@ -1,0 +1,490 @@
+"""Stored files: atomic, never-overwriting writes and checked reads (the stores' primitives).
+
+Writing: the content goes to a temporary file beside its target (a dot name that
+ends in ``.tmp`` and carries the writer's host and process id), is flushed to disk
+and then linked into place. A stored file is never replaced: writing a path that
+exists with other content is refused (:class:`StoreError`), writing the same
+content again is a no-op. Only mutable index files (a run's manifest) are
+replaced, atomically (``replace=True``). Every write returns the file's
+:class:`Digest` (size and SHA-256), which the stores' markers record.
+
+Reading: :func:`read_bytes`, :func:`read_json` and :func:`read_parquet` verify a
+file against its recorded digest (and a Parquet file against its declared schema)
+before anything is parsed, and refuse a changed file naming it. A local read opens
+regular files only, never through a final symbolic link and never waiting for a writer
+(a FIFO, a device or a link to ``/dev/zero`` is refused at once, named), and checks the
+size before reading: it must equal the recorded size, and no more is read; a file with
+no recorded size (a manifest, a marker) may have at most ``reads.unrecorded_file_max_mib``
+of ``configs/orchestration.yaml``. A recorded digest is a whole number of bytes up to
+``reads.stored_file_max_mib`` and 64 hexadecimal digits (:meth:`Digest.from_json`); a
+marker's file names stay inside its folder (:func:`marker_files`). Every read reads and
+hashes the file; the Parquet decoding of a payload already decoded in this process is
+reused (:class:`DecodedTables`, keyed by the SHA-256 just verified: the same digest is
+the same bytes, so the same table).
+
+Every operating-system failure (missing file, read-only file system, full disk)
+becomes one :class:`StoreError` that names the file and the cause; an interrupted
+write leaves at most a temporary file (:func:`remove_orphans` clears them).
+"""
+
+from __future__ import annotations
+
+import errno
+import functools
+import hashlib
+import json
+import os
+import re
+import secrets
+import socket
+import stat
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
+from ovtraj.store.paths import file_kind
+from ovtraj.store.records import json_text
+
+__all__ = [
+    "DecodedTables",
+    "Digest",
+    "StoreError",
+    "decoded_tables",
+    "file_digest",
+    "marker_files",
+    "os_error_text",
+    "parquet_bytes",
+    "read_bytes",
+    "read_json",
+    "read_parquet",
+    "read_table",
+    "remove_file",
+    "remove_orphans",
+    "write_bytes",
+    "write_json",
+    "write_parquet",
+]
+
+TEMPORARY_SUFFIX = ".tmp"
+# Parquet encoding of every stored table (a format decision, like the schema version):
+# zstd with byte-stream-split floats is 35-40 % smaller than snappy on trajectory tables.
+PARQUET_COMPRESSION = "zstd"
+PARQUET_COMPRESSION_LEVEL = 9
+SHA256_HEX = re.compile(r"[0-9a-f]{64}")  # hashlib's hexdigest(): what a marker records
+_BYTES_PER_MIB = 2**20
+# A store holds regular files only: a final symbolic link is not followed (ELOOP) and a
+# FIFO opens without waiting for a writer, so both are refused by the checks after opening.
+_OPEN_STORED = (
+    os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | os.O_CLOEXEC
+)
+
+
+class StoreError(RuntimeError):
+    """A stored file that is missing, unreadable, changed or cannot be written (named)."""
+
+
+@dataclass(frozen=True)
+class Digest:
+    """A file's size [bytes] and SHA-256 (hex), as recorded in a marker."""
+
+    size: int
+    sha256: str
+
+    @classmethod
+    def of(cls, payload: bytes) -> Digest:
+        return cls(len(payload), hashlib.sha256(payload).hexdigest())
+
+    def to_json(self) -> dict[str, Any]:
+        return {"bytes": self.size, "sha256": self.sha256}
+
+    @classmethod
+    def from_json(cls, data: Any) -> Digest:
+        """A marker's record of a file; ValueError saying what is wrong (the caller names
+        the marker). The size must be a whole number of bytes within
+        ``reads.stored_file_max_mib``: JSON's ``1e400`` is an infinite float, ``true`` a
+        Python int, and neither is a size."""
+        if not isinstance(data, dict):
+            raise ValueError(f"not a file digest (a JSON {type(data).__name__}, not an object)")
+        size, sha256 = data.get("bytes"), data.get("sha256")
+        largest = int(read_settings().stored_file_max_mib * _BYTES_PER_MIB)
+        if type(size) is not int or not 0 <= size <= largest:
+            found = "a whole number outside it" if type(size) is int else f"a {type(size).__name__}"
+            raise ValueError(
+                f'recorded "bytes" is not a whole number of bytes from 0 to {largest} '
+                f"(reads.stored_file_max_mib of configs/orchestration.yaml); found {found}"
+            )
+        if not isinstance(sha256, str) or SHA256_HEX.fullmatch(sha256) is None:
+            raise ValueError('recorded "sha256" is not 64 lowercase hexadecimal digits')
+        return cls(size, sha256)
+
+
+def os_error_text(err: OSError) -> str:
+    """The cause of an operating-system error in a few words."""
+    if err.errno == errno.ENOSPC:
+        return "no space left on the device"
+    if err.errno == errno.EROFS:
+        return "read-only file system"
+    if err.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied"
+    return err.strerror or str(err)
+
+
+def file_digest(path: Path) -> Digest:
+    """Size [bytes] and SHA-256 of a stored file (a local one hashed as it is read, never
+    held in memory whole)."""
+    path = location(path)
+    if isinstance(path, S3Path):
+        return Digest.of(read_bytes(path))
+    fd, _ = _open_stored(path)
+    try:
+        with open(fd, "rb", closefd=False) as handle:
+            sha256 = hashlib.file_digest(handle, "sha256").hexdigest()
+            size = handle.tell()
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    finally:
+        os.close(fd)
+    return Digest(size, sha256)
+
+
+@functools.cache
+def read_settings() -> Any:
+    """``reads`` of ``configs/orchestration.yaml`` (:class:`~ovtraj.config.orchestration.
+    ReadSettings`), read once per process at its first read of a store file."""
+    from ovtraj.config.orchestration import load_orchestration
+
+    return load_orchestration().reads
+
+
+def _open_stored(path: Path) -> tuple[int, os.stat_result]:
+    """A descriptor of the regular file at the local ``path`` and its status; StoreError
+    naming it for anything else (missing, a symbolic link, a FIFO, a device...)."""
+    try:
+        fd = os.open(path, _OPEN_STORED)
+    except FileNotFoundError:
+        raise StoreError(f"{path}: missing") from None
+    except OSError as err:
+        if err.errno == errno.ELOOP and os.path.islink(path):
+            raise StoreError(f"{path}: a symbolic link, not a stored file; not read") from None
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise StoreError(f"{path}: {file_kind(info.st_mode)}, not a stored file; not read")
+    return fd, info
+
+
+def _read_local(path: Path, expected: Digest | None) -> bytes:
+    """The content of a local stored file, its size checked before anything is read: the
+    recorded size exactly, else at most ``reads.unrecorded_file_max_mib``."""
+    fd, info = _open_stored(path)
+    try:
+        if expected is not None and info.st_size != expected.size:
+            raise StoreError(
+                f"{path}: changed since it was stored ({info.st_size} bytes, "
+                f"{expected.size} recorded)"
+            )
+        if expected is None:
+            largest = int(read_settings().unrecorded_file_max_mib * _BYTES_PER_MIB)
+            if info.st_size > largest:
+                raise StoreError(
+                    f"{path}: {info.st_size} bytes, more than a file read without a recorded "
+                    f"size may have ({largest}: reads.unrecorded_file_max_mib of "
+                    "configs/orchestration.yaml); not read"
+                )
+        chunks, remaining = [], info.st_size
+        with open(fd, "rb", buffering=0, closefd=False) as handle:
+            while remaining > 0:  # a file that grows meanwhile is read up to the size checked
+                chunk = handle.read(remaining)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                remaining -= len(chunk)
+        return b"".join(chunks)
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    finally:
+        os.close(fd)
+
+
+def marker_files(marker: Path, content: Any) -> dict[str, Digest]:
+    """The files a marker (or manifest) ``content`` lists, by name relative to its folder,
+    each checked: a name that stays inside the folder (no absolute path, ``..`` or control
+    character) and a usable digest (:meth:`Digest.from_json`). StoreError naming the
+    marker otherwise."""
+    from ovtraj.config.io_limits import echoed
+
+    listed = content.get("files") if isinstance(content, dict) else None
+    if not isinstance(listed, dict):
+        raise StoreError(f"{marker}: lists no file digests")
+    digests = {}
+    for name, record in listed.items():
+        parts = PurePosixPath(name).parts
+        if (
+            not parts
+            or parts[0] == "/"
+            or any(part in (".", "..") for part in parts)
+            or not name.isprintable()
+            or "\\" in name
+        ):
+            raise StoreError(
+                f"{marker}: lists {echoed(repr(name))}, a file name that leaves its folder "
+                "or holds a control character (an absolute path, '..', a backslash); not read"
+            )
+        try:
+            digests[name] = Digest.from_json(record)
+        except ValueError as err:
+            raise StoreError(f"{marker}: {echoed(name)}: {err}") from None
+    return digests
+
+
+def _temporary_name(path: Path) -> Path:
+    token = secrets.token_hex(4)
+    return path.with_name(
+        f".{path.name}.{socket.gethostname()}-{os.getpid()}-{token}{TEMPORARY_SUFFIX}"
+    )
+
+
+def write_bytes(path: Path, payload: bytes, *, replace: bool = False) -> Digest:
+    """Store ``payload`` at ``path`` atomically; returns its digest.
+
+    Without ``replace`` an existing file is never changed: the same content is
+    accepted as already stored, other content is refused (:class:`StoreError`).
+    """
+    path = location(path)
+    digest = Digest.of(payload)
+    if isinstance(path, S3Path):
+        return _put_object(path, payload, digest, replace)
+    temporary = _temporary_name(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(temporary, "xb") as handle:
+            handle.write(payload)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.chmod(temporary, 0o644)
+        if replace:
+            os.replace(temporary, path)
+        else:
+            _link_new(temporary, path, digest)
+    except OSError as err:
+        raise StoreError(f"cannot write {path}: {os_error_text(err)}") from None
+    finally:
+        try:
+            os.unlink(temporary)
+        except FileNotFoundError:
+            pass
+        except OSError:
+            pass  # a read-only or vanished folder: nothing was left behind to remove
+    return digest
+
+
+def _put_object(path: S3Path, payload: bytes, digest: Digest, replace: bool) -> Digest:
+    """An object store's write: one request, so atomic; never over another object
+    unless ``replace`` (S3's ``If-None-Match``, no rename needed)."""
+    try:
+        if replace:
+            path.put(payload)
+            return digest
+        try:
+            path.put(payload, if_absent=True)
+        except PreconditionFailed:
+            if Digest.of(path.read_bytes()) != digest:
+                raise StoreError(
+                    f"{path}: already stored with other content; not overwritten"
+                ) from None
+    except (StorageError, FileNotFoundError) as err:
+        raise StoreError(f"cannot write {path}: {err}") from None
+    return digest
+
+
+def _link_new(temporary: Path, path: Path, digest: Digest) -> None:
+    """Put the temporary file at ``path`` unless ``path`` exists (then compare)."""
+    try:
+        os.link(temporary, path)
+        return
+    except FileExistsError:
+        pass
+    except OSError as err:
+        if err.errno not in (errno.EPERM, errno.ENOTSUP, errno.EXDEV, errno.EMLINK):
+            raise
+        # No hard links on this file system: rename, unless the target exists.
+        if not path.exists():
+            os.replace(temporary, path)
+            return
+    stored = Digest.of(path.read_bytes())
+    if stored != digest:
+        raise StoreError(f"{path}: already stored with other content; not overwritten")
+
+
+def write_json(path: Path, value: Any, *, replace: bool = False) -> Digest:
+    """Store :func:`ovtraj.store.records.json_text` of ``value`` (see :func:`write_bytes`)."""
+    return write_bytes(path, (json_text(value) + "\n").encode("utf-8"), replace=replace)
+
+
+def parquet_bytes(table: pa.Table) -> bytes:
+    """The Parquet file of ``table``, with the stores' encoding (deterministic bytes)."""
+    text = [
+        f.name
+        for f in table.schema
+        if pa.types.is_string(f.type) or pa.types.is_large_string(f.type)
+    ]
+    floats = [f.name for f in table.schema if pa.types.is_floating(f.type)]
+    sink = pa.BufferOutputStream()
+    pq.write_table(
+        table,
+        sink,
+        compression=PARQUET_COMPRESSION,
+        compression_level=PARQUET_COMPRESSION_LEVEL,
+        use_dictionary=text,
+        use_byte_stream_split=floats or False,
+    )
+    return sink.getvalue().to_pybytes()
+
+
+def write_parquet(path: Path, table: pa.Table, schema: pa.Schema) -> Digest:
+    """Store ``table`` (exactly of ``schema``) as a Parquet file; returns its digest."""
+    if not table.schema.equals(schema, check_metadata=False):
+        raise ValueError(f"{path}: table does not have the declared schema")
+    return write_bytes(path, parquet_bytes(table))
+
+
+def read_bytes(path: Path, expected: Digest | None = None) -> bytes:
+    """A stored file's content, checked against ``expected`` when given (a local file: a
+    regular file whose size is checked before it is read, see the module notes)."""
+    path = location(path)
+    if isinstance(path, S3Path):
+        try:
+            payload = path.read_bytes()
+        except FileNotFoundError:
+            raise StoreError(f"{path}: missing") from None
+        except OSError as err:
+            raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    else:
+        payload = _read_local(path, expected)
+    if expected is not None:
+        found = Digest.of(payload)
+        if found.size != expected.size:
+            raise StoreError(
+                f"{path}: changed since it was stored ({found.size} bytes, "
+                f"{expected.size} recorded)"
+            )
+        if found.sha256 != expected.sha256:
+            raise StoreError(f"{path}: changed since it was stored (SHA-256 differs)")
+    return payload
+
+
+def read_json(path: Path, expected: Digest | None = None) -> Any:
+    try:
+        return json.loads(read_bytes(path, expected).decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        # ValueError: also an integer of more digits than Python converts; RecursionError:
+        # arrays nested thousands deep.
+        raise StoreError(f"{path}: unreadable JSON file ({err})") from None
+
+
+class DecodedTables:
+    """Arrow tables decoded from Parquet payloads, by the payload's SHA-256, least recently
+    used first out beyond ``limit_bytes`` of Arrow memory. Arrow tables are immutable, so
+    one can be handed to every reader of the same bytes."""
+
+    def __init__(self, limit_bytes: int) -> None:
+        self.limit_bytes = limit_bytes
+        self._tables: OrderedDict[str, pa.Table] = OrderedDict()
+        self._bytes = 0
+        # Readers may be threads (Prefect's task runner, the threads runner).
+        self._lock = threading.Lock()
+
+    def get(self, sha256: str, payload: bytes) -> pa.Table:
+        """The table ``payload`` (whose SHA-256 is ``sha256``) decodes to."""
+        with self._lock:
+            table = self._tables.get(sha256)
+            if table is not None:
+                self._tables.move_to_end(sha256)
+                return table
+        table = pq.read_table(pa.BufferReader(payload))  # outside the lock: readers overlap
+        if table.nbytes > self.limit_bytes:
+            return table
+        with self._lock:
+            if sha256 not in self._tables:
+                self._tables[sha256] = table
+                self._bytes += table.nbytes
+                while self._bytes > self.limit_bytes:
+                    self._bytes -= self._tables.popitem(last=False)[1].nbytes
+        return table
+
+    def clear(self) -> None:
+        with self._lock:
+            self._tables.clear()
+            self._bytes = 0
+
+    def __len__(self) -> int:
+        return len(self._tables)
+
+    @property
+    def nbytes(self) -> int:
+        """Arrow memory of the tables kept [bytes]."""
+        return self._bytes
+
+
+@functools.cache
+def decoded_tables() -> DecodedTables:
+    """This process's :class:`DecodedTables`, bounded by ``reads.decoded_tables_mib`` of
+    ``configs/orchestration.yaml`` (:func:`read_settings`)."""
+    return DecodedTables(int(read_settings().decoded_tables_mib * _BYTES_PER_MIB))
+
+
+def read_table(
+    path: Path, expected: Digest | None = None, schema: pa.Schema | None = None
+) -> pa.Table:
+    """A stored Parquet file as an Arrow table, checked (digest, then declared schema).
+
+    The file is read and verified every time; with ``expected``, a payload decoded before
+    in this process is not decoded again (:func:`decoded_tables`)."""
+    payload = read_bytes(path, expected)
+    try:
+        if expected is None:
+            table = pq.read_table(pa.BufferReader(payload))
+        else:
+            table = decoded_tables().get(expected.sha256, payload)
+    except (OSError, pa.ArrowException) as err:
+        raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
+    if schema is not None and not table.schema.equals(schema, check_metadata=False):
+        raise StoreError(f"{path}: columns or types differ from the declared schema")
+    return table
+
+
+def read_parquet(
+    path: Path, expected: Digest | None = None, schema: pa.Schema | None = None
+) -> pd.DataFrame:
+    """A stored Parquet file as a data frame (see :func:`read_table`)."""
+    return read_table(path, expected, schema).to_pandas()
+
+
+def remove_orphans(directory: Path) -> list[Path]:
+    """Remove the temporary files that interrupted writes left under ``directory``.
+
+    Call it only when no other process writes there (the caller holds the lock).
+    """
+    directory = location(directory)
+    if isinstance(directory, S3Path):
+        return []  # an object store's writes leave no temporary object
+    return [p for p in sorted(directory.rglob(f".*{TEMPORARY_SUFFIX}")) if remove_file(p)]
+
+
+def remove_file(path: Path) -> bool:
+    """Remove a file that is not (or no longer) stored; False if it was not there."""
+    try:
+        location(path).unlink()
+    except FileNotFoundError:
+        return False
+    except OSError as err:
+        raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
+    return True
