@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import datetime
 import importlib
-import sys
-import types
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,7 +28,6 @@ from prefect.utilities.hashing import hash_objects
 from ovtraj.config.orchestration import OrchestrationConfig, load_orchestration
 
 ORCHESTRATION: OrchestrationConfig = load_orchestration()
-_CACHE_MODULE = "_ovtraj_task_caches"
 
 
 def code_version() -> str:
@@ -68,7 +65,7 @@ TIMEOUTS = ORCHESTRATION.tasks
 
 
 def _plain_json() -> Any:
-    from tasks.results import plain_json  # it uses this module's process_cache
+    from tasks.results import plain_json  # imported when a task is defined
 
     return plain_json()
 
@@ -90,26 +87,6 @@ def parameter(name: str) -> Any:
     from prefect.runtime import task_run
 
     return task_run.parameters.get(name)
-
-
-def process_cache(name: str) -> dict[str, Any]:
-    """A dict that lasts as long as this process (fill it with :func:`remember`, which
-    bounds its size). A module-level cache would not do: on a Dask
-    worker a task's module arrives by value with every task (fresh globals), and
-    ``functools.lru_cache`` objects pickle by reference to a module the worker lacks."""
-    holder = sys.modules.get(_CACHE_MODULE)
-    if holder is None:
-        holder = sys.modules.setdefault(_CACHE_MODULE, types.ModuleType(_CACHE_MODULE))
-    caches = holder.__dict__.setdefault("caches", {})
-    return caches.setdefault(name, {})
-
-
-def remember(cache: dict[str, Any], key: str, value: Any, size: int) -> Any:
-    """Put ``value`` in a :func:`process_cache` dict, dropping the oldest over ``size``."""
-    cache[key] = value
-    while len(cache) > size:
-        cache.pop(next(iter(cache)))
-    return value
 
 
 def run_label(url: str | None) -> str:

@@ -12,7 +12,8 @@ from prefect import task
 from ovtraj.studies.deorbit_burn.montecarlo import MonteCarloContext, simulate_runs
 from ovtraj.studies.deorbit_burn.problem import deorbit_burn_from_dict
 from ovtraj.studies.deorbit_burn.store import MonteCarloRun
-from tasks.common import TIMEOUTS, cached, parameter, process_cache, remember, run_label
+from tasks.common import TIMEOUTS, cached, parameter, run_label
+from tasks.process_cache import process_cache, remember
 
 # Nominal plans kept per process: a few problems at once.
 CONTEXTS = 4

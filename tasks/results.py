@@ -38,7 +38,7 @@ from ovtraj.config.orchestration import load_orchestration
 from ovtraj.store.files import StoreError, read_bytes
 from ovtraj.store.records import json_default
 from ovtraj.store.result_records import SERIALIZER, RecordError, check_record
-from tasks.common import process_cache
+from tasks.process_cache import process_cache
 
 __all__ = ["checked_storage", "plain_json"]
 

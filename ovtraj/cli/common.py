@@ -15,7 +15,7 @@ from ovtraj import __version__
 from ovtraj.cli.progress import configure_logging
 from ovtraj.config import ConfigError, Scenario
 from ovtraj.formatting import joined, quantity, split_unit
-from ovtraj.store.paths import config_path
+from ovtraj.store.paths import scenario_file
 from ovtraj.store.records import json_text, plain
 
 app = typer.Typer(
@@ -97,7 +97,7 @@ def _load(config: Path | None, target: str | None = None) -> Scenario:
     from ovtraj.target_sources import load_scenario, load_scenario_with_target
 
     try:
-        path = config if config is not None else config_path("scenario.yaml")
+        path = scenario_file(config)
         return load_scenario(path) if target is None else load_scenario_with_target(path, target)
     except ConfigError as err:
         typer.echo(str(err), err=True)

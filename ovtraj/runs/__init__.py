@@ -1,7 +1,7 @@
 """DoE runs of the mission chain and their Parquet run store (issue 6)."""
 
 from ovtraj.mission.design_space import latin_hypercube
-from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe, split_batches
+from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe
 from ovtraj.runs.store import Run, RunStore, StoreError, run_id
 
 __all__ = [
@@ -14,5 +14,4 @@ __all__ = [
     "replay",
     "run_doe",
     "run_id",
-    "split_batches",
 ]

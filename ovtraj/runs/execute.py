@@ -41,12 +41,6 @@ logger = logging.getLogger(__name__)
 EVALUATIONS = {"count": 0}
 
 
-def split_batches(samples: pd.DataFrame, batch_size: int) -> list[pd.DataFrame]:
-    if batch_size < 1:
-        raise ValueError(f"batch_size must be >= 1, got {batch_size}")
-    return [samples.iloc[i : i + batch_size] for i in range(0, len(samples), batch_size)]
-
-
 def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
     """Every sample of a batch; a failing sample is recorded, never raised."""
     records = []

@@ -9,12 +9,6 @@ the one reader of a scenario file) and the command line.
 ``docs/targets.md`` describes the whole and its measured errors.
 """
 
-from ovtraj.target_sources.mean_elements_fit import (
-    PoorTargetFitWarning,
-    StaleElementSetWarning,
-    TargetFit,
-    fit_target,
-)
 from ovtraj.target_sources.resolve import (
     element_sets_from_text,
     fit_source,
@@ -42,3 +36,16 @@ __all__ = [
     "resolved_target",
     "scenario_with_target_source",
 ]
+
+# The fit's names load scipy and heyoka (~2 s): imported on first use (PEP 562), so that
+# reading a scenario file stays light.
+_FIT_NAMES = ("PoorTargetFitWarning", "StaleElementSetWarning", "TargetFit", "fit_target")
+
+
+def __getattr__(name: str) -> object:
+    if name in _FIT_NAMES:
+        from ovtraj.target_sources import mean_elements_fit
+
+        return getattr(mean_elements_fit, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+

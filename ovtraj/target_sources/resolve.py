@@ -38,10 +38,10 @@ from ovtraj.element_sets.omm import looks_like_omm, omm_element_sets
 from ovtraj.element_sets.tle import tle_element_sets
 from ovtraj.store.paths import read_text_file
 from ovtraj.target_sources.fetch import fetch_text, is_url
-from ovtraj.target_sources.mean_elements_fit import TargetFit, fit_target
 
 if TYPE_CHECKING:
     from ovtraj.config.scenario import Scenario
+    from ovtraj.target_sources.mean_elements_fit import TargetFit
 
 __all__ = [
     "element_sets_from_text",
@@ -256,6 +256,10 @@ def fitted_target(scenario: Scenario) -> TargetFit:
 
 @lru_cache(maxsize=16)
 def _fit_cached(key: str) -> TargetFit:
+    # Here, not at the top: the fit loads scipy and heyoka (~2 s), which reading a
+    # scenario file never needs.
+    from ovtraj.target_sources.mean_elements_fit import fit_target
+
     content = json.loads(key)
     target = TargetConfig.model_validate(content["target"])
     if target.source_settings is None:  # refused by TargetConfig already
@@ -293,6 +297,7 @@ def fit_source(
     :class:`ConfigError`.
     """
     from ovtraj.store.paths import config_path
+    from ovtraj.target_sources.mean_elements_fit import fit_target
 
     is_scenario = not is_url(source) and Path(source).suffix.lower() in _SCENARIO_SUFFIXES
     if is_scenario:

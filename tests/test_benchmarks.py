@@ -1,0 +1,439 @@
+"""Every script of ``benchmarks/`` run as the README runs it, on tiny settings (issue 45).
+
+The project's rule for benchmarks: measured side by side in one process, a readable table,
+and as the last line one JSON object with the figures, the goals and the ratios; ``--json``
+prints only that object. Each script runs twice here, as two processes at the same time:
+with ``--json`` (stdout is that one line) and without (a table, then the same object).
+The figures are timings on tiny settings, so nothing is asserted about their size; what
+is checked is what the scripts promise: the documented keys, each ratio equal to its
+figure over its goal (recomputed here from the printed figures), each verdict (``met``)
+the one its figures and goals give, and the goals and the seeded results the same in
+both processes.
+
+Tiny settings: the scripts' own options (fewer samples, seeds, repeats, generations,
+plans); the launch search and the surrogate pipeline shortened through a scenario file
+(``--config``), the launch as ``tests.conftest.shorten_launch_fit`` shortens the fit's
+solves; the mission benchmarks use the shipped launch fit (``data/reference``). Every
+file a script writes goes to the test's folder (``TMPDIR``, ``OVTRAJ_HOME``, Prefect's
+home and task results).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from tests.conftest import DEFAULT_SCENARIO, REPO
+
+BENCHMARKS = REPO / "benchmarks"
+TIMEOUT_S = 600
+
+
+def _scenario_data() -> dict[str, Any]:
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    # The file is written elsewhere: the launcher by its absolute path.
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    return data
+
+
+def small_pipeline(folder: Path) -> Path:
+    """The default scenario with a small surrogate pipeline (a 12-sample DoE, two
+    regressors, one classifier, 3 folds, a short NSGA-II, one round of 2 infill points);
+    the launch settings, hence the shipped launch fit, unchanged."""
+    data = _scenario_data()
+    mission = data["mission"]
+    mission["doe"]["samples"] = 12
+    mission["surrogate"].update(regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3)
+    mission["optimize"].update(population=16, generations=10)
+    mission["verify"].update(points_per_iteration=2, max_iterations=1, budget=2)
+    path = folder / "small-pipeline.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def short_launch(folder: Path) -> Path:
+    """The default scenario with the launch search of ``shorten_launch_fit`` (a small GA,
+    coarser steps, short local phases)."""
+    data = _scenario_data()
+    launch = copy.deepcopy(data["launch"])
+    launch["genetic"].update(population=16, generations=6)
+    launch["integration"].update(powered_step_s=4.0, coast_step_s=40.0)
+    launch["local"].update(
+        converged_residual=1.0,
+        slsqp_ftol=1e-5,
+        slsqp_max_iterations=10,
+        trust_constr_max_iterations=5,
+        stall_iterations=2,
+        stall_payload_kg=0.1,
+    )
+    data["launch"] = launch
+    path = folder / "short-launch.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def _close(ratio: float, value: float, digits: int = 3) -> bool:
+    """``ratio`` is ``value`` as printed: rounded to ``digits``, from figures rounded too."""
+    return math.isclose(ratio, value, rel_tol=2e-3, abs_tol=2 * 10.0**-digits)
+
+
+# -- what each script promises --------------------------------------------------------------
+def _check_timed(f: dict) -> None:
+    """deorbit.py and reentry.py: one solve's median against its goal."""
+    assert _close(f["ratio"], f["solve_s"] / f["goal_s"])
+    assert f["met"] == (f["solve_s"] <= f["goal_s"])
+    assert f["result"]["feasible"] is True
+
+
+def _check_launch(f: dict) -> None:
+    assert _close(f["time_ratio"], f["wall_s"] / f["goals"]["time_s_max"])
+    assert f["published"], "the launcher publishes a figure at 200 km / 28.5 deg"
+    for ref in f["published"]:
+        assert _close(ref["ratio"], f["payload_kg"] / ref["payload_kg"], 4)
+        assert ref["within"] == (abs(ref["ratio"] - 1.0) <= f["goals"]["payload_fraction_max"])
+    assert f["met"]["payload"] == all(ref["within"] for ref in f["published"])
+    assert [p["name"] for p in f["phases"]] == ["genetic", "slsqp", "trust-constr"]
+    assert f["payload_kg"] in [p["payload_kg"] for p in f["phases"]]
+
+
+def _check_propagation(f: dict) -> None:
+    goals = f["goals"]
+    assert _close(f["speedup_goal_ratio"], f["speedup"] / goals["speedup_min"])
+    assert _close(f["speedup"], f["dop853_day_s"] / f["heyoka_day_s"], 2)
+    # The equal-accuracy tolerance is the loosest whose error is within DOP853's.
+    assert f["heyoka_error_m"] <= f["dop853_error_m"]
+    assert [row["tol"] for row in f["tolerances"]] == [1e-10, 1e-12]
+    assert set(f["rendezvous"]) == {"default scenario", "planes aligned at burn"}
+    for case in f["rendezvous"].values():
+        assert _close(case["goal_ratio"], case["solve_s"] / goals["rendezvous_s_max"])
+        assert _close(case["dop853_day_fraction"], case["solve_s"] / f["dop853_day_s"])
+    assert f["met"]["speedup"] == (f["speedup"] >= goals["speedup_min"])
+
+
+def _check_maneuver(f: dict) -> None:
+    bests = []
+    for row in f["methods"].values():
+        assert row["runs"] == f["seeds"]
+        assert row["success_rate"] == pytest.approx(row["successes"] / row["runs"], abs=1e-3)
+        if row["best_tof_s"] is not None:
+            bests.append(row["best_tof_s"])
+            assert row["best_tof_s"] <= row["median_tof_s"] <= row["worst_tof_s"]
+    # The best known time of flight is the best of every method's runs.
+    assert f["best_tof_s"] == min(bests)
+
+
+def _check_deorbit_burn(f: dict) -> None:
+    assert f["met"] == all(row["matches"] is not False for row in f["published"])
+    assert f["monte_carlo"]["runs"] == 1 and f["monte_carlo"]["workers"] == 1
+    assert f["burn_angles"] == 11  # the case's study angles (configs/cases/shuttle_deorbit.yaml)
+
+
+def _check_doe(f: dict) -> None:
+    assert _close(f["speedup_ratio"], f["speedup_2_workers"] / f["speedup_goal"])
+    assert _close(f["overhead_ratio"], f["overhead"] / f["overhead_goal"])
+    # The walls are printed to 10 ms: their ratio within ~1 % of the speed-up.
+    walls = f["wall_1_worker_s"] / f["wall_2_workers_s"]
+    assert f["speedup_2_workers"] == pytest.approx(walls, rel=0.03)
+    assert f["samples"] == 2 and f["repeats"] == 1
+
+
+def _check_interior_point(f: dict) -> None:
+    ours, theirs = f["solvers"]["interior point"], f["solvers"]["trust-constr"]
+    assert _close(f["speedup"], theirs["total_ms"] / ours["total_ms"])
+    assert ours["converged"] <= f["problems"] and theirs["converged"] <= f["problems"]
+
+
+def _check_mission(f: dict) -> None:
+    assert _close(f["ratio"], f["median_eval_s"] / f["dop853_day_s"])
+    assert _close(f["goal_ratio"], f["ratio"] / f["ratio_goal"])
+    for stage, seconds in f["stages"].items():
+        assert _close(f["stage_ratios"][stage], seconds / f["dop853_day_s"])
+    assert f["designs"] == 20  # configs/mission_reference.yaml
+
+
+def _check_monte_carlo(f: dict) -> None:
+    p95 = (f["closed_loop"]["landing_miss_m"] or {}).get("p95")
+    assert f["met"] == (p95 is not None and p95 <= f["goal"]["p95_landing_miss_m_max"])
+    assert f["runs"] == 1
+
+
+def _check_optimal_entry(f: dict) -> None:
+    assert set(f["cases"]) == {
+        "suborbital_return",
+        "shuttle_crossrange",
+        "shuttle_crossrange_heating",
+    }
+    for case in f["cases"].values():
+        assert _close(case["time_ratio"], case["ours_s"] / case["peer_s"])
+        gap = abs(case["ours_objective"] / case["peer_objective"] - 1.0)
+        assert case["objective_gap"] == pytest.approx(gap, abs=1e-6)
+    no_slower = all(c["time_ratio"] <= f["goals"]["time_ratio_max"] for c in f["cases"].values())
+    assert f["met"]["no_slower"] == no_slower
+
+
+def _check_plan_vs_front(f: dict) -> None:
+    aimed = f["chains"]["aimed"]
+    assert aimed["front_points"] == 1  # --plans 1
+    assert aimed["plan_errors"] == 0
+    met = (
+        aimed["max_dv_total_mps"] <= f["goals"]["plan_dv_total_mps_max"]
+        and aimed["max_t_total_s"] <= f["goals"]["plan_t_total_s_max"]
+        and aimed["max_m_load_kg"] <= f["goals"]["plan_m_load_kg_max"]
+    )
+    assert f["met"]["plans"] == met
+    assert aimed["design_space"]["designs"] == 2
+
+
+def _check_store(f: dict) -> None:
+    goal = f["goal_bytes_per_sample"]
+    assert _close(f["ratio_bytes_to_goal"], f["bytes_per_sample"] / goal)
+    assert _close(f["ratio_format_2_to_1"], f["bytes_per_sample"] / f["bytes_per_sample_format_1"])
+    assert f["goal_met"] == (f["bytes_per_sample"] <= goal)
+
+
+def _check_surrogate_vs_direct(f: dict) -> None:
+    direct = f["direct"]
+    assert [s["seed"] for s in f["seeds"]] == [2026]
+    ratio = min(s["hypervolume"] for s in f["seeds"]) / direct["hypervolume"]
+    assert _close(f["hypervolume_ratio"], ratio, 4)
+    evaluations = max(s["evaluations"] for s in f["seeds"]) / direct["evaluations"]
+    assert _close(f["evaluation_ratio"], evaluations, 4)
+    goals = f["goals"]
+    assert f["met"]["hypervolume"] == (f["hypervolume_ratio"] >= goals["hypervolume_ratio_min"])
+    assert f["met"]["evaluations"] == (f["evaluation_ratio"] <= goals["evaluation_ratio_max"])
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    name: str
+    args: Callable[[Path], list[str]]  # tiny settings (files written in the given folder)
+    keys: frozenset[str]  # documented top-level keys of the JSON object
+    check: Callable[[dict], None]
+    same: tuple[str, ...]  # keys equal in both processes: goals and seeded results
+
+
+BENCHMARK_CASES = (
+    Benchmark(
+        "deorbit",
+        lambda _: [],
+        frozenset({"solve_s", "goal_s", "ratio", "met", "result", "forecast_s", "scan_s"}),
+        _check_timed,
+        ("goal_s", "result", "propagations", "iterations", "forecast_crossings"),
+    ),
+    Benchmark(
+        "deorbit_burn",
+        lambda _: ["1", "1", "--repeats", "1"],
+        frozenset({"solve_s", "iterations", "dv_mps", "monte_carlo", "published", "met"}),
+        _check_deorbit_burn,
+        ("iterations", "dv_mps", "zero_speed_error_angles_deg"),
+    ),
+    Benchmark(
+        "doe",
+        lambda _: ["--samples", "2", "--batch", "2", "--repeats", "1", "--serial-samples", "0"],
+        frozenset(
+            {
+                "speedup_2_workers",
+                "speedup_goal",
+                "speedup_ratio",
+                "overhead",
+                "overhead_goal",
+                "overhead_ratio",
+            }
+        ),
+        _check_doe,
+        ("speedup_goal", "overhead_goal", "samples", "batch_size"),
+    ),
+    Benchmark(
+        "interior_point",
+        lambda _: ["--repeats", "1"],
+        frozenset(
+            {
+                "problems",
+                "solvers",
+                "speedup",
+                "max_dv_difference_mps",
+                "max_dv_difference_goal_mps",
+                "max_arrival_difference_s",
+                "max_arrival_difference_goal_s",
+            }
+        ),
+        _check_interior_point,
+        ("problems", "max_dv_difference_goal_mps", "max_arrival_difference_goal_s"),
+    ),
+    Benchmark(
+        "launch",
+        lambda folder: ["--config", str(short_launch(folder))],
+        frozenset({"payload_kg", "wall_s", "published", "goals", "time_ratio", "met"}),
+        _check_launch,
+        ("goals", "altitude_km", "inclination_deg"),
+    ),
+    Benchmark(
+        "maneuver",
+        lambda _: ["--seeds", "1", "--generations", "5"],
+        frozenset({"methods", "best_tof_s", "success_tolerance_s", "generations", "seeds"}),
+        _check_maneuver,
+        ("best_tof_s", "success_tolerance_s", "population"),
+    ),
+    Benchmark(
+        "mission",
+        lambda _: ["--warm-up", "1", "--repeats", "1", "--dop853-repeats", "1"],
+        frozenset({"median_eval_s", "dop853_day_s", "ratio", "ratio_goal", "goal_ratio", "stages"}),
+        _check_mission,
+        ("ratio_goal", "designs", "feasible_designs", "stage_counts"),
+    ),
+    Benchmark(
+        "monte_carlo",
+        lambda _: ["--runs", "1"],
+        frozenset({"seconds_per_run", "closed_loop", "open_loop", "goal", "met"}),
+        _check_monte_carlo,
+        ("goal", "runs", "seed"),
+    ),
+    Benchmark(
+        "optimal_entry",
+        lambda _: ["--repeats", "1"],
+        frozenset({"cases", "goals", "met"}),
+        _check_optimal_entry,
+        ("goals",),
+    ),
+    Benchmark(
+        "plan_vs_front",
+        lambda folder: [
+            *("--seeds", "2026", "--designs", "2", "--chains", "aimed", "--plans", "1"),
+            *("--config", str(small_pipeline(folder))),
+        ],
+        frozenset({"chains", "goals", "met"}),
+        _check_plan_vs_front,
+        ("goals",),
+    ),
+    Benchmark(
+        "propagation",
+        lambda _: ["--repeats", "1"],
+        frozenset({"tolerances", "speedup", "goals", "speedup_goal_ratio", "rendezvous", "met"}),
+        _check_propagation,
+        ("goals", "heyoka_equal_accuracy_tol"),
+    ),
+    Benchmark(
+        "reentry",
+        lambda _: [],
+        frozenset({"solve_s", "goal_s", "ratio", "met", "result", "trajectories"}),
+        _check_timed,
+        ("goal_s", "result", "trajectories"),
+    ),
+    Benchmark(
+        "store",
+        lambda _: ["--samples", "2"],
+        frozenset(
+            {
+                "bytes_per_sample",
+                "goal_bytes_per_sample",
+                "ratio_bytes_to_goal",
+                "ratio_format_2_to_1",
+                "goal_met",
+            }
+        ),
+        _check_store,
+        ("goal_bytes_per_sample", "samples", "verified_files"),
+    ),
+    Benchmark(
+        "surrogate_vs_direct",
+        lambda folder: [
+            *("--seeds", "2026", "--doe-samples", "12", "--population", "8"),
+            *("--generations", "2", "--workers", "1", "--config", str(small_pipeline(folder))),
+        ],
+        frozenset(
+            {"hypervolume_ratio", "evaluation_ratio", "wall_ratio", "direct", "seeds", "goals"}
+        ),
+        _check_surrogate_vs_direct,
+        ("goals",),
+    ),
+)
+
+
+def test_every_benchmark_script_is_tested():
+    scripts = {path.stem for path in BENCHMARKS.glob("*.py")}
+    assert scripts == {case.name for case in BENCHMARK_CASES}
+
+
+def _environment(folder: Path) -> dict[str, str]:
+    """Every file the script writes under ``folder``; no network for Prefect."""
+    folder.mkdir(parents=True)
+    (folder / "tmp").mkdir()
+    return dict(
+        os.environ,
+        TMPDIR=str(folder / "tmp"),
+        OVTRAJ_HOME=str(folder / "home"),
+        OVTRAJ_PREFECT_RESULTS=str(folder / "task-results"),
+        PREFECT_HOME=str(folder / "prefect-home"),
+        PREFECT_SERVER_ANALYTICS_ENABLED="false",
+    )
+
+
+def _run_both(script: Path, args: list[str], folder: Path) -> dict[str, str]:
+    """stdout of ``script args --json`` and of ``script args``, run at the same time (their
+    output to files: a full pipe would hold one process while the other is read)."""
+    processes = {}
+    for mode in ("json", "table"):
+        env = _environment(folder / mode)
+        with (
+            open(folder / mode / "stdout", "wb") as stdout,
+            open(folder / mode / "stderr", "wb") as stderr,
+        ):
+            command = [sys.executable, str(script), *args]
+            processes[mode] = subprocess.Popen(
+                command + (["--json"] if mode == "json" else []),
+                cwd=REPO,
+                env=env,
+                stdout=stdout,
+                stderr=stderr,
+                start_new_session=True,  # on a timeout, its Prefect server is stopped with it
+            )
+    out = {}
+    try:
+        for mode, process in processes.items():
+            process.wait(timeout=TIMEOUT_S)
+            stderr = (folder / mode / "stderr").read_text(encoding="utf-8", errors="replace")
+            assert process.returncode == 0, f"{script.name} ({mode}) failed:\n{stderr[-4000:]}"
+            out[mode] = (folder / mode / "stdout").read_text(encoding="utf-8")
+    finally:
+        for process in processes.values():
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+    return out
+
+
+@pytest.mark.parametrize("case", BENCHMARK_CASES, ids=lambda case: case.name)
+def test_benchmark_prints_a_table_then_its_figures_as_one_json_line(case, tmp_path):
+    out = _run_both(BENCHMARKS / f"{case.name}.py", case.args(tmp_path), tmp_path)
+
+    # --json: exactly one line, one JSON object (strict: no NaN).
+    lines = out["json"].splitlines()
+    assert len(lines) == 1, out["json"][-2000:]
+    only = json.loads(lines[0], parse_constant=pytest.fail)
+    assert isinstance(only, dict)
+    assert case.keys <= set(only), case.keys - set(only)
+    case.check(only)
+
+    # Without: a table, then the same object as the last line.
+    lines = [line for line in out["table"].splitlines() if line.strip()]
+    last = json.loads(lines[-1], parse_constant=pytest.fail)
+    assert set(last) == set(only)
+    case.check(last)
+    table = lines[:-1]
+    assert len(table) >= 2, out["table"]
+    assert not any(line.lstrip().startswith("{") for line in table), "one JSON line, the last"
+    assert any(any(ch.isdigit() for ch in line) for line in table), "a table with figures"
+    for key in case.same:
+        assert last[key] == only[key], key
