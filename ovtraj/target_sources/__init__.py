@@ -48,4 +48,3 @@ def __getattr__(name: str) -> object:
 
         return getattr(mean_elements_fit, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
