@@ -82,7 +82,6 @@ def test_every_task_has_the_one_cache_policy_and_no_code_parameter():
         "deorbit-mc-batch",
         "fit-surrogates",
         "surrogate-front",
-        "mission-plan",
     }
     for task in found:
         assert task.cache_policy is CACHE_POLICY, task.name

@@ -201,7 +201,7 @@ def _run(
         script = (
             "import json, sys\n"
             "from flows.doe import run_doe_flow\n"
-            "from ovtraj.config import load_scenario\n"
+            "from ovtraj.target_sources import load_scenario\n"
             "from ovtraj.runs import RunStore\n"
             "summary = run_doe_flow(config=sys.argv[1], runner='dask', dask_address=sys.argv[2])\n"
             "store = RunStore.for_scenario(load_scenario(sys.argv[1]), sys.argv[1], None)\n"
