@@ -33,7 +33,9 @@ run differs from the README's text, and why:
   3 folds, a smaller NSGA-II) and the shipped launch section, so the shipped launch fit
   serves it; the launch folder's, for ``launch``, ``launch-fit`` and ``flows.launch_fit``,
   has tests/test_caching.py's 5-point grid and small GA (seconds instead of 1-4 min); the
-  deorbit Monte Carlo 4 runs, ``--monte-carlo 4`` instead of 100;
+  deorbit Monte Carlo 4 runs, ``--monte-carlo 4`` instead of 100; a flow given no config
+  reads the shipped scenario (as ``ovtraj`` does), so ``OVTRAJ_CONFIG_DIR`` names the
+  folder's shortened copy for the flows;
 - the flows are not installed (README, "Installing"): each folder links the copy's
   ``flows/`` and ``tasks/`` in, as a checkout holds them, and the flows run against the
   session's Prefect server (tests/conftest.py) in a workspace of their own, so that they
@@ -445,6 +447,9 @@ def _place(
     if flow:
         from prefect.settings import PREFECT_API_URL
 
+        # A flow given no config reads the shipped scenario, as the command does (issue 45);
+        # here the shipped configs are the folder's shortened copy.
+        env["OVTRAJ_CONFIG_DIR"] = str(folder / "configs")
         request.getfixturevalue("prefect_server")
         prefect_home = str(user["root"] / "prefect-home")
         env |= {"PREFECT_API_URL": PREFECT_API_URL.value(), "PREFECT_HOME": prefect_home}
