@@ -169,3 +169,18 @@ def prefect_record(folder: Path, key: str) -> Path:
     args = [sys.executable, "-c", script, str(folder), key]
     subprocess.run(args, check=True, timeout=300, env=env, capture_output=True)
     return folder / key
+
+
+# Modules that take minutes (fresh installs, Prefect servers, every benchmark): run first.
+# With `-n 2 --dist loadfile` a module is one unit of work, handed out in collection order;
+# collected last (alphabetically: test_user_install), the longest ran alone at the end
+# while the other worker had nothing left (15 min measured, the sum of the work ~27 min).
+LONG_MODULES = ("test_user_install.py", "test_install.py", "test_benchmarks.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        name = item.path.name
+        return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
+
+    items.sort(key=rank)  # stable: every module's own order is kept
