@@ -10,8 +10,9 @@ from typing import Any
 import pytest
 import yaml
 
-from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.astro.constants import EarthModel
 from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.config.physical import default_earth
 from ovtraj.target_sources import load_scenario
 
 # Prefect must never try to reach the network from the test suite.

@@ -14,12 +14,8 @@ import numpy as np
 import pytest
 import yaml
 
-from ovtraj.astro.atmosphere import (
-    Atmosphere,
-    ExponentialAtmosphere,
-    US76Atmosphere,
-    default_atmosphere,
-)
+from ovtraj.astro.atmosphere import Atmosphere, ExponentialAtmosphere, US76Atmosphere
+from ovtraj.config.physical import default_atmosphere, us76_atmosphere
 from ovtraj.store.paths import config_path
 
 KM = 1000.0
@@ -330,8 +326,8 @@ def test_out_of_range_raises(atm, quantity, bad):
 
 
 def test_from_config_default_and_explicit_path_agree():
-    implicit = US76Atmosphere.from_config()
-    explicit = US76Atmosphere.from_config(config_path("atmosphere_us76.yaml"))
+    implicit = us76_atmosphere()
+    explicit = us76_atmosphere(config_path("atmosphere_us76.yaml"))
     z = np.linspace(0.0, 1000 * KM, 101)
     assert np.array_equal(implicit.density(z), explicit.density(z))
     assert default_atmosphere() is default_atmosphere()
@@ -345,7 +341,7 @@ def test_config_rejects_unordered_nodes(tmp_path: Path):
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     with pytest.raises(ValueError, match="increasing"):
-        US76Atmosphere.from_config(path)
+        us76_atmosphere(path)
 
 
 # -- exponential model ----------------------------------------------------------------------

@@ -24,12 +24,12 @@ import pandas as pd
 import pytest
 import yaml
 
-from ovtraj.astro.constants import load_earth
 from ovtraj.cli import run_command
 from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
 from ovtraj.config.export import CcsdsExportSettings
 from ovtraj.config.io_limits import io_limits
+from ovtraj.config.physical import load_earth
 from ovtraj.config.target import default_source_settings
 from ovtraj.mission.plan import PlanError, read_plan
 from ovtraj.optimize import Normalisation

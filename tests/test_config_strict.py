@@ -288,7 +288,7 @@ def test_a_huge_reference_area_is_refused_quickly_by_the_cli(tmp_path):
 def test_the_earth_model_file_refuses_a_bool_for_a_number(tmp_path):
     from pydantic import ValidationError
 
-    from ovtraj.astro.constants import load_earth
+    from ovtraj.config.physical import load_earth
 
     text = (REPO / "configs" / "earth.yaml").read_text(encoding="utf-8")
     path = tmp_path / "earth.yaml"

@@ -211,7 +211,7 @@ def test_prograde_burn_is_reported():
 def test_the_central_angle_alone_is_the_whole_estimates_to_the_bit():
     """The pass forecast's shortcut (:func:`descent_central_angle_rad`) runs the same
     operations as the whole estimate, and its caller keeps the estimate's checks."""
-    from ovtraj.astro.constants import default_earth
+    from ovtraj.config.physical import default_earth
     from ovtraj.deorbit.estimate import descent_central_angle_rad
     from ovtraj.deorbit.inputs import EntryRegion
     from ovtraj.deorbit.pass_estimate import descent_angle_rad

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ovtraj.astro.constants import default_earth
 from ovtraj.astro.elements import (
     ClassicalElements,
     EquinoctialElements,
@@ -32,6 +31,7 @@ from ovtraj.astro.elements import (
     true_to_mean_anomaly,
     true_to_mean_argument_of_latitude,
 )
+from ovtraj.config.physical import default_earth
 
 EARTH = default_earth()
 MU = EARTH.mu

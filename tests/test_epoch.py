@@ -8,7 +8,6 @@ from datetime import UTC, datetime, timedelta, timezone
 import numpy as np
 import pytest
 
-from ovtraj.astro.constants import default_earth
 from ovtraj.astro.epoch import (
     J2000_JD,
     Epoch,
@@ -16,6 +15,7 @@ from ovtraj.astro.epoch import (
     gmst_rad,
     julian_date,
 )
+from ovtraj.config.physical import default_earth
 
 # ---------------------------------------------------------------- Julian date
 

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from ovtraj.astro.constants import default_earth
 from ovtraj.astro.frames import (
     ecef_to_eci,
     ecef_to_eci_state,
@@ -24,6 +23,7 @@ from ovtraj.astro.frames import (
     rsw_basis,
     rsw_to_eci,
 )
+from ovtraj.config.physical import default_earth
 
 EARTH = default_earth()
 RNG = np.random.default_rng(20260301)

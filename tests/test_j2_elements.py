@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.constants import default_earth
 from ovtraj.astro.elements import (
     NonsingularElements,
     coe_to_rv,
@@ -31,6 +30,7 @@ from ovtraj.astro.j2_elements import (
     secular_rates,
     state_to_mean,
 )
+from ovtraj.config.physical import default_earth
 
 EARTH = default_earth()
 MU, R_E, J2 = EARTH.mu, EARTH.radius, EARTH.j2

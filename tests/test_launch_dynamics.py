@@ -28,10 +28,11 @@ import pytest
 import yaml
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.atmosphere import TabulatedAtmosphere, default_atmosphere
+from ovtraj.astro.atmosphere import TabulatedAtmosphere
 from ovtraj.astro.frames import ecef_to_eci_state, geocentric_to_ecef, local_north_east_up
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.config.physical import default_atmosphere
 from ovtraj.launch import ascent
 from ovtraj.launch.ascent import (
     AERO,

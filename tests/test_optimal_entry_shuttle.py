@@ -268,7 +268,7 @@ def test_the_blockwise_constraint_jacobian_equals_casadis_whole_one(case, method
 def test_the_compiled_us76_equals_the_librarys_from_the_ground_to_its_top():
     """The re-flight's US76 (both regions: the closed form below 86 km, the density nodes
     and temperature segments above) against ovtraj.astro.atmosphere."""
-    from ovtraj.astro.atmosphere import default_atmosphere
+    from ovtraj.config.physical import default_atmosphere
     from ovtraj.studies.optimal_entry.flight_kernel import _us76, _us76_arrays
 
     atmosphere = default_atmosphere()

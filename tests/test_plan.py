@@ -276,7 +276,7 @@ def test_the_plan_starts_at_the_drop_and_the_replay_flies_the_ascent(plan, repla
     wrapped = (math.degrees(lon_fixed) - drop.longitude_deg + 180.0) % 360.0 - 180.0
     assert wrapped == pytest.approx(0.0, abs=1e-9)
     v_rel = np.asarray(drop.v_eci_mps) - earth.omega * np.array([-r[1], r[0], 0.0])
-    from ovtraj.astro.atmosphere import default_atmosphere
+    from ovtraj.config.physical import default_atmosphere
 
     sound = default_atmosphere().speed_of_sound(drop.altitude_m)
     assert np.linalg.norm(v_rel) == pytest.approx(drop.mach * sound, rel=1e-3)  # table

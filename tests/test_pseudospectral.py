@@ -29,8 +29,8 @@ import yaml
 from numpy.polynomial import Legendre
 from scipy.optimize import brentq
 
-from ovtraj.astro.atmosphere import default_atmosphere
 from ovtraj.config import ConfigError
+from ovtraj.config.physical import default_atmosphere
 from ovtraj.store.files import StoreError
 from ovtraj.studies.optimal_entry import (
     load_optimal_entry,

@@ -24,7 +24,6 @@ import yaml
 from sgp4 import io as sgp4_io
 from typer.testing import CliRunner
 
-from ovtraj.astro.constants import default_earth
 from ovtraj.astro.elements import ClassicalElements, classical_to_nonsingular, mean_to_true_anomaly
 from ovtraj.astro.epoch import Epoch, gmst_rad
 from ovtraj.astro.frames import eci_to_ecef_state
@@ -34,6 +33,7 @@ from ovtraj.astro.teme import teme_to_eci
 from ovtraj.cli import app
 from ovtraj.config import ConfigError, OrbitElementsConfig, scenario_from_dict
 from ovtraj.config.base import model_from_dict
+from ovtraj.config.physical import default_earth
 from ovtraj.config.scenario import Scenario, TargetSourceSettings
 from ovtraj.config.target import default_source_settings
 from ovtraj.rendezvous import rendezvous_input

@@ -44,15 +44,11 @@ arguments alone, so a benchmark can state it completely.
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import lru_cache
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-from ovtraj.store.paths import config_path, read_yaml
 
 __all__ = [
     "Atmosphere",
@@ -60,15 +56,12 @@ __all__ = [
     "TabulatedAtmosphere",
     "US76Atmosphere",
     "US76Table",
-    "default_atmosphere",
-    "load_us76_table",
 ]
 
 FloatOrArray = float | NDArray[np.float64]
 _Branch = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 _M_PER_KM = 1000.0
-US76_CONFIG_FILE = "atmosphere_us76.yaml"
 
 
 @runtime_checkable
@@ -142,14 +135,6 @@ class US76Table(BaseModel):
         return self
 
 
-def load_us76_table(path: str | Path) -> US76Table:
-    """Read the US76 figures from a YAML file (a regular file within
-    ``config_file_max_kib``, no YAML anchors: :func:`ovtraj.config.io_limits.read_config_file`)."""
-    from ovtraj.config.io_limits import read_config_file
-
-    return US76Table.model_validate(read_yaml(read_config_file(path)))
-
-
 def _readonly(values: ArrayLike) -> NDArray[np.float64]:
     array = np.array(values, dtype=float)
     array.setflags(write=False)
@@ -183,7 +168,8 @@ def _layer_pressure(
 class US76Atmosphere:
     """U.S. Standard Atmosphere 1976, 0-1000 km geometric altitude (see the module notes).
 
-    Build it once with :meth:`from_config` (or :func:`default_atmosphere`); the tables are
+    Build it once with :func:`ovtraj.config.physical.us76_atmosphere` (or
+    :func:`~ovtraj.config.physical.default_atmosphere`); the tables are
     prepared in the constructor, so calls are cheap. The arrays below are read-only and
     describe the whole model, for code that needs to rebuild it in another form (e.g. a
     symbolic expression for a compiled integrator):
@@ -266,11 +252,6 @@ class US76Atmosphere:
         self._exponential_rate = table.exponential_rate_per_km / _M_PER_KM
         self._t9 = float(self._ellipse_temperature(np.array([self._z9]))[0])
         self._t10 = self._t9 + self._linear_gradient * (self._z10 - self._z9)
-
-    @classmethod
-    def from_config(cls, path: str | Path | None = None) -> US76Atmosphere:
-        """Build the model from a YAML file, by default ``configs/atmosphere_us76.yaml``."""
-        return cls(load_us76_table(config_path(US76_CONFIG_FILE) if path is None else path))
 
     # -- public quantities ----------------------------------------------------------------
 
@@ -447,12 +428,6 @@ class ExponentialAtmosphere:
         """Speed of sound [m/s]: the constant given at construction, shaped like the input."""
         z = np.asarray(altitude_m, dtype=float)
         return self.speed_of_sound_m_s if z.ndim == 0 else np.full(z.shape, self.speed_of_sound_m_s)
-
-
-@lru_cache(maxsize=1)
-def default_atmosphere() -> US76Atmosphere:
-    """The project's US76 model, built once from ``configs/atmosphere_us76.yaml``."""
-    return US76Atmosphere.from_config()
 
 
 class TabulatedAtmosphere:

@@ -9,12 +9,8 @@ only has to pass a different :class:`EarthModel`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
-from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
-
-from ovtraj.store.paths import config_path, read_yaml
 
 
 class EarthModel(BaseModel):
@@ -48,20 +44,6 @@ class EarthModel(BaseModel):
     @property
     def omega(self) -> float:
         return self.rotation_rate_rad_s
-
-
-def load_earth(path: str | Path) -> EarthModel:
-    """Read an Earth model from a YAML file (a regular file within
-    ``config_file_max_kib``, no YAML anchors: :func:`ovtraj.config.io_limits.read_config_file`)."""
-    from ovtraj.config.io_limits import read_config_file
-
-    return EarthModel.model_validate(read_yaml(read_config_file(path)))
-
-
-@lru_cache(maxsize=1)
-def default_earth() -> EarthModel:
-    """The project's Earth model, ``configs/earth.yaml``."""
-    return load_earth(config_path("earth.yaml"))
 
 
 @dataclass(frozen=True)

@@ -10,12 +10,13 @@ from typing import Any
 
 from pydantic import Field, field_validator, model_validator
 
-from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import StrictModel, bounded, model_from_dict
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
+from ovtraj.config.physical import default_earth
 from ovtraj.config.reentry import ReentrySettings
 
 # The target's models live in ovtraj.config.target; importable from here as before.

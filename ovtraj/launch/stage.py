@@ -24,11 +24,12 @@ from functools import lru_cache
 import numpy as np
 
 from ovtraj.astro.angles import TWO_PI, wrap_to_pi
-from ovtraj.astro.atmosphere import TabulatedAtmosphere, default_atmosphere
+from ovtraj.astro.atmosphere import TabulatedAtmosphere
 from ovtraj.astro.elements import rv_to_coe
 from ovtraj.astro.frames import ecef_to_eci, ecef_to_geocentric
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
+from ovtraj.config.physical import default_atmosphere
 from ovtraj.launch.ascent import (
     AERO,
     BACK_PRESSURE,

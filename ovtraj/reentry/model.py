@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ovtraj.astro.atmosphere import default_atmosphere
+from ovtraj.config.physical import default_atmosphere
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.inputs import EntryState, ReentryInput
 

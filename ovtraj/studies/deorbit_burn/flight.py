@@ -29,7 +29,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from ovtraj.astro.angles import wrap_to_pi
-from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import (
     NonsingularElements,
     argument_of_latitude,
@@ -45,6 +45,7 @@ from ovtraj.astro.entry_prediction import (
 from ovtraj.astro.frames import flight_path_angle
 from ovtraj.astro.j2_elements import mean_to_state
 from ovtraj.astro.propagation import AltitudeCrossing, ArgumentOfLatitudeCrossing, OrbitPropagator
+from ovtraj.config.physical import default_earth
 from ovtraj.studies.deorbit_burn.powered import BurnArc, PoweredFlight, ThrustSettings
 from ovtraj.studies.deorbit_burn.problem import DeorbitBurnProblem
 

@@ -12,13 +12,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ovtraj.astro.constants import EarthConstants, default_earth
+from ovtraj.astro.constants import EarthConstants
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.config.deorbit_burn import (
     DeorbitBurnConfig,
     deorbit_burn_config_from_dict,
     load_deorbit_burn_config,
 )
+from ovtraj.config.physical import default_earth
 
 __all__ = [
     "DeorbitBurnProblem",

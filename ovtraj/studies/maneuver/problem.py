@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ovtraj.astro.angles import TWO_PI
-from ovtraj.astro.constants import EarthModel, default_earth
+from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import coe_to_rv, mean_to_true_anomaly
 from ovtraj.astro.rocket import dv_budget_seed, rocket_capacity
 from ovtraj.config.base import ConfigError
@@ -47,6 +47,7 @@ from ovtraj.config.maneuver import (
     load_maneuver_config,
     maneuver_config_from_dict,
 )
+from ovtraj.config.physical import default_earth
 
 __all__ = ["ManeuverProblem", "load_maneuver", "maneuver_from_dict", "orbit_state"]
 

@@ -25,8 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ovtraj.astro.atmosphere import ExponentialAtmosphere, US76Atmosphere, default_atmosphere
-from ovtraj.astro.constants import default_earth
+from ovtraj.astro.atmosphere import ExponentialAtmosphere, US76Atmosphere
 from ovtraj.config.base import ConfigError
 from ovtraj.config.optimal_entry import (
     BoundConfig,
@@ -34,6 +33,7 @@ from ovtraj.config.optimal_entry import (
     load_optimal_entry_config,
     optimal_entry_config_from_dict,
 )
+from ovtraj.config.physical import default_atmosphere, default_earth
 from ovtraj.studies.optimal_entry.atmosphere import (
     NlpAtmosphere,
     exponential_atmosphere,
