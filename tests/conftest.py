@@ -118,6 +118,14 @@ def shorten_launch_fit(data: dict[str, Any]) -> dict[str, Any]:
     the full fit range). Returns ``data``."""
     launch = data["launch"]
     launch["fit"].update(altitude_min_km=280.0, altitude_max_km=320.0, points=5, order=1)
+    shorten_launch_search(launch)
+    data.pop("mission")
+    return data
+
+
+def shorten_launch_search(launch: dict[str, Any]) -> dict[str, Any]:
+    """A scenario's ``launch`` section searched quickly, in place: a smaller GA, coarser
+    steps, looser and shorter local phases (the fit grid untouched). Returns ``launch``."""
     launch["genetic"].update(population=16, generations=6)
     launch["integration"].update(powered_step_s=4.0, coast_step_s=40.0)
     launch["local"].update(
@@ -128,8 +136,7 @@ def shorten_launch_fit(data: dict[str, Any]) -> dict[str, Any]:
         stall_iterations=2,
         stall_payload_kg=0.1,
     )
-    data.pop("mission")
-    return data
+    return launch
 
 
 def build_scenario(data: dict[str, Any]) -> Scenario:

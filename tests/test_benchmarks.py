@@ -20,7 +20,6 @@ home and task results).
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 import os
@@ -35,7 +34,7 @@ from typing import Any
 import pytest
 import yaml
 
-from tests.conftest import DEFAULT_SCENARIO, REPO
+from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_search
 
 BENCHMARKS = REPO / "benchmarks"
 TIMEOUT_S = 600
@@ -67,18 +66,7 @@ def short_launch(folder: Path) -> Path:
     """The default scenario with the launch search of ``shorten_launch_fit`` (a small GA,
     coarser steps, short local phases)."""
     data = _scenario_data()
-    launch = copy.deepcopy(data["launch"])
-    launch["genetic"].update(population=16, generations=6)
-    launch["integration"].update(powered_step_s=4.0, coast_step_s=40.0)
-    launch["local"].update(
-        converged_residual=1.0,
-        slsqp_ftol=1e-5,
-        slsqp_max_iterations=10,
-        trust_constr_max_iterations=5,
-        stall_iterations=2,
-        stall_payload_kg=0.1,
-    )
-    data["launch"] = launch
+    shorten_launch_search(data["launch"])
     path = folder / "short-launch.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     return path
