@@ -20,6 +20,7 @@ them); only the batches are tasks, cached on their inputs.
 
 from __future__ import annotations
 
+import json
 import time
 from typing import Any
 
@@ -102,6 +103,7 @@ def mission_flow(
     logger.info("picked %s; report %s", planned.get("pick"), planned.get("report"))
     _publish(result, planned, outcome.verdict)
     _publish_last_fit(store, outcome)
+    _publish_history(store, planned)
     return {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
@@ -116,6 +118,54 @@ def mission_flow(
         "report": str(planned["report"]),
         "converged": result.summary["converged"],
     }
+
+
+def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
+    """The target's re-plan history (``ovtraj history``) as a table artifact and its trend
+    plot as a markdown artifact, both under a stable key per target (``history-<target>``,
+    ``history-<target>-plot``): the UI lists every re-plan's version of them, and each
+    version names this plan and the previous one. A run from a deployment tags its
+    pipeline result ``deployment=<name>`` (``ovtraj history --deployment``)."""
+    from prefect.runtime import deployment
+
+    from ovtraj.plots.history import history_plot
+    from ovtraj.tracking.catalog import plan_id, plan_values, refresh, set_tags
+    from ovtraj.tracking.history import history, previous_plan
+    from ovtraj.tracking.keys import history_key
+
+    plan = planned["plan"].to_dict()
+    values = plan_values(plan)
+    if deployment.name:
+        set_tags(store.root, values["pipeline_id"], {"deployment": str(deployment.name)})
+    catalog = refresh(store.root)
+    rows = history(catalog, target=values["target"])
+    key = history_key(values["target"] or "target")
+    plot = history_plot(
+        rows, store.root / "catalog" / "history" / f"{key}.png", f"re-plans of {values['target']}"
+    )
+    table = json.loads(rows.drop(columns=["source"]).to_json(orient="records"))
+    create_table_artifact(
+        key=key,
+        table=table,
+        description=f"re-plans of {values['target']}: {len(rows)} plans in element-set order "
+        "(dV_total [m/s], T_total [s], M_load [kg], landing miss [m]; `ovtraj history`)",
+    )
+    previous = previous_plan(catalog, plan)
+    lines = [
+        f"**{len(rows)} re-plans of {values['target']}**",
+        f"- this plan: `{planned['json']}` (element set of {values['element_set_epoch_utc']})",
+    ]
+    if previous is not None:
+        lines.append(
+            f"- previous plan: `{store.root / previous['source']}` (plan "
+            f"{previous['plan_id']}, element set of {previous['element_set_epoch_utc']}); "
+            f"`ovtraj diff {previous['plan_id']} {plan_id(plan)}`"
+        )
+    create_markdown_artifact(
+        key=f"{key}-plot",
+        markdown="\n\n".join(["\n".join(lines), *embedded_plots([plot])]),
+        description=f"trend of the re-plans of {values['target']}",
+    )
 
 
 def _publish_last_fit(store: RunStore, outcome: PipelineOutcome) -> None:

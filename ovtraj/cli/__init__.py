@@ -25,7 +25,17 @@ __all__ = ["app", "entry_point", "run_command"]
 
 # Importing a family module registers its commands on the app: this order is the order
 # of the commands in `ovtraj --help`.
-_FAMILIES = ("stages", "studies", "workspace", "doe", "store", "pipeline", "mission", "target")
+_FAMILIES = (
+    "stages",
+    "studies",
+    "workspace",
+    "doe",
+    "store",
+    "pipeline",
+    "mission",
+    "target",
+    "tracking",
+)
 for _family in _FAMILIES:
     importlib.import_module(f"{__name__}.{_family}")
 

@@ -162,6 +162,8 @@ def export(
     from ovtraj.config.export import CcsdsExportSettings, default_export_settings
     from ovtraj.mission.ccsds import FORMATS, UnflownPlan, export_plan
     from ovtraj.mission.plan import PlanError, read_plan
+    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.lineage import record_export
 
     fmt = fmt.lower()
     if fmt not in FORMATS:
@@ -173,7 +175,10 @@ def export(
             if settings_file is None
             else load_model(CcsdsExportSettings, settings_file)
         )
-        path, report = export_plan(read_plan(plan_file), fmt, out, settings)
+        plan = read_plan(plan_file)
+        identity = plan_id(plan.to_dict())
+        path, report = export_plan(plan, fmt, out, settings, identity)
+        record_export(plan_file, plan.to_dict(), path, fmt)
     except ConfigError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
@@ -14,24 +14,130 @@ from rich.table import Table
 
 from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, app
 from ovtraj.config.io_limits import echoed
-from ovtraj.formatting import byte_size, number, utc
+from ovtraj.formatting import byte_size, number, quantity, utc
+
+
+def _families(frame: Any) -> list[dict[str, Any]]:
+    """The run rows of the catalog by family, families newest first, each root followed by
+    its runs in lineage order, with their pipeline results."""
+    runs = frame[frame["kind"] == "run"]
+    pipelines: dict[str, list[str]] = {}
+    for row in frame[frame["kind"] == "pipeline"].itertuples(index=False):
+        pipelines.setdefault(str(row.source).split("/", 1)[0], []).append(row.id)
+    families: dict[str, list[dict[str, Any]]] = {}
+    for row in runs.itertuples(index=False):
+        entry = {
+            "run_id": row.id,
+            "family": row.family or row.id,
+            "depth": int(row.depth or 0),
+            "parent": row.parent,
+            "origin": row.origin,
+            "created_utc": row.created_utc,
+            "scenario": row.scenario,
+            "status": row.status,
+            "samples": row.samples,
+            "evaluated": row.evaluated,
+            "feasible": row.feasible,
+            "pipelines": pipelines.get(row.id, []),
+            "size_bytes": row.size_bytes,
+            "error": row.error,
+        }
+        entry = {
+            k: (int(v) if hasattr(v, "item") and not isinstance(v, float) else v)
+            for k, v in entry.items()
+        }
+        families.setdefault(entry["family"], []).append(entry)
+
+    def newest(members: list[dict[str, Any]]) -> str:
+        return max(m["created_utc"] or "" for m in members)
+
+    ordered: list[dict[str, Any]] = []
+    for _, members in sorted(families.items(), key=lambda kv: newest(kv[1]), reverse=True):
+        ordered += sorted(members, key=lambda m: (m["depth"], m["created_utc"] or "", m["run_id"]))
+    return ordered
+
+
+def _where_table(rows: Any, title: str) -> Table:
+    table = Table(title=title, title_justify="left", box=None, pad_edge=False)
+    columns = (
+        ("kind", "kind", ""),
+        ("id", "id", ""),
+        ("created (UTC)", "created_utc", "utc"),
+        ("scenario", "scenario", ""),
+        ("target", "target", ""),
+        ("element set (UTC)", "element_set_epoch_utc", "utc"),
+        ("status", "status", ""),
+        ("dV_total", "dv_total_mps", "m/s"),
+        ("T_total", "t_total_s", "s"),
+        ("M_load", "m_load_kg", "kg"),
+        ("tags", "tags", ""),
+    )
+    for label, _, _ in columns:
+        table.add_column(label, no_wrap=label == "id")
+    for row in rows.to_dict(orient="records"):
+        table.add_row(
+            *(
+                (utc(row[key]) if unit == "utc" else quantity(row[key], unit))
+                if unit
+                else ("-" if row[key] is None or row[key] != row[key] else str(row[key]))
+                for _, key, unit in columns
+            )
+        )
+    return table
 
 
 @app.command()
-def runs(store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+def runs(
+    store_root: StoreOpt = None,
+    where: Annotated[
+        str | None,
+        typer.Option(
+            "--where",
+            help="an SQL predicate over the catalog's columns (DuckDB), e.g. \"kind = 'plan' "
+            'AND dv_total_mps > 220"; lists the matching runs, pipeline results, plans '
+            "and Monte Carlo runs (docs/tracking.md)",
+        ),
+    ] = None,
+    limit: Annotated[
+        int | None,
+        typer.Option("--limit", help="rows shown (default catalog.rows_shown; 0: all)", min=0),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
     """List the stored runs by family: each DoE run, then the runs that extend it (a
-    pipeline's infill rounds, `run --append`), with their pipeline results and sizes."""
-    from ovtraj.pipeline.catalog import store_catalog
+    pipeline's infill rounds, `run --append`), with their pipeline results and sizes; with
+    --where, the catalog's rows (runs, pipeline results, plans) a predicate selects."""
     from ovtraj.runs import StoreError
+    from ovtraj.tracking.catalog import catalog_settings, query, refresh
 
     store = _store(store_root)
     try:
-        entries = store_catalog(store)
-    except (StoreError, OSError) as err:
+        found = refresh(store.root)
+        selected = query(found.frame, where) if where else None
+    except (StoreError, OSError, ValueError) as err:
         typer.echo(f"{store.root}: {err}", err=True)
         raise typer.Exit(code=2) from None
+    shown = catalog_settings().rows_shown if limit is None else limit
+    console = Console(highlight=False)
+    if not console.is_terminal:  # a pipe or a file: every row whole
+        console = Console(highlight=False, width=10_000)
+    if selected is not None:
+        if as_json:
+            rows = json.loads(selected.to_json(orient="records"))
+            _print_json({"store": str(store.root.resolve()), "where": where, "rows": rows})
+            return
+        part = selected.iloc[-shown:] if shown else selected
+        console.print(_where_table(part, f"catalog rows where {where}"))
+        cut = (
+            f" (the newest {len(part)} shown; --limit 0 shows all)"
+            if len(part) < len(selected)
+            else ""
+        )
+        typer.echo(f"{len(selected)} of {len(found.frame)} rows match{cut}")
+        return
+    entries = _families(found.frame)
     if as_json:
-        _print_json({"store": str(store.root.resolve()), "runs": [e.to_json() for e in entries]})
+        _print_json({"store": str(store.root.resolve()), "runs": entries})
         return
     if not entries:
         typer.echo(f"no runs in {store.root.resolve()}")
@@ -51,32 +157,31 @@ def runs(store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
         ("size", "right"),
     ):
         table.add_column(column, justify=justify, no_wrap=column == "run")
-    for e in entries:
-        indent = "  " * e.depth + ("└ " if e.depth else "")
-        if e.error is not None:
-            table.add_row(indent + e.run_id, "-", "-", "-", "-", "-", f"error: {e.error}")
+    listed = entries[:shown] if shown else entries
+    for e in listed:
+        indent = "  " * e["depth"] + ("└ " if e["depth"] else "")
+        if e["error"] is not None:
+            table.add_row(indent + e["run_id"], "-", "-", "-", "-", "-", f"error: {e['error']}")
             continue
         table.add_row(
-            indent + e.run_id,
-            utc(e.created_utc),
-            e.scenario or "-",
-            e.origin or "-",
-            str(e.samples),
-            f"{e.feasible}/{e.evaluated}",
-            e.status or "-",
-            ", ".join(e.pipelines) or "-",
-            "-" if e.size_bytes is None else byte_size(e.size_bytes),
+            indent + e["run_id"],
+            utc(e["created_utc"]),
+            e["scenario"] or "-",
+            e["origin"] or "-",
+            str(e["samples"]),
+            f"{e['feasible']}/{e['evaluated']}",
+            e["status"] or "-",
+            ", ".join(e["pipelines"]) or "-",
+            "-" if e["size_bytes"] is None else byte_size(e["size_bytes"]),
         )
-    # On a terminal the table fits its width; elsewhere (a pipe, a file) every row is whole.
-    console = Console(highlight=False)
-    if not console.is_terminal:
-        console = Console(highlight=False, width=10_000)
     console.print(table)
-    families = sum(1 for e in entries if e.depth == 0)
-    total = sum(e.size_bytes or 0 for e in entries)
+    families = sum(1 for e in entries if e["depth"] == 0)
+    total = sum(e["size_bytes"] or 0 for e in entries)
+    more = f" ({len(listed)} shown; --limit 0 shows all)" if len(listed) < len(entries) else ""
     typer.echo(
-        f"{len(entries)} runs in {families} families, {byte_size(total)} on disk "
-        "(a file shared by hard link counted once); `ovtraj prune` lists what can go"
+        f"{len(entries)} runs in {families} families{more}, {byte_size(total)} "
+        "(apparent size: a batch hard-linked into a child run counts in each); "
+        "`ovtraj prune` lists what can go"
     )
 
 

@@ -137,6 +137,20 @@ class ReadSettings(StrictModel):
     )
 
 
+class CatalogSettings(StrictModel):
+    """The store's catalog and its queries (:mod:`ovtraj.tracking.catalog`)."""
+
+    lock_wait_s: float = bounded(unit="s", gt=0, le=3600, description="wait for a refresh")
+    query_time_limit_s: float = bounded(
+        unit="s", gt=0, le=3600, description="a --where query is interrupted past this"
+    )
+    where_max_chars: int = bounded(unit="characters", ge=16, le=100_000)
+    tags_per_item: int = bounded(unit="tags", ge=1, le=1000)
+    tag_key_max_chars: int = bounded(unit="characters", ge=1, le=256)
+    tag_value_max_chars: int = bounded(unit="characters", ge=1, le=4096)
+    rows_shown: int = bounded(unit="rows", ge=1, le=1_000_000)
+
+
 class StoreKeySettings(StrictModel):
     """The key of the stores' seals (:mod:`ovtraj.store.seals`), given by ``OVTRAJ_STORE_KEY``."""
 
@@ -155,6 +169,7 @@ class OrchestrationConfig(StrictModel):
     results: ResultSettings
     concurrency: ConcurrencySettings
     reads: ReadSettings
+    catalog: CatalogSettings
     store_key: StoreKeySettings
 
 

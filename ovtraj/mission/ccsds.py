@@ -205,9 +205,15 @@ def opm_text(plan: MissionPlan, settings: CcsdsExportSettings) -> str:
 
 
 def export_plan(
-    plan: MissionPlan, fmt: str, out: Path, settings: CcsdsExportSettings
+    plan: MissionPlan,
+    fmt: str,
+    out: Path,
+    settings: CcsdsExportSettings,
+    plan_id: str | None = None,
 ) -> tuple[Path, FlightReport | None]:
-    """Write the plan's ``fmt`` (``"oem"`` or ``"opm"``) message to ``out``.
+    """Write the plan's ``fmt`` (``"oem"`` or ``"opm"``) message to ``out``; ``plan_id``
+    (the store's id of the plan, :func:`ovtraj.tracking.catalog.plan_id`) is named in a
+    ``COMMENT ovtraj plan <id>`` line, so that ``ovtraj lineage`` finds the plan again.
 
     Returns the path and, for the OEM, the replay that produced the trajectory. A file
     already at ``out`` with other content is never replaced (:class:`PlanError`); a
@@ -225,6 +231,9 @@ def export_plan(
         text = oem_text(plan, segments, settings)
     else:
         text = opm_text(plan, settings)
+    if plan_id is not None:
+        first, rest = text.split("\n", 1)
+        text = f"{first}\nCOMMENT ovtraj plan {plan_id}\n{rest}"
     out = Path(out)
     payload = text.encode("ascii")
     if out.exists() and out.read_bytes() != payload:

@@ -69,6 +69,7 @@ from ovtraj.pipeline.steps import (
 )
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
+from ovtraj.runs.store import PIPELINE_MARKER
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
 from ovtraj.store.products import Product
@@ -77,7 +78,7 @@ from ovtraj.surrogate.surrogate_set import shortlist
 
 logger = logging.getLogger(__name__)
 
-MARKER = "pipeline.json"
+MARKER = PIPELINE_MARKER
 FRONT_FILE = "front.parquet"
 VERIFICATION_FILE = "verification.parquet"
 

@@ -13,13 +13,12 @@ from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import checked_id
+from ovtraj.runs.store import PLAN_MARKER_SUFFIX, checked_id
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
 from ovtraj.store.products import digests_json
 from ovtraj.store.seals import write_sealed
-
-PLAN_MARKER_SUFFIX = ".files.json"
+from ovtraj.tracking.catalog import refresh
 
 
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
@@ -40,6 +39,23 @@ def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
             return load_pipeline(directory)
     known = ", ".join(str(summary.get("pipeline_id")) for _, summary in stored)
     raise PipelineError(f"run {run.id} has no pipeline {pipeline!r}; it has {known}")
+
+
+def _since_previous_plan(store: RunStore, plan: dict[str, Any]) -> Any:
+    """The previous plan of this target in the store (:func:`previous_plan`) and what
+    changed since (:func:`ovtraj.tracking.diff.changes`), or None for the first plan."""
+    from ovtraj.mission.plan import read_plan
+    from ovtraj.tracking.diff import changes
+    from ovtraj.tracking.figures import plan_figures
+    from ovtraj.tracking.history import previous_plan
+
+    row = previous_plan(refresh(store.root), plan)
+    if row is None:
+        return None
+    marker = store.root / row["source"]
+    path = marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")
+    previous = read_plan(path).to_dict()
+    return row, changes(plan_figures(previous), plan_figures(plan))
 
 
 def write_mission_plan(
@@ -103,6 +119,7 @@ def write_mission_plan(
             date=f"epoch {scenario.epoch_utc}",
         )
     )
+    since = _since_previous_plan(store, plan.to_dict())
     report = write_report(
         directory / f"{name}-report.html",
         scenario_name=scenario.name,
@@ -114,6 +131,7 @@ def write_mission_plan(
         pick_text=pick_explanation(result.front, normalisation, pick, row),
         surrogates=last_surrogates(store, result),
         plots=[result.directory / "front.png", *(location(p) for p in plots)],
+        since_previous=since,
     )
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
     files = {path.name: file_digest(path) for path in paths}
@@ -122,6 +140,7 @@ def write_mission_plan(
         {"plan": name, "files": digests_json(files)},
         replace=True,  # the plots are views, drawn again with the plan
     )
+    refresh(store.root)  # the catalog lists the new plan (ovtraj.tracking.catalog)
     return {
         "plan": plan,
         "json": json_path,

@@ -242,6 +242,29 @@ figcaption{font-size:.8em;color:#555}
 """
 
 
+def _since_previous_section(since: tuple[Any, list[Any]] | None) -> list[str]:
+    """ "Since the previous plan of this target": the figures that changed, both values, the
+    change and the unit (inputs first)."""
+    if since is None:
+        return []
+    from ovtraj.tracking.diff import text_rows
+
+    row, found = since
+    head = (
+        "<h2>Since the previous plan of this target</h2>"
+        f"<p>previous plan {html.escape(str(row['plan_id']))} (pipeline "
+        f"{html.escape(str(row['pipeline_id']))}, element set of "
+        f"{html.escape(utc(row['element_set_epoch_utc']))}, code "
+        f"{html.escape(str(row['code_version']))}): {len(found)} figures changed.</p>"
+    )
+    if not found:
+        return [head]
+    frame = pd.DataFrame(
+        text_rows(found), columns=["group", "field", "previous", "this plan", "change"]
+    )
+    return [head, _table(frame)]
+
+
 def write_report(
     path: Path,
     *,
@@ -254,9 +277,12 @@ def write_report(
     pick_text: str,
     surrogates: Any,
     plots: list[Path],
+    since_previous: tuple[Any, list[Any]] | None = None,
 ) -> Path:
     """The HTML report of a planned pipeline result at ``path`` (rewritten with the plan:
-    it is a view of stored results); returns ``path``."""
+    it is a view of stored results); returns ``path``. ``since_previous``: the previous
+    plan of this target (its history row) and the changes since
+    (:mod:`ovtraj.tracking.diff`), a section of their own."""
     converged = bool(summary.get("converged"))
     evaluations = summary["real_evaluations"]
     title = f"ovtraj mission report: {scenario_name}"
@@ -275,6 +301,7 @@ def write_report(
         "<h2>The plan</h2>",
         f"<p>{html.escape(pick_text)}.</p>",
         _table(_plan_rows(plan)),
+        *_since_previous_section(since_previous),
         "<h2>Verification rounds</h2>",
         _table(_rounds_frame(summary)),
         "<h2>Verified front (real chain)</h2>",

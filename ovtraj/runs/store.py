@@ -105,6 +105,13 @@ MANIFEST_LOCK_WAIT_S = 60.0
 # ``/``, a newline that would forge a log line) is refused where it enters (:func:`checked_id`).
 ID_HEX_DIGITS = 16
 _ID = re.compile(f"[0-9a-f]{{{ID_HEX_DIGITS}}}")
+# A pipeline result lives in its DoE run: ``pipeline/<pipeline id>/pipeline.json`` (its
+# summary, written last) and its plans, ``plans/<name>.json`` with ``<name>.files.json``
+# (the digests of the plan's files, written last).
+PIPELINE_DIR = "pipeline"
+PIPELINE_MARKER = "pipeline.json"
+PLANS_DIR = "plans"
+PLAN_MARKER_SUFFIX = ".files.json"
 # Markers of a run's pipeline products (glob patterns under the run); each lists its
 # files, relative to its own folder, with their digests.
 PRODUCT_MARKERS = (

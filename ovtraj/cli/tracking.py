@@ -1,0 +1,410 @@
+"""The store as an experiment tracker: what changed (diff), how the plans moved (history),
+the catalog (rebuilt, queried by `runs --where`), tags, and a plan's lineage
+(docs/tracking.md)."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _store, app
+from ovtraj.config.io_limits import echoed
+from ovtraj.formatting import quantity, utc
+
+
+@dataclass
+class _Item:
+    kind: str
+    label: str
+    figures: list[Any]
+    plan: dict[str, Any] | None = None
+    plan_path: Path | None = None
+
+
+def _console() -> Console:
+    console = Console(highlight=False)
+    return console if console.is_terminal else Console(highlight=False, width=10_000)
+
+
+def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label: str) -> _Item:
+    from ovtraj.store.files import read_json
+    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.figures import monte_carlo_figures, plan_figures
+
+    figures = plan_figures(plan)
+    frame = catalog.frame
+    runs = frame[
+        (frame["kind"] == "monte_carlo")
+        & (frame["plan_id"] == plan_id(plan))
+        & (frame["status"] == "complete")
+    ].sort_values(["created_utc", "id"])
+    if len(runs):
+        summary = read_json(store.root / runs.iloc[-1]["id"] / "summary.json")
+        figures += monte_carlo_figures(summary if isinstance(summary, dict) else {})
+    return _Item("plan", label, figures, plan, path)
+
+
+def _read_plan(path: Path) -> dict[str, Any]:
+    from ovtraj.mission.plan import read_plan
+
+    return read_plan(path).to_dict()
+
+
+def _run_item(store: Any, run_id: str) -> _Item:
+    from ovtraj.tracking.figures import run_figures
+
+    run = store.run(run_id)
+    return _Item("run", f"run {run.id}", run_figures(run.manifest, run.config, run.summary()))
+
+
+def _pipeline_item(store: Any, marker: Path) -> _Item:
+    from ovtraj.store.files import read_json
+    from ovtraj.tracking.figures import pipeline_figures
+
+    summary = read_json(marker)
+    if not isinstance(summary, dict):
+        raise ValueError(f"{marker}: not a pipeline summary")
+    doe = store.run(str(summary.get("doe_run")))
+    label = f"pipeline {summary.get('pipeline_id')}"
+    return _Item("pipeline", label, pipeline_figures(summary, doe.config))
+
+
+def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
+    """A run, pipeline result or plan named by its id (`ovtraj runs`) or a file."""
+    from ovtraj.runs.store import MANIFEST, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, RunStore
+
+    path = Path(ref)
+    if path.is_dir() and (path / MANIFEST).is_file():
+        return _run_item(RunStore(path.parent), path.name)
+    if path.is_file():
+        if path.name == MANIFEST:
+            return _run_item(RunStore(path.parent.parent), path.parent.name)
+        if path.name == PIPELINE_MARKER:
+            return _pipeline_item(RunStore(path.parents[3]), path)
+        plan = _read_plan(path)
+        return _plan_item(store, catalog, path, plan, f"plan {path.name}")
+    row = catalog.item(ref)
+    if row["error"] is not None:
+        raise ValueError(f"{ref}: {row['error']}")
+    if row["kind"] == "run":
+        return _run_item(store, ref)
+    if row["kind"] == "pipeline":
+        return _pipeline_item(store, store.root / row["source"])
+    if row["kind"] == "plan":
+        marker = store.root / row["source"]
+        plan_path = marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")
+        return _plan_item(store, catalog, plan_path, _read_plan(plan_path), f"plan {ref}")
+    raise ValueError(f"{ref}: a {row['kind']} (diff takes runs, pipeline results and plans)")
+
+
+def _fail(err: Exception) -> None:
+    typer.echo(str(err), err=True)
+    raise typer.Exit(code=2) from None
+
+
+def _errors() -> tuple[type[Exception], ...]:
+    from ovtraj.config import ConfigError
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.store.files import StoreError
+
+    return (StoreError, ConfigError, PlanError, ValueError, OSError)
+
+
+@app.command()
+def diff(
+    a: Annotated[str, typer.Argument(help="a run, pipeline result or plan: id or file")],
+    b: Annotated[str, typer.Argument(help="the other one")],
+    store_root: StoreOpt = None,
+    everything: Annotated[
+        bool, typer.Option("--all", help="show the unchanged figures too")
+    ] = False,
+    markdown: Annotated[bool, typer.Option("--md", help="a Markdown table to paste")] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """What differs between two runs, pipeline results or plans: inputs (scenario fields,
+    element set and its epoch, design, code version) and results (the plan's figures, the
+    front, the Monte Carlo), each with both values, the change and its unit."""
+    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.diff import changes, markdown_table, text_rows
+
+    store = _store(store_root)
+    try:
+        catalog = refresh(store.root)
+        left, right = _resolve(store, catalog, a), _resolve(store, catalog, b)
+    except _errors() as err:
+        _fail(err)
+    found = changes(left.figures, right.figures, everything=everything)
+    changed = sum(c.changed for c in found)
+    if as_json:
+        _print_json(
+            {
+                "a": left.label,
+                "b": right.label,
+                "changed": changed,
+                "fields": [c.to_json() for c in found],
+            }
+        )
+        return
+    if markdown:
+        typer.echo(markdown_table(found, left.label, right.label))
+        return
+    typer.echo(f"A: {left.label}\nB: {right.label}")
+    if not found:
+        typer.echo("no differences")
+        return
+    table = Table(box=None, pad_edge=False)
+    for column in ("group", "field", "A", "B", "change"):
+        table.add_column(column, no_wrap=column == "field")
+    for row in text_rows(found):
+        table.add_row(*row)
+    _console().print(table)
+    typer.echo(f"{changed} of {len(found) if everything else changed} figures differ")
+
+
+_TagOpt = Annotated[
+    list[str] | None,
+    typer.Option("--tag", help="only the plans tagged KEY=VALUE (repeatable)"),
+]
+
+
+def _pairs(values: list[str] | None, what: str) -> dict[str, str]:
+    found = {}
+    for value in values or []:
+        if "=" not in value:
+            raise ValueError(f"{what} {echoed(repr(value))}: expected KEY=VALUE")
+        key, _, text = value.partition("=")
+        found[key] = text
+    return found
+
+
+@app.command()
+def history(
+    target: Annotated[
+        str | None, typer.Option("--target", help="the target's name (scenario target.name)")
+    ] = None,
+    scenario: Annotated[str | None, typer.Option("--scenario", help="the scenario's name")] = None,
+    deployment: Annotated[
+        str | None,
+        typer.Option("--deployment", help="only plans of this Prefect deployment (its tag)"),
+    ] = None,
+    tag: _TagOpt = None,
+    plot: Annotated[
+        Path | None,
+        typer.Option("--plot", help="the trend PNG (default: <store>/catalog/history/)"),
+    ] = None,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The re-plans of a target in element-set order: epoch, ids, code version, launch
+    epoch, dV_total, T_total, M_load, landing miss, Monte Carlo p95 and dV margin; and a
+    trend plot of them with the code-version changes marked."""
+    from ovtraj.plots.history import history_plot
+    from ovtraj.tracking.catalog import CATALOG_DIR, refresh
+    from ovtraj.tracking.history import history as history_rows
+    from ovtraj.tracking.keys import history_key
+
+    store = _store(store_root)
+    try:
+        tags = _pairs(tag, "--tag")
+        if deployment is not None:
+            tags["deployment"] = deployment
+        catalog = refresh(store.root)
+        rows = history_rows(catalog, target=target, scenario=scenario, tags=tags)
+    except _errors() as err:
+        _fail(err)
+    if not len(rows):
+        typer.echo(f"no plans in {store.root} match", err=True)
+        raise typer.Exit(code=1)
+    targets = sorted(set(rows["target"].dropna()))
+    name = target or (targets[0] if len(targets) == 1 else scenario or "plans")
+    path = plot or Path(str(store.root / CATALOG_DIR / "history" / f"{history_key(name)}.png"))
+    written = Path(str(history_plot(rows, path, f"re-plans of {name}"))).resolve()
+    if as_json:
+        _print_json(
+            {
+                "target": name,
+                "rows": json.loads(rows.to_json(orient="records")),
+                "plot": str(written),
+            }
+        )
+        return
+    table = Table(title=f"re-plans of {name}", title_justify="left", box=None, pad_edge=False)
+    columns = (
+        "element set (UTC)",
+        "plan",
+        "pipeline",
+        "code",
+        "launch (UTC)",
+        "dV_total",
+        "T_total",
+        "M_load",
+        "landing miss",
+        "MC p95 miss",
+        "MC dV margin",
+    )
+    for column in columns:
+        table.add_column(column, no_wrap=True)
+    for r in rows.itertuples(index=False):
+        table.add_row(
+            utc(r.element_set_epoch_utc),
+            r.plan_id,
+            r.pipeline_id,
+            r.code_version,
+            utc(r.launch_epoch_utc),
+            quantity(r.dv_total_mps, "m/s"),
+            quantity(r.t_total_s, "s"),
+            quantity(r.m_load_kg, "kg"),
+            quantity(r.landing_miss_m, "m"),
+            quantity(r.mc_landing_miss_p95_m, "m"),
+            quantity(r.mc_dv_margin_p95_mps, "m/s"),
+        )
+    _console().print(table)
+    typer.echo(f"plot: {written}")
+
+
+@app.command()
+def catalog(
+    rebuild: Annotated[
+        bool, typer.Option("--rebuild", help="rebuild it from the stored documents alone")
+    ] = False,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Bring the store's catalog (one Parquet table: a row per run, pipeline result, plan and
+    plan Monte Carlo) up to date, or rebuild it; prints its path."""
+    from ovtraj.tracking.catalog import refresh
+
+    store = _store(store_root)
+    try:
+        found = refresh(store.root, rebuild=rebuild)
+    except _errors() as err:
+        _fail(err)
+    counts = found.frame["kind"].value_counts().to_dict()
+    path = Path(str(found.path)).resolve() if "://" not in str(found.path) else found.path
+    if as_json:
+        _print_json(
+            {
+                "catalog": str(path),
+                "rows": len(found.frame),
+                "kinds": counts,
+                "written": found.written,
+            }
+        )
+        return
+    shown = ", ".join(f"{counts[k]} {k}" for k in sorted(counts)) or "empty"
+    verb = "rebuilt" if rebuild else "written" if found.written else "up to date"
+    typer.echo(f"catalog {verb}: {path} ({len(found.frame)} rows: {shown})")
+
+
+@app.command()
+def tag(
+    item_id: Annotated[str, typer.Argument(help="a run, pipeline result or plan id")],
+    pairs: Annotated[list[str] | None, typer.Argument(help="KEY=VALUE ...")] = None,
+    remove: Annotated[
+        list[str] | None, typer.Option("--remove", help="drop this tag (repeatable)")
+    ] = None,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Tag a stored item (tags live beside it, in the catalog's folder: its checksummed
+    files never change); with no KEY=VALUE, print its tags."""
+    from ovtraj.tracking.catalog import read_tags, refresh, set_tags
+
+    store = _store(store_root)
+    try:
+        wanted = _pairs(pairs, "tag")
+        if wanted or remove:
+            tags = set_tags(store.root, item_id, wanted, remove or [])
+        else:
+            refresh(store.root).item(item_id)
+            tags = read_tags(store.root, item_id)
+    except _errors() as err:
+        _fail(err)
+    if as_json:
+        _print_json({"id": item_id, "tags": tags})
+        return
+    typer.echo(
+        f"{item_id}: " + (", ".join(f"{k}={v}" for k, v in sorted(tags.items())) or "no tags")
+    )
+
+
+@app.command()
+def lineage(
+    plan_ref: Annotated[str, typer.Argument(help="a plan (id or file) or an export of one")],
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The chain of a plan, element set -> launch fit -> DoE run -> child runs -> surrogates
+    -> front -> plan -> exports, each with its digest and whether it still verifies (exit 1
+    when a link is missing or fails)."""
+    from ovtraj.runs.store import PLAN_MARKER_SUFFIX
+    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.lineage import lineage as plan_lineage
+
+    store = _store(store_root)
+    try:
+        found = refresh(store.root)
+        path = Path(plan_ref)
+        if path.is_file() and path.suffix.lower() in (".oem", ".opm", ".txt", ".kvn"):
+            ref = _exported_plan(path)
+            row = found.item(ref)
+            marker = store.root / row["source"]
+            path = Path(str(marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")))
+        elif not path.is_file():
+            row = found.item(plan_ref)
+            if row["kind"] != "plan":
+                raise ValueError(f"{plan_ref}: a {row['kind']}, not a plan")
+            marker = store.root / row["source"]
+            path = Path(str(marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")))
+        path = path.resolve()
+        links = plan_lineage(store, _read_plan(path), path)
+    except _errors() as err:
+        _fail(err)
+    broken = [link for link in links if link.state != "ok"]
+    if as_json:
+        _print_json(
+            {
+                "plan": str(path.resolve()),
+                "clean": not broken,
+                "links": [link.to_json() for link in links],
+            }
+        )
+    else:
+        table = Table(
+            title=f"lineage of {path.resolve()}", title_justify="left", box=None, pad_edge=False
+        )
+        for column in ("step", "item", "sha256", "state", "detail / path"):
+            table.add_column(column, no_wrap=column in ("step", "item"))
+        for link in links:
+            table.add_row(
+                link.step,
+                link.item,
+                (link.sha256 or "-")[:16],
+                link.state,
+                "; ".join(x for x in (link.detail, link.path or "") if x),
+            )
+        _console().print(table)
+        verdict = "every link verifies" if not broken else f"{len(broken)} link(s) broken"
+        typer.echo(verdict)
+    if broken:
+        raise typer.Exit(code=1)
+
+
+def _exported_plan(path: Path) -> str:
+    """The plan id an exported CCSDS file names (``COMMENT ovtraj plan <id>``)."""
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.store.paths import read_text_file
+
+    largest = int(load_orchestration().reads.unrecorded_file_max_mib * 2**20)
+    text = read_text_file(path, max_bytes=largest, limit="reads.unrecorded_file_max_mib")
+    found = re.search(r"^COMMENT ovtraj plan ([0-9a-f]{16})\b", text, flags=re.MULTILINE)
+    if found is None:
+        raise ValueError(f"{path}: names no ovtraj plan (no 'COMMENT ovtraj plan <id>' line)")
+    return found.group(1)

@@ -1,0 +1,566 @@
+"""The store's catalog: one Parquet table, a row per run, pipeline result, plan and plan
+Monte Carlo, with their key figures and tags, queried with SQL (DuckDB).
+
+Layout, beside the runs (``<store>/catalog/``)::
+
+    catalog.parquet    the rows, exactly :data:`SCHEMA`; derived, so replaced (atomically)
+    catalog.json       its size and SHA-256 (checked on every read), rows, schema version
+    tags/<id>.json     an item's tags: metadata beside the item, never in its checksummed
+                       files (``ovtraj tag``)
+    catalog.lock       held while the catalog is refreshed
+
+The catalog is derived from the stored documents (the runs' manifests, the pipeline
+summaries, the plans' markers, the Monte Carlo runs' ``run.json`` and ``summary.json``):
+:func:`refresh` reads each one and rebuilds the row of a document whose SHA-256 changed
+(``source_sha256``), keeps the others, drops the rows of documents gone (a pruned run), so
+a refresh after each write gives the same table as :func:`refresh` with ``rebuild`` from
+nothing (``ovtraj catalog --rebuild``, also done when the catalog is missing or damaged).
+The rows hold no wall-clock or host data but the documents' own ``created_utc``.
+
+Ids: a run's, a pipeline result's (``ovtraj runs``), a plan's (the first 16 hex digits of the
+SHA-256 of its canonical JSON: the id the plan Monte Carlo run records), a Monte Carlo run's.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ovtraj.formatting import printable
+from ovtraj.runs.store import (
+    ID_HEX_DIGITS,
+    MANIFEST,
+    PIPELINE_DIR,
+    PIPELINE_MARKER,
+    PLAN_MARKER_SUFFIX,
+    PLANS_DIR,
+    Run,
+    checked_id,
+)
+from ovtraj.store import locks
+from ovtraj.store.backends import S3Path, location
+from ovtraj.store.batched import content_id
+from ovtraj.store.files import Digest, StoreError, parquet_bytes, read_bytes, read_json, write_bytes
+from ovtraj.tracking.figures import element_set_epoch, target_name
+
+__all__ = [
+    "CATALOG_DIR",
+    "KINDS",
+    "SCHEMA",
+    "Catalog",
+    "catalog_settings",
+    "plan_id",
+    "query",
+    "read_tags",
+    "refresh",
+    "set_tags",
+]
+
+CATALOG_DIR = "catalog"
+CATALOG_FILE = "catalog.parquet"
+CATALOG_MARKER = "catalog.json"
+TAGS_DIR = "tags"
+SCHEMA_VERSION = 1
+KINDS = ("run", "pipeline", "plan", "monte_carlo")
+# The Monte Carlo runs of a plan (ovtraj.mission.montecarlo_store.RUN_KIND).
+_MONTE_CARLO_KIND = "mission_monte_carlo"
+
+# Every column, its type and unit (units in the names, docs/conventions.md).
+SCHEMA = pa.schema(
+    [
+        pa.field("kind", pa.string(), nullable=False),  # run | pipeline | plan | monte_carlo
+        pa.field("id", pa.string(), nullable=False),
+        pa.field("source", pa.string(), nullable=False),  # the document, relative to the store
+        pa.field("source_sha256", pa.string(), nullable=False),
+        pa.field("created_utc", pa.string()),
+        pa.field("scenario", pa.string()),
+        pa.field("target", pa.string()),
+        pa.field("element_set_epoch_utc", pa.string()),
+        pa.field("code_version", pa.string()),
+        pa.field("status", pa.string()),
+        pa.field("error", pa.string()),  # why the document could not be read
+        pa.field("family", pa.string()),  # a run's root run
+        pa.field("depth", pa.int32()),  # 0 for a family's root
+        pa.field("parent", pa.string()),
+        pa.field("doe_run", pa.string()),
+        pa.field("run_id", pa.string()),  # a pipeline's or plan's final run
+        pa.field("pipeline_id", pa.string()),
+        pa.field("plan_id", pa.string()),  # a Monte Carlo's plan
+        pa.field("origin", pa.string()),
+        pa.field("samples", pa.int64()),
+        pa.field("evaluated", pa.int64()),
+        pa.field("feasible", pa.int64()),
+        pa.field("size_bytes", pa.int64()),  # a run's files, apparent size
+        pa.field("front_points", pa.int64()),
+        pa.field("hypervolume", pa.float64()),
+        pa.field("converged", pa.bool_()),
+        pa.field("stop_reason", pa.string()),
+        pa.field("launch_epoch_utc", pa.string()),  # the plan's drop
+        pa.field("t_total_s", pa.float64()),
+        pa.field("dv_total_mps", pa.float64()),
+        pa.field("m_load_kg", pa.float64()),
+        pa.field("landing_miss_m", pa.float64()),
+        pa.field("mc_runs", pa.int64()),
+        pa.field("mc_landing_miss_p95_m", pa.float64()),
+        pa.field("mc_dv_margin_p95_mps", pa.float64()),
+        pa.field("tags", pa.string(), nullable=False),  # JSON object, keys sorted
+    ]
+)
+_COLUMNS = SCHEMA.names
+_TAG_KEY = re.compile(r"[A-Za-z][A-Za-z0-9_.-]*")
+
+
+def catalog_settings() -> Any:
+    """``catalog`` of configs/orchestration.yaml."""
+    from ovtraj.config.orchestration import load_orchestration
+
+    return load_orchestration().catalog
+
+
+def plan_id(plan: dict[str, Any]) -> str:
+    """A plan's id: 16 hex digits of the SHA-256 of its canonical JSON (the content the
+    plan Monte Carlo's run records, :mod:`ovtraj.mission.montecarlo_store`)."""
+    return content_id(plan)
+
+
+@dataclass
+class Catalog:
+    """The catalog as read or refreshed: ``frame`` (columns of :data:`SCHEMA`), where it
+    is, and what the refresh did."""
+
+    frame: pd.DataFrame
+    path: Path | S3Path
+    written: bool = False
+    rebuilt_because: str | None = None
+
+    def item(self, item_id: str) -> pd.Series:
+        """The row of ``item_id`` (:class:`StoreError` naming it when the store has none)."""
+        checked_id(item_id, "id")
+        rows = self.frame[self.frame["id"] == item_id]
+        if not len(rows):
+            raise StoreError(
+                f"{item_id}: no run, pipeline result, plan or Monte Carlo of this id in "
+                f"{self.path.parent.parent} (`ovtraj runs` lists them)"
+            )
+        return rows.iloc[0]
+
+
+# --- reading the stored documents -----------------------------------------------------
+
+
+def _row(kind: str, item_id: str, source: str, digest: str, **values: Any) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(_COLUMNS)
+    row.update(kind=kind, id=item_id, source=source, source_sha256=digest, tags="{}")
+    row.update(values)
+    return row
+
+
+def _apparent_size(directory: Path | S3Path) -> int | None:
+    """Bytes of the files under a local directory (a file hard-linked from another run
+    counts in each); None on an object store."""
+    import os
+
+    if isinstance(directory, S3Path):
+        return None
+    total = 0
+    for folder, _, names in os.walk(directory):
+        for name in names:
+            try:
+                total += os.lstat(os.path.join(folder, name)).st_size
+            except OSError:
+                continue  # removed meanwhile
+    return total
+
+
+def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, Any]:
+    run = Run(directory)
+    manifest = run.manifest  # checked: format, seal (with a store key)
+    config = run.config
+    lineage = list(manifest.get("lineage") or [])
+    return _row(
+        "run",
+        run.id,
+        source,
+        digest,
+        created_utc=manifest.get("created_utc"),
+        scenario=manifest.get("scenario"),
+        target=target_name(config),
+        element_set_epoch_utc=element_set_epoch(config),
+        code_version=manifest.get("code_version"),
+        status=manifest.get("status"),
+        family=lineage[0] if lineage else run.id,
+        depth=len(lineage),
+        parent=manifest.get("parent"),
+        run_id=run.id,
+        origin=manifest.get("origin"),
+        samples=manifest.get("samples"),
+        evaluated=manifest.get("evaluated"),
+        feasible=manifest.get("feasible"),
+        size_bytes=_apparent_size(directory),
+    )
+
+
+def _pipeline_row(
+    marker: Path | S3Path, source: str, digest: str, payload: bytes, run: dict[str, Any]
+) -> dict[str, Any]:
+    summary = json.loads(payload)
+    if not isinstance(summary, dict):
+        raise ValueError("not a JSON object")
+    return _row(
+        "pipeline",
+        checked_id(summary.get("pipeline_id"), "pipeline id"),
+        source,
+        digest,
+        created_utc=summary.get("created_utc"),
+        scenario=summary.get("scenario"),
+        target=run.get("target"),
+        element_set_epoch_utc=run.get("element_set_epoch_utc"),
+        code_version=summary.get("code"),
+        status="converged" if summary.get("converged") else "not converged",
+        doe_run=summary.get("doe_run"),
+        run_id=summary.get("final_run"),
+        pipeline_id=summary.get("pipeline_id"),
+        front_points=summary.get("front_points"),
+        hypervolume=summary.get("hypervolume"),
+        converged=summary.get("converged"),
+        stop_reason=summary.get("stop_reason"),
+    )
+
+
+def _plan_row(
+    marker: Path | S3Path, source: str, digest: str, payload: bytes, pipeline: dict[str, Any]
+) -> dict[str, Any]:
+    files = json.loads(payload)
+    name = marker.name[: -len(PLAN_MARKER_SUFFIX)]
+    recorded = (files.get("files") or {}).get(f"{name}.json") if isinstance(files, dict) else None
+    if recorded is None:
+        raise ValueError(f"{marker.name} lists no {name}.json")
+    plan = read_json(marker.parent / f"{name}.json", Digest.from_json(recorded))
+    return _row("plan", plan_id(plan), source, digest, **plan_values(plan, pipeline))
+
+
+def plan_values(plan: dict[str, Any], pipeline: dict[str, Any] | None = None) -> dict[str, Any]:
+    """A plan's catalog columns (its pipeline's row gives the creation time)."""
+    scenario = plan.get("scenario") or {}
+    source = plan.get("source") or {}
+    totals = plan.get("totals") or {}
+    return {
+        "created_utc": (pipeline or {}).get("created_utc"),
+        "scenario": scenario.get("name"),
+        "target": target_name(scenario),
+        "element_set_epoch_utc": element_set_epoch(scenario),
+        "code_version": plan.get("code_version"),
+        "doe_run": source.get("doe_run"),
+        "run_id": source.get("run_id"),
+        "pipeline_id": source.get("pipeline_id"),
+        "launch_epoch_utc": (plan.get("launch") or {}).get("drop_epoch_utc"),
+        "t_total_s": totals.get("t_total_s"),
+        "dv_total_mps": totals.get("dv_total_mps"),
+        "m_load_kg": totals.get("m_load_kg"),
+        "landing_miss_m": (plan.get("terminal") or {}).get("miss_distance_m"),
+    }
+
+
+def _monte_carlo_row(
+    directory: Path | S3Path, source: str, digest: str, info: dict[str, Any]
+) -> dict[str, Any]:
+    config = read_json(directory / "config.json", Digest.from_json(info.get("config")))
+    plan = config.get("plan") if isinstance(config, dict) else None
+    if not isinstance(plan, dict):
+        raise ValueError("config.json holds no plan")
+    summary_path = directory / "summary.json"
+    summary = read_json(summary_path) if summary_path.is_file() else {}
+    scenario = plan.get("scenario") or {}
+    total = ((summary.get("dv_mps") or {}).get("total")) or {}
+    return _row(
+        "monte_carlo",
+        directory.name,
+        source,
+        digest,
+        created_utc=info.get("created_utc"),
+        scenario=scenario.get("name"),
+        target=target_name(scenario),
+        element_set_epoch_utc=element_set_epoch(scenario),
+        code_version=info.get("code_version"),
+        status=summary.get("status") or info.get("status"),
+        plan_id=plan_id(plan),
+        pipeline_id=(plan.get("source") or {}).get("pipeline_id"),
+        mc_runs=summary.get("runs"),
+        mc_landing_miss_p95_m=(summary.get("landing_miss_m") or {}).get("p95"),
+        mc_dv_margin_p95_mps=total.get("p95_minus_planned"),
+    )
+
+
+def _sources(root: Path | S3Path) -> Iterable[tuple[str, Path | S3Path, Path | S3Path]]:
+    """(kind, item directory, document) of every stored item, in name order."""
+    if not root.is_dir():
+        return
+    for directory in sorted(root.iterdir()):
+        if not re.fullmatch(f"[0-9a-f]{{{ID_HEX_DIGITS}}}", directory.name):
+            continue  # the catalog's own folder, a prune's hidden folder, anything else
+        if (directory / MANIFEST).is_file():
+            yield "run", directory, directory / MANIFEST
+            folder = directory / PIPELINE_DIR
+            if not folder.is_dir():
+                continue
+            for result in sorted(folder.iterdir()):
+                if (result / PIPELINE_MARKER).is_file():
+                    yield "pipeline", result, result / PIPELINE_MARKER
+                    plans = result / PLANS_DIR
+                    for marker in sorted(plans.iterdir()) if plans.is_dir() else []:
+                        if marker.name.endswith(PLAN_MARKER_SUFFIX):
+                            yield "plan", result, marker
+        elif (directory / "run.json").is_file():
+            yield "monte_carlo", directory, directory / "run.json"
+
+
+def _relative(root: Path | S3Path, path: Path | S3Path) -> str:
+    return str(path.relative_to(root))
+
+
+def _scan(root: Path | S3Path, previous: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
+    runs: dict[str, dict[str, Any]] = {}
+    pipelines: dict[str, dict[str, Any]] = {}
+    for kind, directory, document in _sources(root):
+        source = _relative(root, document)
+        try:
+            payload = read_bytes(document)
+            if kind == "monte_carlo":
+                info = json.loads(payload)
+                if not isinstance(info, dict) or info.get("kind") != _MONTE_CARLO_KIND:
+                    continue  # another study's batched run (the deorbit burn's)
+                extra = directory / "summary.json"
+                if extra.is_file():
+                    payload += read_bytes(extra)
+            digest = Digest.of(payload).sha256
+            old = previous.get(source)
+            if old is not None and old["source_sha256"] == digest and old["error"] is None:
+                row = dict(old)
+            elif kind == "run":
+                row = _run_row(directory, source, digest)
+            elif kind == "pipeline":
+                run = runs.get(directory.parent.parent.name, {})
+                row = _pipeline_row(document, source, digest, payload, run)
+            elif kind == "plan":
+                row = _plan_row(
+                    document, source, digest, payload, pipelines.get(str(directory), {})
+                )
+            else:
+                row = _monte_carlo_row(directory, source, digest, info)
+        except (StoreError, OSError, ValueError, TypeError, AttributeError) as err:
+            item = directory.name if kind != "plan" else document.name
+            digest = "-"
+            row = _row(kind, item, source, digest, error=printable(str(err))[:500])
+        if kind == "run":
+            runs[directory.name] = row
+        elif kind == "pipeline":
+            pipelines[str(directory)] = row
+        rows.append(row)
+    return rows
+
+
+# --- the catalog file -------------------------------------------------------------------
+
+
+def _folder(root: Path | S3Path) -> Path | S3Path:
+    return root / CATALOG_DIR
+
+
+def _frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The rows as a frame of Python values (None where a value is missing, whatever the
+    column's type: no NaN standing for a missing id or count)."""
+    return pd.DataFrame(
+        {name: pd.Series([row[name] for row in rows], dtype=object) for name in _COLUMNS}
+    )
+
+
+def _ordered(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    order = {kind: k for k, kind in enumerate(KINDS)}
+    return sorted(rows, key=lambda r: (r["created_utc"] or "", order[r["kind"]], r["source"]))
+
+
+def _read(root: Path | S3Path) -> tuple[list[dict[str, Any]] | None, str | None]:
+    """The stored rows, or None and why they cannot be used (missing, damaged, another
+    schema)."""
+    folder = _folder(root)
+    marker = folder / CATALOG_MARKER
+    if not marker.is_file():
+        return None, "no catalog yet"
+    try:
+        recorded = read_json(marker)
+        if not isinstance(recorded, dict) or recorded.get("schema_version") != SCHEMA_VERSION:
+            return None, f"{marker}: another catalog format"
+        payload = read_bytes(folder / CATALOG_FILE, Digest.from_json(recorded.get("file")))
+        table = pq.read_table(pa.BufferReader(payload))
+    except (StoreError, ValueError, OSError, pa.ArrowException) as err:
+        return None, f"damaged catalog ({printable(str(err))[:300]})"
+    if table.schema != SCHEMA:
+        return None, f"{folder / CATALOG_FILE}: not the declared schema"
+    return table.to_pylist(), None
+
+
+def _write(root: Path | S3Path, rows: list[dict[str, Any]]) -> None:
+    folder = _folder(root)
+    table = pa.Table.from_pylist(rows, schema=SCHEMA) if rows else SCHEMA.empty_table()
+    digest = write_bytes(folder / CATALOG_FILE, parquet_bytes(table), replace=True)
+    marker = {"schema_version": SCHEMA_VERSION, "rows": len(rows), "file": digest.to_json()}
+    write_bytes(folder / CATALOG_MARKER, json.dumps(marker, indent=1).encode(), replace=True)
+
+
+def refresh(store_root: Path | S3Path | str, *, rebuild: bool = False) -> Catalog:
+    """The store's catalog brought up to date with its documents (written when it changed);
+    ``rebuild``: from the documents alone, the stored catalog not read."""
+    root = location(store_root)
+    folder = _folder(root)
+    settings = catalog_settings()
+    if not isinstance(folder, S3Path):
+        folder.mkdir(parents=True, exist_ok=True)
+    with locks.hold(folder / "catalog.lock", wait_s=settings.lock_wait_s):
+        stored, why = (None, "rebuild asked") if rebuild else _read(root)
+        previous = {r["source"]: r for r in stored or []}
+        rows = _scan(root, previous)
+        tags = _all_tags(root)
+        for row in rows:
+            row["tags"] = json.dumps(tags.get(row["id"], {}), sort_keys=True)
+        rows = _ordered(rows)
+        written = stored != rows
+        if written:
+            _write(root, rows)
+    return Catalog(_frame(rows), folder / CATALOG_FILE, written, why if stored is None else None)
+
+
+# --- tags -------------------------------------------------------------------------------
+
+
+def _tag_file(root: Path | S3Path, item_id: str) -> Path | S3Path:
+    return _folder(root) / TAGS_DIR / f"{checked_id(item_id, 'id')}.json"
+
+
+def _all_tags(root: Path | S3Path) -> dict[str, dict[str, str]]:
+    folder = _folder(root) / TAGS_DIR
+    found: dict[str, dict[str, str]] = {}
+    for path in sorted(folder.iterdir()) if folder.is_dir() else []:
+        if not path.name.endswith(".json"):
+            continue
+        try:
+            found[path.name[:-5]] = read_tags(root, path.name[:-5])
+        except StoreError:
+            continue  # a damaged or foreign file: no tags (`ovtraj tag` rewrites it)
+    return found
+
+
+def read_tags(store_root: Path | S3Path | str, item_id: str) -> dict[str, str]:
+    """The tags of ``item_id`` (empty when it has none); :class:`StoreError` naming the
+    file when it is not a tag file."""
+    path = _tag_file(location(store_root), item_id)
+    if not path.is_file():
+        return {}
+    document = read_json(path)
+    tags = document.get("tags") if isinstance(document, dict) else None
+    if document.get("id") != item_id or not isinstance(tags, dict):
+        raise StoreError(f"{path}: not the tags of {item_id}")
+    return {str(k): str(v) for k, v in tags.items()}
+
+
+def checked_tag(key: str, value: str) -> None:
+    """A tag's name and value within ``catalog`` of configs/orchestration.yaml
+    (:class:`ValueError` naming what is wrong)."""
+    settings = catalog_settings()
+    shown = printable(key)[:80]
+    if not _TAG_KEY.fullmatch(key) or len(key) > settings.tag_key_max_chars:
+        raise ValueError(
+            f"tag name {shown!r}: a letter, then letters, digits, '_', '.' or '-', at most "
+            f"{settings.tag_key_max_chars} characters (catalog.tag_key_max_chars)"
+        )
+    if len(value) > settings.tag_value_max_chars or printable(value) != value:
+        raise ValueError(
+            f"tag {shown}: the value must be printable text of at most "
+            f"{settings.tag_value_max_chars} characters (catalog.tag_value_max_chars)"
+        )
+
+
+def set_tags(
+    store_root: Path | S3Path | str,
+    item_id: str,
+    tags: dict[str, str],
+    remove: Iterable[str] = (),
+) -> dict[str, str]:
+    """Add or change ``tags`` and drop ``remove`` of the catalogued item ``item_id``;
+    returns its tags. The item's own files are not touched."""
+    root = location(store_root)
+    catalog = refresh(root)
+    catalog.item(item_id)
+    for key, value in tags.items():
+        checked_tag(key, value)
+    settings = catalog_settings()
+    with locks.hold(_folder(root) / "tags.lock", wait_s=settings.lock_wait_s):
+        current = read_tags(root, item_id)
+        current.update(tags)
+        for key in remove:
+            current.pop(key, None)
+        if len(current) > settings.tags_per_item:
+            raise ValueError(
+                f"{item_id}: {len(current)} tags, at most {settings.tags_per_item} "
+                "(catalog.tags_per_item)"
+            )
+        document = {"id": item_id, "tags": dict(sorted(current.items()))}
+        write_bytes(_tag_file(root, item_id), json.dumps(document, indent=1).encode(), replace=True)
+    refresh(root)
+    return current
+
+
+# --- queries ----------------------------------------------------------------------------
+
+
+def query(frame: pd.DataFrame, where: str | None) -> pd.DataFrame:
+    """The catalog rows for which the SQL predicate ``where`` holds (DuckDB's dialect over
+    the columns of :data:`SCHEMA`, e.g. ``kind = 'plan' AND dv_total_mps > 220``), in the
+    catalog's order. The query sees only this table: DuckDB's access to files and the
+    network is off and its settings locked; it is interrupted past
+    ``catalog.query_time_limit_s`` (:class:`ValueError` saying so, or naming the SQL error)."""
+    if where is None or not where.strip():
+        return frame
+    settings = catalog_settings()
+    if len(where) > settings.where_max_chars:
+        raise ValueError(
+            f"--where: {len(where)} characters, at most {settings.where_max_chars} "
+            "(catalog.where_max_chars)"
+        )
+    import duckdb
+
+    table = pa.Table.from_pandas(frame, schema=SCHEMA, preserve_index=False)
+    table = table.append_column("_row", pa.array(range(len(frame)), pa.int64()))
+    connection = duckdb.connect(":memory:")
+    try:
+        connection.register("catalog", table)
+        connection.execute("SET enable_external_access = false")
+        connection.execute("SET lock_configuration = true")
+        timer = threading.Timer(settings.query_time_limit_s, connection.interrupt)
+        timer.start()
+        try:
+            found = connection.execute(
+                f"SELECT _row FROM catalog WHERE ({where}) ORDER BY _row"
+            ).fetchnumpy()["_row"]
+        except duckdb.InterruptException:
+            raise ValueError(
+                f"--where: the query ran longer than {settings.query_time_limit_s:g} s "
+                "(catalog.query_time_limit_s)"
+            ) from None
+        except duckdb.Error as err:
+            text = printable(str(err).splitlines()[0] if str(err) else type(err).__name__)
+            raise ValueError(f"--where: {text[:300]}") from None
+        finally:
+            timer.cancel()
+    finally:
+        connection.close()
+    return frame.iloc[list(found)].reset_index(drop=True)

@@ -1,0 +1,249 @@
+"""Where a plan comes from: element set -> launch fit -> DoE run -> child runs -> surrogates
+-> front -> plan -> exports, each link with its digest and whether it still verifies.
+
+Every link is checked the way its own reader checks it: a run by :meth:`Run.verify` (every
+file against its manifest or marker, the seals with a store key), a surrogate fit, the
+pipeline result (its front) and the plan by their markers' digests, the launch fit by
+loading it (every file checked), an export by its recorded digest. A link that is gone (a
+pruned child run, a deleted fit) says ``missing``; one whose bytes changed ``FAILED`` with
+the reason.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from ovtraj.runs.store import (
+    PIPELINE_DIR,
+    PIPELINE_MARKER,
+    PLAN_MARKER_SUFFIX,
+    PLANS_DIR,
+    Run,
+    RunStore,
+)
+from ovtraj.store.batched import content_id
+from ovtraj.store.files import Digest, StoreError, file_digest, read_json
+from ovtraj.store.products import Product
+from ovtraj.tracking.catalog import CATALOG_DIR, plan_id
+from ovtraj.tracking.figures import element_set_epoch
+
+__all__ = ["EXPORTS_DIR", "Link", "lineage", "record_export"]
+
+EXPORTS_DIR = "exports"  # <store>/catalog/exports/<plan id>.json: the plan's exported files
+
+OK = "ok"
+FAILED = "FAILED"
+MISSING = "missing"
+
+
+@dataclass
+class Link:
+    """One link of the chain: what, its id, where, its digest, ``ok | FAILED | missing``."""
+
+    step: str
+    item: str
+    path: str | None
+    sha256: str | None
+    state: str
+    detail: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _run_link(store: RunStore, step: str, run_id: str) -> Link:
+    directory = store.root / run_id
+    if not directory.is_dir():
+        return Link(step, run_id, str(directory), None, MISSING, "not in the store (pruned?)")
+    try:
+        run = store.run(run_id)
+        digest = file_digest(run.directory / "manifest.json").sha256
+        report = run.verify()
+    except (StoreError, OSError) as err:
+        return Link(step, run_id, str(directory), None, FAILED, str(err))
+    problems = [str(p) for p in [*report.tampered, *report.problems]]
+    detail = f"{report.checked_files} files checked" if report.clean else "; ".join(problems[:3])
+    return Link(step, run_id, str(directory), digest, OK if report.clean else FAILED, detail)
+
+
+def _product_link(step: str, item: str, directory: Any, marker: str) -> Link:
+    product = Product(directory, marker)
+    if not product.exists():
+        return Link(step, item, str(directory), None, MISSING, f"no {marker}")
+    try:
+        content = product.marker()
+        for name in sorted(content["files"]):
+            product.read_bytes(name, content)
+        digest = file_digest(product.marker_path).sha256
+    except (StoreError, OSError, ValueError) as err:
+        return Link(step, item, str(directory), None, FAILED, str(err))
+    return Link(
+        step, item, str(product.marker_path), digest, OK, f"{len(content['files'])} files checked"
+    )
+
+
+def _launch_fit_link(config: dict[str, Any]) -> Link:
+    from ovtraj.config.scenario import scenario_from_dict
+    from ovtraj.errors import ConfigError
+    from ovtraj.launch.launch_fit import find_launch_fit, launch_fit_key
+
+    try:
+        scenario = scenario_from_dict(config, "the DoE run's config.json")
+        key = launch_fit_key(scenario)
+    except (ConfigError, ValueError) as err:
+        return Link("launch fit", "-", None, None, FAILED, str(err))
+    try:
+        fit = find_launch_fit(scenario)
+    except (StoreError, OSError, ValueError) as err:
+        return Link("launch fit", key, None, None, FAILED, str(err))
+    if fit is None:
+        return Link("launch fit", key, None, None, MISSING, "no stored fit of this key")
+    directory = getattr(fit, "directory", None)
+    return Link(
+        "launch fit",
+        key,
+        None if directory is None else str(directory),
+        key,
+        OK,
+        "loaded, every file checked",
+    )
+
+
+def record_export(plan_path: Path, plan: dict[str, Any], export: Path, fmt: str) -> Path | None:
+    """Note ``export`` of a plan stored in a run store (``<store>/<run>/pipeline/<id>/plans/``)
+    beside the store's catalog, for :func:`lineage`; None for a plan outside a store."""
+    from ovtraj.store.files import write_bytes
+
+    plan_path = plan_path.resolve()
+    if plan_path.parent.name != PLANS_DIR or plan_path.parents[2].name != PIPELINE_DIR:
+        return None
+    root = plan_path.parents[4]
+    record = root / CATALOG_DIR / EXPORTS_DIR / f"{plan_id(plan)}.json"
+    exports = _exports(record)
+    exports[str(export.resolve())] = {"format": fmt, **file_digest(export).to_json()}
+    document = {"plan": plan_id(plan), "exports": dict(sorted(exports.items()))}
+    write_bytes(record, json.dumps(document, indent=1).encode(), replace=True)
+    return record
+
+
+def _exports(record: Path) -> dict[str, dict[str, Any]]:
+    if not record.is_file():
+        return {}
+    try:
+        document = read_json(record)
+    except StoreError:
+        return {}
+    found = document.get("exports") if isinstance(document, dict) else None
+    return found if isinstance(found, dict) else {}
+
+
+def _export_links(store: RunStore, the_plan: str) -> list[Link]:
+    links = []
+    record = store.root / CATALOG_DIR / EXPORTS_DIR / f"{the_plan}.json"
+    for path, recorded in _exports(record).items() if isinstance(record, Path) else []:
+        target = Path(path)
+        if not target.is_file():
+            links.append(
+                Link("export", recorded.get("format", "-"), path, None, MISSING, "file gone")
+            )
+            continue
+        try:
+            expected = Digest.from_json(recorded)
+            found = file_digest(target)
+        except (ValueError, StoreError, OSError) as err:
+            links.append(Link("export", "-", path, None, FAILED, str(err)))
+            continue
+        same = found == expected
+        links.append(
+            Link(
+                "export",
+                recorded.get("format", "-"),
+                path,
+                found.sha256,
+                OK if same else FAILED,
+                "as exported" if same else "changed since it was exported",
+            )
+        )
+    return links
+
+
+def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> list[Link]:
+    """The chain of a plan (its parsed JSON and, when stored, its file), each link checked."""
+    links: list[Link] = []
+    source = plan.get("source") or {}
+    scenario = plan.get("scenario") or {}
+    target = scenario.get("target") or {}
+    element_set = {k: target[k] for k in ("tle", "omm", "orbit") if k in target}
+    kind = "tle" if "tle" in target else "omm" if "omm" in target else "hand-typed orbit"
+    links.append(
+        Link(
+            "element set",
+            f"{kind}, epoch {element_set_epoch(scenario)}",
+            None,
+            content_id(element_set),
+            OK,
+            "inline in the plan and in the DoE run's config.json",
+        )
+    )
+    doe_id, pipeline_id = source.get("doe_run"), source.get("pipeline_id")
+    config: dict[str, Any] | None = None
+    if doe_id and (store.root / doe_id / "manifest.json").is_file():
+        try:
+            config = Run(store.root / doe_id).config
+        except StoreError as err:
+            links.append(Link("launch fit", "-", None, None, FAILED, str(err)))
+    if config is not None:
+        links.append(_launch_fit_link(config))
+    elif doe_id:
+        links.append(Link("launch fit", "-", None, None, MISSING, "the DoE run is not stored"))
+    if doe_id:
+        links.append(_run_link(store, "DoE run", doe_id))
+    summary: dict[str, Any] = {}
+    pipeline_dir = store.root / str(doe_id) / PIPELINE_DIR / str(pipeline_id)
+    if doe_id and pipeline_id and (pipeline_dir / PIPELINE_MARKER).is_file():
+        try:
+            summary = read_json(pipeline_dir / PIPELINE_MARKER)
+        except StoreError:
+            summary = {}
+    for step in summary.get("iterations", []) if isinstance(summary, dict) else []:
+        child = step.get("infill_run")
+        if step.get("run_id") and step.get("fit_id"):
+            fit_dir = store.root / step["run_id"] / "surrogates" / step["fit_id"]
+            links.append(
+                _product_link(
+                    f"surrogates (round {step.get('iteration')})",
+                    step["fit_id"],
+                    fit_dir,
+                    "meta.json",
+                )
+            )
+        if child:
+            links.append(_run_link(store, f"child run (round {step.get('iteration')})", child))
+    if pipeline_id:
+        links.append(
+            _product_link(
+                "front (pipeline result)", str(pipeline_id), pipeline_dir, PIPELINE_MARKER
+            )
+        )
+    the_plan = plan_id(plan)
+    if plan_path is not None:
+        name = plan_path.name.rsplit(".", 1)[0]
+        marker = f"{name}{PLAN_MARKER_SUFFIX}"
+        if (plan_path.parent / marker).is_file():
+            links.append(_product_link("plan", the_plan, plan_path.parent, marker))
+        else:
+            links.append(
+                Link(
+                    "plan",
+                    the_plan,
+                    str(plan_path),
+                    file_digest(plan_path).sha256,
+                    OK,
+                    "a plan file outside the store: no marker to check it against",
+                )
+            )
+    links += _export_links(store, the_plan)
+    return links
