@@ -1,4 +1,5 @@
-"""The run store seen by families (the listing is the catalog's, ovtraj.tracking.catalog): a DoE run, the runs that extend it, its pipeline results.
+"""The run store seen by families: a DoE run, the runs that extend it, its pipeline results
+(the listing itself is the catalog's, ovtraj.tracking.catalog).
 
 A pipeline's infill rounds each create a child run (``extend_run``) that holds every
 sample of its parent plus the new ones; the pipeline result itself is stored in the DoE
