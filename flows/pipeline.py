@@ -20,7 +20,6 @@ them); only the batches are tasks, cached on their inputs.
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Any
 
@@ -129,7 +128,8 @@ def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
     from prefect.runtime import deployment
 
     from ovtraj.plots.history import history_plot
-    from ovtraj.tracking.catalog import plan_id, plan_values, refresh, set_tags
+    from ovtraj.store.records import plain
+    from ovtraj.tracking.catalog import plan_file, plan_id, plan_values, refresh, set_tags
     from ovtraj.tracking.history import history, previous_plan
     from ovtraj.tracking.keys import history_key
 
@@ -143,7 +143,7 @@ def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
     plot = history_plot(
         rows, store.root / "catalog" / "history" / f"{key}.png", f"re-plans of {values['target']}"
     )
-    table = json.loads(rows.drop(columns=["source"]).to_json(orient="records"))
+    table = plain(rows.drop(columns=["source"]).to_dict(orient="records"))
     create_table_artifact(
         key=key,
         table=table,
@@ -157,7 +157,7 @@ def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
     ]
     if previous is not None:
         lines.append(
-            f"- previous plan: `{store.root / previous['source']}` (plan "
+            f"- previous plan: `{plan_file(store.root, previous['source'])}` (plan "
             f"{previous['plan_id']}, element set of {previous['element_set_epoch_utc']}); "
             f"`ovtraj diff {previous['plan_id']} {plan_id(plan)}`"
         )

@@ -898,7 +898,7 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     # T_total is the pass model's: the report says so instead of CV figures.
     assert "t_total_s: pass model, not a regressor" in page
     runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
-    assert len(runs) == 2  # the DoE and its infill child
+    assert len(runs) == 3 and "catalog" in runs  # the DoE, its infill child, the catalog
     # Again, as JSON: nothing evaluated, one object on stdout, the same verdict and report.
     again = subprocess.run(
         [*command, "--json"], cwd=tmp_path, capture_output=True, text=True, timeout=600

@@ -15,11 +15,20 @@ its helpers (a free port of 127.0.0.1, its own ``PREFECT_HOME``, no analytics, n
 ``PREFECT_*`` variable inherited, stopped by its process group), with the UI on and the
 UI's static build copied into a temporary folder (not into the installed package).
 Skipped only when ``chromium`` is not installed (``.ci/run`` installs it).
+
+The re-plan history (issue 46): two nightly re-plans of the default target, from two
+element sets a day apart (``tools/example_tle.py``), each a launch fit and a pipeline run
+by the ``ovtraj`` command into one store; a flow run then calls
+``flows/pipeline.py:_publish_history`` on the second plan. The table artifact
+``history-<target>`` must show one row per plan (its id, its dV_total) and the markdown
+artifact ``history-<target>-plot`` the trend PNG and the previous plan, in both UIs.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
 import re
 import shutil
 import signal
@@ -33,9 +42,11 @@ import httpx
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from ovtraj.plots.embed import png_data_uri
-from tests.conftest import REPO
+from ovtraj.tracking.keys import history_key
+from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_fit
 from tests.test_deployments import _stop, _tail, prefect_server
 
 CHROMIUM = shutil.which("chromium")
@@ -51,6 +62,9 @@ KEYS = ("mission-plan", "surrogate-parity-plots")
 UIS = {"v2": "/v2", "v1": ""}  # Prefect 3.9 serves both; /v2 is the default one
 HTML = {"Accept": "text/html"}  # a browser's navigation: the UI's index.html
 RED = np.array([214, 39, 40])  # matplotlib's C3: the verified front's points
+OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
+REPLAN_TIMEOUT_S = 600.0  # one launch fit or pipeline: ~10 s here, ~20 s with a cold JIT cache
+NIGHTS = 2  # element sets a day apart, the last at the scenario epoch
 
 # The flow run: both publishing functions on the plot's folder (one PNG, front.png).
 PUBLISH = """
@@ -77,6 +91,29 @@ def publish() -> None:
     validation = [{"model": "t_total_s", "candidate": "kriging", "selected": True}]
     summary = {"directory": str(directory), "fit_id": "ui", "validation": validation}
     publish_validation(summary, SimpleNamespace(id="ui"))
+
+
+publish()
+"""
+
+# The flow run of a re-plan's last step: the history of the store's target, on its plan.
+PUBLISH_HISTORY = """
+import sys
+from pathlib import Path
+
+from prefect import flow
+
+from flows.pipeline import _publish_history
+from ovtraj.mission.plan import read_plan
+from ovtraj.runs import RunStore
+
+store = RunStore(Path(sys.argv[1]))
+plan_json = Path(sys.argv[2])
+
+
+@flow(name="ui-history")
+def publish() -> None:
+    _publish_history(store, {"plan": read_plan(plan_json), "json": plan_json})
 
 
 publish()
@@ -146,6 +183,127 @@ def published(ui_server, scenario):
     return Published(png=Path(png), artifacts=artifacts)
 
 
+@dataclasses.dataclass(frozen=True)
+class Replans:
+    store: Path
+    plans: list[Path]  # the plans' JSON files, oldest element set first
+
+
+@dataclasses.dataclass(frozen=True)
+class PublishedHistory:
+    key: str
+    rows: pd.DataFrame  # ovtraj.tracking.history.history of the store's catalog
+    plot: Path
+    table: Any  # the artifacts (prefect.client.schemas.objects.Artifact)
+    markdown: Any
+
+
+def _nightly_config(folder: Path) -> Path:
+    """The default scenario made quick: conftest's short launch fit (5 points over
+    280-320 km, a small search) with the parking altitude's bounds inside its range, a
+    12-sample DoE, two regressors, one classifier, 3 folds, a short NSGA-II, one round of
+    2 infill points. The plan may fly M_load 1 kg from its front point: the short search's
+    payloads are ~0.2 kg below the launch the plan flies (0.1 kg refused the plan)."""
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    mission = data["mission"]
+    shorten_launch_fit(data)  # drops the mission section: put back, with bounds that fit
+    fit = data["launch"]["fit"]
+    mission["design_bounds"]["parking_altitude_km"] = {
+        "lower": fit["altitude_min_km"],
+        "upper": fit["altitude_max_km"],
+    }
+    mission["doe"]["samples"] = 12
+    mission["surrogate"].update(regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3)
+    mission["optimize"].update(population=16, generations=10)
+    mission["verify"].update(points_per_iteration=2, max_iterations=1, budget=2)
+    mission["plan"]["front_tolerance"]["m_load_kg"] = 1.0
+    data["mission"] = mission
+    path = folder / "nightly.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def replans(tmp_path_factory):
+    """Two nights of re-plans into one store, as a nightly deployment runs them: the
+    drifting target's element sets (tools/example_tle.py), each night the launch fit of its
+    set, then the pipeline (``ovtraj`` in subprocesses, a workspace of their own)."""
+    root = tmp_path_factory.mktemp("replans")
+    config = _nightly_config(root)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
+    env["OVTRAJ_HOME"] = str(root / "ovtraj-home")
+    store = root / "runs"
+
+    def run(*args: str) -> str:
+        done = subprocess.run(
+            args, cwd=root, env=env, capture_output=True, text=True, timeout=REPLAN_TIMEOUT_S
+        )
+        assert done.returncode == 0, f"{args} exited {done.returncode}:\n{done.stderr[-3000:]}"
+        return done.stdout
+
+    started = time.monotonic()
+    tles = root / "tles"
+    example = str(REPO / "tools" / "example_tle.py")
+    run(
+        sys.executable,
+        example,
+        "--nights",
+        str(NIGHTS),
+        "--first-day",
+        str(1 - NIGHTS),
+        "--out",
+        str(tles),
+    )
+    plans = []
+    for tle in sorted(tles.glob("*.tle")):
+        run(OVTRAJ, "launch-fit", str(config), "--target", str(tle))
+        out = run(
+            OVTRAJ, "pipeline", str(config), "--target", str(tle), "--store", str(store), "--json"
+        )
+        plans.append(Path(json.loads(out)["plan_json"]))
+    assert len(plans) == NIGHTS
+    print(f"\n{NIGHTS} re-plans (launch fit and pipeline) in {time.monotonic() - started:.1f} s")
+    return Replans(store=store, plans=plans)
+
+
+@pytest.fixture(scope="module")
+def history_published(ui_server, replans, scenario):
+    """The flow run that publishes the history on the last night's plan; its artifacts."""
+    from prefect.client.orchestration import SyncPrefectClient
+    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterKey
+
+    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.history import history
+
+    key = history_key(scenario.target.name)
+    keys = [key, f"{key}-plot"]
+    started = time.monotonic()
+    done = subprocess.run(
+        [sys.executable, "-c", PUBLISH_HISTORY, str(replans.store), str(replans.plans[-1])],
+        cwd=REPO,
+        env=ui_server.env,
+        capture_output=True,
+        text=True,
+        timeout=PUBLISH_TIMEOUT_S,
+    )
+    assert done.returncode == 0, f"the flow run failed:\n{done.stdout}\n{done.stderr}"
+    print(f"\nhistory published in {time.monotonic() - started:.1f} s")
+    with SyncPrefectClient(f"{ui_server.address}/api") as client:
+        found = client.read_artifacts(
+            artifact_filter=ArtifactFilter(key=ArtifactFilterKey(any_=keys))
+        )
+    artifacts = {a.key: a for a in found}
+    assert set(artifacts) == set(keys), sorted(artifacts)
+    return PublishedHistory(
+        key=key,
+        rows=history(refresh(replans.store), target=scenario.target.name),
+        plot=replans.store / "catalog" / "history" / f"{key}.png",
+        table=artifacts[key],
+        markdown=artifacts[f"{key}-plot"],
+    )
+
+
 def _chromium(profile: Path, *args: str) -> str:
     """Run headless chromium (own profile, time-limited, its process group ended); stdout."""
     command = [
@@ -188,7 +346,6 @@ def test_the_markdown_embeds_each_png_with_its_path_as_caption(published):
     assert "plan.json" in published.artifacts["mission-plan"].data
 
 
-@pytest.mark.parametrize("ui", list(UIS))
 def _embedded_pngs(dom: str) -> list[str]:
     """The ``src`` of every ``<img>`` of the DOM that is a PNG ``data:`` URI."""
     sources = re.findall(r'<img\b[^>]*?\ssrc="([^"]*)"', dom)
@@ -229,3 +386,81 @@ def test_a_screenshot_of_the_artifact_page_shows_the_plot(ui_server, published, 
     pixels = np.rint(imread(shot)[..., :3] * 255)
     red = int((np.abs(pixels - RED).max(axis=-1) < 40).sum())
     assert red > 100, f"{url}: {red} red pixels of the plot's points in {shot}"
+
+
+def _dump(server: UIServer, ui: str, artifact: Any, profile: Path, *shown: str) -> str:
+    """The rendered DOM of the artifact's page once it shows every text of ``shown``: an
+    incomplete page is loaded again, ``DUMP_ATTEMPTS`` times at most (see
+    test_the_artifact_page_renders_the_embedded_png); the last DOM."""
+    url = _page(server, ui, artifact.id)
+    for _ in range(DUMP_ATTEMPTS):
+        dom = _chromium(profile, "--dump-dom", url)
+        if all(text in dom for text in shown):
+            break
+    return dom
+
+
+def test_the_history_artifacts_hold_every_replan_and_link_the_previous_plan(
+    history_published, replans
+):
+    """The history is the two nights' plans, oldest element set first, with their own
+    figures; the artifacts show it and link the previous plan."""
+    from ovtraj.mission.plan import read_plan
+    from ovtraj.tracking.catalog import plan_id
+
+    rows, table = history_published.rows, history_published.table
+    plans = [read_plan(path).to_dict() for path in replans.plans]
+    assert list(rows["plan_id"]) == [plan_id(plan) for plan in plans]
+    assert list(rows["dv_total_mps"]) == [plan["totals"]["dv_total_mps"] for plan in plans]
+    assert rows["element_set_epoch_utc"].is_unique
+    assert rows["element_set_epoch_utc"].is_monotonic_increasing
+    assert table.type == "table" and history_published.markdown.type == "markdown"
+    published = json.loads(table.data) if isinstance(table.data, str) else table.data
+    assert [r["plan_id"] for r in published] == list(rows["plan_id"])
+    for shown, stored in zip(published, rows.itertuples(), strict=True):
+        assert shown["dv_total_mps"] == stored.dv_total_mps  # the plan's own figure
+    previous, latest = rows.iloc[-2], rows.iloc[-1]
+    markdown = history_published.markdown.data
+    assert f"{len(rows)} re-plans of" in markdown
+    assert f"this plan: `{replans.plans[-1]}`" in markdown
+    assert f"previous plan: `{replans.plans[-2]}`" in markdown
+    named = f"(plan {previous['plan_id']}, element set of {previous['element_set_epoch_utc']})"
+    assert named in markdown
+    assert f"`ovtraj diff {previous['plan_id']} {latest['plan_id']}`" in markdown
+    assert f"({png_data_uri(history_published.plot)})" in markdown
+
+
+@pytest.mark.parametrize("ui", list(UIS))
+def test_the_history_table_page_shows_one_row_per_replan(
+    ui_server, history_published, ui, tmp_path
+):
+    """Every plan's id and dV_total [m/s] as the table artifact holds it (the UI prints
+    the number as JavaScript does, the shortest text that reads back the same double:
+    Python's repr)."""
+    table = history_published.table
+    published = json.loads(table.data) if isinstance(table.data, str) else table.data
+    plan_ids = [r["plan_id"] for r in published]
+    dvs = [repr(float(r["dv_total_mps"])) for r in published]
+    dom = _dump(ui_server, ui, table, tmp_path / "profile", *plan_ids, *dvs)
+    where = f"{history_published.key} at {_page(ui_server, ui, table.id)}"
+    for plan_id, dv in zip(plan_ids, dvs, strict=True):
+        assert plan_id in dom, f"{where}: no row of plan {plan_id} in {len(dom)} characters"
+        assert dv in dom, f"{where}: plan {plan_id}'s dV_total {dv} m/s is not shown"
+
+
+@pytest.mark.parametrize("ui", list(UIS))
+def test_the_history_plot_page_embeds_the_trend_and_names_the_previous_plan(
+    ui_server, history_published, ui, tmp_path
+):
+    """The trend PNG as an ``<img>`` of a data URI, the previous plan by its id and the
+    ``ovtraj diff`` of the two."""
+    markdown = history_published.markdown
+    image = png_data_uri(history_published.plot)
+    previous, latest = history_published.rows.iloc[-2], history_published.rows.iloc[-1]
+    shown = (image, previous["plan_id"], latest["plan_id"])
+    dom = _dump(ui_server, ui, markdown, tmp_path / "profile", *shown)
+    where = f"{markdown.key} at {_page(ui_server, ui, markdown.id)}"
+    assert image in _embedded_pngs(dom), f"{where}: no <img> of {history_published.plot.name}"
+    assert "previous plan" in dom, f"{where}: no previous plan in {len(dom)} characters"
+    assert f"plan {previous['plan_id']}, element set of" in dom, where
+    assert f"ovtraj diff {previous['plan_id']} {latest['plan_id']}" in dom, where

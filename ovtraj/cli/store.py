@@ -39,7 +39,7 @@ def _families(frame: Any) -> list[dict[str, Any]]:
             "evaluated": row.evaluated,
             "feasible": row.feasible,
             "pipelines": pipelines.get(row.id, []),
-            "size_bytes": row.size_bytes,
+            "size_bytes": None,
             "error": row.error,
         }
         entry = {
@@ -107,7 +107,9 @@ def runs(
     """List the stored runs by family: each DoE run, then the runs that extend it (a
     pipeline's infill rounds, `run --append`), with their pipeline results and sizes; with
     --where, the catalog's rows (runs, pipeline results, plans) a predicate selects."""
+    from ovtraj.pipeline.catalog import tree_bytes
     from ovtraj.runs import StoreError
+    from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import catalog_settings, query, refresh
 
     store = _store(store_root)
@@ -123,7 +125,7 @@ def runs(
         console = Console(highlight=False, width=10_000)
     if selected is not None:
         if as_json:
-            rows = json.loads(selected.to_json(orient="records"))
+            rows = plain(selected.to_dict(orient="records"))
             _print_json({"store": str(store.root.resolve()), "where": where, "rows": rows})
             return
         part = selected.iloc[-shown:] if shown else selected
@@ -136,6 +138,13 @@ def runs(
         typer.echo(f"{len(selected)} of {len(found.frame)} rows match{cut}")
         return
     entries = _families(found.frame)
+    listed = entries[:shown] if shown and not as_json else entries
+    # Sizes are measured now, not catalogued (a run grows by its surrogates, fronts and
+    # pipeline results without its manifest changing); a file hard-linked into another
+    # listed run counts once.
+    seen: set[tuple[int, int]] = set()
+    for entry in listed:
+        entry["size_bytes"] = tree_bytes(store.root / entry["run_id"], seen)
     if as_json:
         _print_json({"store": str(store.root.resolve()), "runs": entries})
         return
@@ -157,7 +166,6 @@ def runs(
         ("size", "right"),
     ):
         table.add_column(column, justify=justify, no_wrap=column == "run")
-    listed = entries[:shown] if shown else entries
     for e in listed:
         indent = "  " * e["depth"] + ("└ " if e["depth"] else "")
         if e["error"] is not None:
@@ -176,11 +184,11 @@ def runs(
         )
     console.print(table)
     families = sum(1 for e in entries if e["depth"] == 0)
-    total = sum(e["size_bytes"] or 0 for e in entries)
+    total = sum(e["size_bytes"] or 0 for e in listed)
     more = f" ({len(listed)} shown; --limit 0 shows all)" if len(listed) < len(entries) else ""
     typer.echo(
-        f"{len(entries)} runs in {families} families{more}, {byte_size(total)} "
-        "(apparent size: a batch hard-linked into a child run counts in each); "
+        f"{len(entries)} runs in {families} families{more}, {byte_size(total)} on disk "
+        f"{'for those shown ' if more else ''}(a file shared by hard link counted once); "
         "`ovtraj prune` lists what can go"
     )
 

@@ -4,7 +4,6 @@ the catalog (rebuilt, queried by `runs --where`), tags, and a plan's lineage
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,7 +77,8 @@ def _pipeline_item(store: Any, marker: Path) -> _Item:
 
 def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     """A run, pipeline result or plan named by its id (`ovtraj runs`) or a file."""
-    from ovtraj.runs.store import MANIFEST, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, RunStore
+    from ovtraj.runs.store import MANIFEST, PIPELINE_MARKER, RunStore
+    from ovtraj.tracking.catalog import plan_file
 
     path = Path(ref)
     if path.is_dir() and (path / MANIFEST).is_file():
@@ -98,8 +98,7 @@ def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     if row["kind"] == "pipeline":
         return _pipeline_item(store, store.root / row["source"])
     if row["kind"] == "plan":
-        marker = store.root / row["source"]
-        plan_path = marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")
+        plan_path = Path(str(plan_file(store.root, row["source"])))
         return _plan_item(store, catalog, plan_path, _read_plan(plan_path), f"plan {ref}")
     raise ValueError(f"{ref}: a {row['kind']} (diff takes runs, pipeline results and plans)")
 
@@ -197,7 +196,7 @@ def history(
     tag: _TagOpt = None,
     plot: Annotated[
         Path | None,
-        typer.Option("--plot", help="the trend PNG (default: <store>/catalog/history/)"),
+        typer.Option("--plot", help="the trend PNG (default: STORE/catalog/history/history-TARGET.png)"),
     ] = None,
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
@@ -206,6 +205,7 @@ def history(
     epoch, dV_total, T_total, M_load, landing miss, Monte Carlo p95 and dV margin; and a
     trend plot of them with the code-version changes marked."""
     from ovtraj.plots.history import history_plot
+    from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import CATALOG_DIR, refresh
     from ovtraj.tracking.history import history as history_rows
     from ovtraj.tracking.keys import history_key
@@ -230,7 +230,7 @@ def history(
         _print_json(
             {
                 "target": name,
-                "rows": json.loads(rows.to_json(orient="records")),
+                "rows": plain(rows.to_dict(orient="records")),
                 "plot": str(written),
             }
         )
@@ -344,8 +344,7 @@ def lineage(
     """The chain of a plan, element set -> launch fit -> DoE run -> child runs -> surrogates
     -> front -> plan -> exports, each with its digest and whether it still verifies (exit 1
     when a link is missing or fails)."""
-    from ovtraj.runs.store import PLAN_MARKER_SUFFIX
-    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.catalog import plan_file, refresh
     from ovtraj.tracking.lineage import lineage as plan_lineage
 
     store = _store(store_root)
@@ -355,14 +354,12 @@ def lineage(
         if path.is_file() and path.suffix.lower() in (".oem", ".opm", ".txt", ".kvn"):
             ref = _exported_plan(path)
             row = found.item(ref)
-            marker = store.root / row["source"]
-            path = Path(str(marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")))
+            path = Path(str(plan_file(store.root, row["source"])))
         elif not path.is_file():
             row = found.item(plan_ref)
             if row["kind"] != "plan":
                 raise ValueError(f"{plan_ref}: a {row['kind']}, not a plan")
-            marker = store.root / row["source"]
-            path = Path(str(marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")))
+            path = Path(str(plan_file(store.root, row["source"])))
         path = path.resolve()
         links = plan_lineage(store, _read_plan(path), path)
     except _errors() as err:

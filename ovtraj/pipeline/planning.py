@@ -18,7 +18,7 @@ from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
 from ovtraj.store.products import digests_json
 from ovtraj.store.seals import write_sealed
-from ovtraj.tracking.catalog import refresh
+from ovtraj.tracking.catalog import plan_file, refresh
 
 
 def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
@@ -52,9 +52,7 @@ def _since_previous_plan(store: RunStore, plan: dict[str, Any]) -> Any:
     row = previous_plan(refresh(store.root), plan)
     if row is None:
         return None
-    marker = store.root / row["source"]
-    path = marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")
-    previous = read_plan(path).to_dict()
+    previous = read_plan(plan_file(store.root, row["source"])).to_dict()
     return row, changes(plan_figures(previous), plan_figures(plan))
 
 

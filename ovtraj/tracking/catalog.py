@@ -58,6 +58,7 @@ __all__ = [
     "SCHEMA",
     "Catalog",
     "catalog_settings",
+    "plan_file",
     "plan_id",
     "query",
     "read_tags",
@@ -99,7 +100,6 @@ SCHEMA = pa.schema(
         pa.field("samples", pa.int64()),
         pa.field("evaluated", pa.int64()),
         pa.field("feasible", pa.int64()),
-        pa.field("size_bytes", pa.int64()),  # a run's files, apparent size
         pa.field("front_points", pa.int64()),
         pa.field("hypervolume", pa.float64()),
         pa.field("converged", pa.bool_()),
@@ -130,6 +130,12 @@ def plan_id(plan: dict[str, Any]) -> str:
     """A plan's id: 16 hex digits of the SHA-256 of its canonical JSON (the content the
     plan Monte Carlo's run records, :mod:`ovtraj.mission.montecarlo_store`)."""
     return content_id(plan)
+
+
+def plan_file(store_root: Path | S3Path, source: str) -> Path | S3Path:
+    """The plan JSON of a plan row's ``source`` (its marker ``<name>.files.json``)."""
+    marker = location(store_root) / source
+    return marker.with_name(marker.name[: -len(PLAN_MARKER_SUFFIX)] + ".json")
 
 
 @dataclass
@@ -164,23 +170,6 @@ def _row(kind: str, item_id: str, source: str, digest: str, **values: Any) -> di
     return row
 
 
-def _apparent_size(directory: Path | S3Path) -> int | None:
-    """Bytes of the files under a local directory (a file hard-linked from another run
-    counts in each); None on an object store."""
-    import os
-
-    if isinstance(directory, S3Path):
-        return None
-    total = 0
-    for folder, _, names in os.walk(directory):
-        for name in names:
-            try:
-                total += os.lstat(os.path.join(folder, name)).st_size
-            except OSError:
-                continue  # removed meanwhile
-    return total
-
-
 def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, Any]:
     run = Run(directory)
     manifest = run.manifest  # checked: format, seal (with a store key)
@@ -205,7 +194,6 @@ def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, An
         samples=manifest.get("samples"),
         evaluated=manifest.get("evaluated"),
         feasible=manifest.get("feasible"),
-        size_bytes=_apparent_size(directory),
     )
 
 
