@@ -122,6 +122,32 @@ def _check_maneuver(f: dict) -> None:
     assert f["best_tof_s"] == min(bests)
 
 
+def _check_catalog(f: dict) -> None:
+    goals, ratios = f["goals"], f["ratios"]
+    for name in ("query_plans", "query_runs"):
+        assert _close(ratios[name], f[f"{name}_s"] / goals["query_s_max"], 4)
+    for name in ("runs_command", "runs_where_command"):
+        assert _close(ratios[name], f[f"{name}_s"] / goals["runs_command_s_max"])
+    query_s = max(f["query_plans_s"], f["query_runs_s"])
+    assert f["met"]["query"] == (query_s <= goals["query_s_max"])
+    command_s = max(f["runs_command_s"], f["runs_where_command_s"])
+    assert f["met"]["runs_command"] == (command_s <= goals["runs_command_s_max"])
+    for key, value in f.items():
+        if key.endswith("_s") or key.endswith("_s_per_run"):
+            assert math.isfinite(value) and value > 0, key
+    # The synthetic store: families of runs, each with one pipeline result and one plan,
+    # every one catalogued without an error.
+    kinds = f["rows_by_kind"]
+    assert kinds["run"] == f["runs"] and f["runs"] % f["families"] == 0
+    assert kinds["pipeline"] == kinds["plan"] == f["families"]
+    assert f["rows"] == sum(kinds.values()) and f["row_errors"] == 0
+    assert f["catalog_bytes"] > 0
+    assert _close(f["catalog_bytes_per_row"], f["catalog_bytes"] / f["rows"], 1)
+    assert 0 <= f["query_plans_rows"] <= kinds["plan"]
+    assert 0 < f["query_runs_rows"] <= kinds["run"]  # the newest month of one target's runs
+    assert f["runs_command_lines"] > 0 and f["runs_where_command_lines"] > 0
+
+
 def _check_deorbit_burn(f: dict) -> None:
     assert f["met"] == all(row["matches"] is not False for row in f["published"])
     assert f["monte_carlo"]["runs"] == 1 and f["monte_carlo"]["workers"] == 1
@@ -217,6 +243,32 @@ class Benchmark:
 
 
 BENCHMARK_CASES = (
+    Benchmark(
+        "catalog",
+        lambda _: ["--runs", "50", "--repeats", "1"],
+        frozenset(
+            {
+                "runs",
+                "rows",
+                "rows_by_kind",
+                "catalog_bytes",
+                "catalog_bytes_per_row",
+                "rebuild_s",
+                "refresh_unchanged_s",
+                "read_s",
+                "query_plans_s",
+                "query_runs_s",
+                "runs_command_s",
+                "runs_where_command_s",
+                "goals",
+                "ratios",
+                "met",
+            }
+        ),
+        _check_catalog,
+        ("goals", "runs", "families", "rows", "rows_by_kind", "where", "query_plans_rows"),
+        twice=False,
+    ),
     Benchmark(
         "deorbit",
         lambda _: [],

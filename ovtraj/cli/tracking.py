@@ -196,7 +196,7 @@ def history(
     tag: _TagOpt = None,
     plot: Annotated[
         Path | None,
-        typer.Option("--plot", help="the trend PNG (default: STORE/catalog/history/history-TARGET.png)"),
+        typer.Option("--plot", help="the trend PNG (default: STORE/catalog/history/)"),
     ] = None,
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
