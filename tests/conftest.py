@@ -192,3 +192,93 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
 
     items.sort(key=rank)  # stable: every module's own order is kept
+
+
+# --- the re-plan nights shared by the tracking and UI tests (issue 46) ---------------------
+
+REPLAN_NIGHTS = 3
+
+
+def replan_config(folder: Path) -> Path:
+    """The default scenario as a nightly re-plan made quick: a five-point launch fit over
+    280-320 km (``shorten_launch_search``'s search), the parking altitude inside it, a
+    12-sample DoE, two regressors and 3 folds, a short NSGA-II, one round of 3 infill points.
+    The plan may fly M_load 1 kg from its front point: the short search's payloads are
+    0.2-0.4 kg from the launch the plan solves (the shipped 0.1 kg refused the plan)."""
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["launch"]["fit"].update(altitude_min_km=280.0, altitude_max_km=320.0, points=5, order=1)
+    shorten_launch_search(data["launch"])
+    mission = data["mission"]
+    mission["design_bounds"]["parking_altitude_km"].update(lower=285.0, upper=315.0)
+    mission["doe"].update(samples=12, batch_size=6)
+    mission["verify"].update(points_per_iteration=3, max_iterations=1, budget=3)
+    mission["surrogate"].update(regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3)
+    mission["optimize"].update(population=24, generations=20)
+    mission["plan"]["front_tolerance"]["m_load_kg"] = 1.0
+    path = folder / "nightly.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def replan_nights(tmp_path_factory: Any) -> dict[str, Any]:
+    """Three nights of a drifting target re-planned into one store, as the nightly
+    deployment runs them: ``tools/example_tle.py --nights 3`` (the default orbit propagated
+    with the J2 propagator, fitted as TLEs a day apart, the last at the scenario epoch),
+    then each night ``ovtraj launch-fit`` and ``ovtraj pipeline --target`` in subprocesses
+    with a workspace of their own. Built once per test session: the xdist workers share it
+    (a lock in the session's base folder); its users copy the store before changing it.
+
+    Returns ``store``, ``plans`` (the plans' JSON files, oldest element set first),
+    ``tles``, ``config`` and ``home`` (the workspace, with the three launch fits)."""
+    import fcntl
+    import json
+    import subprocess
+    import sys
+
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # the folder every worker's base lies in
+    folder = base / "replan-nights"
+    folder.mkdir(exist_ok=True)
+    done_file = folder / "done.json"
+    with open(folder / "build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if done_file.is_file():
+            return {k: _paths(v) for k, v in json.loads(done_file.read_text()).items()}
+        config = replan_config(folder)
+        env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
+        env["OVTRAJ_HOME"] = str(folder / "home")
+        ovtraj = str(Path(sys.executable).with_name("ovtraj"))
+
+        def run(*args: str) -> str:
+            done = subprocess.run(
+                args, cwd=folder, env=env, capture_output=True, text=True, timeout=600
+            )
+            assert done.returncode == 0, f"{args}: exit {done.returncode}\n{done.stderr[-3000:]}"
+            return done.stdout
+
+        tles = folder / "tles"
+        first = str(1 - REPLAN_NIGHTS)
+        example = str(REPO / "tools" / "example_tle.py")
+        run(sys.executable, example, "--nights", str(REPLAN_NIGHTS), "--first-day", first,
+            "--out", str(tles))  # fmt: skip
+        store, plans = folder / "runs", []
+        for tle in sorted(tles.glob("*.tle")):
+            run(ovtraj, "launch-fit", str(config), "--target", str(tle))
+            out = run(ovtraj, "pipeline", str(config), "--target", str(tle), "--store",
+                      str(store), "--json")  # fmt: skip
+            plans.append(str(json.loads(out)["plan_json"]))
+        found = {
+            "store": str(store),
+            "plans": plans,
+            "tles": [str(t) for t in sorted(tles.glob("*.tle"))],
+            "config": str(config),
+            "home": str(folder / "home"),
+        }
+        done_file.write_text(json.dumps(found))
+        return {k: _paths(v) for k, v in found.items()}
+
+
+def _paths(value: Any) -> Any:
+    return [Path(v) for v in value] if isinstance(value, list) else Path(value)

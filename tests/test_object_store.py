@@ -142,6 +142,14 @@ def test_run_show_replay_verify_and_refit_on_the_object_store(s3, client, tmp_pa
     assert again.returncode == 0, again.stderr
     after = {o["Key"]: o["ETag"] for o in s3_client.list_objects_v2(Bucket=bucket)["Contents"]}
     assert after == before
+    # The catalog lives beside the runs on the object store too, and is queried there.
+    queried = _cli(
+        s3, "runs", "--where", "kind = 'run' AND feasible > 0", "--json", "--store", store
+    )
+    assert queried.returncode == 0, queried.stderr
+    assert [r["id"] for r in json.loads(queried.stdout)["rows"]] == [rid]
+    catalogued = _cli(s3, "catalog", "--store", store)
+    assert f"{store}/catalog/catalog.parquet" in catalogued.stdout, catalogued.stderr
     # A value rewritten in a stored object is refused, naming it; verify lists it.
     key = f"study/{rid}/totals/part-00001.parquet"
     body = bytearray(s3_client.get_object(Bucket=bucket, Key=key)["Body"].read())

@@ -16,10 +16,10 @@ its helpers (a free port of 127.0.0.1, its own ``PREFECT_HOME``, no analytics, n
 UI's static build copied into a temporary folder (not into the installed package).
 Skipped only when ``chromium`` is not installed (``.ci/run`` installs it).
 
-The re-plan history (issue 46): two nightly re-plans of the default target, from two
-element sets a day apart (``tools/example_tle.py``), each a launch fit and a pipeline run
-by the ``ovtraj`` command into one store; a flow run then calls
-``flows/pipeline.py:_publish_history`` on the second plan. The table artifact
+The re-plan history (issue 46): the session's three nightly re-plans of the default target
+(tests/conftest.py:replan_nights: element sets a day apart from ``tools/example_tle.py``,
+each a launch fit and a pipeline run by the ``ovtraj`` command into one store); a flow run
+then calls ``flows/pipeline.py:_publish_history`` on the last plan. The table artifact
 ``history-<target>`` must show one row per plan (its id, its dV_total) and the markdown
 artifact ``history-<target>-plot`` the trend PNG and the previous plan, in both UIs.
 """
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import re
 import shutil
 import signal
@@ -42,11 +41,10 @@ import httpx
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.tracking.keys import history_key
-from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_fit
+from tests.conftest import REPO, replan_nights
 from tests.test_deployments import _stop, _tail, prefect_server
 
 CHROMIUM = shutil.which("chromium")
@@ -63,8 +61,6 @@ UIS = {"v2": "/v2", "v1": ""}  # Prefect 3.9 serves both; /v2 is the default one
 HTML = {"Accept": "text/html"}  # a browser's navigation: the UI's index.html
 RED = np.array([214, 39, 40])  # matplotlib's C3: the verified front's points
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
-REPLAN_TIMEOUT_S = 600.0  # one launch fit or pipeline: ~10 s here, ~20 s with a cold JIT cache
-NIGHTS = 2  # element sets a day apart, the last at the scenario epoch
 
 # The flow run: both publishing functions on the plot's folder (one PNG, front.png).
 PUBLISH = """
@@ -198,73 +194,13 @@ class PublishedHistory:
     markdown: Any
 
 
-def _nightly_config(folder: Path) -> Path:
-    """The default scenario made quick: conftest's short launch fit (5 points over
-    280-320 km, a small search) with the parking altitude's bounds inside its range, a
-    12-sample DoE, two regressors, one classifier, 3 folds, a short NSGA-II, one round of
-    2 infill points. The plan may fly M_load 1 kg from its front point: the short search's
-    payloads are ~0.2 kg below the launch the plan flies (0.1 kg refused the plan)."""
-    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    mission = data["mission"]
-    shorten_launch_fit(data)  # drops the mission section: put back, with bounds that fit
-    fit = data["launch"]["fit"]
-    mission["design_bounds"]["parking_altitude_km"] = {
-        "lower": fit["altitude_min_km"],
-        "upper": fit["altitude_max_km"],
-    }
-    mission["doe"]["samples"] = 12
-    mission["surrogate"].update(regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3)
-    mission["optimize"].update(population=16, generations=10)
-    mission["verify"].update(points_per_iteration=2, max_iterations=1, budget=2)
-    mission["plan"]["front_tolerance"]["m_load_kg"] = 1.0
-    data["mission"] = mission
-    path = folder / "nightly.yaml"
-    path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    return path
-
-
 @pytest.fixture(scope="module")
 def replans(tmp_path_factory):
-    """Two nights of re-plans into one store, as a nightly deployment runs them: the
-    drifting target's element sets (tools/example_tle.py), each night the launch fit of its
-    set, then the pipeline (``ovtraj`` in subprocesses, a workspace of their own)."""
-    root = tmp_path_factory.mktemp("replans")
-    config = _nightly_config(root)
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
-    env["OVTRAJ_HOME"] = str(root / "ovtraj-home")
-    store = root / "runs"
-
-    def run(*args: str) -> str:
-        done = subprocess.run(
-            args, cwd=root, env=env, capture_output=True, text=True, timeout=REPLAN_TIMEOUT_S
-        )
-        assert done.returncode == 0, f"{args} exited {done.returncode}:\n{done.stderr[-3000:]}"
-        return done.stdout
-
-    started = time.monotonic()
-    tles = root / "tles"
-    example = str(REPO / "tools" / "example_tle.py")
-    run(
-        sys.executable,
-        example,
-        "--nights",
-        str(NIGHTS),
-        "--first-day",
-        str(1 - NIGHTS),
-        "--out",
-        str(tles),
-    )
-    plans = []
-    for tle in sorted(tles.glob("*.tle")):
-        run(OVTRAJ, "launch-fit", str(config), "--target", str(tle))
-        out = run(
-            OVTRAJ, "pipeline", str(config), "--target", str(tle), "--store", str(store), "--json"
-        )
-        plans.append(Path(json.loads(out)["plan_json"]))
-    assert len(plans) == NIGHTS
-    print(f"\n{NIGHTS} re-plans (launch fit and pipeline) in {time.monotonic() - started:.1f} s")
-    return Replans(store=store, plans=plans)
+    """The session's three nights of re-plans into one store (tests/conftest.py:
+    replan_nights): the drifting target's element sets, each night the launch fit of its
+    set, then the pipeline, as a nightly deployment runs them."""
+    found = replan_nights(tmp_path_factory)
+    return Replans(store=found["store"], plans=found["plans"])
 
 
 @pytest.fixture(scope="module")
@@ -403,7 +339,7 @@ def _dump(server: UIServer, ui: str, artifact: Any, profile: Path, *shown: str) 
 def test_the_history_artifacts_hold_every_replan_and_link_the_previous_plan(
     history_published, replans
 ):
-    """The history is the two nights' plans, oldest element set first, with their own
+    """The history is the nights' plans, oldest element set first, with their own
     figures; the artifacts show it and link the previous plan."""
     from ovtraj.mission.plan import read_plan
     from ovtraj.tracking.catalog import plan_id

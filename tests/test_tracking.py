@@ -4,8 +4,8 @@ Three nights of a drifting target: ``tools/example_tle.py --nights 3`` propagate
 default scenario's orbit with the project's J2 propagator and writes it as TLEs a day
 apart; each night solves the launch fit of its element set and runs the pipeline with
 ``--target``, as the ``mission/mission-replan`` deployment does (a shortened launch search
-and a small pipeline, so the three nights take about a minute). The references are the
-stored plan files themselves, read and flattened here independently of
+and a small pipeline: about a minute, built once per session, tests/conftest.py). The
+references are the stored plan files themselves, read and flattened here independently of
 ``ovtraj.tracking``.
 """
 
@@ -22,78 +22,29 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_search
+from tests.conftest import REPLAN_NIGHTS, replan_nights
 
-NIGHTS = 3
+NIGHTS = REPLAN_NIGHTS
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 TARGET = "ISS-like space target"
 
 
-def _config(tmp: Path) -> Path:
-    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    # A quick launch fit (five points around the parking altitudes) and a small pipeline.
-    data["launch"]["fit"].update(altitude_min_km=280.0, altitude_max_km=320.0, points=5, order=1)
-    shorten_launch_search(data["launch"])
-    mission = data["mission"]
-    mission["design_bounds"]["parking_altitude_km"].update(lower=285.0, upper=315.0)
-    mission["doe"].update(samples=12, batch_size=6)
-    mission["verify"].update(points_per_iteration=3, max_iterations=1, budget=3)
-    mission["surrogate"].update(regressors=["KRG", "RBF"], folds=3)
-    mission["optimize"].update(population=24, generations=20)
-    # The shortened launch search solves the plan's launch ~0.4 kg off the coarse fit's
-    # payload (the shipped search: within 0.1 kg): the plan's check is loosened to match.
-    mission["plan"]["front_tolerance"]["m_load_kg"] = 1.0
-    config = tmp / "scenario.yaml"
-    config.write_text(yaml.safe_dump(data), encoding="utf-8")
-    return config
-
-
 def _invoke(*args: str) -> object:
-    done = CliRunner().invoke(app, list(args))
-    return done
+    return CliRunner().invoke(app, list(args))
 
 
 @pytest.fixture(scope="module")
 def nights(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("tracking")
-    home = tmp / "home"
+    """The session's three nights (tests/conftest.py:replan_nights); the commands here run
+    in this process with the nights' workspace (their launch fits)."""
+    found = replan_nights(tmp_path_factory)
     saved = os.environ.get("OVTRAJ_HOME")
-    os.environ["OVTRAJ_HOME"] = str(home)
+    os.environ["OVTRAJ_HOME"] = str(found["home"])
     try:
-        config = _config(tmp)
-        made = subprocess.run(
-            [
-                sys.executable,
-                str(REPO / "tools" / "example_tle.py"),
-                "--nights",
-                str(NIGHTS),
-                "--first-day",
-                str(1 - NIGHTS),
-                "--out",
-                str(tmp / "tles"),
-            ],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            check=True,
-        )
-        tles = sorted((tmp / "tles").glob("*.tle"))
-        assert len(tles) == NIGHTS, made.stdout
-        store = tmp / "runs"
-        plans = []
-        for tle in tles:
-            fitted = _invoke("launch-fit", str(config), "--target", str(tle), "--json")
-            assert fitted.exit_code == 0, fitted.output
-            done = _invoke("pipeline", str(config), "--target", str(tle), "--store", str(store))
-            assert done.exit_code in (0, 1), done.output
-            plan = next(line for line in done.stdout.splitlines() if line.startswith("plan: "))
-            plans.append(Path(plan.split("plan: ", 1)[1].strip()))
-        yield {"tmp": tmp, "store": store, "plans": plans, "config": config, "tles": tles}
+        yield {**found, "tmp": found["home"].parent}
     finally:
         if saved is None:
             os.environ.pop("OVTRAJ_HOME", None)
@@ -188,7 +139,8 @@ def test_diff_of_identical_inputs_is_empty(nights, tmp_path):
     """The last night again into another store: the same inputs give the same plan."""
     tle = nights["tles"][-1]
     store = tmp_path / "again"
-    done = _invoke("pipeline", str(nights["config"]), "--target", str(tle), "--store", str(store))
+    config = str(nights["config"])
+    done = _invoke("pipeline", config, "--target", str(tle), "--store", str(store))
     assert done.exit_code in (0, 1), done.output
     again = Path(
         next(x for x in done.stdout.splitlines() if x.startswith("plan: ")).split("plan: ")[1]

@@ -9,7 +9,7 @@ commands: history, diff of the last two nights, a query, a tag, the lineage.
 The scenario is the shipped one with ``target.source_settings.max_age_days`` = 7 (the
 shipped 3 days would refuse the first four nights' sets for the launch on 2026-12-01).
 
-Run: ``python tools/replan_week.py WORKDIR`` (about 15 min on 2 cores: seven launch fits
+Run: ``python tools/replan_week.py WORKDIR`` (27 min on 2 shared cores: seven launch fits
 of ~85 s and seven pipelines of ~20 s); writes ``WORKDIR/transcript.md``.
 """
 
@@ -32,7 +32,12 @@ BIN = Path(sys.executable).parent
 def main() -> None:
     work = Path(sys.argv[1]).resolve()
     work.mkdir(parents=True, exist_ok=True)
-    env = {"OVTRAJ_HOME": str(work / "home"), "PATH": f"{BIN}:/usr/bin:/bin", "COLUMNS": "160"}
+    env = {
+        "OVTRAJ_HOME": str(work / "home"),
+        "PATH": f"{BIN}:/usr/bin:/bin",
+        "COLUMNS": "160",
+        "PYTHONPATH": str(ROOT),
+    }
     data = yaml.safe_load((config_dir() / "scenario.yaml").read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(config_dir() / data["launch"]["launcher"])
     settings = default_source_settings().model_dump()

@@ -72,8 +72,6 @@ CATALOG_MARKER = "catalog.json"
 TAGS_DIR = "tags"
 SCHEMA_VERSION = 1
 KINDS = ("run", "pipeline", "plan", "monte_carlo")
-# The Monte Carlo runs of a plan (ovtraj.mission.montecarlo_store.RUN_KIND).
-_MONTE_CARLO_KIND = "mission_monte_carlo"
 
 # Every column, its type and unit (units in the names, docs/conventions.md).
 SCHEMA = pa.schema(
@@ -258,10 +256,12 @@ def plan_values(plan: dict[str, Any], pipeline: dict[str, Any] | None = None) ->
     }
 
 
-def _monte_carlo_row(
-    directory: Path | S3Path, source: str, digest: str, info: dict[str, Any]
-) -> dict[str, Any]:
-    config = read_json(directory / "config.json", Digest.from_json(info.get("config")))
+def _monte_carlo_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, Any]:
+    from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+
+    run = PlanMonteCarloRun(directory)
+    info = run.info  # checked: format, kind, seal (with a store key)
+    config = run.config
     plan = config.get("plan") if isinstance(config, dict) else None
     if not isinstance(plan, dict):
         raise ValueError("config.json holds no plan")
@@ -324,8 +324,10 @@ def _scan(root: Path | S3Path, previous: dict[str, dict[str, Any]]) -> list[dict
         try:
             payload = read_bytes(document)
             if kind == "monte_carlo":
+                from ovtraj.mission.montecarlo_store import RUN_KIND
+
                 info = json.loads(payload)
-                if not isinstance(info, dict) or info.get("kind") != _MONTE_CARLO_KIND:
+                if not isinstance(info, dict) or info.get("kind") != RUN_KIND:
                     continue  # another study's batched run (the deorbit burn's)
                 extra = directory / "summary.json"
                 if extra.is_file():
@@ -344,7 +346,7 @@ def _scan(root: Path | S3Path, previous: dict[str, dict[str, Any]]) -> list[dict
                     document, source, digest, payload, pipelines.get(str(directory), {})
                 )
             else:
-                row = _monte_carlo_row(directory, source, digest, info)
+                row = _monte_carlo_row(directory, source, digest)
         except (StoreError, OSError, ValueError, TypeError, AttributeError) as err:
             item = directory.name if kind != "plan" else document.name
             digest = "-"

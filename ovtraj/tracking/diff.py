@@ -18,7 +18,8 @@ from ovtraj.tracking.figures import INPUTS, RESULTS, Figure
 
 __all__ = ["Change", "changes", "markdown_table", "text_rows"]
 
-_MISSING = object()
+_LIST_CHARS = 100  # a list (a TLE's lines) shown in a table is cut here; --json has it whole
+_HOUR_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def changes(a: list[Figure], b: list[Figure], *, everything: bool = False) -> li
 def _shown(value: Any, unit: str) -> str:
     if isinstance(value, list):
         text = ", ".join(str(v) for v in value)
-        return text if len(text) <= 160 else text[:157] + "..."
+        return text if len(text) <= _LIST_CHARS else text[: _LIST_CHARS - 3] + "..."
     if isinstance(value, bool) or value is None:
         return "-" if value is None else str(value).lower()
     return quantity(value, "" if unit == "" else unit)
@@ -96,9 +97,11 @@ def _shown(value: Any, unit: str) -> str:
 def _shown_change(change: Change) -> str:
     if change.change is None:
         return ""
-    if change.unit in ("utc", "s"):
+    if change.unit in ("utc", "s") and abs(change.change) >= _HOUR_S:
         sign = "+" if change.change >= 0 else "-"
         return sign + duration(abs(change.change))
+    if change.unit == "utc":
+        return f"{change.change:+.6g} s"
     return f"{change.change:+.6g}" + (f" {change.unit}" if change.unit else "")
 
 
