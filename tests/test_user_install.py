@@ -21,11 +21,12 @@ temporary folders. It must exit 0, print no traceback, print exactly one JSON ob
 run differs from the README's text, and why:
 
 - placeholders: ``RUN_ID`` and ``PLAN.json`` are the DoE run and the plan of the README's
-  main job (``ovtraj pipeline configs/scenario.yaml``, run first), ``iss.tle`` the ISS TLE
-  of tests/data/targets, ``HOST:8786`` a TLS Dask scheduler and worker of the installed
-  venv on 127.0.0.1 (tests/test_dask_tls.py's certificates; the worker has the S3
-  credentials, as a cluster sharing the store must), ``s3://bucket/prefix`` a bucket of a
-  moto S3 server (tests/test_object_store.py); an optional ``[...]`` is left out;
+  main job (``ovtraj pipeline configs/scenario.yaml``, run first), ``PREVIOUS.json`` that
+  plan again (the main job makes one: ``ovtraj diff`` of it with itself, empty),
+  ``iss.tle`` the ISS TLE of tests/data/targets, ``HOST:8786`` a TLS Dask scheduler and
+  worker of the installed venv on 127.0.0.1 (tests/test_dask_tls.py's certificates; the
+  worker has the S3 credentials, as a cluster sharing the store must), ``s3://bucket/prefix``
+  a bucket of a moto S3 server (tests/test_object_store.py); an optional ``[...]`` is left out;
 - short settings (command 1's part takes 4.5 min on 2 quiet cores here, 1.5 of them the
   install; 6.5 min beside a running suite): each folder's ``configs/`` is a copy of the
   shipped one with smaller budgets: the mission folder's scenario has
@@ -410,6 +411,8 @@ def _argv(command: str, user: dict[str, Any], request: pytest.FixtureRequest) ->
             word = str(user["bin"] / word.removeprefix(".venv/bin/"))
         elif word in ("RUN_ID", "PLAN.json"):
             word = request.getfixturevalue(user["main_job"])[word]
+        elif word == "PREVIOUS.json":
+            word = request.getfixturevalue(user["main_job"])["PLAN.json"]
         elif word.startswith("configs/") and "shipped_configs" in user and command != PIPELINE:
             # `ovtraj paths` shows where: the user's folder holds only the main job's
             # shortened copy (a command given no file reads the same shipped one)

@@ -186,6 +186,14 @@ def _store(root: str | None, scenario: Scenario | None = None, config: Path | No
     return RunStore(root)
 
 
+def _store_root(root: str | None) -> Any:
+    """``--store``, else the workspace's run store: its root folder or S3 prefix, without
+    loading the run store's code (the catalog's commands read the layout only)."""
+    from ovtraj.store.paths import store_root
+
+    return store_root(None, None, root)
+
+
 StoreOpt = Annotated[
     str | None,
     typer.Option(

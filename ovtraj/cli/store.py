@@ -12,39 +12,37 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, app
+from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, _store_root, app
 from ovtraj.config.io_limits import echoed
 from ovtraj.formatting import byte_size, number, quantity, utc
 
 
-def _families(frame: Any) -> list[dict[str, Any]]:
+def _families(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The run rows of the catalog by family, families newest first, each root followed by
     its runs in lineage order, with their pipeline results."""
-    runs = frame[frame["kind"] == "run"]
     pipelines: dict[str, list[str]] = {}
-    for row in frame[frame["kind"] == "pipeline"].itertuples(index=False):
-        pipelines.setdefault(str(row.source).split("/", 1)[0], []).append(row.id)
+    for row in rows:
+        if row["kind"] == "pipeline":
+            pipelines.setdefault(row["source"].split("/", 1)[0], []).append(row["id"])
     families: dict[str, list[dict[str, Any]]] = {}
-    for row in runs.itertuples(index=False):
+    for row in rows:
+        if row["kind"] != "run":
+            continue
         entry = {
-            "run_id": row.id,
-            "family": row.family or row.id,
-            "depth": int(row.depth or 0),
-            "parent": row.parent,
-            "origin": row.origin,
-            "created_utc": row.created_utc,
-            "scenario": row.scenario,
-            "status": row.status,
-            "samples": row.samples,
-            "evaluated": row.evaluated,
-            "feasible": row.feasible,
-            "pipelines": pipelines.get(row.id, []),
+            "run_id": row["id"],
+            "family": row["family"] or row["id"],
+            "depth": int(row["depth"] or 0),
+            "parent": row["parent"],
+            "origin": row["origin"],
+            "created_utc": row["created_utc"],
+            "scenario": row["scenario"],
+            "status": row["status"],
+            "samples": row["samples"],
+            "evaluated": row["evaluated"],
+            "feasible": row["feasible"],
+            "pipelines": pipelines.get(row["id"], []),
             "size_bytes": None,
-            "error": row.error,
-        }
-        entry = {
-            k: (int(v) if hasattr(v, "item") and not isinstance(v, float) else v)
-            for k, v in entry.items()
+            "error": row["error"],
         }
         families.setdefault(entry["family"], []).append(entry)
 
@@ -107,17 +105,16 @@ def runs(
     """List the stored runs by family: each DoE run, then the runs that extend it (a
     pipeline's infill rounds, `run --append`), with their pipeline results and sizes; with
     --where, the catalog's rows (runs, pipeline results, plans) a predicate selects."""
-    from ovtraj.pipeline.catalog import tree_bytes
-    from ovtraj.runs import StoreError
+    from ovtraj.store.files import StoreError, tree_bytes
     from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import catalog_settings, query, refresh
 
-    store = _store(store_root)
+    root = _store_root(store_root)
     try:
-        found = refresh(store.root)
+        found = refresh(root)
         selected = query(found.frame, where) if where else None
     except (StoreError, OSError, ValueError) as err:
-        typer.echo(f"{store.root}: {err}", err=True)
+        typer.echo(f"{root}: {err}", err=True)
         raise typer.Exit(code=2) from None
     shown = catalog_settings().rows_shown if limit is None else limit
     console = Console(highlight=False)
@@ -126,7 +123,7 @@ def runs(
     if selected is not None:
         if as_json:
             rows = plain(selected.to_dict(orient="records"))
-            _print_json({"store": str(store.root.resolve()), "where": where, "rows": rows})
+            _print_json({"store": str(root.resolve()), "where": where, "rows": rows})
             return
         part = selected.iloc[-shown:] if shown else selected
         console.print(_where_table(part, f"catalog rows where {where}"))
@@ -137,23 +134,21 @@ def runs(
         )
         typer.echo(f"{len(selected)} of {len(found.frame)} rows match{cut}")
         return
-    entries = _families(found.frame)
+    entries = _families(found.rows)
     listed = entries[:shown] if shown and not as_json else entries
     # Sizes are measured now, not catalogued (a run grows by its surrogates, fronts and
     # pipeline results without its manifest changing); a file hard-linked into another
     # listed run counts once.
     seen: set[tuple[int, int]] = set()
     for entry in listed:
-        entry["size_bytes"] = tree_bytes(store.root / entry["run_id"], seen)
+        entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
     if as_json:
-        _print_json({"store": str(store.root.resolve()), "runs": entries})
+        _print_json({"store": str(root.resolve()), "runs": entries})
         return
     if not entries:
-        typer.echo(f"no runs in {store.root.resolve()}")
+        typer.echo(f"no runs in {root.resolve()}")
         return
-    table = Table(
-        title=f"runs in {store.root.resolve()}", title_justify="left", box=None, pad_edge=False
-    )
+    table = Table(title=f"runs in {root.resolve()}", title_justify="left", box=None, pad_edge=False)
     for column, justify in (
         ("run", "left"),
         ("created (UTC)", "left"),

@@ -13,7 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _store, app
+from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _store, _store_root, app
 from ovtraj.config.io_limits import echoed
 from ovtraj.formatting import quantity, utc
 
@@ -77,7 +77,8 @@ def _pipeline_item(store: Any, marker: Path) -> _Item:
 
 def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     """A run, pipeline result or plan named by its id (`ovtraj runs`) or a file."""
-    from ovtraj.runs.store import MANIFEST, PIPELINE_MARKER, RunStore
+    from ovtraj.runs.store import RunStore
+    from ovtraj.store.layout import MANIFEST, PIPELINE_MARKER
     from ovtraj.tracking.catalog import plan_file
 
     path = Path(ref)
@@ -210,21 +211,21 @@ def history(
     from ovtraj.tracking.history import history as history_rows
     from ovtraj.tracking.keys import history_key
 
-    store = _store(store_root)
+    root = _store_root(store_root)
     try:
         tags = _pairs(tag, "--tag")
         if deployment is not None:
             tags["deployment"] = deployment
-        catalog = refresh(store.root)
+        catalog = refresh(root)
         rows = history_rows(catalog, target=target, scenario=scenario, tags=tags)
     except _errors() as err:
         _fail(err)
     if not len(rows):
-        typer.echo(f"no plans in {store.root} match", err=True)
+        typer.echo(f"no plans in {root} match", err=True)
         raise typer.Exit(code=1)
     targets = sorted(set(rows["target"].dropna()))
     name = target or (targets[0] if len(targets) == 1 else scenario or "plans")
-    path = plot or Path(str(store.root / CATALOG_DIR / "history" / f"{history_key(name)}.png"))
+    path = plot or Path(str(root / CATALOG_DIR / "history" / f"{history_key(name)}.png"))
     written = Path(str(history_plot(rows, path, f"re-plans of {name}"))).resolve()
     if as_json:
         _print_json(
@@ -281,9 +282,9 @@ def catalog(
     plan Monte Carlo) up to date, or rebuild it; prints its path."""
     from ovtraj.tracking.catalog import refresh
 
-    store = _store(store_root)
+    root = _store_root(store_root)
     try:
-        found = refresh(store.root, rebuild=rebuild)
+        found = refresh(root, rebuild=rebuild)
     except _errors() as err:
         _fail(err)
     counts = found.frame["kind"].value_counts().to_dict()
@@ -317,14 +318,14 @@ def tag(
     files never change); with no KEY=VALUE, print its tags."""
     from ovtraj.tracking.catalog import read_tags, refresh, set_tags
 
-    store = _store(store_root)
+    root = _store_root(store_root)
     try:
         wanted = _pairs(pairs, "tag")
         if wanted or remove:
-            tags = set_tags(store.root, item_id, wanted, remove or [])
+            tags = set_tags(root, item_id, wanted, remove or [])
         else:
-            refresh(store.root).item(item_id)
-            tags = read_tags(store.root, item_id)
+            refresh(root).item(item_id)
+            tags = read_tags(root, item_id)
     except _errors() as err:
         _fail(err)
     if as_json:

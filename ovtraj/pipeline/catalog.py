@@ -10,17 +10,17 @@ run whose lineage starts with it. Any run id of a family leads to its pipeline r
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
 from ovtraj.pipeline.loop import MARKER as PIPELINE_MARKER
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import MANIFEST, checked_id
+from ovtraj.runs.store import checked_id
 from ovtraj.store.backends import S3Path
 from ovtraj.store.files import read_json
+from ovtraj.store.layout import MANIFEST
 
-__all__ = ["family_root", "pipeline_summaries", "tree_bytes"]
+__all__ = ["family_root", "pipeline_summaries"]
 
 
 def pipeline_summaries(run: Run) -> list[tuple[Path | S3Path, dict[str, Any]]]:
@@ -36,26 +36,6 @@ def pipeline_summaries(run: Run) -> list[tuple[Path | S3Path, dict[str, Any]]]:
             if isinstance(summary, dict):
                 found.append((directory, summary))
     return sorted(found, key=lambda item: item[1].get("created_utc") or "")
-
-
-def tree_bytes(directory: Path | S3Path, seen: set[tuple[int, int]] | None = None) -> int | None:
-    """Bytes of the files under a local ``directory``; a file hard-linked from another run
-    (adopted batches) counts once per ``seen`` set. None on an object store."""
-    if isinstance(directory, S3Path):
-        return None
-    total = 0
-    for folder, _, names in os.walk(directory):
-        for name in names:
-            try:
-                stat = os.lstat(os.path.join(folder, name))
-            except OSError:
-                continue  # removed meanwhile
-            if seen is not None:
-                if (stat.st_dev, stat.st_ino) in seen:
-                    continue
-                seen.add((stat.st_dev, stat.st_ino))
-            total += stat.st_size
-    return total
 
 
 def family_root(store: RunStore, run_id: str) -> Run:

@@ -69,9 +69,9 @@ from ovtraj.pipeline.steps import (
 )
 from ovtraj.runs import Run, RunStore
 from ovtraj.runs.execute import extend_run
-from ovtraj.runs.store import PIPELINE_MARKER
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
+from ovtraj.store.layout import PIPELINE_MARKER
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
 from ovtraj.surrogate.surrogate_set import shortlist

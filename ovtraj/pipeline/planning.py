@@ -13,9 +13,10 @@ from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import PLAN_MARKER_SUFFIX, checked_id
+from ovtraj.runs.store import checked_id
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
+from ovtraj.store.layout import PLAN_MARKER_SUFFIX
 from ovtraj.store.products import digests_json
 from ovtraj.store.seals import write_sealed
 from ovtraj.tracking.catalog import plan_file, refresh

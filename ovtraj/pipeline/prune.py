@@ -42,12 +42,12 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ovtraj.pipeline.catalog import pipeline_summaries, tree_bytes
+from ovtraj.pipeline.catalog import pipeline_summaries
 from ovtraj.pipeline.steps import MARKER
 from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.store import locks
 from ovtraj.store.backends import S3Path
-from ovtraj.store.files import read_json
+from ovtraj.store.files import read_json, tree_bytes
 from ovtraj.store.result_records import is_result_record
 
 __all__ = ["PruneItem", "prunable", "remove"]

@@ -49,9 +49,9 @@ from ovtraj.pipeline.features import (
     load_surrogates,
 )
 from ovtraj.runs import Run
-from ovtraj.runs.store import ID_HEX_DIGITS
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest, write_bytes
+from ovtraj.store.layout import ID_HEX_DIGITS
 from ovtraj.store.products import Product
 from ovtraj.store.records import FLOAT, INT, record_schema, table_from_frame
 from ovtraj.surrogate import SurrogateSet, fit_surrogates, training_data_hash

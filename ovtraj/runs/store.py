@@ -57,7 +57,6 @@ import hashlib
 import json
 import os
 import platform
-import re
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -89,29 +88,17 @@ from ovtraj.store.files import (
     write_json,
     write_parquet,
 )
+from ovtraj.store.layout import ID_HEX_DIGITS, MANIFEST, is_id
 from ovtraj.store.records import table_from_frame, table_from_rows
 from ovtraj.store.seals import authenticated, read_authenticated, seal_problem, write_sealed
 
 __all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
 
 DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
-MANIFEST = "manifest.json"
 RUN_FILES = ("config.json", "samples.parquet")
 # Waits on the manifest lock: a holder only reads and rewrites one small file.
 MANIFEST_LOCK_WAIT_S = 60.0
-# Run ids (:func:`run_id`) and the ids of a run's products (surrogate fits, fronts,
-# pipeline results: ovtraj.pipeline.steps.content_id) are this many hexadecimal digits of a
-# SHA-256. An id is a folder name of the store: one that is not such a string (``..``, a
-# ``/``, a newline that would forge a log line) is refused where it enters (:func:`checked_id`).
-ID_HEX_DIGITS = 16
-_ID = re.compile(f"[0-9a-f]{{{ID_HEX_DIGITS}}}")
-# A pipeline result lives in its DoE run: ``pipeline/<pipeline id>/pipeline.json`` (its
-# summary, written last) and its plans, ``plans/<name>.json`` with ``<name>.files.json``
-# (the digests of the plan's files, written last).
-PIPELINE_DIR = "pipeline"
-PIPELINE_MARKER = "pipeline.json"
-PLANS_DIR = "plans"
-PLAN_MARKER_SUFFIX = ".files.json"
+# The layout's names and ids: ovtraj.store.layout (ids: :func:`checked_id` where they enter).
 # Markers of a run's pipeline products (glob patterns under the run); each lists its
 # files, relative to its own folder, with their digests.
 PRODUCT_MARKERS = (
@@ -171,7 +158,7 @@ def checked_id(value: Any, what: str = "run id") -> str:
     """``value`` if it is an id of the store (see :data:`ID_HEX_DIGITS`), else
     :class:`StoreError` naming it, escaped (a newline shows as ``\\n``) and cut
     (:func:`ovtraj.config.io_limits.echoed`)."""
-    if not isinstance(value, str) or _ID.fullmatch(value) is None:
+    if not isinstance(value, str) or not is_id(value):
         from ovtraj.config.io_limits import echoed
 
         raise StoreError(

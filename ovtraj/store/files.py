@@ -488,3 +488,23 @@ def remove_file(path: Path) -> bool:
     except OSError as err:
         raise StoreError(f"cannot remove {path}: {os_error_text(err)}") from None
     return True
+
+
+def tree_bytes(directory: Path | S3Path, seen: set[tuple[int, int]] | None = None) -> int | None:
+    """Bytes of the files under a local ``directory``; a file hard-linked from another run
+    (adopted batches) counts once per ``seen`` set. None on an object store."""
+    if isinstance(directory, S3Path):
+        return None
+    total = 0
+    for folder, _, names in os.walk(directory):
+        for name in names:
+            try:
+                stat = os.lstat(os.path.join(folder, name))
+            except OSError:
+                continue  # removed meanwhile
+            if seen is not None:
+                if (stat.st_dev, stat.st_ino) in seen:
+                    continue
+                seen.add((stat.st_dev, stat.st_ino))
+            total += stat.st_size
+    return total

@@ -16,16 +16,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from ovtraj.runs.store import (
-    PIPELINE_DIR,
-    PIPELINE_MARKER,
-    PLAN_MARKER_SUFFIX,
-    PLANS_DIR,
-    Run,
-    RunStore,
-)
+from ovtraj.runs.store import Run, RunStore
 from ovtraj.store.batched import content_id
 from ovtraj.store.files import Digest, StoreError, file_digest, read_json
+from ovtraj.store.layout import PIPELINE_DIR, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, PLANS_DIR
 from ovtraj.store.products import Product
 from ovtraj.tracking.catalog import CATALOG_DIR, plan_id
 from ovtraj.tracking.figures import element_set_epoch
