@@ -8,6 +8,8 @@ on the DoE flow, tests/test_doe.py.)
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import yaml
 
@@ -119,8 +121,10 @@ def _stored_files(root) -> dict[str, object]:
         if path.is_file() and not path.name.endswith(".lock"):
             name = str(path.relative_to(root))
             data = path.read_bytes()
-            if name.startswith("catalog/history/"):
-                continue  # the trend the flow draws for its artifact (ovtraj history's view)
+            if name.startswith("catalog/history/") or name == "catalog/stamps.json":
+                # the trend the flow draws for its artifact (ovtraj history's view); the
+                # catalog's cache of its documents' sizes, times and inodes (host data)
+                continue
             if name.startswith("catalog/"):
                 files[name] = _catalog_content(path)
                 continue
@@ -155,3 +159,26 @@ def test_the_flow_and_the_command_line_store_the_same_pipeline(flown):
     assert any(name.endswith("report.html") for name in flow_files)
     differing = [name for name in flow_files if flow_files[name] != cli_files[name]]
     assert differing == []
+    # Identical inputs, so `ovtraj diff` of the two plans (and of the two DoE runs) is empty
+    # (issue 46), while the plan's own figures are all there (--all).
+    from ovtraj.cli import run_command
+
+    plan = Path(flown["first"]["plan_json"])
+    twin = flown["cli_store"] / plan.relative_to(flown["store"].root)
+    assert twin.is_file() and twin != plan
+    for a, b in ((plan, twin), (plan.parents[3], twin.parents[3])):
+        found = _diff_json(run_command, [str(a), str(b), "--store", str(flown["cli_store"])])
+        assert found["changed"] == 0 and found["fields"] == []
+    everything = _diff_json(run_command, [str(plan), str(twin), "--all"])
+    assert len(everything["fields"]) > 100 and not any(f["changed"] for f in everything["fields"])
+
+
+def _diff_json(run_command, args):
+    import contextlib
+    import io
+    import json
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert run_command(["diff", *args, "--json"]) == 0
+    return json.loads(out.getvalue())

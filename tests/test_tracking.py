@@ -135,28 +135,6 @@ def test_diff_of_the_last_two_nights_names_exactly_the_changed_fields(nights):
     assert markdown.stdout.startswith("| group | field |") and "|---|" in markdown.stdout
 
 
-def test_diff_of_identical_inputs_is_empty(nights, tmp_path):
-    """The last night again into another store: the same inputs give the same plan."""
-    tle = nights["tles"][-1]
-    store = tmp_path / "again"
-    config = str(nights["config"])
-    done = _invoke("pipeline", config, "--target", str(tle), "--store", str(store))
-    assert done.exit_code in (0, 1), done.output
-    again = Path(
-        next(x for x in done.stdout.splitlines() if x.startswith("plan: ")).split("plan: ")[1]
-    )
-    found = _json("diff", str(nights["plans"][-1]), str(again), "--store", str(store))
-    assert found["changed"] == 0 and found["fields"] == []
-    shown = _invoke("diff", str(nights["plans"][-1]), str(again), "--store", str(store))
-    assert "no differences" in shown.stdout
-    everything = _json("diff", str(nights["plans"][-1]), str(again), "--all", "--store", str(store))
-    assert len(everything["fields"]) > 100 and not any(f["changed"] for f in everything["fields"])
-    # Runs and pipeline results by id: the same inputs, the same figures.
-    runs = _json("runs", "--store", str(store))["runs"]
-    first = runs[0]["run_id"]
-    assert _json("diff", first, first, "--store", str(store))["fields"] == []
-
-
 def test_the_report_says_what_changed_since_the_previous_plan(nights):
     first, *_, last = nights["plans"]
     report = last.with_name(last.stem + "-report.html").read_text(encoding="utf-8")
