@@ -183,7 +183,10 @@ def prefect_record(folder: Path, key: str) -> Path:
 # With `-n 2 --dist loadfile` a module is one unit of work, handed out in collection order;
 # collected last (alphabetically: test_user_install), the longest ran alone at the end
 # while the other worker had nothing left (15 min measured, the sum of the work ~27 min).
-LONG_MODULES = ("test_user_install.py", "test_install.py", "test_benchmarks.py")
+# test_tracking.py second: it builds the re-plan nights (replan_nights, ~70 s) that
+# test_prefect_ui.py also uses, on the worker not installing; collected in alphabetical
+# order the two met, and one worker waited ~50 s on the other's build.
+LONG_MODULES = ("test_user_install.py", "test_tracking.py", "test_install.py", "test_benchmarks.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
