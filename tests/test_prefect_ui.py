@@ -147,8 +147,6 @@ def ui_server(tmp_path_factory):
 @pytest.fixture(scope="module")
 def published(ui_server, scenario):
     """Run the tiny flow on a front plot drawn by ovtraj.plots.front; read its artifacts."""
-    from prefect.client.orchestration import SyncPrefectClient
-    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterKey
 
     from ovtraj.optimize.objectives import Normalisation
     from ovtraj.plots.front import front_plot
@@ -159,9 +157,21 @@ def published(ui_server, scenario):
     unit = np.random.default_rng(24).uniform(0.1, 0.9, size=(20, len(normalisation.names)))
     points = pd.DataFrame(normalisation.physical(unit), columns=list(normalisation.names))
     png = front_plot(directory / "front.png", normalisation, verified=points, title="UI test")
+    found = _published_artifacts(ui_server, list(KEYS), PUBLISH, str(directory))
+    artifacts = {a.key: a for a in found}
+    assert set(artifacts) == set(KEYS), sorted(artifacts)
+    return Published(png=Path(png), artifacts=artifacts)
+
+
+def _published_artifacts(ui_server: UIServer, keys: list[str], script: str, *args: str) -> list:
+    """Run ``script`` (a tiny flow run publishing artifacts) against the UI's server, then
+    the artifacts of ``keys`` as the server's API returns them."""
+    from prefect.client.orchestration import SyncPrefectClient
+    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterKey
+
     started = time.monotonic()
     done = subprocess.run(
-        [sys.executable, "-c", PUBLISH, str(directory)],
+        [sys.executable, "-c", script, *args],
         cwd=REPO,
         env=ui_server.env,
         capture_output=True,
@@ -169,14 +179,11 @@ def published(ui_server, scenario):
         timeout=PUBLISH_TIMEOUT_S,
     )
     assert done.returncode == 0, f"the flow run failed:\n{done.stdout}\n{done.stderr}"
-    print(f"\nflow run published in {time.monotonic() - started:.1f} s")
+    print(f"\n{keys} published in {time.monotonic() - started:.1f} s")
     with SyncPrefectClient(f"{ui_server.address}/api") as client:
-        found = client.read_artifacts(
-            artifact_filter=ArtifactFilter(key=ArtifactFilterKey(any_=list(KEYS)))
+        return client.read_artifacts(
+            artifact_filter=ArtifactFilter(key=ArtifactFilterKey(any_=keys))
         )
-    artifacts = {a.key: a for a in found}
-    assert set(artifacts) == set(KEYS), sorted(artifacts)
-    return Published(png=Path(png), artifacts=artifacts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,29 +213,14 @@ def replans(tmp_path_factory):
 @pytest.fixture(scope="module")
 def history_published(ui_server, replans, scenario):
     """The flow run that publishes the history on the last night's plan; its artifacts."""
-    from prefect.client.orchestration import SyncPrefectClient
-    from prefect.client.schemas.filters import ArtifactFilter, ArtifactFilterKey
 
     from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.history import history
 
     key = history_key(scenario.target.name)
     keys = [key, f"{key}-plot"]
-    started = time.monotonic()
-    done = subprocess.run(
-        [sys.executable, "-c", PUBLISH_HISTORY, str(replans.store), str(replans.plans[-1])],
-        cwd=REPO,
-        env=ui_server.env,
-        capture_output=True,
-        text=True,
-        timeout=PUBLISH_TIMEOUT_S,
-    )
-    assert done.returncode == 0, f"the flow run failed:\n{done.stdout}\n{done.stderr}"
-    print(f"\nhistory published in {time.monotonic() - started:.1f} s")
-    with SyncPrefectClient(f"{ui_server.address}/api") as client:
-        found = client.read_artifacts(
-            artifact_filter=ArtifactFilter(key=ArtifactFilterKey(any_=keys))
-        )
+    store, plan = str(replans.store), str(replans.plans[-1])
+    found = _published_artifacts(ui_server, keys, PUBLISH_HISTORY, store, plan)
     artifacts = {a.key: a for a in found}
     assert set(artifacts) == set(keys), sorted(artifacts)
     return PublishedHistory(

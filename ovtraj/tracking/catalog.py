@@ -170,6 +170,11 @@ class Catalog:
 # --- reading the stored documents -----------------------------------------------------
 
 
+def _target_columns(scenario: dict[str, Any]) -> dict[str, Any]:
+    """The target's name and element-set epoch of a resolved scenario (every kind's row)."""
+    return {"target": target_name(scenario), "element_set_epoch_utc": element_set_epoch(scenario)}
+
+
 def _row(kind: str, item_id: str, source: str, digest: str, **values: Any) -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(_COLUMNS)
     row.update(kind=kind, id=item_id, source=source, source_sha256=digest, tags="{}")
@@ -201,8 +206,7 @@ def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, An
         digest,
         created_utc=manifest.get("created_utc"),
         scenario=manifest.get("scenario"),
-        target=target_name(config),
-        element_set_epoch_utc=element_set_epoch(config),
+        **_target_columns(config),
         code_version=manifest.get("code_version"),
         status=manifest.get("status"),
         family=lineage[0] if lineage else run.id,
@@ -261,8 +265,7 @@ def plan_values(plan: dict[str, Any], pipeline: dict[str, Any] | None = None) ->
     return {
         "created_utc": (pipeline or {}).get("created_utc"),
         "scenario": scenario.get("name"),
-        "target": target_name(scenario),
-        "element_set_epoch_utc": element_set_epoch(scenario),
+        **_target_columns(scenario),
         "code_version": plan.get("code_version"),
         "doe_run": source.get("doe_run"),
         "run_id": source.get("run_id"),
@@ -299,8 +302,7 @@ def _monte_carlo_row(directory: Path | S3Path, source: str, digest: str) -> dict
         digest,
         created_utc=info.get("created_utc"),
         scenario=scenario.get("name"),
-        target=target_name(scenario),
-        element_set_epoch_utc=element_set_epoch(scenario),
+        **_target_columns(scenario),
         code_version=info.get("code_version"),
         status=summary.get("status") or info.get("status"),
         plan_id=plan_id(plan),
