@@ -3,6 +3,7 @@ Monte Carlo runs) and export it as a CCSDS OEM or OPM (fly, export)."""
 
 from __future__ import annotations
 
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -14,6 +15,13 @@ from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig, MonteCarloExecution, default_dispersions
 from ovtraj.formatting import number, split_unit
+
+
+class Fidelity(StrEnum):
+    """The sky ``ovtraj fly`` flies the plan under."""
+
+    j2 = "j2"
+    high = "high"
 
 
 @app.command()
@@ -37,56 +45,115 @@ def fly(
             show_default=False,
         ),
     ] = None,
+    fidelity: Annotated[
+        Fidelity,
+        typer.Option(
+            "--fidelity",
+            help="j2: the open-loop replay under the plan's model; high: the closed loop "
+            "under the high-fidelity force model (configs/force_model.yaml) beside the plan "
+            "and the J2 closed loop (the Monte Carlo's closed loop too)",
+        ),
+    ] = Fidelity.j2,
+    force_model_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--force-model",
+            help="force model YAML for --fidelity high (default: the shipped "
+            "configs/force_model.yaml)",
+            show_default=False,
+        ),
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Replay a mission plan through the real dynamics from the carrier's drop: landing miss
     and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights
-    (a progress bar on stderr)."""
+    (a progress bar on stderr); with --fidelity high, the closed loop under the
+    high-fidelity force model: each manoeuvre's dV against the plan's, the arrival and
+    landing misses, the path-limit margins."""
     from ovtraj.mission.fly import fly_plan, format_flight_report
     from ovtraj.mission.plan import PlanError, read_plan
 
     try:
         plan = read_plan(plan_file)
-        dispersions = _dispersions(dispersions_file) if monte_carlo else None
+        dispersions = _dispersions(dispersions_file) if monte_carlo or fidelity == "high" else None
+        force_model = _force_model(plan, force_model_file) if fidelity == "high" else None
     except PlanError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     except ConfigError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    report = fly_plan(plan)
-    row = report.to_dict()
+    if force_model is not None:
+        row, landed = _high_fidelity(plan, dispersions, force_model)
+        text = row.pop("text")
+    else:
+        report = fly_plan(plan)
+        row, landed = report.to_dict(), report.landed_within_stated_miss
+        text = format_flight_report(report)
     if monte_carlo:
-        row["monte_carlo"] = _monte_carlo(plan, dispersions, monte_carlo, seed, as_json)
+        row["monte_carlo"] = _monte_carlo(
+            plan, dispersions, monte_carlo, seed, as_json, force_model
+        )
     if as_json:
         _print_json(row)
     else:
-        typer.echo(format_flight_report(report))
+        typer.echo(text)
         if monte_carlo:
             typer.echo(_format_monte_carlo(row["monte_carlo"]))
-    if not report.landed_within_stated_miss:
+    if not landed:
         raise typer.Exit(code=1)
+
+
+def _force_model(plan: Any, path: Path | None) -> Any:
+    """The force model's settings, checked against the plan: its bodies and the span of
+    the Earth-orientation and space-weather data (:class:`ConfigError`, one line)."""
+    from ovtraj.config import scenario_from_dict
+    from ovtraj.config.force_model import ForceModelSettings, default_force_model
+    from ovtraj.mission.high_fidelity import check_span, flight_span, spacecraft_factors
+
+    settings = default_force_model() if path is None else load_model(ForceModelSettings, path)
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    spacecraft_factors(scenario, "vehicle")
+    spacecraft_factors(scenario, "target")
+    check_span(settings, *flight_span(plan, scenario))
+    return settings
+
+
+def _high_fidelity(plan: Any, dispersions: Any, force_model: Any) -> tuple[dict, bool]:
+    """The nominal closed loop under both skies, reported side by side with the plan."""
+    from ovtraj.mission.sky_flight import fidelity_report, fly_nominal, format_fidelity_report
+
+    j2 = fly_nominal(plan, dispersions)
+    high = fly_nominal(plan, dispersions, force_model)
+    report = fidelity_report(plan, j2, high, force_model)
+    return {**report, "text": format_fidelity_report(report)}, report["landed_within_stated_miss"]
 
 
 def _dispersions(path: Path | None) -> Any:
     return default_dispersions() if path is None else load_model(DispersionsConfig, path)
 
 
-def _monte_carlo(plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool) -> dict:
+def _monte_carlo(
+    plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool, force_model: Any = None
+) -> dict:
     """The dispersed runs, closed and open loop, summarised (a progress bar on stderr
-    unless ``as_json``)."""
+    unless ``as_json``); the closed loop under ``force_model``'s sky when given."""
     from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, outcome_summaries
 
     with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
-        pairs = monte_carlo(plan, dispersions, runs, seed, progress=update)
+        pairs = monte_carlo(plan, dispersions, runs, seed, progress=update, force_model=force_model)
     loops = outcome_summaries(plan, [c for c, _ in pairs], [o for _, o in pairs])
-    return monte_carlo_report(loops["closed"], loops["open"], seed, plan.terminal.stated_miss_m)
+    report = monte_carlo_report(loops["closed"], loops["open"], seed, plan.terminal.stated_miss_m)
+    report["fidelity"] = "j2" if force_model is None else "high"
+    return report
 
 
 def _format_monte_carlo(summary: dict) -> str:
     stated_km = number(summary["stated_miss_m"] / 1e3, "km")
     lines = [f"monte carlo (seed {summary['seed']}): stated miss {stated_km}"]
-    for loop, s in (("closed loop", summary), ("open loop", summary["open_loop"])):
+    closed = "closed loop" + (" (high-fidelity sky)" if summary.get("fidelity") == "high" else "")
+    opened = "open loop" + (" (J2 replay)" if summary.get("fidelity") == "high" else "")
+    for loop, s in ((closed, summary), (opened, summary["open_loop"])):
         miss = s["landing_miss_m"]
 
         def km(value: float | None) -> str:

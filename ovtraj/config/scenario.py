@@ -8,11 +8,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_serializer, model_validator
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import StrictModel, bounded, model_from_dict
+from ovtraj.config.body import BodyConfig
 from ovtraj.config.deorbit import DeorbitSettings
 from ovtraj.config.launch import LaunchSettings
 from ovtraj.config.mission import MissionSettings
@@ -53,6 +54,17 @@ class VehicleConfig(StrictModel):
     max_impulse_mps: float = bounded(
         unit="m/s", gt=0, le=20000, description="largest single impulse"
     )
+    body: BodyConfig | None = Field(
+        default=None, description="drag and radiation pressure figures (the high-fidelity flight)"
+    )
+
+    @model_serializer(mode="wrap")
+    def _body_when_given(self, handler: Any) -> dict[str, Any]:
+        """A vehicle without ``body`` dumps as before bodies existed (same run ids)."""
+        data = handler(self)
+        if data.get("body") is None:
+            data.pop("body", None)
+        return data
 
     @model_validator(mode="after")
     def _dry_not_above_wet(self) -> VehicleConfig:

@@ -33,6 +33,7 @@ from pydantic import Field, field_validator, model_serializer, model_validator
 
 from ovtraj.astro.elements import perigee_radius
 from ovtraj.config.base import ConfigError, StrictModel, bounded, load_model
+from ovtraj.config.body import TargetBodyConfig
 from ovtraj.element_sets.elements import SourceElements
 from ovtraj.element_sets.inline import inline_elements
 
@@ -172,6 +173,9 @@ class TargetConfig(StrictModel):
         ge=0, le=999_999_999, default=None, description="picks one element set of several"
     )
     source_settings: TargetSourceSettings | None = None
+    body: TargetBodyConfig | None = Field(
+        default=None, description="drag and radiation pressure figures (the high-fidelity flight)"
+    )
 
     @model_validator(mode="before")
     @classmethod

@@ -73,6 +73,7 @@ from ovtraj.astro.frames import great_circle_distance
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.mission.chain import rendezvous_settings
@@ -84,6 +85,12 @@ from ovtraj.mission.fly import (
     fly_ascent,
     fly_plan,
     relative_entry,
+)
+from ovtraj.mission.high_fidelity import (
+    HighFidelityOrbit,
+    TargetTrack,
+    Truth,
+    spacecraft_factors,
 )
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
@@ -183,6 +190,14 @@ class RunDraw:
     drag_scale: float
     seed: int = 0
     accelerometer_fraction: float = 0.0
+    navigation_sigma: tuple[float, float] = (0.0, 0.0)  # position [m], velocity [m/s]
+
+    def retarget_navigation(self, k: int) -> NDArray[np.float64]:
+        """The estimate's error (6,) at the ``k``-th re-targeting of the phasing (the
+        high-fidelity sky's), drawn from the run's own stream for it."""
+        rng = np.random.default_rng([self.seed, self.run, 2, k])
+        position, velocity = self.navigation_sigma
+        return np.r_[rng.normal(0.0, position, 3), rng.normal(0.0, velocity, 3)]
 
     def measurement_error(self, call: int) -> NDArray[np.float64]:
         """Relative errors of the measured (lift, drag) at the ``call``-th entry guidance
@@ -233,6 +248,7 @@ def draw_run(config: DispersionsConfig, seed: int, run: int, impulses: int = 5) 
         drag_scale=float(max(1.0 + normal(entry.drag_fraction), entry.minimum_factor)),
         seed=int(seed),
         accelerometer_fraction=config.closed_loop.accelerometer_fraction,
+        navigation_sigma=(nav.position_m, nav.velocity_mps),
     )
 
 
@@ -380,21 +396,30 @@ class _Failed(Exception):
 
 
 def fly_closed_loop(
-    plan: MissionPlan, draw: RunDraw, config: DispersionsConfig, scenario: Scenario | None = None
+    plan: MissionPlan,
+    draw: RunDraw,
+    config: DispersionsConfig,
+    scenario: Scenario | None = None,
+    force_model: ForceModelSettings | None = None,
 ) -> RunOutcome:
     """The draw flown with the mission's corrections (module notes). Never raises.
+
+    With ``force_model`` the orbits (the vehicle's and the target's) are flown under the
+    high-fidelity model (:mod:`ovtraj.mission.high_fidelity`); the corrections still solve
+    the chain's J2 problems, as an on-board planner would.
 
     On one BLAS thread, as every stored evaluation (:data:`EVALUATION_BLAS_THREADS`): the
     closed loop amplifies the last digits of a multi-threaded sum to millimetres at
     landing, and a run must land in the same place in any process and runner."""
     outcome = RunOutcome(run=draw.run, loop="closed", landed=False)
     scenario = scenario or scenario_from_dict(plan.scenario, "the plan's scenario")
+    truth = sky(plan, scenario, force_model)  # a missing body is the caller's ConfigError
     try:
         with (
             np.errstate(all="ignore"),
             blas_threads(EVALUATION_BLAS_THREADS),
         ):
-            _closed_loop(plan, scenario, draw, config, outcome)
+            _closed_loop(plan, scenario, draw, config, outcome, truth)
         outcome.landed = True
     except _Failed as failure:
         outcome.failed_stage, outcome.reason = failure.stage, failure.reason
@@ -412,10 +437,11 @@ def _closed_loop(
     draw: RunDraw,
     config: DispersionsConfig,
     outcome: RunOutcome,
+    truth: Truth,
 ) -> None:
     earth = scenario.earth
     day = plan.day
-    orbit = ReplayOrbit(scenario)
+    orbit = truth.vehicle
     propagator = OrbitPropagator(earth, tol=scenario.tolerances.integrator)
     flight = DispersedFlight(draw)
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
@@ -433,9 +459,7 @@ def _closed_loop(
     scratch = FlightReport(ok=False, reason=None, landed_within_stated_miss=False, stated_miss_m=0)
     state, t = fly_ascent(plan, scenario, scratch, flight)
     # 2. rendezvous re-targeted from the estimated insertion
-    offset = day.seconds_since(scenario.epoch)
-    target0 = target_state(scenario.target.orbit, scenario)
-    target_at = lambda time_s: orbit.arc(target0, 0.0, time_s + offset)[0]  # noqa: E731
+    target_at = truth.target_at
     common = rendezvous_settings(scenario)
     rdv = solve_rendezvous(
         RendezvousInput(
@@ -448,6 +472,25 @@ def _closed_loop(
     )
     if not rdv.feasible:
         raise _Failed("rendezvous", f"re-targeting failed: {rdv.reason}")
+    if truth.retarget_interval_s is not None:
+        # The sky is not the planner's J2: the phasing drifts (drag, the field's higher
+        # terms), so the rendezvous is solved again from the estimate while it waits.
+        k = 0
+        while rdv.burn1.t_s - t > truth.retarget_interval_s:
+            t_fix = t + truth.retarget_interval_s
+            state, t = coast(state, t, t_fix, "rendezvous"), t_fix
+            rdv = solve_rendezvous(
+                RendezvousInput(
+                    epoch=day,
+                    t0_s=t,
+                    chaser_state=state + draw.retarget_navigation(k),
+                    target_state=target_at(t),
+                    **common,
+                )
+            )
+            if not rdv.feasible:
+                raise _Failed("rendezvous", f"re-targeting at {t:.0f} s failed: {rdv.reason}")
+            k += 1
     state = coast(state, t, rdv.burn1.t_s, "rendezvous")
     dv = flight.burn(0, np.asarray(rdv.burn1.eci_mps))
     state, t = state + np.r_[0.0, 0.0, 0.0, dv], rdv.burn1.t_s
@@ -540,6 +583,34 @@ def _closed_loop(
     rel = relative_entry(state, theta, earth.omega, earth.radius)
     # 5. the entry, guidance re-solved in flight
     _guided_entry(plan, scenario, day.plus_seconds(t_entry), rel, flight, config, outcome)
+
+
+def sky(plan: MissionPlan, scenario: Scenario, force_model: ForceModelSettings | None) -> Truth:
+    """The orbits a closed-loop flight meets: the replay's J2 (``force_model`` None) or the
+    high-fidelity model, the vehicle's arcs timed from the plan's day and the target's
+    state at any such time."""
+    offset = plan.day.seconds_since(scenario.epoch)
+    target0 = target_state(scenario.target.orbit, scenario)
+    if force_model is None:
+        orbit = ReplayOrbit(scenario)
+        return Truth(
+            vehicle=orbit,
+            target_at=lambda time_s: orbit.arc(target0, 0.0, time_s + offset)[0],
+            fidelity="j2",
+            retarget_interval_s=None,
+        )
+    vehicle = HighFidelityOrbit(
+        scenario, force_model, plan.day, spacecraft_factors(scenario, "vehicle")
+    )
+    target = HighFidelityOrbit(
+        scenario, force_model, scenario.epoch, spacecraft_factors(scenario, "target")
+    )
+    return Truth(
+        vehicle=vehicle,
+        target_at=TargetTrack(target, target0, offset),
+        fidelity="high",
+        retarget_interval_s=force_model.closed_loop.phasing_retarget_interval_h * 3600.0,
+    )
 
 
 def _reaching_velocity(
@@ -710,14 +781,21 @@ def monte_carlo(
     seed: int,
     *,
     progress: Any = None,
+    force_model: ForceModelSettings | None = None,
 ) -> list[tuple[RunOutcome, RunOutcome]]:
     """``runs`` draws, each flown closed and open loop (serially, in this process);
-    ``progress(done, total)`` after each run (and a debug log line)."""
+    ``progress(done, total)`` after each run (and a debug log line). With ``force_model``
+    the closed loop flies under the high-fidelity sky; the open loop is the J2 replay."""
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     pairs = []
     for run in range(runs):
         draw = draw_run(config, seed, run, len(plan.impulses()))
-        pairs.append((fly_closed_loop(plan, draw, config, scenario), fly_open_loop(plan, draw)))
+        pairs.append(
+            (
+                fly_closed_loop(plan, draw, config, scenario, force_model),
+                fly_open_loop(plan, draw),
+            )
+        )
         logger.debug(
             "run %d/%d: closed loop %s, open loop %s",
             run + 1,
@@ -863,9 +941,14 @@ def _failures(outcomes: list[RunOutcome]) -> dict[str, int]:
 
 
 def simulate_batch(
-    plan: MissionPlan, config: DispersionsConfig, runs: list[int], seed: int
+    plan: MissionPlan,
+    config: DispersionsConfig,
+    runs: list[int],
+    seed: int,
+    force_model: ForceModelSettings | None = None,
 ) -> pd.DataFrame:
-    """Rows of ``RUN_SCHEMA``: each run flown closed and open loop (timed per row)."""
+    """Rows of ``RUN_SCHEMA``: each run flown closed and open loop (timed per row); the
+    closed loop under ``force_model``'s sky when given (:func:`monte_carlo`)."""
     import time
 
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
@@ -873,7 +956,7 @@ def simulate_batch(
     for run in runs:
         draw = draw_run(config, seed, run, len(plan.impulses()))
         for fly in (
-            lambda d=draw: fly_closed_loop(plan, d, config, scenario),
+            lambda d=draw: fly_closed_loop(plan, d, config, scenario, force_model),
             lambda d=draw: fly_open_loop(plan, d),
         ):
             start = time.perf_counter()

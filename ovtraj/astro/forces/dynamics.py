@@ -1,0 +1,185 @@
+"""The equations of motion of the high-fidelity model: the terms of :class:`ForceTerms`
+summed, as heyoka expressions (the state x, y, z, vx, vy, vz in TEME, m and m/s).
+
+Runtime parameters (:data:`PARAMETERS`, in this order): the origin's TT centuries and
+UTC day of year, the spacecraft's C_D A / m and C_R A / m [m^2/kg], and the radius [m]
+of the floor event (:mod:`.propagator`). Everything else is compiled in, so a
+:class:`ForceTerms` is the key of a compiled integrator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import heyoka as hy
+
+from ovtraj.astro.forces.drag import (
+    SpaceWeather,
+    drag_acceleration,
+    geodetic,
+    thermosphere_density,
+)
+from ovtraj.astro.forces.earth_data import earth_orientation_data
+from ovtraj.astro.forces.gravity_field import egm2008_acceleration, teme_to_itrs
+from ovtraj.astro.forces.radiation_pressure import lit_fraction, radiation_pressure_acceleration
+from ovtraj.astro.forces.third_body import moon_position, sun_position, third_body_acceleration
+from ovtraj.astro.forces.time_scales import tt_centuries_expression
+from ovtraj.astro.propagation.gravity import two_body_j2_acceleration
+
+__all__ = ["PARAMETERS", "TERMS", "ForceTerms", "Symbols", "accelerations", "equations", "symbols"]
+
+PARAMETERS = ("tt0", "doy0", "ballistic_m2_kg", "radiation_m2_kg", "floor_radius_m")
+TERMS = ("gravity", "drag", "sun", "moon", "solar_radiation_pressure")
+_STATE = ("x", "y", "z", "vx", "vy", "vz")
+SECONDS_PER_DAY = 86400.0
+
+
+@dataclass(frozen=True)
+class ForceTerms:
+    """What the orbit is flown under; ``None`` switches a term off. SI units.
+
+    ``gravity``: ``egm2008`` to ``degree`` x ``order`` or ``j2`` (point mass + J2 with
+    ``mu``, ``radius``, ``j2``: the chain's field). ``drag_model``: ``nrlmsise00``,
+    ``jb08`` or None; ``weather``: ``bundled`` or ``constant`` (``f107``, ``f107a``,
+    ``ap``; ``jb08_indices`` in both). ``sun_mu`` / ``moon_mu``: None leaves the body out
+    (the Sun's position is still built for radiation pressure). ``radiation``: (pressure
+    at 1 AU [N/m^2], the AU [m], the Sun's radius [m], the shadow's sharpness) or None.
+    """
+
+    gravity: Literal["egm2008", "j2"]
+    degree: int
+    order: int
+    mu: float
+    radius: float
+    j2: float
+    omega: float
+    drag_model: str | None
+    weather: Literal["bundled", "constant"]
+    f107: float
+    f107a: float
+    ap: float
+    jb08_indices: tuple[float, ...]
+    sun_mu: float | None
+    vsop_threshold: float
+    moon_mu: float | None
+    elp_threshold: float
+    radiation: tuple[float, float, float, float] | None
+    astronomical_unit_m: float
+    precession_threshold: float
+    eop_extrapolation_days: float
+    ellipsoid_radius_m: float
+    ellipsoid_ecc2: float
+
+    def only(self, *terms: str) -> ForceTerms:
+        """A copy with the switchable terms not named here switched off."""
+        from dataclasses import replace
+
+        return replace(
+            self,
+            drag_model=self.drag_model if "drag" in terms else None,
+            sun_mu=self.sun_mu if "sun" in terms else None,
+            moon_mu=self.moon_mu if "moon" in terms else None,
+            radiation=self.radiation if "solar_radiation_pressure" in terms else None,
+        )
+
+
+@dataclass(frozen=True)
+class Symbols:
+    """The state variables, the parameters by name and the time arguments."""
+
+    state: tuple[Any, ...]
+    par: dict[str, Any]
+    tt: Any  # TT Julian centuries since J2000
+    day_of_year: Any  # UTC days since 1 January
+
+
+def symbols() -> Symbols:
+    state = tuple(hy.make_vars(*_STATE))
+    par = {name: hy.par[i] for i, name in enumerate(PARAMETERS)}
+    return Symbols(
+        state=state,
+        par=par,
+        tt=tt_centuries_expression(par["tt0"], hy.time),
+        day_of_year=par["doy0"] + hy.time / SECONDS_PER_DAY,
+    )
+
+
+def _weather(terms: ForceTerms, tt: Any) -> SpaceWeather:
+    jb08 = tuple(hy.expression(v) for v in terms.jb08_indices)
+    if terms.weather == "constant":
+        return SpaceWeather(
+            hy.expression(terms.f107), hy.expression(terms.f107a), hy.expression(terms.ap), jb08
+        )
+    data = hy.sw_data()
+    # NRLMSISE-00's F10.7 is the previous day's (Picone et al. 2002).
+    day = 1.0 / 36525.0
+    return SpaceWeather(
+        hy.model.f107(tt - day, data),
+        hy.model.f107a_center81(tt, data),
+        hy.model.Ap_avg(tt, data),
+        jb08,
+    )
+
+
+def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
+    """Each switched-on term's acceleration [m/s^2] in TEME, by name (:data:`TERMS`)."""
+    r, v = list(s.state[:3]), list(s.state[3:])
+    eop = earth_orientation_data(terms.eop_extrapolation_days)
+    out: dict[str, list[Any]] = {}
+    if terms.gravity == "egm2008":
+        out["gravity"] = egm2008_acceleration(
+            r, s.tt, degree=terms.degree, order=terms.order, eop=eop
+        )
+    else:
+        out["gravity"] = list(
+            two_body_j2_acceleration(
+                *r, mu=terms.mu, radius=terms.radius, j2=terms.j2, sqrt=hy.sqrt
+            )
+        )
+    if terms.drag_model is not None:
+        where = geodetic(
+            teme_to_itrs(r, s.tt, eop),
+            equatorial_radius_m=terms.ellipsoid_radius_m,
+            eccentricity_squared=terms.ellipsoid_ecc2,
+        )
+        density = thermosphere_density(
+            where, s.day_of_year, _weather(terms, s.tt), terms.drag_model
+        )
+        out["drag"] = drag_acceleration(r, v, density, s.par["ballistic_m2_kg"], terms.omega)
+    sun = None
+    if terms.sun_mu is not None or terms.radiation is not None:
+        sun = sun_position(
+            s.tt,
+            astronomical_unit_m=terms.astronomical_unit_m,
+            threshold=terms.vsop_threshold,
+            eop=eop,
+            precession_threshold=terms.precession_threshold,
+        )
+    if terms.sun_mu is not None:
+        out["sun"] = third_body_acceleration(r, sun, terms.sun_mu)
+    if terms.moon_mu is not None:
+        moon = moon_position(
+            s.tt,
+            threshold=terms.elp_threshold,
+            eop=eop,
+            precession_threshold=terms.precession_threshold,
+        )
+        out["moon"] = third_body_acceleration(r, moon, terms.moon_mu)
+    if terms.radiation is not None:
+        pressure, au, sun_radius, sharpness = terms.radiation
+        lit = lit_fraction(
+            r, sun, earth_radius_m=terms.radius, sun_radius_m=sun_radius, sharpness=sharpness
+        )
+        out["solar_radiation_pressure"] = radiation_pressure_acceleration(
+            r, sun, s.par["radiation_m2_kg"], lit, pressure_n_m2=pressure, astronomical_unit_m=au
+        )
+    return out
+
+
+def equations(terms: ForceTerms, s: Symbols) -> list[tuple[Any, Any]]:
+    """(variable, derivative) pairs of the state under the sum of the terms."""
+    parts = accelerations(terms, s)
+    total = [hy.sum([part[i] for part in parts.values()]) for i in range(3)]
+    x, y, z, vx, vy, vz = s.state
+    return [(x, vx), (y, vy), (z, vz), (vx, total[0]), (vy, total[1]), (vz, total[2])]

@@ -1,0 +1,227 @@
+"""The plan's orbits flown under the high-fidelity force model (issue 47).
+
+:func:`force_terms` turns ``configs/force_model.yaml`` and the scenario's Earth into the
+terms of :mod:`ovtraj.astro.forces`; :func:`check_span` refuses, in one line naming the
+setting, a flight outside the Earth-orientation or space-weather data; and
+:class:`HighFidelityOrbit` flies one spacecraft's arcs with the interface of the J2
+replay's :class:`ovtraj.mission.fly.ReplayOrbit`, so the closed loop of
+:mod:`ovtraj.mission.montecarlo` flies the same corrections under either model
+(:class:`Truth`). The on-board solvers (rendezvous, transfer, deorbit, entry guidance)
+keep the chain's J2 model: the high-fidelity model is the sky, not the planner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.forces.dynamics import ForceTerms
+from ovtraj.astro.forces.earth_data import earth_orientation_span, space_weather_span
+from ovtraj.astro.forces.propagator import HighFidelityPropagator
+from ovtraj.astro.forces.time_scales import day_of_year, tt_centuries
+from ovtraj.config import Scenario
+from ovtraj.config.body import BodyConfig
+from ovtraj.config.force_model import ForceModelSettings
+from ovtraj.errors import ConfigError
+
+__all__ = [
+    "FIDELITIES",
+    "HighFidelityOrbit",
+    "check_span",
+    "flight_span",
+    "force_terms",
+    "spacecraft_factors",
+]
+
+FIDELITIES = ("j2", "high")
+SOURCE = "configs/force_model.yaml"
+
+
+def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
+    """The terms ``settings`` switch on, with the scenario's Earth for the J2 field, the
+    rotation of the atmosphere and the shadow's radius."""
+    earth = scenario.earth
+    weather, sun, moon = settings.space_weather, settings.sun, settings.moon
+    srp = settings.solar_radiation_pressure
+    jb = weather.jb08
+    return ForceTerms(
+        gravity=settings.gravity.model,
+        degree=settings.gravity.degree,
+        order=settings.gravity.order,
+        mu=earth.mu,
+        radius=earth.radius,
+        j2=earth.j2,
+        omega=earth.omega,
+        drag_model=settings.drag.model if settings.drag.enabled else None,
+        weather=weather.source,
+        f107=weather.f107_sfu,
+        f107a=weather.f107a_sfu,
+        ap=weather.ap,
+        jb08_indices=(
+            jb.s107_sfu,
+            jb.s107a_sfu,
+            jb.m107_sfu,
+            jb.m107a_sfu,
+            jb.y107_sfu,
+            jb.y107a_sfu,
+            jb.ddst_dt_nt_h,
+        ),
+        sun_mu=sun.mu_m3_s2 if sun.enabled else None,
+        vsop_threshold=sun.vsop2013_threshold,
+        moon_mu=moon.mu_m3_s2 if moon.enabled else None,
+        elp_threshold=moon.elp2000_threshold,
+        radiation=(
+            (srp.pressure_n_m2, srp.astronomical_unit_m, srp.sun_radius_m, srp.shadow_sharpness)
+            if srp.enabled
+            else None
+        ),
+        astronomical_unit_m=srp.astronomical_unit_m,
+        precession_threshold=settings.precession_nutation_threshold,
+        eop_extrapolation_days=settings.earth_orientation.max_extrapolation_days,
+        ellipsoid_radius_m=settings.ellipsoid.equatorial_radius_m,
+        ellipsoid_ecc2=settings.ellipsoid.eccentricity_squared,
+    )
+
+
+def check_span(settings: ForceModelSettings, start: Epoch, end: Epoch) -> None:
+    """:class:`ConfigError` naming the setting when [start, end] lies outside the data the
+    model reads (the Earth orientation always; the space weather with ``source: bundled``
+    and drag on)."""
+    first, last = earth_orientation_span(settings.earth_orientation.max_extrapolation_days)
+    if start.jd < first or end.jd > last:
+        raise ConfigError(
+            [
+                f"earth_orientation.max_extrapolation_days: the flight "
+                f"{start.iso(0)} .. {end.iso(0)} lies outside the Earth orientation data "
+                f"with its extrapolation ({_date(first)} .. {_date(last)})"
+            ],
+            SOURCE,
+        )
+    if settings.drag.enabled and settings.space_weather.source == "bundled":
+        first, last = space_weather_span()
+        # The 81-day mean is centred: the table ends 40 days after its last usable mean,
+        # but heyoka's table already holds the centred mean per day, so its span is the
+        # table's. F10.7 is the previous day's.
+        if start.jd - 1.0 < first or end.jd > last:
+            raise ConfigError(
+                [
+                    f"space_weather.source: the flight {start.iso(0)} .. {end.iso(0)} lies "
+                    f"outside the bundled space weather ({_date(first)} .. {_date(last)}); "
+                    "use source: constant with the expected indices"
+                ],
+                SOURCE,
+            )
+
+
+def flight_span(plan: Any, scenario: Scenario) -> tuple[Epoch, Epoch]:
+    """The epochs a flight of ``plan`` may reach: from the earlier of the scenario's epoch
+    (the target's origin) and the plan's day, to a day past its last planned impulse (the
+    descent and the entry take a fraction of it)."""
+    last = max(impulse.t_s for impulse in plan.impulses())
+    start = scenario.epoch if scenario.epoch.jd < plan.day.jd else plan.day
+    return start, plan.day.plus_seconds(last + SECONDS_PER_DAY)
+
+
+def _date(jd: float) -> str:
+    from datetime import UTC, datetime, timedelta
+
+    moment = datetime(2000, 1, 1, 12, tzinfo=UTC) + timedelta(days=jd - 2451545.0)
+    return moment.date().isoformat()
+
+
+@dataclass(frozen=True)
+class SpacecraftFactors:
+    """C_D A / m and C_R A / m [m^2/kg] of one spacecraft."""
+
+    ballistic_m2_kg: float
+    radiation_m2_kg: float
+
+
+def spacecraft_factors(scenario: Scenario, which: str) -> SpacecraftFactors:
+    """The ``vehicle``'s or the ``target``'s factors; :class:`ConfigError` naming the
+    missing ``vehicle.body`` / ``target.body``."""
+    if which == "vehicle":
+        body: BodyConfig | None = scenario.vehicle.body
+        mass = scenario.vehicle.mass_kg
+    else:
+        body = scenario.target.body
+        mass = body.mass_kg if body is not None else 0.0
+    if body is None:
+        raise ConfigError(
+            [
+                f"{which}.body: the high-fidelity flight needs the {which}'s drag and "
+                "radiation pressure figures (drag_area_m2, drag_coefficient, srp_area_m2, "
+                f"reflectivity_coefficient{', mass_kg' if which == 'target' else ''})"
+            ],
+            "the scenario",
+        )
+    return SpacecraftFactors(body.ballistic_m2_kg(mass), body.radiation_m2_kg(mass))
+
+
+class HighFidelityOrbit:
+    """Arcs of one spacecraft under the high-fidelity model, t in s from ``origin``; the
+    interface of :class:`ovtraj.mission.fly.ReplayOrbit` (``arc``)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        settings: ForceModelSettings,
+        origin: Epoch,
+        factors: SpacecraftFactors,
+    ) -> None:
+        self.earth = scenario.earth
+        self.propagator = HighFidelityPropagator(
+            force_terms(settings, scenario),
+            origin_tt_centuries=tt_centuries(origin),
+            origin_day_of_year=day_of_year(origin),
+            ballistic_m2_kg=factors.ballistic_m2_kg,
+            radiation_m2_kg=factors.radiation_m2_kg,
+            tol=settings.integration.tolerance,
+            max_arc_s=settings.integration.max_arc_days * SECONDS_PER_DAY,
+        )
+
+    def arc(
+        self, state: np.ndarray, t0: float, t1: float, *, floor_m: float | None = None, **_: Any
+    ) -> tuple[np.ndarray, float, bool, float]:
+        """(state at the end, end time, stopped at ``floor_m``, lowest altitude at the
+        integrator's steps), as :meth:`ovtraj.mission.fly.ReplayOrbit.arc`."""
+        from ovtraj.mission.fly import ReplayFailed
+
+        if t1 < t0:
+            raise ReplayFailed(f"the plan's epochs run backwards ({t0:.3f} -> {t1:.3f} s)")
+        floor_radius = 0.0 if floor_m is None else self.earth.radius + floor_m
+        try:
+            arc = self.propagator.arc(state, t0, t1, floor_radius_m=floor_radius)
+        except (FloatingPointError, ValueError) as err:
+            raise ReplayFailed(f"high-fidelity orbit: {err}") from None
+        return arc.state, arc.t, arc.stopped, arc.lowest_radius_m - self.earth.radius
+
+
+class TargetTrack:
+    """The target's state at any time, flown forward from its last asked time (the closed
+    loop asks in time order: a day of flight once, not once per question)."""
+
+    def __init__(self, orbit: Any, state0: np.ndarray, offset_s: float) -> None:
+        self.orbit, self.offset = orbit, offset_s
+        self.origin = (0.0, np.asarray(state0, dtype=float))
+        self.last = self.origin
+
+    def __call__(self, time_s: float) -> np.ndarray:
+        t = time_s + self.offset
+        t_last, state_last = self.last if self.last[0] <= t else self.origin
+        end, *_ = self.orbit.arc(state_last, t_last, t)
+        self.last = (t, end)
+        return end.copy()
+
+
+@dataclass
+class Truth:
+    """The sky a closed-loop flight meets: the vehicle's arcs and the target's track."""
+
+    vehicle: Any
+    target_at: Any
+    fidelity: str
+    retarget_interval_s: float | None  # the phasing re-solved this often (None: never)
