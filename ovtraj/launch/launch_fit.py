@@ -346,12 +346,14 @@ def launch_fit_key(scenario: Scenario) -> str:
     """Content hash of everything a launch fit depends on (not the code version).
 
     The launch section (launcher, drop, day, bounds, settings, grid), the target's
-    orbit and epoch (they set the plane) and the Earth model. The solvers' wall-time
+    orbit (not its ``body``) and epoch (they set the plane) and the Earth model. The solvers' wall-time
     limits are left out: a fit exists only when every grid point was solved, so a
     limit never shaped one.
     """
     resolved = scenario.resolved()
     content = {k: resolved[k] for k in ("launch", "target", "epoch_utc", "earth")}
+    # The target's body (its drag and radiation figures, issue 47) moves no plane.
+    content["target"] = {k: v for k, v in content["target"].items() if k != "body"}
     text = json.dumps(_without_time_limits(content), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
