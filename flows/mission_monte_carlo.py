@@ -32,6 +32,7 @@ from flows.common import (
 from flows.runners import check_runner
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.mission.high_fidelity import high_fidelity_settings
 from ovtraj.mission.montecarlo import loop_summaries, monte_carlo_report
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import read_plan
@@ -59,10 +60,15 @@ def plan_monte_carlo_flow(
     workers: int | None = None,
     runner: str | None = None,
     dask_address: str | None = None,
+    fidelity: str = "j2",
+    force_model: str | None = None,
 ) -> dict[str, Any]:
     """Monte Carlo of a plan file; returns the run's summary (id, both loops' statistics).
 
-    Arguments left ``None`` take the dispersions file's ``execution`` values. Raises
+    Arguments left ``None`` take the dispersions file's ``execution`` values. ``fidelity``
+    ``high`` flies the closed loop under the high-fidelity force model (``force_model``,
+    by default the shipped ``configs/force_model.yaml``; ``ovtraj fly --monte-carlo N
+    --fidelity high`` in the CLI); the open loop stays the J2 replay. Raises
     ``RuntimeError`` naming the failed batches if a task fails (after its retries); the
     stored batches are kept and a re-run flies only the missing runs.
     """
@@ -79,6 +85,8 @@ def plan_monte_carlo_flow(
     seed = execution.seed if seed is None else int(seed)
     size = batch_size or execution.batch_size
     plan_data = mission_plan.to_dict()
+    sky = high_fidelity_settings(mission_plan, fidelity, force_model)
+    sky_data = None if sky is None else sky.model_dump(mode="json")
     run = PlanMonteCarloRun.create(
         store_root_of(execution.store, config_file.resolve().parent, store_root),
         plan=plan_data,
@@ -86,6 +94,7 @@ def plan_monte_carlo_flow(
         runs=n,
         seed=seed,
         code=code_version(),
+        force_model=sky_data,
     )
     labels = run_tags("plan-monte-carlo", mission_plan.scenario.get("name"), run.id)
     label_flow_run(f"plan-monte-carlo {run.id}", labels)
@@ -98,7 +107,13 @@ def plan_monte_carlo_flow(
         todo,
         size,
         plan_mc_batch_task,
-        lambda group: {"plan": plan_data, "dispersions": everything, "run_url": url, "seed": seed},
+        lambda group: {
+            "plan": plan_data,
+            "dispersions": everything,
+            "run_url": url,
+            "seed": seed,
+            "force_model": sky_data,
+        },
         runner=chosen_runner,
         workers=workers or execution.workers,
         dask_address=dask_address,
@@ -118,6 +133,7 @@ def plan_monte_carlo_flow(
         "simulated_runs": len(todo),
         "status": "incomplete" if failures else "complete",
         **monte_carlo_report(loops["closed"], loops["open"], seed, stated),
+        "fidelity": fidelity,
     }
     run.write_summary(report)
     run.update_info(
@@ -137,7 +153,7 @@ def plan_monte_carlo_flow(
             }
             for loop, s in loops.items()
         ],
-        description=f"Plan Monte Carlo {run.id} ({n} runs, seed {seed})",
+        description=f"Plan Monte Carlo {run.id} ({n} runs, seed {seed}, {fidelity} sky)",
     )
     create_table_artifact(
         key="plan-monte-carlo-dv",

@@ -10,6 +10,7 @@ from prefect import task
 
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.mission.montecarlo import simulate_batch
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import MissionPlan
@@ -34,8 +35,10 @@ def plan_mc_batch_task(
     batch: int,
     runs: list[int],
     seed: int,
+    force_model: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Fly the runs closed and open loop and store them as one batch.
+    """Fly the runs closed and open loop and store them as one batch (the closed loop
+    under ``force_model``'s high-fidelity sky when given).
 
     The worker writes its own Parquet part (atomic, marker last) into the run at
     ``run_url``, so the rows never travel back through Prefect; the task returns a small
@@ -47,6 +50,9 @@ def plan_mc_batch_task(
         model_from_dict(DispersionsConfig, dispersions, "the run's dispersions"),
         runs,
         seed,
+        None
+        if force_model is None
+        else model_from_dict(ForceModelSettings, force_model, "the run's force model"),
     )
     PlanMonteCarloRun(Path(run_url)).write_batch(batch, frame)
     return {

@@ -311,3 +311,92 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
     assert _parquet_digests(run.directory) == digests
     stored = json.loads((run.directory / "summary.json").read_text())
     assert {k: stored[k] for k in closed} == closed
+
+
+# --- the plan flown under the high-fidelity sky (issue 47) ---------------------------------
+
+
+def test_the_plan_flown_under_the_high_fidelity_sky_lands_and_reports_its_extra_dv(plan_file):
+    result = runner.invoke(app, ["fly", str(plan_file), "--fidelity", "high", "--json"])
+    assert result.exit_code == 0, result.output
+    row = json.loads(result.stdout)
+    assert row["fidelity"] == "high" and row["landed_within_stated_miss"] is True
+    planned, j2, high = row["plan"], row["closed_loop_j2"], row["closed_loop_high_fidelity"]
+    impulses = read_plan(plan_file).impulses()
+    assert planned["dv_total_mps"] == sum(i.dv_mps for i in impulses)
+    # Under the J2 sky the closed loop corrects nothing: it flies the plan's impulses
+    # (re-solved from exact estimates, to the solvers' tolerances).
+    for impulse in impulses:
+        assert j2["dv_mps"][impulse.name] == pytest.approx(impulse.dv_mps, abs=0.05)
+    assert j2["dv_mps"][CORRECTIONS] == 0.0
+    # Under the high-fidelity sky the phasing drifts (drag, the field beyond J2): the
+    # loop re-targets and corrects, and the report says what that costs beyond the plan.
+    assert high["landed"] and high["dv_total_mps"] == pytest.approx(
+        sum(high["dv_mps"].values()), abs=1e-9
+    )
+    assert row["extra_dv_mps"] == pytest.approx(high["dv_total_mps"] - planned["dv_total_mps"])
+    assert high["dv_mps"][CORRECTIONS] > 0.0
+    assert 0.0 < high["arrival_miss_m"] <= default_dispersions().closed_loop.docking_capture_m
+    assert high["landing_miss_m"] <= planned["stated_miss_m"]
+    assert all(margin > 0.0 for margin in high["path_limit_margins"].values())
+    # The whole model as flown is in the report: a reader can fly it again.
+    assert row["force_model"]["gravity"] == {"model": "egm2008", "degree": 20, "order": 20}
+    text = runner.invoke(app, ["fly", str(plan_file), "--fidelity", "high"]).stdout
+    assert "closed loop, high fidelity" in text
+    assert f"{high['dv_mps']['deorbit burn']:.2f}" in text
+    assert f"extra dV under the high-fidelity sky: {row['extra_dv_mps']:+.2f} m/s" in text
+
+
+def test_a_high_fidelity_flight_the_data_or_the_plan_cannot_support_is_one_line(
+    plan_file, tmp_path
+):
+    data = json.loads(plan_file.read_text())
+    del data["scenario"]["vehicle"]["body"]
+    bodiless = tmp_path / "bodiless.json"
+    bodiless.write_text(json.dumps(data))
+    result = runner.invoke(app, ["fly", str(bodiless), "--fidelity", "high"])
+    assert result.exit_code == 2 and result.stdout == ""
+    assert len(result.stderr.strip().splitlines()) == 1 and "vehicle.body" in result.stderr
+    # The bundled space weather ends before the shipped campaign (2026-12).
+    settings = yaml.safe_load(config_path("force_model.yaml").read_text())
+    settings["space_weather"]["source"] = "bundled"
+    bundled = tmp_path / "bundled.yaml"
+    bundled.write_text(yaml.safe_dump(settings))
+    result = runner.invoke(
+        app, ["fly", str(plan_file), "--fidelity", "high", "--force-model", str(bundled)]
+    )
+    assert result.exit_code == 2 and "space_weather.source" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_the_flow_flies_the_high_fidelity_monte_carlo_as_the_library_does(
+    prefect_server, plan, plan_file, tmp_path
+):
+    from flows.mission_monte_carlo import plan_monte_carlo_flow
+    from ovtraj.config.force_model import default_force_model
+    from ovtraj.mission.montecarlo import monte_carlo
+    from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, plan_monte_carlo_id
+
+    data = yaml.safe_load(config_path("dispersions.yaml").read_text())
+    data["execution"].update(
+        runs=2, seed=5, batch_size=2, workers=1, task_runner="serial", store=str(tmp_path)
+    )
+    dispersions = tmp_path / "dispersions.yaml"
+    dispersions.write_text(yaml.safe_dump(data))
+    summary = plan_monte_carlo_flow(str(plan_file), dispersions=str(dispersions), fidelity="high")
+    assert summary["status"] == "complete" and summary["fidelity"] == "high"
+    config = model_from_dict(DispersionsConfig, data, "test")
+    # Its own run: the J2 Monte Carlo of the same inputs keeps its id.
+    run = PlanMonteCarloRun(summary["directory"])
+    j2_id = plan_monte_carlo_id(
+        plan.to_dict(), config.results_content(), 2, 5, run.info["code_version"]
+    )
+    assert summary["run_id"] != j2_id
+    pairs = monte_carlo(plan, config, 2, 5, force_model=default_force_model())
+    frame = run.results()
+    assert [c.landing_miss_m for c, _ in pairs] == frame[frame["loop"] == "closed"][
+        "landing_miss_m"
+    ].tolist()
+    assert [c.dv_total_mps for c, _ in pairs] == frame[frame["loop"] == "closed"][
+        "dv_total_mps"
+    ].tolist()

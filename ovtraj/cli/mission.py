@@ -71,12 +71,13 @@ def fly(
     high-fidelity force model: each manoeuvre's dV against the plan's, the arrival and
     landing misses, the path-limit margins."""
     from ovtraj.mission.fly import fly_plan, format_flight_report
+    from ovtraj.mission.high_fidelity import high_fidelity_settings
     from ovtraj.mission.plan import PlanError, read_plan
 
     try:
         plan = read_plan(plan_file)
         dispersions = _dispersions(dispersions_file) if monte_carlo or fidelity == "high" else None
-        force_model = _force_model(plan, force_model_file) if fidelity == "high" else None
+        force_model = high_fidelity_settings(plan, fidelity.value, force_model_file)
     except PlanError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
@@ -102,21 +103,6 @@ def fly(
             typer.echo(_format_monte_carlo(row["monte_carlo"]))
     if not landed:
         raise typer.Exit(code=1)
-
-
-def _force_model(plan: Any, path: Path | None) -> Any:
-    """The force model's settings, checked against the plan: its bodies and the span of
-    the Earth-orientation and space-weather data (:class:`ConfigError`, one line)."""
-    from ovtraj.config import scenario_from_dict
-    from ovtraj.config.force_model import ForceModelSettings, default_force_model
-    from ovtraj.mission.high_fidelity import check_span, flight_span, spacecraft_factors
-
-    settings = default_force_model() if path is None else load_model(ForceModelSettings, path)
-    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
-    spacecraft_factors(scenario, "vehicle")
-    spacecraft_factors(scenario, "target")
-    check_span(settings, *flight_span(plan, scenario))
-    return settings
 
 
 def _high_fidelity(plan: Any, dispersions: Any, force_model: Any) -> tuple[dict, bool]:

@@ -346,9 +346,9 @@ def launch_fit_key(scenario: Scenario) -> str:
     """Content hash of everything a launch fit depends on (not the code version).
 
     The launch section (launcher, drop, day, bounds, settings, grid), the target's
-    orbit (not its ``body``) and epoch (they set the plane) and the Earth model. The solvers' wall-time
-    limits are left out: a fit exists only when every grid point was solved, so a
-    limit never shaped one.
+    orbit (not its ``body``) and epoch (they set the plane) and the Earth model. The
+    solvers' wall-time limits are left out: a fit exists only when every grid point was
+    solved, so a limit never shaped one.
     """
     resolved = scenario.resolved()
     content = {k: resolved[k] for k in ("launch", "target", "epoch_utc", "earth")}

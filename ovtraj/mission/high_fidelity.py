@@ -13,6 +13,7 @@ keep the chain's J2 model: the high-fidelity model is the sky, not the planner.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "check_span",
     "flight_span",
     "force_terms",
+    "high_fidelity_settings",
     "spacecraft_factors",
 ]
 
@@ -123,6 +125,28 @@ def flight_span(plan: Any, scenario: Scenario) -> tuple[Epoch, Epoch]:
     last = max(impulse.t_s for impulse in plan.impulses())
     start = scenario.epoch if scenario.epoch.jd < plan.day.jd else plan.day
     return start, plan.day.plus_seconds(last + SECONDS_PER_DAY)
+
+
+def high_fidelity_settings(
+    plan: Any, fidelity: str, path: str | Path | None = None
+) -> ForceModelSettings | None:
+    """The force model a flight of ``plan`` flies under: None for ``j2``; for ``high`` the
+    settings (``path``, else the shipped file), checked against the plan's bodies and
+    the data's span. :class:`ConfigError` (one line) for a bad fidelity, file or span."""
+    if fidelity not in FIDELITIES:
+        raise ConfigError([f"fidelity: {fidelity!r} is not one of {', '.join(FIDELITIES)}"])
+    if fidelity == "j2":
+        return None
+    from ovtraj.config import scenario_from_dict
+    from ovtraj.config.base import load_model
+    from ovtraj.config.force_model import default_force_model
+
+    settings = default_force_model() if path is None else load_model(ForceModelSettings, path)
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    spacecraft_factors(scenario, "vehicle")
+    spacecraft_factors(scenario, "target")
+    check_span(settings, *flight_span(plan, scenario))
+    return settings
 
 
 def _date(jd: float) -> str:

@@ -4,7 +4,7 @@ A run directory of :class:`ovtraj.store.batched.BatchedRun`: ``config.json`` hol
 and the dispersions that count for results, each batch's part holds a row per run and loop
 (``closed``, ``open``) of :data:`~ovtraj.mission.montecarlo.STORED_RUN_SCHEMA`. The run id
 hashes the plan, the dispersions (not their ``execution`` settings), the number of runs, the
-seed and the code version.
+seed and the code version (and the force model of a high-fidelity closed loop).
 """
 
 from __future__ import annotations
@@ -21,19 +21,27 @@ RUN_KIND = "mission_monte_carlo"
 
 
 def plan_monte_carlo_id(
-    plan: dict[str, Any], dispersions: dict[str, Any], runs: int, seed: int, code: str
+    plan: dict[str, Any],
+    dispersions: dict[str, Any],
+    runs: int,
+    seed: int,
+    code: str,
+    force_model: dict[str, Any] | None = None,
 ) -> str:
-    """Content hash of what a plan Monte Carlo's rows depend on."""
-    return content_id(
-        {
-            "kind": RUN_KIND,
-            "plan": plan,
-            "dispersions": dispersions,
-            "runs": int(runs),
-            "seed": int(seed),
-            "code": code,
-        }
-    )
+    """Content hash of what a plan Monte Carlo's rows depend on; ``force_model`` (the
+    high-fidelity sky of the closed loop, issue 47) only when given, so that the J2
+    Monte Carlo keeps its id."""
+    content = {
+        "kind": RUN_KIND,
+        "plan": plan,
+        "dispersions": dispersions,
+        "runs": int(runs),
+        "seed": int(seed),
+        "code": code,
+    }
+    if force_model is not None:
+        content["force_model"] = force_model
+    return content_id(content)
 
 
 class PlanMonteCarloRun(BatchedRun):
@@ -53,8 +61,14 @@ class PlanMonteCarloRun(BatchedRun):
         runs: int,
         seed: int,
         code: str,
+        force_model: dict[str, Any] | None = None,
     ) -> PlanMonteCarloRun:
-        """The run of these inputs: created, or the stored one (same id) reopened."""
-        rid = plan_monte_carlo_id(plan, dispersions, runs, seed, code)
+        """The run of these inputs: created, or the stored one (same id) reopened; with
+        ``force_model`` the closed loop flies under the high-fidelity sky."""
+        rid = plan_monte_carlo_id(plan, dispersions, runs, seed, code, force_model)
         info = {"code_version": code, "runs": int(runs), "seed": int(seed)}
-        return cls.open_or_create(root, rid, {"plan": plan, "dispersions": dispersions}, info)
+        config = {"plan": plan, "dispersions": dispersions}
+        if force_model is not None:
+            config["force_model"] = force_model
+            info["fidelity"] = "high"
+        return cls.open_or_create(root, rid, config, info)

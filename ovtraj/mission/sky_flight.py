@@ -18,7 +18,7 @@ from typing import Any
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
-from ovtraj.formatting import number
+from ovtraj.formatting import number, split_unit
 from ovtraj.mission.montecarlo import (
     MANOEUVRES,
     PATH_LIMITS,
@@ -157,9 +157,10 @@ def format_fidelity_report(report: dict[str, Any]) -> str:
         )
     )
     for name in PATH_LIMITS:
+        stem, unit = split_unit(name)
         rows.append(
             (
-                f"margin {name}",
+                f"{stem.replace('_', ' ')} margin [{unit}]",
                 "-",
                 _margin(j2["path_limit_margins"][name]),
                 _margin(high["path_limit_margins"][name]),
@@ -187,4 +188,5 @@ def format_fidelity_report(report: dict[str, Any]) -> str:
 
 
 def _margin(value: float | None) -> str:
+    """A margin [the limit's unit], limit minus the flight's maximum."""
     return "-" if value is None else f"{value:.4g}"
