@@ -785,3 +785,51 @@ def test_cli_target_unconverged_exits_1(tmp_path):
     result = runner.invoke(app, ["target", str(path), "--json"])
     assert result.exit_code == 1
     assert "fit_max_iterations = 1 reached" in json.loads(result.stdout)["reason"]
+
+
+def test_a_tle_target_is_fitted_with_drag_under_the_high_fidelity_model(tmp_path):
+    """The high-fidelity sky flies a TLE target from its element set fitted with drag
+    (issue 47): its state and C_D A / m matched to SGP4 (ISS 2019-12-09, the bundled
+    space weather of that day). Measured over 6 h (21 evaluations): rms 0.22 km, max
+    0.40 km, C_D A / m from B*'s 0.00049 m^2/kg to 0.0037 (12 h: 0.50 / 1.54 km,
+    0.00018; a day or two of drag is weakly observable, hence the wide bound). The
+    residual is larger than the J2 fit's: SGP4's theory has no tesseral field, no Sun, no
+    Moon, and its own density; it is what the element set's theory and the physical
+    model disagree by, not an error of the fit."""
+    from ovtraj.config.force_model import default_force_model
+    from ovtraj.mission.high_fidelity import (
+        HighFidelityOrbit,
+        fit_with_drag,
+        spacecraft_factors,
+        target_sky,
+    )
+
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["target"].pop("orbit")
+    data["target"]["tle_file"] = str(ISS_TLE)
+    data["target"]["source_settings"] = {
+        **yaml.safe_load((REPO / "configs" / "target_sources.yaml").read_text()),
+        "fit_span_h": 6.0,
+    }
+    data["epoch_utc"] = "2019-12-09T18:00:00Z"
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data))
+    scenario = load_scenario(path)
+    shipped = default_force_model()
+    settings = shipped.model_copy(
+        update={"space_weather": shipped.space_weather.model_copy(update={"source": "bundled"})}
+    )
+    orbit = HighFidelityOrbit(
+        scenario, settings, scenario.epoch, spacecraft_factors(scenario, "target")
+    )
+    fit = fit_with_drag(orbit, scenario, settings)
+    assert fit.converged, fit.reason
+    bstar = scenario.target.elements().satrec.bstar
+    from_bstar = 2.0 * bstar / settings.target_fit.sgp4_reference_density
+    assert 0.1 * from_bstar < fit.ballistic_m2_kg < 10.0 * from_bstar
+    assert fit.rms_error_m < 750.0 and fit.max_error_m < 2000.0
+    # The sky flies that state with that drag; the J2 fit's state is within its residual.
+    flown, state0 = target_sky(scenario, settings, target_state(None, scenario))
+    assert np.array_equal(state0, fit.state)
+    assert flown.propagator.parameters[2] == fit.ballistic_m2_kg
+    assert np.linalg.norm(state0[:3] - target_state(None, scenario)[:3]) < 2000.0

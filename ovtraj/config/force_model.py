@@ -96,6 +96,15 @@ class ClosedLoopSettings(StrictModel):
     )
 
 
+class TargetFitSettings(StrictModel):
+    sgp4_reference_density: float = bounded(
+        unit="kg/m^2/ER", gt=0, le=10, description="SGP4's rho_0 in B* = C_D A rho_0 / (2 m)"
+    )
+    max_evaluations: int = bounded(ge=1, le=1000, description="least-squares evaluations")
+    time_limit_s: float = bounded(unit="s", gt=0, le=7200, description="one fit's wall time")
+    log_ballistic_step: float = bounded(gt=0, le=0.1, description="difference step")
+
+
 class IntegrationSettings(StrictModel):
     tolerance: float = bounded(gt=0, lt=1e-3, description="heyoka Taylor tolerance")
     max_arc_days: float = bounded(unit="day", gt=0, le=365, description="longest arc flown")
@@ -116,6 +125,7 @@ class ForceModelSettings(StrictModel):
     )
     ellipsoid: EllipsoidSettings
     closed_loop: ClosedLoopSettings
+    target_fit: TargetFitSettings
     integration: IntegrationSettings
 
     def only(self, *terms: str) -> ForceModelSettings:

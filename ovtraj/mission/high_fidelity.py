@@ -12,6 +12,7 @@ keep the chain's J2 model: the high-fidelity model is the sky, not the planner.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,10 +33,12 @@ __all__ = [
     "FIDELITIES",
     "HighFidelityOrbit",
     "check_span",
+    "fit_with_drag",
     "flight_span",
     "force_terms",
     "high_fidelity_settings",
     "spacecraft_factors",
+    "target_sky",
 ]
 
 FIDELITIES = ("j2", "high")
@@ -249,3 +252,122 @@ class Truth:
     target_at: Any
     fidelity: str
     retarget_interval_s: float | None  # the phasing re-solved this often (None: never)
+
+
+@dataclass(frozen=True)
+class DragFit:
+    """A TLE / OMM target fitted under the high-fidelity model: its state at the origin,
+    its C_D A / m [m^2/kg] (fitted: the element set's drag, not the body's guess), and the
+    position residuals [m] against SGP4 over the span."""
+
+    state: np.ndarray
+    ballistic_m2_kg: float
+    rms_error_m: float
+    max_error_m: float
+    evaluations: int
+    converged: bool
+    reason: str | None
+
+
+def fit_with_drag(
+    orbit: HighFidelityOrbit, scenario: Scenario, settings: ForceModelSettings
+) -> DragFit:
+    """The scenario's element set fitted under the high-fidelity model: the state and
+    the ballistic coefficient that best match SGP4's positions over the source
+    settings' span (least squares, as the J2 fit of :mod:`ovtraj.target_sources`, with
+    log(C_D A / m) a seventh unknown started at the element set's B*, or at the body's
+    when B* is not positive), within ``settings.target_fit``'s limits."""
+    import math
+
+    from scipy.optimize import least_squares
+
+    from ovtraj.deadline import Deadline
+    from ovtraj.element_sets.ephemeris import sgp4_eci
+
+    target = scenario.target
+    sources = target.source_settings
+    if sources is None or not target.has_source:
+        raise ConfigError(["target: a hand-typed orbit has no element set to fit"])
+    limits = settings.target_fit
+    span_s = sources.fit_span_h * 3600.0
+    times = np.arange(math.floor(span_s / sources.fit_step_s) + 1) * sources.fit_step_s
+    elements = target.elements()
+    r_ref, v_ref = sgp4_eci(elements, scenario.epoch, times, omega=scenario.earth.omega)
+    start = np.r_[r_ref[0], v_ref[0]]
+    r_scale = float(np.linalg.norm(r_ref[0]))
+    scale = np.r_[np.full(3, r_scale), np.full(3, np.linalg.norm(v_ref[0]))]
+    propagator = orbit.propagator
+    bstar = float(elements.satrec.bstar)
+    ballistic0 = (
+        2.0 * bstar / limits.sgp4_reference_density
+        if bstar > 0.0
+        else float(propagator.parameters[2])
+    )
+    tol = propagator.tol
+
+    def positions(z: np.ndarray) -> np.ndarray:
+        ballistic = ballistic0 * math.exp(z[6])
+        states = propagator.grid(start + z[:6] * scale, 0.0, times, ballistic_m2_kg=ballistic)
+        return states[:, :3]
+
+    def residuals(z: np.ndarray) -> np.ndarray:
+        try:
+            return ((positions(z) - r_ref) / r_scale).ravel()
+        except (FloatingPointError, ValueError):
+            return np.full(3 * len(times), 1.0)  # a state that cannot fly: far off
+
+    deadline = Deadline(limits.time_limit_s, "target_fit.time_limit_s of " + SOURCE)
+    solution = least_squares(
+        residuals,
+        np.zeros(7),
+        method="trf",
+        diff_step=np.r_[np.full(6, math.sqrt(tol)), limits.log_ballistic_step],
+        max_nfev=limits.max_evaluations,
+        callback=lambda intermediate_result: deadline.stop_if_expired(),
+    )
+    reason = None
+    if deadline.reached:
+        reason = deadline.reason(int(solution.nfev), "evaluations")
+    elif solution.status == 0:
+        reason = f"target_fit.max_evaluations = {limits.max_evaluations} reached"
+    errors = np.linalg.norm(positions(solution.x) - r_ref, axis=1)
+    return DragFit(
+        state=start + solution.x[:6] * scale,
+        ballistic_m2_kg=ballistic0 * math.exp(float(solution.x[6])),
+        rms_error_m=float(np.sqrt(np.mean(errors**2))),
+        max_error_m=float(errors.max()),
+        evaluations=int(solution.nfev),
+        converged=reason is None,
+        reason=reason,
+    )
+
+
+_FITS: dict[str, DragFit] = {}
+
+
+def target_sky(
+    scenario: Scenario, settings: ForceModelSettings, state0: np.ndarray
+) -> tuple[HighFidelityOrbit, np.ndarray]:
+    """The target's orbit under the high-fidelity model and its state at the scenario's
+    epoch: ``state0`` (the hand-typed elements) with the body's figures, or, for a TLE /
+    OMM target, the element set fitted with drag (:func:`fit_with_drag`, once per
+    process and input) with its fitted C_D A / m. :class:`ConfigError` when that fit
+    stops at a limit (a target that depends on the machine's speed is not flown)."""
+    factors = spacecraft_factors(scenario, "target")
+    orbit = HighFidelityOrbit(scenario, settings, scenario.epoch, factors)
+    if not scenario.target.has_source:
+        return orbit, state0
+    key = json.dumps(
+        {"scenario": scenario.resolved(), "force_model": settings.model_dump(mode="json")},
+        sort_keys=True,
+    )
+    fit = _FITS.get(key)
+    if fit is None:
+        fit = fit_with_drag(orbit, scenario, settings)
+        if not fit.converged:
+            raise ConfigError(
+                [f"target: the high-fidelity fit to SGP4 stopped: {fit.reason}"], SOURCE
+            )
+        _FITS[key] = fit
+    fitted = SpacecraftFactors(fit.ballistic_m2_kg, factors.radiation_m2_kg)
+    return HighFidelityOrbit(scenario, settings, scenario.epoch, fitted), fit.state.copy()

@@ -91,6 +91,7 @@ from ovtraj.mission.high_fidelity import (
     TargetTrack,
     Truth,
     spacecraft_factors,
+    target_sky,
 )
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
@@ -602,9 +603,7 @@ def sky(plan: MissionPlan, scenario: Scenario, force_model: ForceModelSettings |
     vehicle = HighFidelityOrbit(
         scenario, force_model, plan.day, spacecraft_factors(scenario, "vehicle")
     )
-    target = HighFidelityOrbit(
-        scenario, force_model, scenario.epoch, spacecraft_factors(scenario, "target")
-    )
+    target, target0 = target_sky(scenario, force_model, target0)
     return Truth(
         vehicle=vehicle,
         target_at=TargetTrack(target, target0, offset),

@@ -155,6 +155,28 @@ class HighFidelityPropagator:
         radius = float(np.linalg.norm(end[:3]))
         return Arc(end, float(ta.time), bool(stopped), min(lowest[0], radius))
 
+    def grid(
+        self, state: np.ndarray, t0: float, times: np.ndarray, *, ballistic_m2_kg: float
+    ) -> np.ndarray:
+        """States (n, 6) at the increasing ``times`` (``times[0]`` may equal ``t0``), with
+        C_D A / m replaced by ``ballistic_m2_kg`` (a fit's unknown); no floor.
+        ``FloatingPointError`` when the flight cannot reach the last time."""
+        times = np.asarray(times, dtype=float)
+        if times[-1] - t0 > self.max_arc_s:
+            raise ValueError(f"a grid of {times[-1] - t0:.0f} s exceeds the longest arc")
+        ta = _integrator(self.terms, self.tol)
+        pars = self.parameters.copy()
+        pars[PARAMETERS.index("ballistic_m2_kg")] = ballistic_m2_kg
+        ta.pars[:] = pars
+        ta.time = float(t0)
+        ta.state[:] = np.asarray(state, dtype=float)
+        ta.reset_cooldowns()
+        max_steps = math.ceil((times[-1] - t0) / _MIN_MEAN_STEP_S) + _STEP_ALLOWANCE
+        outcome, *_, out = ta.propagate_grid(times, max_steps=max_steps)
+        if outcome != hy.taylor_outcome.time_limit or not np.all(np.isfinite(out)):
+            raise FloatingPointError(f"high-fidelity grid from {t0:.1f} s stopped: {outcome}")
+        return np.array(out)
+
 
 class AccelerationFunction:
     """The terms' accelerations compiled as a function of (state, time): for the checks
