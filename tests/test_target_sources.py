@@ -389,9 +389,14 @@ def _scenario_file(folder: Path, **target) -> Path:
 
 
 def test_hand_typed_target_dumps_as_before(shipped):
-    """Run ids and launch-fit keys of hand-typed targets do not change: the resolved
-    target is still ``name`` and ``orbit`` alone."""
-    assert set(shipped.resolved()["target"]) == {"name", "orbit"}
+    """Run ids and launch-fit keys of hand-typed targets do not change with the sources:
+    the resolved target is still ``name`` and ``orbit`` (and the ``body`` the shipped
+    scenario gives it for the high-fidelity flight, issue 47: the launch fit's key leaves
+    it out), no empty source key."""
+    assert set(shipped.resolved()["target"]) == {"name", "orbit", "body"}
+    without_body = shipped.resolved()
+    without_body["target"].pop("body")
+    assert set(scenario_from_dict(without_body).resolved()["target"]) == {"name", "orbit"}
     assert shipped.target.source_settings is None and not shipped.target.has_source
     assert scenario_from_dict(shipped.resolved()) == shipped
 
