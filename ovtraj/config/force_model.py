@@ -83,6 +83,9 @@ class RadiationPressureSettings(StrictModel):
     astronomical_unit_m: float = bounded(unit="m", gt=1e11, le=2e11)
     sun_radius_m: float = bounded(unit="m", gt=1e8, le=1e9)
     shadow_sharpness: float = bounded(gt=0, le=100, description="tanh slope in the penumbra")
+    shadow_step_edge: float = bounded(
+        gt=0, le=20, description="the shadow argument at which a Taylor step ends"
+    )
 
 
 class EllipsoidSettings(StrictModel):

@@ -79,7 +79,13 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
         moon_mu=moon.mu_m3_s2 if moon.enabled else None,
         elp_threshold=moon.elp2000_threshold,
         radiation=(
-            (srp.pressure_n_m2, srp.astronomical_unit_m, srp.sun_radius_m, srp.shadow_sharpness)
+            (
+                srp.pressure_n_m2,
+                srp.astronomical_unit_m,
+                srp.sun_radius_m,
+                srp.shadow_sharpness,
+                srp.shadow_step_edge,
+            )
             if srp.enabled
             else None
         ),
@@ -91,7 +97,9 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
     )
 
 
-def check_span(settings: ForceModelSettings, start: Epoch, end: Epoch) -> None:
+def check_span(
+    settings: ForceModelSettings, start: Epoch, end: Epoch, source: str = SOURCE
+) -> None:
     """:class:`ConfigError` naming the setting when [start, end] lies outside the data the
     model reads (the Earth orientation always; the space weather with ``source: bundled``
     and drag on)."""
@@ -103,7 +111,7 @@ def check_span(settings: ForceModelSettings, start: Epoch, end: Epoch) -> None:
                 f"{start.iso(0)} .. {end.iso(0)} lies outside the Earth orientation data "
                 f"with its extrapolation ({_date(first)} .. {_date(last)})"
             ],
-            SOURCE,
+            source,
         )
     if settings.drag.enabled and settings.space_weather.source == "bundled":
         first, last = space_weather_span()
@@ -117,7 +125,7 @@ def check_span(settings: ForceModelSettings, start: Epoch, end: Epoch) -> None:
                     f"outside the bundled space weather ({_date(first)} .. {_date(last)}); "
                     "use source: constant with the expected indices"
                 ],
-                SOURCE,
+                source,
             )
 
 
@@ -148,7 +156,7 @@ def high_fidelity_settings(
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     spacecraft_factors(scenario, "vehicle")
     spacecraft_factors(scenario, "target")
-    check_span(settings, *flight_span(plan, scenario))
+    check_span(settings, *flight_span(plan, scenario), SOURCE if path is None else str(path))
     return settings
 
 

@@ -22,12 +22,25 @@ from ovtraj.astro.forces.drag import (
 )
 from ovtraj.astro.forces.earth_data import earth_orientation_data
 from ovtraj.astro.forces.gravity_field import egm2008_acceleration, teme_to_itrs
-from ovtraj.astro.forces.radiation_pressure import lit_fraction, radiation_pressure_acceleration
+from ovtraj.astro.forces.radiation_pressure import (
+    lit_fraction,
+    radiation_pressure_acceleration,
+    shadow_argument,
+)
 from ovtraj.astro.forces.third_body import moon_position, sun_position, third_body_acceleration
 from ovtraj.astro.forces.time_scales import tt_centuries_expression
 from ovtraj.astro.propagation.gravity import two_body_j2_acceleration
 
-__all__ = ["PARAMETERS", "TERMS", "ForceTerms", "Symbols", "accelerations", "equations", "symbols"]
+__all__ = [
+    "PARAMETERS",
+    "TERMS",
+    "ForceTerms",
+    "Symbols",
+    "accelerations",
+    "equations",
+    "step_boundaries",
+    "symbols",
+]
 
 PARAMETERS = ("tt0", "doy0", "ballistic_m2_kg", "radiation_m2_kg", "floor_radius_m")
 TERMS = ("gravity", "drag", "sun", "moon", "solar_radiation_pressure")
@@ -44,7 +57,8 @@ class ForceTerms:
     ``jb08`` or None; ``weather``: ``bundled`` or ``constant`` (``f107``, ``f107a``,
     ``ap``; ``jb08_indices`` in both). ``sun_mu`` / ``moon_mu``: None leaves the body out
     (the Sun's position is still built for radiation pressure). ``radiation``: (pressure
-    at 1 AU [N/m^2], the AU [m], the Sun's radius [m], the shadow's sharpness) or None.
+    at 1 AU [N/m^2], the AU [m], the Sun's radius [m], the shadow's sharpness, the
+    shadow argument at which a step ends, :func:`step_boundaries`) or None.
     """
 
     gravity: Literal["egm2008", "j2"]
@@ -64,7 +78,7 @@ class ForceTerms:
     vsop_threshold: float
     moon_mu: float | None
     elp_threshold: float
-    radiation: tuple[float, float, float, float] | None
+    radiation: tuple[float, float, float, float, float] | None
     astronomical_unit_m: float
     precession_threshold: float
     eop_extrapolation_days: float
@@ -122,6 +136,34 @@ def _weather(terms: ForceTerms, tt: Any) -> SpaceWeather:
     )
 
 
+def _sun(terms: ForceTerms, s: Symbols, eop: Any) -> list[Any]:
+    return sun_position(
+        s.tt,
+        astronomical_unit_m=terms.astronomical_unit_m,
+        threshold=terms.vsop_threshold,
+        eop=eop,
+        precession_threshold=terms.precession_threshold,
+    )
+
+
+def step_boundaries(terms: ForceTerms, s: Symbols) -> list[Any]:
+    """Functions whose roots a Taylor step must end at: the edges of the smoothed shadow
+    (:mod:`ovtraj.astro.forces.radiation_pressure`), where the flat tanh would let a step
+    stride over the penumbra. None without radiation pressure."""
+    if terms.radiation is None:
+        return []
+    _, _, sun_radius, sharpness, edge = terms.radiation
+    eop = earth_orientation_data(terms.eop_extrapolation_days)
+    argument = shadow_argument(
+        list(s.state[:3]),
+        _sun(terms, s, eop),
+        earth_radius_m=terms.radius,
+        sun_radius_m=sun_radius,
+        sharpness=sharpness,
+    )
+    return [argument - edge, argument + edge]
+
+
 def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
     """Each switched-on term's acceleration [m/s^2] in TEME, by name (:data:`TERMS`)."""
     r, v = list(s.state[:3]), list(s.state[3:])
@@ -149,13 +191,7 @@ def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
         out["drag"] = drag_acceleration(r, v, density, s.par["ballistic_m2_kg"], terms.omega)
     sun = None
     if terms.sun_mu is not None or terms.radiation is not None:
-        sun = sun_position(
-            s.tt,
-            astronomical_unit_m=terms.astronomical_unit_m,
-            threshold=terms.vsop_threshold,
-            eop=eop,
-            precession_threshold=terms.precession_threshold,
-        )
+        sun = _sun(terms, s, eop)
     if terms.sun_mu is not None:
         out["sun"] = third_body_acceleration(r, sun, terms.sun_mu)
     if terms.moon_mu is not None:
@@ -167,7 +203,7 @@ def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
         )
         out["moon"] = third_body_acceleration(r, moon, terms.moon_mu)
     if terms.radiation is not None:
-        pressure, au, sun_radius, sharpness = terms.radiation
+        pressure, au, sun_radius, sharpness, _ = terms.radiation
         lit = lit_fraction(
             r, sun, earth_radius_m=terms.radius, sun_radius_m=sun_radius, sharpness=sharpness
         )

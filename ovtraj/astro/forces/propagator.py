@@ -26,6 +26,7 @@ from ovtraj.astro.forces.dynamics import (
     ForceTerms,
     accelerations,
     equations,
+    step_boundaries,
     symbols,
 )
 
@@ -58,21 +59,30 @@ class _Cache(threading.local):
 _CACHE = _Cache()
 
 
+def _continue(_ta: Any, _sign: int) -> bool:
+    """A terminal event that only ends the step where it happens."""
+    return True
+
+
 def _integrator(terms: ForceTerms, tol: float) -> Any:
     key = (terms, tol)
     ta = _CACHE.integrators.get(key)
     if ta is None:
         s = symbols()
         x, y, z = s.state[:3]
+        # In Earth radii: an event of ~1e13 m^2 would loosen heyoka's step control (a
+        # J2 day 0.14 m off at tol 1e-12; scaled, 2e-6 m).
+        scale = terms.radius
         floor = hy.t_event(
-            x * x + y * y + z * z - s.par["floor_radius_m"] ** 2,
+            (x * x + y * y + z * z) / scale**2 - (s.par["floor_radius_m"] / scale) ** 2,
             direction=hy.event_direction.negative,
         )
+        edges = [hy.t_event(boundary, callback=_continue) for boundary in step_boundaries(terms, s)]
         ta = hy.taylor_adaptive(
             equations(terms, s),
             np.zeros(6),
             tol=tol,
-            t_events=[floor],
+            t_events=[floor, *edges],
             pars=np.zeros(len(PARAMETERS)),
             compact_mode=True,
         )

@@ -10,6 +10,9 @@ branches are not smooth, and a Taylor integrator needs smooth equations, so the 
 fraction is nu = (1 + tanh(k (c - b)/a))/2: the same centre (c = b, half the disc) and
 width (the penumbra, c - b in [-a, a]); ``k`` is the settings' ``shadow_sharpness``, and
 :func:`conical_lit_fraction` (NumPy) is the unsmoothed model it is checked against.
+A Taylor integrator's step size reads the derivatives where it stands: in full Sun or in
+the umbra the tanh is flat and the steps (~20 s) would stride over the ~10 s penumbra,
+so the propagator ends a step at each edge (:func:`shadow_argument` = -+4, events).
 """
 
 from __future__ import annotations
@@ -21,14 +24,19 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["conical_lit_fraction", "lit_fraction", "radiation_pressure_acceleration"]
+__all__ = [
+    "conical_lit_fraction",
+    "lit_fraction",
+    "radiation_pressure_acceleration",
+    "shadow_argument",
+]
 
 
 def _norm(v: Sequence[Any]) -> Any:
     return hy.sqrt(sum(c * c for c in v))
 
 
-def lit_fraction(
+def shadow_argument(
     r: Sequence[Any],
     sun: Sequence[Any],
     *,
@@ -36,7 +44,8 @@ def lit_fraction(
     sun_radius_m: float,
     sharpness: float,
 ) -> Any:
-    """The smoothed conical lit fraction (0 umbra, 1 full Sun) at ``r`` [m], Sun at ``sun``."""
+    """k (c - b) / a: where the satellite at ``r`` [m] is in the Earth's penumbra, Sun at
+    ``sun`` [m] (0 at its middle, -k and +k at its edges; module notes)."""
     d = [sun[i] - r[i] for i in range(3)]
     r_norm, d_norm = _norm(r), _norm(d)
     sun_apparent = hy.asin(sun_radius_m / d_norm)
@@ -51,7 +60,22 @@ def lit_fraction(
     ]
     dot = sum(minus_r[i] * d[i] for i in range(3))
     separation = hy.atan2(_norm(cross), dot)
-    return 0.5 * (1.0 + hy.tanh(sharpness * (separation - earth_apparent) / sun_apparent))
+    return sharpness * (separation - earth_apparent) / sun_apparent
+
+
+def lit_fraction(
+    r: Sequence[Any],
+    sun: Sequence[Any],
+    *,
+    earth_radius_m: float,
+    sun_radius_m: float,
+    sharpness: float,
+) -> Any:
+    """The smoothed conical lit fraction (0 umbra, 1 full Sun) at ``r`` [m], Sun at ``sun``."""
+    argument = shadow_argument(
+        r, sun, earth_radius_m=earth_radius_m, sun_radius_m=sun_radius_m, sharpness=sharpness
+    )
+    return 0.5 * (1.0 + hy.tanh(argument))
 
 
 def radiation_pressure_acceleration(
@@ -83,12 +107,13 @@ def conical_lit_fraction(
     b = np.arcsin(earth_radius_m / r_norm)
     cos_c = np.clip(np.sum(-r * d, axis=-1) / (r_norm * d_norm), -1.0, 1.0)
     c = np.arccos(cos_c)
-    x = (c * c + a * a - b * b) / (2.0 * np.maximum(c, 1e-300))
-    y = np.sqrt(np.maximum(a * a - x * x, 0.0))
-    overlap = (
-        a * a * np.arccos(np.clip(x / a, -1.0, 1.0))
-        + b * b * np.arccos(np.clip((c - x) / b, -1.0, 1.0))
-        - c * y
-    )
-    partial = 1.0 - overlap / (np.pi * a * a)
+    with np.errstate(over="ignore", invalid="ignore"):  # c = 0 is the umbra's branch
+        x = (c * c + a * a - b * b) / (2.0 * np.maximum(c, 1e-300))
+        y = np.sqrt(np.maximum(a * a - x * x, 0.0))
+        overlap = (
+            a * a * np.arccos(np.clip(x / a, -1.0, 1.0))
+            + b * b * np.arccos(np.clip((c - x) / b, -1.0, 1.0))
+            - c * y
+        )
+        partial = 1.0 - overlap / (np.pi * a * a)
     return np.where(c >= a + b, 1.0, np.where(c <= b - a, 0.0, partial))
