@@ -10,7 +10,7 @@ from __future__ import annotations
 from functools import lru_cache
 from typing import Literal
 
-from pydantic import model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ovtraj.config.base import StrictModel, bounded, load_model
 
@@ -103,9 +103,20 @@ class TargetFitSettings(StrictModel):
     sgp4_reference_density: float = bounded(
         unit="kg/m^2/ER", gt=0, le=10, description="SGP4's rho_0 in B* = C_D A rho_0 / (2 m)"
     )
+    fit_ballistic: bool
     max_evaluations: int = bounded(ge=1, le=1000, description="least-squares evaluations")
     time_limit_s: float = bounded(unit="s", gt=0, le=7200, description="one fit's wall time")
     log_ballistic_step: float = bounded(gt=0, le=0.1, description="difference step")
+    ballistic_bounds: tuple[float, float] = Field(
+        description="C_D A / m kept within these factors of its start (lower < 1 < upper)"
+    )
+
+    @field_validator("ballistic_bounds")
+    @classmethod
+    def _around_one(cls, bounds: tuple[float, float]) -> tuple[float, float]:
+        if not 0.0 < bounds[0] < 1.0 < bounds[1] <= 1.0e4:
+            raise ValueError("need 0 < lower < 1 < upper <= 1e4 (factors of the start)")
+        return bounds
 
 
 class IntegrationSettings(StrictModel):

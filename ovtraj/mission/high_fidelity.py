@@ -282,9 +282,10 @@ def fit_with_drag(
 ) -> DragFit:
     """The scenario's element set fitted under the high-fidelity model: the state and
     the ballistic coefficient that best match SGP4's positions over the source
-    settings' span (least squares, as the J2 fit of :mod:`ovtraj.target_sources`, with
-    log(C_D A / m) a seventh unknown started at the element set's B*, or at the body's
-    when B* is not positive), within ``settings.target_fit``'s limits."""
+    settings' span (least squares, as the J2 fit of :mod:`ovtraj.target_sources`), flown
+    with the C_D A / m of the element set's B* (the body's when B* is not positive);
+    with ``target_fit.fit_ballistic`` its log a seventh unknown, within
+    ``ballistic_bounds``; within ``settings.target_fit``'s limits."""
     import math
 
     from scipy.optimize import least_squares
@@ -325,23 +326,30 @@ def fit_with_drag(
             return np.full(3 * len(times), 1.0)  # a state that cannot fly: far off
 
     deadline = Deadline(limits.time_limit_s, "target_fit.time_limit_s of " + SOURCE)
+    unknowns = 7 if limits.fit_ballistic else 6
+    lower, upper = (math.log(bound) for bound in limits.ballistic_bounds)
     solution = least_squares(
-        residuals,
-        np.zeros(7),
+        lambda z: residuals(np.r_[z, 0.0][:7]),
+        np.zeros(unknowns),
         method="trf",
-        diff_step=np.r_[np.full(6, math.sqrt(tol)), limits.log_ballistic_step],
+        diff_step=np.r_[np.full(6, math.sqrt(tol)), limits.log_ballistic_step][:unknowns],
+        bounds=(
+            np.r_[np.full(6, -np.inf), lower][:unknowns],
+            np.r_[np.full(6, np.inf), upper][:unknowns],
+        ),
         max_nfev=limits.max_evaluations,
         callback=lambda intermediate_result: deadline.stop_if_expired(),
     )
+    z = np.r_[solution.x, 0.0][:7]
     reason = None
     if deadline.reached:
         reason = deadline.reason(int(solution.nfev), "evaluations")
     elif solution.status == 0:
         reason = f"target_fit.max_evaluations = {limits.max_evaluations} reached"
-    errors = np.linalg.norm(positions(solution.x) - r_ref, axis=1)
+    errors = np.linalg.norm(positions(z) - r_ref, axis=1)
     return DragFit(
-        state=start + solution.x[:6] * scale,
-        ballistic_m2_kg=ballistic0 * math.exp(float(solution.x[6])),
+        state=start + z[:6] * scale,
+        ballistic_m2_kg=ballistic0 * math.exp(float(z[6])),
         rms_error_m=float(np.sqrt(np.mean(errors**2))),
         max_error_m=float(errors.max()),
         evaluations=int(solution.nfev),
