@@ -163,6 +163,39 @@ def _check_doe(f: dict) -> None:
     assert f["samples"] == 2 and f["repeats"] == 1
 
 
+def _check_high_fidelity(f: dict) -> None:
+    goals, ratios, rows = f["goals"], f["ratios"], f["breakdown"]
+    assert set(rows) == {"gravity", "all", "j2"}  # --breakdown gravity,all,j2
+    for name, row in rows.items():
+        assert _close(row["speedup"], row["dop853_ms"] / row["heyoka_ms"])
+        # DOP853's rtol: the loosest as accurate as heyoka's tolerance, else the tightest.
+        tried = row["dop853_rtols"]
+        as_accurate = [r["rtol"] for r in tried if r["error_m"] <= row["heyoka_error_m"]]
+        assert row["equal_accuracy"] == bool(as_accurate)
+        loosest = max(as_accurate) if as_accurate else min(r["rtol"] for r in tried)
+        assert row["dop853_rtol"] == loosest
+        assert row["dop853_error_m"] == next(r for r in tried if r["rtol"] == loosest)["error_m"]
+        if name == "all":  # a term's cost: its row's time less gravity's
+            assert _close(row["term_ms"], row["heyoka_ms"] - rows["gravity"]["heyoka_ms"])
+    assert f["speedup_vs_dop853"] == rows["all"]["speedup"]
+    assert f["day_all_terms_ms"] == rows["all"]["heyoka_ms"]
+    speedup_goal = goals["speedup_vs_dop853_min"]
+    assert _close(ratios["speedup_vs_dop853"], f["speedup_vs_dop853"] / speedup_goal, 4)
+    assert f["met"]["speedup_vs_dop853"] == (f["speedup_vs_dop853"] >= speedup_goal)
+    degrees = {row["degree"]: row["difference_m"] for row in f["degrees"]["rows"]}
+    assert set(degrees) == {20, f["degrees"]["reference_degree"]} == {20, 70}  # --degrees 20
+    assert set(degrees[70].values()) == {0.0}
+    assert f["degree_20_vs_70_m"] == max(degrees[20].values())
+    degree_goal = goals["degree_20_vs_70_m_max"]
+    assert _close(ratios["degree_20_vs_70_m"], f["degree_20_vs_70_m"] / degree_goal)
+    assert f["met"]["degree_20_vs_70_m"] == (f["degree_20_vs_70_m"] <= degree_goal)
+    fields = [row["field"] for row in f["thresholds"]]
+    assert fields == ["vsop_threshold", "elp_threshold", "precession_threshold"]
+    assert all(row["shipped"] > row["default"] for row in f["thresholds"])
+    assert "cold_compile_s" not in f["compile"]  # --no-cold-compile
+    assert f["compile"]["first_build_s"] > 0
+
+
 def _check_interior_point(f: dict) -> None:
     ours, theirs = f["solvers"]["interior point"], f["solvers"]["trust-constr"]
     assert _close(f["speedup"], theirs["total_ms"] / ours["total_ms"])
@@ -300,6 +333,31 @@ BENCHMARK_CASES = (
         _check_doe,
         ("speedup_goal", "overhead_goal", "samples", "batch_size"),
         twice=False,
+    ),
+    Benchmark(
+        "high_fidelity",
+        lambda _: [
+            *("--hours", "1", "--repeats", "1", "--degrees", "20"),
+            *("--breakdown", "gravity,all,j2", "--no-cold-compile"),
+        ],
+        frozenset(
+            {
+                "breakdown",
+                "numpy_rhs",
+                "speedup_vs_dop853",
+                "day_all_terms_ms",
+                "degrees",
+                "degree_20_vs_70_m",
+                "thresholds",
+                "compile",
+                "goals",
+                "ratios",
+                "met",
+            }
+        ),
+        _check_high_fidelity,
+        # Seeded results: the same compiled code flies the same arcs in both processes.
+        ("goals", "hours", "origin", "degree_20_vs_70_m"),
     ),
     Benchmark(
         "interior_point",
