@@ -358,6 +358,7 @@ BENCHMARK_CASES = (
         _check_high_fidelity,
         # Seeded results: the same compiled code flies the same arcs in both processes.
         ("goals", "hours", "origin", "degree_20_vs_70_m"),
+        twice=False,  # each process compiles heyoka systems: the table run only
     ),
     Benchmark(
         "interior_point",

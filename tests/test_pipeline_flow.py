@@ -143,7 +143,8 @@ def _catalog_content(path):
         return json.loads(path.read_bytes())["rows"]
     if path.suffix == ".parquet":
         table = pq.read_table(path).drop_columns(["created_utc", "source_sha256"])
-        return table.to_pylist()
+        # Rows follow their creation times (timing): compared in the order of their source.
+        return sorted(table.to_pylist(), key=lambda row: (row["kind"], row["source"]))
     return path.read_bytes()
 
 
