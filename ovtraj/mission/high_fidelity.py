@@ -28,6 +28,7 @@ from ovtraj.config import Scenario
 from ovtraj.config.body import BodyConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.errors import ConfigError
+from ovtraj.mission.fly import ReplayFailed
 
 __all__ = [
     "FIDELITIES",
@@ -223,8 +224,6 @@ class HighFidelityOrbit:
     ) -> tuple[np.ndarray, float, bool, float]:
         """(state at the end, end time, stopped at ``floor_m``, lowest altitude at the
         integrator's steps), as :meth:`ovtraj.mission.fly.ReplayOrbit.arc`."""
-        from ovtraj.mission.fly import ReplayFailed
-
         if t1 < t0:
             raise ReplayFailed(f"the plan's epochs run backwards ({t0:.3f} -> {t1:.3f} s)")
         floor_radius = 0.0 if floor_m is None else self.earth.radius + floor_m
