@@ -479,6 +479,12 @@ def _closed_loop(
         k = 0
         while rdv.burn1.t_s - t > truth.retarget_interval_s:
             t_fix = t + truth.retarget_interval_s
+            if t_fix > plan.stay.separation_t_s:
+                # A re-solve may put the burn later each time: the stay bounds the loop.
+                raise _Failed(
+                    "rendezvous",
+                    f"still phasing at the planned separation {plan.stay.separation_t_s:.0f} s",
+                )
             state, t = coast(state, t, t_fix, "rendezvous"), t_fix
             rdv = solve_rendezvous(
                 RendezvousInput(
