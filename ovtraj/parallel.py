@@ -18,7 +18,14 @@ from typing import Any
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["EVALUATION_BLAS_THREADS", "Bounded", "blas_threads", "mapped", "started"]
+__all__ = [
+    "EVALUATION_BLAS_THREADS",
+    "Bounded",
+    "blas_threads",
+    "mapped",
+    "openmp_threads",
+    "started",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -42,6 +49,12 @@ def blas_threads(limit: int) -> Any:
     a call, ~10 % of a pipeline's surrogate fitting when each candidate fit searched.
     """
     return _thread_pools().limit(limits=limit, user_api="blas")
+
+
+def openmp_threads(limit: int) -> Any:
+    """Context manager: this process's OpenMP thread pools limited to ``limit`` threads
+    (scikit-learn's histogram gradient boosting), looked up once as :func:`blas_threads`."""
+    return _thread_pools().limit(limits=limit, user_api="openmp")
 
 
 def mapped(

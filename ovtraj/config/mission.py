@@ -33,6 +33,15 @@ class DoeSettings(StrictModel):
     samples: int = bounded(ge=1, le=100000)
     seed: int = bounded(ge=0, le=2**32 - 1)
     batch_size: int = bounded(ge=1, le=10000, description="samples per Prefect task")
+    # Optional (null when absent: batch_size samples a batch, however many): the configs
+    # stored with runs made before it existed still read.
+    max_batches: int | None = bounded(
+        ge=1,
+        le=100000,
+        default=None,
+        description="a run's batches are made larger than batch_size when it would have "
+        "more than this many (Prefect task runs, stored files per folder)",
+    )
     task_runner: Runner = Field(description="serial | threads | processes | dask (RUNNERS)")
     workers: int = bounded(ge=1, le=1024)
     dask_address: None = Field(
@@ -43,6 +52,15 @@ class DoeSettings(StrictModel):
         "(issue 44)",
     )
     task_retries: int = bounded(ge=0, le=10)
+
+    def batch_size_for(self, samples: int) -> int:
+        """Samples a batch of a run of ``samples`` samples: ``batch_size``, or more when
+        that makes more than ``max_batches`` batches (a 100,000-sample DoE in at most
+        ``max_batches`` task runs; each batch's files cost ~0.1 s however many samples
+        it holds, docs/mission.md)."""
+        if self.max_batches is None:
+            return self.batch_size
+        return max(self.batch_size, -(-samples // self.max_batches))
 
     @field_validator("dask_address", mode="before")
     @classmethod
@@ -82,7 +100,7 @@ class StoreSettings(StrictModel):
     )
 
 
-RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET"]
+RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET", "GBT"]
 ClassifierName = Literal["svc", "gpc", "logistic"]
 DvPart = Literal["dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps"]
 # The phase-input model's inputs: the design, then the phase's sine and cosine (the burn's
@@ -121,6 +139,34 @@ class PassForecastSettings(StrictModel):
         description="added to each forecast crossing's longitude before the entry box is "
         "checked: the closed-form forecast's bias against the deorbit stage",
     )
+
+
+class LargeSampleSettings(StrictModel):
+    """How the surrogates are fitted on many samples (issue 48): the candidates whose cost
+    grows as n^2-n^3 (Kriging, RBF, the SVC and GP classifiers) on a seeded subsample, the
+    cross-validation on a seeded subsample, and candidates that grow ~linearly besides."""
+
+    exact_max_samples: int = bounded(
+        ge=10,
+        le=100000,
+        description="KRG, KPLS, RBF, svc and gpc are fitted on at most this many of the "
+        "training samples (a seeded random subsample)",
+    )
+    cv_max_samples: int = bounded(
+        ge=10,
+        le=1000000,
+        description="the k-fold cross-validation runs on at most this many of the training "
+        "samples (a seeded random subsample); the models kept are fitted on all of them",
+    )
+    extra_regressors: list[RegressorName] = Field(
+        default_factory=list,
+        description="candidates compared too when an output has more than exact_max_samples "
+        "training samples",
+    )
+    gbt_iterations: int = bounded(ge=1, le=10000, description="boosting rounds of GBT")
+    gbt_learning_rate: float = bounded(gt=0, le=1, description="shrinkage of GBT's rounds")
+    gbt_leaf_nodes: int = bounded(ge=2, le=1000, description="leaves per GBT tree")
+    gbt_min_samples_leaf: int = bounded(ge=1, le=100000, description="samples per GBT leaf")
 
 
 class SurrogateSettings(StrictModel):
@@ -222,6 +268,13 @@ class SurrogateSettings(StrictModel):
     gpc_length_scale_bounds: Bound  # of the GP classifier's length scale, unit-cube inputs
     gpc_amplitude_bounds: Bound  # variance of the GP classifier's latent function
     seed: int = bounded(ge=0, le=2**32 - 1)
+    # Optional (null when absent: every candidate on every sample, CV on all of them): the
+    # configs stored with runs made before it existed still read.
+    large_samples: LargeSampleSettings | None = Field(
+        default=None,
+        description="subsampled fits and cross-validation, and linear-cost candidates, for "
+        "large training sets",
+    )
 
     @model_validator(mode="after")
     def _shortlist_sized(self) -> SurrogateSettings:

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from sklearn.base import ClassifierMixin
 from sklearn.calibration import CalibratedClassifierCV
-from sklearn.ensemble import ExtraTreesRegressor
+from sklearn.ensemble import ExtraTreesRegressor, HistGradientBoostingRegressor
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessClassifier
 from sklearn.gaussian_process.kernels import RBF as RBFKernel
@@ -58,6 +58,7 @@ from smt.surrogate_models.krg_based.hyperparam_optim import TNCOptimizer
 from smt.surrogate_models.surrogate_model import SurrogateModel
 
 from ovtraj.config.mission import SurrogateSettings
+from ovtraj.parallel import openmp_threads
 from ovtraj.surrogate import smt_differences, smt_linalg
 from ovtraj.surrogate.smt_likelihood import RememberedLikelihoodMixin
 
@@ -70,11 +71,14 @@ __all__ = [
     "fit_regressor",
     "min_regressor_samples",
     "new_regressor",
+    "seeded_subsample",
 ]
 
 ALL_FEASIBLE = "all-feasible"
 # The candidates with Kriging hyperparameters (``optimal_theta``).
 KRIGING = ("KRG", "KPLS")
+# The candidates whose fit grows as n^2-n^3: subsampled on large training sets.
+SUBSAMPLED = ("KRG", "KPLS", "RBF", "svc", "gpc")
 
 # SMT's Kriging likelihood without scipy's finite-value scan on each factorisation (the
 # same fits, ~40 % less time; see the module).
@@ -146,15 +150,32 @@ def new_regressor(
     if name == "QP":
         return QP(**common)
     if name == "ET":
-        return _ExtraTrees(settings.extra_trees, settings.seed)
-    raise CandidateError(f"unknown regressor {name!r} (allowed: KRG, KPLS, RBF, QP, ET)")
+        return _Trees(
+            ExtraTreesRegressor(settings.extra_trees, random_state=settings.seed, n_jobs=1)
+        )
+    if name == "GBT":
+        large = settings.large_samples
+        if large is None:
+            raise CandidateError("GBT needs the surrogate's large_samples settings")
+        return _Trees(
+            HistGradientBoostingRegressor(
+                max_iter=large.gbt_iterations,
+                learning_rate=large.gbt_learning_rate,
+                max_leaf_nodes=large.gbt_leaf_nodes,
+                min_samples_leaf=large.gbt_min_samples_leaf,
+                early_stopping=False,
+                random_state=settings.seed,
+            )
+        )
+    raise CandidateError(f"unknown regressor {name!r} (allowed: KRG, KPLS, RBF, QP, ET, GBT)")
 
 
-class _ExtraTrees:
-    """scikit-learn's ExtraTreesRegressor behind the part of SMT's interface used here."""
+class _Trees:
+    """A scikit-learn tree ensemble behind the part of SMT's interface used here, on one
+    OpenMP thread (the fits run side by side in the pool's processes)."""
 
-    def __init__(self, trees: int, seed: int) -> None:
-        self.estimator = ExtraTreesRegressor(n_estimators=trees, random_state=seed, n_jobs=1)
+    def __init__(self, estimator: Any) -> None:
+        self.estimator = estimator
         self._training: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_training_values(self, u: np.ndarray, y: np.ndarray) -> None:
@@ -162,10 +183,41 @@ class _ExtraTrees:
 
     def train(self) -> None:
         u, y = self._training
-        self.estimator.fit(u, y)
+        with openmp_threads(1):
+            self.estimator.fit(u, y)
 
     def predict_values(self, u: np.ndarray) -> np.ndarray:
-        return self.estimator.predict(np.asarray(u, dtype=float))[:, None]
+        with openmp_threads(1):
+            return self.estimator.predict(np.asarray(u, dtype=float))[:, None]
+
+
+def seeded_subsample(
+    n: int, limit: int, seed: int, classes: np.ndarray | None = None
+) -> np.ndarray:
+    """Indices (ascending) of at most ``limit`` of ``n`` samples, drawn at random with
+    ``seed``; all of them when ``n <= limit``. ``classes`` (n,) bool: each class keeps its
+    share (rounded, at least 2 of a class that has 2), so a rare class stays in."""
+    if n <= limit:
+        return np.arange(n)
+    rng = np.random.default_rng(seed)
+    if classes is None:
+        return np.sort(rng.choice(n, size=limit, replace=False))
+    classes = np.asarray(classes, dtype=bool)
+    minority = classes if classes.sum() <= n / 2 else ~classes
+    rare = np.flatnonzero(minority)
+    common = np.flatnonzero(~minority)
+    take_rare = min(rare.size, max(min(rare.size, 2), round(limit * rare.size / n)))
+    picked = [rng.choice(rare, size=take_rare, replace=False)]
+    picked.append(rng.choice(common, size=limit - take_rare, replace=False))
+    return np.sort(np.concatenate(picked))
+
+
+def _subsampled(name: str, n: int, settings: SurrogateSettings, classes: Any = None) -> Any:
+    """The rows candidate ``name`` is fitted on (``slice(None)``: every one)."""
+    large = settings.large_samples
+    if large is None or name not in SUBSAMPLED or n <= large.exact_max_samples:
+        return slice(None)
+    return seeded_subsample(n, large.exact_max_samples, settings.seed, classes)
 
 
 @dataclass
@@ -193,7 +245,7 @@ class Regressor:
 
     def training(self) -> tuple[np.ndarray, np.ndarray]:
         """The unit-cube inputs (n, k) and values (n,) the model was fitted on."""
-        if isinstance(self.model, _ExtraTrees):
+        if isinstance(self.model, _Trees):
             u, y = self.model._training
         else:  # SMT keeps them as its (unnamed) training set
             u, y = self.model.training_points[None][0]
@@ -217,13 +269,15 @@ def fit_regressor(
     if n < need:
         raise CandidateError(f"{name} needs at least {need} training samples in {dim}-D, got {n}")
     model = new_regressor(name, dim, settings, start)
+    rows = _subsampled(name, n, settings)
+    u_fit, y_fit = np.asarray(u, dtype=float)[rows], np.asarray(y, dtype=float)[rows]
     try:
-        model.set_training_values(np.ascontiguousarray(u, dtype=float), np.asarray(y, float))
+        model.set_training_values(np.ascontiguousarray(u_fit), y_fit)
         model.train()
     except Exception as err:  # SMT raises bare Exceptions, LinAlgErrors, ValueErrors ...
         raise CandidateError(f"{name} training failed: {type(err).__name__}: {err}") from err
     regressor = Regressor(name, model)
-    check = regressor.predict(u)
+    check = regressor.predict(u_fit)
     if not np.all(np.isfinite(check)):
         raise CandidateError(f"{name} predicts non-finite values at its training samples")
     return regressor
@@ -305,13 +359,15 @@ def fit_classifier(
         raise CandidateError(f"{name}: no training samples")
     if y.all() or not y.any():
         return FeasibilityClassifier(name, None, 1.0 if y.all() else 0.0)
+    rows = _subsampled(name, y.size, settings, classes=y)
+    u, y = np.asarray(u, dtype=float)[rows], y[rows]
     estimator = _classifier(name, y, settings, fitted_kernel)
     try:
         with warnings.catch_warnings():
             # The classifiers' optimisers may stop at their iteration limit on tiny sets;
             # the fit is still usable and CV judges it.
             warnings.simplefilter("ignore", category=ConvergenceWarning)
-            estimator.fit(np.asarray(u, dtype=float), y)
+            estimator.fit(u, y)
     except Exception as err:
         raise CandidateError(f"{name} training failed: {type(err).__name__}: {err}") from err
     classifier = FeasibilityClassifier(name, estimator, training=(np.array(u, float), y.copy()))

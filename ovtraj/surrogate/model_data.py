@@ -18,7 +18,7 @@ KRG, KPLS          the fitted state SMT's ``predict_values`` reads: ``X_offset``
                    ``X_scale``, ``y_mean``, ``y_std``, ``optimal_theta``, the GLS
                    solution ``beta`` and ``gamma`` (SMT's ``optimal_par``), KPLS's
                    ``coeff_pls``; the hyperparameters are not maximised again
-RBF, QP, ET        none: fitted again on ``u``, ``y`` (linear solves; ET's trees are
+RBF, QP, ET, GBT   none: fitted again on ``u``, ``y`` (linear solves; the trees are
                    seeded, ``n_jobs=1``: the same trees)
 svc, logistic      none: fitted again (seeded calibration folds, deterministic solvers)
 gpc                none; ``hyper`` holds the fitted kernel (``constant_value``,
@@ -90,6 +90,7 @@ _ARRAYS = {
     "RBF": _COMMON,
     "QP": _COMMON,
     "ET": _COMMON,
+    "GBT": _COMMON,
     "svc": _COMMON,
     "logistic": _COMMON,
     "gpc": _COMMON,

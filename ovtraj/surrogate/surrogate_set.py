@@ -72,6 +72,7 @@ from ovtraj.surrogate.candidates import (
     Regressor,
     fit_classifier,
     fit_regressor,
+    seeded_subsample,
 )
 from ovtraj.surrogate.model_data import (
     MODEL_ARRAYS_SCHEMA,
@@ -86,6 +87,7 @@ from ovtraj.surrogate.model_data import (
 from ovtraj.surrogate.scaling import SurrogateError, UnitCube
 from ovtraj.surrogate.validation import (
     ClassifierScore,
+    Folds,
     RegressorFit,
     RegressorScore,
     classification_folds,
@@ -97,6 +99,7 @@ from ovtraj.surrogate.validation import (
     regressor_score,
     select_classifier,
     select_regressor,
+    subsampled_folds,
 )
 
 __all__ = [
@@ -885,7 +888,6 @@ def _fit_regressors(
     tables: list[pd.DataFrame] = []
     selected: dict[str, str] = {}
     regressors: dict[str, Regressor] = {}
-    configured = list(dict.fromkeys(settings.regressors))
     # Each output's inputs, training rows and folds: all of them, unless it has inputs of
     # its own (then the first of the rows that repeat those inputs).
     inputs = {name: u[:, list(columns[name])] if name in columns else u for name in values}
@@ -895,9 +897,8 @@ def _fit_regressors(
         else reg_trains[name]
         for name in values
     }
-    all_folds = {
-        name: regression_folds(trains[name].size, settings.folds, settings.seed) for name in values
-    }
+    all_folds = {name: _regression_folds(trains[name].size, settings) for name in values}
+    configured_for = {name: _configured(trains[name].size, settings) for name in values}
 
     def scored(names: dict[str, list[str]]) -> dict[str, list[RegressorScore]]:
         jobs = [(name, candidate) for name, listed in names.items() for candidate in listed]
@@ -931,13 +932,13 @@ def _fit_regressors(
             )
         return out
 
-    first = {name: _shortlisted(candidates.get(name), configured) for name in values}
+    first = {name: _shortlisted(candidates.get(name), configured_for[name]) for name in values}
     all_scores = scored(first)
     # A kept candidate that cannot be fitted on these data: every candidate is compared.
     retry = {
-        name: configured
+        name: configured_for[name]
         for name, listed in first.items()
-        if listed != configured and select_regressor(all_scores[name]) is None
+        if listed != configured_for[name] and select_regressor(all_scores[name]) is None
     }
     all_scores |= scored(retry) if retry else {}
     in_the_meantime()
@@ -968,8 +969,8 @@ def _fit_regressors(
         tables.append(
             _prediction_rows(
                 name,
-                ids[train],
-                y[train],
+                ids[train][best.cv_rows],
+                y[train][best.cv_rows],
                 best.cv_pred,
                 ids[reg_helds[name]],
                 y[reg_helds[name]],
@@ -977,6 +978,29 @@ def _fit_regressors(
             )
         )
     return regressors, selected, rows, tables
+
+
+def _regression_folds(n: int, settings: SurrogateSettings) -> Folds:
+    """The k folds of an output's ``n`` training samples: of all of them, or of a seeded
+    subsample of ``large_samples.cv_max_samples`` (the cross-validation's cost bounded;
+    the models kept are still fitted on all ``n``)."""
+    large = settings.large_samples
+    if large is None or n <= large.cv_max_samples:
+        return regression_folds(n, settings.folds, settings.seed)
+    rows = seeded_subsample(n, large.cv_max_samples, settings.seed)
+    return subsampled_folds(
+        lambda subsample: regression_folds(subsample.size, settings.folds, settings.seed), rows
+    )
+
+
+def _configured(n: int, settings: SurrogateSettings) -> list[str]:
+    """The regressor candidates of an output with ``n`` training samples: the configured
+    ones, and ``large_samples.extra_regressors`` past ``exact_max_samples``."""
+    listed = list(settings.regressors)
+    large = settings.large_samples
+    if large is not None and n > large.exact_max_samples:
+        listed += large.extra_regressors
+    return list(dict.fromkeys(listed))
 
 
 def _warm_started_fits(
@@ -1062,7 +1086,7 @@ def _fit_classifier(
     cls_train = np.flatnonzero(~held)
     cls_held = np.flatnonzero(held)
     y_cls = flags[cls_train]
-    cls_folds = classification_folds(y_cls, settings.folds, settings.seed)
+    cls_folds = _classification_folds(y_cls, settings)
     configured = list(dict.fromkeys(settings.classifiers))
 
     def scored(names: list[str]) -> list[ClassifierScore]:
@@ -1090,11 +1114,23 @@ def _fit_classifier(
     rows = [dict(r, n_folds=len(cls_folds)) for r in _classifier_rows(cls_scores, best.name)]
     table = _prediction_rows(
         FEASIBLE,
-        ids[cls_train],
-        y_cls.astype(float),
+        ids[cls_train][best.cv_rows],
+        y_cls[best.cv_rows].astype(float),
         best.cv_pred,
         ids[cls_held],
         flags[cls_held].astype(float),
         best.heldout_pred,
     )
     return model, rows, table
+
+
+def _classification_folds(y: np.ndarray, settings: SurrogateSettings) -> Folds:
+    """The stratified folds of the classifier's training samples ``y``: of all of them, or
+    of a seeded subsample of ``large_samples.cv_max_samples`` keeping each class's share."""
+    large = settings.large_samples
+    if large is None or y.size <= large.cv_max_samples:
+        return classification_folds(y, settings.folds, settings.seed)
+    rows = seeded_subsample(y.size, large.cv_max_samples, settings.seed, classes=y)
+    return subsampled_folds(
+        lambda subsample: classification_folds(y[subsample], settings.folds, settings.seed), rows
+    )

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,6 +59,7 @@ __all__ = [
     "Folds",
     "RegressorScore",
     "classification_folds",
+    "cross_validated_rows",
     "evaluate_classifier",
     "evaluate_regressor",
     "holdout_mask",
@@ -71,6 +72,7 @@ __all__ = [
     "rmse",
     "select_classifier",
     "select_regressor",
+    "subsampled_folds",
 ]
 
 # The decision "feasible" for the accuracy metrics: the more probable class (equal costs).
@@ -135,6 +137,19 @@ def classification_folds(y: np.ndarray, folds: int, seed: int) -> Folds:
         return list(skf.split(np.zeros((y.size, 1)), y))
 
 
+def subsampled_folds(folds_of: Callable[[np.ndarray], Folds], rows: np.ndarray) -> Folds:
+    """Folds of the training samples at positions ``rows`` (a subsample, ascending):
+    ``folds_of`` cuts the subsample, the folds name training positions."""
+    return [(rows[fit], rows[test]) for fit, test in folds_of(rows)]
+
+
+def cross_validated_rows(folds: Folds, n: int) -> np.ndarray:
+    """The training positions the folds predict, ascending: all ``n`` of them unless the
+    folds were cut from a subsample (:func:`subsampled_folds`)."""
+    covered = np.sort(np.concatenate([test for _, test in folds])) if folds else np.arange(0)
+    return np.arange(n) if covered.size == n else covered
+
+
 def rmse(y: np.ndarray, y_hat: np.ndarray) -> float | None:
     """Root-mean-square error; None without samples."""
     y, y_hat = np.asarray(y, float), np.asarray(y_hat, float)
@@ -179,6 +194,9 @@ class RegressorScore:
     heldout_r2: float | None = None
     fit_time_s: float = 0.0
     model: Regressor | None = field(default=None, repr=False)
+    # The training samples (positions) ``cv_pred`` covers, in order: all of them unless
+    # the cross-validation ran on a subsample (``large_samples.cv_max_samples``).
+    cv_rows: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -252,6 +270,8 @@ def regressor_score(
             score.error = f"CV fold {k + 1}/{len(folds)}: {fit.error}"
             return score
         cv_pred[test_idx] = fit.predictions
+    covered = cross_validated_rows(folds, y_train.size)
+    y_train, cv_pred = y_train[covered], cv_pred[covered]
     if not np.all(np.isfinite(cv_pred)):
         score.error = f"{name} gives non-finite cross-validation predictions"
     elif whole.error is not None:
@@ -261,6 +281,7 @@ def regressor_score(
     if score.error is not None:
         return score
     score.cv_pred = cv_pred
+    score.cv_rows = covered
     score.cv_rmse = rmse(y_train, cv_pred)
     score.cv_q2 = q2(y_train, cv_pred)
     score.heldout_pred = whole.predictions
@@ -305,6 +326,7 @@ class ClassifierScore:
     heldout_accuracy: float | None = None
     fit_time_s: float = 0.0
     model: FeasibilityClassifier | None = field(default=None, repr=False)
+    cv_rows: np.ndarray | None = None  # as RegressorScore's
 
 
 def _classification_metrics(y: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
@@ -344,9 +366,11 @@ def evaluate_classifier(
         score.fit_time_s = time.perf_counter() - start
         return score
     score.fit_time_s = time.perf_counter() - start
-    score.cv_pred = cv_pred
+    covered = cross_validated_rows(folds, y_train.size)
+    score.cv_pred = cv_pred[covered]
+    score.cv_rows = covered
     score.cv_accuracy, score.cv_balanced_accuracy, score.cv_log_loss = _classification_metrics(
-        y_train, cv_pred
+        y_train[covered], score.cv_pred
     )
     score.heldout_pred = held_pred
     if y_held.size:
