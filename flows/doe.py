@@ -88,13 +88,14 @@ def evaluate_batches(
     """
     logger = get_run_logger()
     settings = scenario.mission.doe
-    batches = dict(run.batches(settings.batch_size))
+    batch_size = run.batch_size(settings)
+    batches = dict(run.batches(batch_size))
     done = run.done_batches()
     todo = [k for k in batches if k not in done]
     resolved, coefficients = scenario.resolved(), fit.to_dict()
     batch_task = prepared(
         mission_batch_task,
-        timeout_s=TIMEOUTS.mission_batch_per_sample_s * settings.batch_size,
+        timeout_s=TIMEOUTS.mission_batch_per_sample_s * batch_size,
         retries=settings.task_retries,
     )
     parameters = {
@@ -162,7 +163,7 @@ def evaluate_run(
     """
     stats = {} if stats is None else stats
     stats.update(evaluated_batches=0, task_time_s=0.0)
-    batch_size = scenario.mission.doe.batch_size
+    batch_size = run.batch_size(scenario.mission.doe)
     if not run.pending_batches(batch_size):
         return finish(run)
     try:

@@ -127,7 +127,7 @@ def run(
                 scenario,
                 stored,
                 fit,
-                batch_size=settings.batch_size,
+                batch_size=stored.batch_size(settings),
                 runner=choice.runner,
                 workers=choice.workers,
                 dask_address=choice.dask_address,

@@ -234,6 +234,7 @@ def optimize(
         training_data,
     )
     from ovtraj.pipeline.features import unregressed
+    from ovtraj.pipeline.steps import fitting_pool
     from ovtraj.runs import StoreError
     from ovtraj.surrogate import SurrogateError
     from ovtraj.version import code_version
@@ -242,7 +243,9 @@ def optimize(
         stored = _store(store_root).run(run_id)
         scenario = _run_scenario(stored, config)
         code = code_version()
-        fitted = fit_step(stored, training_data(stored), scenario, code, refit=refit)
+        data = training_data(stored)
+        with fitting_pool(scenario, len(data)) as pool:
+            fitted = fit_step(stored, data, scenario, code, refit=refit, executor=pool)
         front = front_step(stored, fitted, scenario, code, refit=refit)
     except OptimiserStopped as err:
         typer.echo(str(err), err=True)

@@ -24,10 +24,13 @@ and never overwritten.
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import json
-from collections.abc import Callable
+import multiprocessing
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,6 +52,7 @@ from ovtraj.pipeline.features import (
     load_surrogates,
 )
 from ovtraj.runs import Run
+from ovtraj.runs.runners import limit_threads
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest, write_bytes
 from ovtraj.store.layout import ID_HEX_DIGITS
@@ -99,6 +103,30 @@ class FrontOutcome:
     front_id: str
     reused: bool
     matches_stored: bool | None = None  # refit: the recomputed front equals the stored one
+
+
+@contextmanager
+def fitting_pool(scenario: Scenario, samples: int) -> Iterator[Executor | None]:
+    """Processes that fit the surrogate candidates side by side (``fit_step``'s
+    ``executor``) for a run of ``samples`` samples: ``mission.doe.workers`` of them once
+    the training set is large (``surrogate.large_samples.exact_max_samples``); ``None``
+    below, where starting them (~2-3 s of imports each) costs more than the fits.
+
+    Spawned, one thread each (the pipeline pool's processes): the same models as fitted
+    here, since every candidate is seeded and fitted with one BLAS thread.
+    """
+    large = scenario.mission.surrogate.large_samples
+    workers = scenario.mission.doe.workers
+    if large is None or workers < 2 or samples <= large.exact_max_samples:
+        yield None
+        return
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=limit_threads,
+        initargs=(1,),
+    ) as pool:
+        yield pool
 
 
 def fit_step(

@@ -269,6 +269,7 @@ def run_doe(
     on_batch: Callable[[dict[str, Any]], None] | None = None,
     pool: BatchPool | None = None,
     on_progress: Callable[[int, int, str], None] | None = None,
+    job: Callable[..., dict[str, Any]] | None = None,
 ) -> Run:
     """Evaluate every batch the run does not hold yet and finish the manifest.
 
@@ -284,7 +285,9 @@ def run_doe(
     ``on_batch`` receives each finished batch's summary (:func:`store_batch_job`).
     Messages (a line per batch) go to ``progress`` when given, else to this module's
     logger (info); ``on_progress(samples done, samples of the run, label)`` is called
-    before the first batch and after each one (a progress bar's update).
+    before the first batch and after each one (a progress bar's update). ``job``: what
+    each batch runs, with :func:`store_batch_job`'s arguments and summary (default: it;
+    ``benchmarks/scale.py`` times the orchestration with a synthetic evaluation).
 
     Raises :class:`ClusterError` (the manifest ends ``failed``) when the Dask cluster is
     unusable or loses every worker for ``dask.no_worker_timeout_s``, and
@@ -312,6 +315,7 @@ def run_doe(
                 jobs = _BatchJobs(
                     run, scenario, launch_fit, batches, pool, say, settings, on_batch, counted
                 )
+                jobs.job = job or store_batch_job
                 todo = [k for k, _ in batches if not run.is_stored(k)]
                 waiting = jobs.evaluate(todo, 0.0, time_limit_s)
                 for k in waiting:
@@ -384,7 +388,7 @@ class PoolBatches:
                 self.scenario,
                 run,
                 self.launch_fit,
-                batch_size=self.scenario.mission.doe.batch_size,
+                batch_size=run.batch_size(self.scenario.mission.doe),
                 progress=self.progress,
                 on_progress=update,
                 pool=self.pool,
@@ -449,10 +453,11 @@ class _BatchJobs:
         self.resolved, self.coefficients = scenario.resolved(), launch_fit.to_dict()
         self.failures: dict[int, str] = {}
         self.on_batch, self.counted = on_batch, counted
+        self.job: Callable[..., dict[str, Any]] = store_batch_job
 
     def _job(self, k: int, wait_s: float) -> tuple[Any, ...]:
         records = self.batches[k].to_dict(orient="records")
-        return (store_batch_job, self.run.url, self.resolved, self.coefficients, k, records, wait_s)
+        return (self.job, self.run.url, self.resolved, self.coefficients, k, records, wait_s)
 
     def _done(self, k: int, summary: dict[str, Any]) -> bool:
         """Report a finished job; False when another process holds the batch's claim."""

@@ -38,6 +38,8 @@ __all__ = [
     "DATASETS",
     "SCHEMA_VERSION",
     "TIMING_COLUMNS",
+    "stored_columns",
+    "stored_rows",
     "stored_trajectory",
     "trajectory_time_column",
 ]
@@ -93,27 +95,40 @@ def trajectory_time_column(stage: str) -> str:
     return "t_s" if stage in ("rendezvous", "transfer") else "time_s"
 
 
-def stored_trajectory(table: pd.DataFrame, stage: str, step_s: float) -> pd.DataFrame:
-    """The rows of a stage's trajectory table that the store keeps.
+def stored_rows(table: pd.DataFrame, stage: str, step_s: float) -> np.ndarray:
+    """Which rows (a boolean mask) of a stage's trajectory table the store keeps.
 
     The first and last row of every phase (so burns and phase changes are exact), and
-    otherwise the first row at least ``step_s`` after the previous kept one. The
-    stored columns are the dataset's (:data:`DATASETS`), without ``sample_id``.
+    otherwise the first row at least ``step_s`` after the previous kept one.
     """
-    if len(table) == 0:
-        return table
     t = table[trajectory_time_column(stage)].to_numpy(dtype=float)
+    keep = np.zeros(len(t), dtype=bool)
+    if len(t) == 0:
+        return keep
     phase = table["phase"].to_numpy() if "phase" in table else np.zeros(len(t))
     ends = np.zeros(len(t), dtype=bool)
     ends[0] = ends[-1] = True
     changes = np.flatnonzero(phase[1:] != phase[:-1])
     ends[changes] = True
     ends[changes + 1] = True
-    keep = np.zeros(len(t), dtype=bool)
     last = -np.inf
-    for k in range(len(t)):
-        if ends[k] or t[k] - last >= step_s:
+    for k, (time, end) in enumerate(zip(t.tolist(), ends.tolist(), strict=True)):
+        if end or time - last >= step_s:
             keep[k] = True
-            last = t[k]
-    columns = [c for c in DATASETS[f"trajectories/{stage}"].names if c != "sample_id"]
-    return table.loc[keep, columns].reset_index(drop=True)
+            last = time
+    return keep
+
+
+def stored_columns(stage: str) -> list[str]:
+    """The stored columns of a stage's trajectory table, without ``sample_id``."""
+    return [c for c in DATASETS[f"trajectories/{stage}"].names if c != "sample_id"]
+
+
+def stored_trajectory(table: pd.DataFrame, stage: str, step_s: float) -> pd.DataFrame:
+    """The rows of a stage's trajectory table that the store keeps (:func:`stored_rows`),
+    in the dataset's columns (:data:`DATASETS`), without ``sample_id``."""
+    if len(table) == 0:
+        return table
+    return table.loc[stored_rows(table, stage, step_s), stored_columns(stage)].reset_index(
+        drop=True
+    )
