@@ -15,6 +15,7 @@ from prefect import task
 
 from ovtraj.config import scenario_from_dict
 from ovtraj.pipeline import fit_step, front_step, training_data
+from ovtraj.pipeline.steps import fitting_pool
 from ovtraj.runs.store import Run
 from tasks.common import TIMEOUTS, cached, code_version, parameter, run_label
 
@@ -56,7 +57,11 @@ def fit_surrogates_task(
     run = Run.open(run_url)
     scenario = scenario_from_dict(resolved_scenario)
     code = code_version()
-    outcome = fit_step(run, training_data(run), scenario, code, candidates=candidates, views=views)
+    data = training_data(run)
+    with fitting_pool(scenario, len(data)) as pool:
+        outcome = fit_step(
+            run, data, scenario, code, candidates=candidates, views=views, executor=pool
+        )
     return {
         "fit_id": outcome.fit_id,
         "directory": str(outcome.directory),

@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from concurrent.futures import Executor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -33,7 +34,14 @@ from ovtraj.pipeline.loop import PipelineResult, PipelineSteps, run_pipeline
 from ovtraj.pipeline.pick import Pick
 from ovtraj.pipeline.planning import write_mission_plan
 from ovtraj.pipeline.report import stop_explanation
-from ovtraj.pipeline.steps import PipelineError, draw_views, fit_step, front_step, start_drawing
+from ovtraj.pipeline.steps import (
+    PipelineError,
+    draw_views,
+    fit_step,
+    fitting_pool,
+    front_step,
+    start_drawing,
+)
 from ovtraj.runs import Run, RunStore
 
 logger = logging.getLogger(__name__)
@@ -130,13 +138,22 @@ def drive_pipeline(
         say(f"DoE run {doe_run.id}: {len(doe_run.samples())} samples")
         executor.evaluate(doe_run)
         side = executor.side_pool()
-        steps = PipelineSteps(
-            evaluate=executor.evaluate,
-            fit=partial(fit_step, refit=request.refit, executor=side),
-            front=partial(front_step, refit=request.refit),
-            draw=partial(draw_views, executor=side),
-            predraw=None if side is None else partial(start_drawing, executor=side),
+        # Without the executor's processes, a large DoE's fits get a pool of their own.
+        fitting = (
+            nullcontext(side)
+            if side is not None
+            else fitting_pool(scenario, len(doe_run.samples()))
         )
-        result = run_pipeline(scenario, doe_run, store=store, code=code, steps=steps, progress=say)
+        with fitting as side:
+            steps = PipelineSteps(
+                evaluate=executor.evaluate,
+                fit=partial(fit_step, refit=request.refit, executor=side),
+                front=partial(front_step, refit=request.refit),
+                draw=partial(draw_views, executor=side),
+                predraw=None if side is None else partial(start_drawing, executor=side),
+            )
+            result = run_pipeline(
+                scenario, doe_run, store=store, code=code, steps=steps, progress=say
+            )
     planned = write_mission_plan(scenario, launch_fit, store, result, request.pick)
     return PipelineOutcome(doe_run, scenario, result, planned)

@@ -110,14 +110,17 @@ def fitting_pool(scenario: Scenario, samples: int) -> Iterator[Executor | None]:
     """Processes that fit the surrogate candidates side by side (``fit_step``'s
     ``executor``) for a run of ``samples`` samples: ``mission.doe.workers`` of them once
     the training set is large (``surrogate.large_samples.exact_max_samples``); ``None``
-    below, where starting them (~2-3 s of imports each) costs more than the fits.
+    below, where starting them (~2-3 s of imports each) costs more than the fits, and in
+    a daemonic process.
 
     Spawned, one thread each (the pipeline pool's processes): the same models as fitted
     here, since every candidate is seeded and fitted with one BLAS thread.
     """
     large = scenario.mission.surrogate.large_samples
     workers = scenario.mission.doe.workers
-    if large is None or workers < 2 or samples <= large.exact_max_samples:
+    # A daemonic process (a Dask worker's) may not start children: the fits run in it.
+    daemon = multiprocessing.current_process().daemon
+    if large is None or workers < 2 or samples <= large.exact_max_samples or daemon:
         yield None
         return
     with concurrent.futures.ProcessPoolExecutor(
