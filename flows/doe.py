@@ -111,7 +111,7 @@ def evaluate_batches(
     with run.working() as removed:
         if removed:
             logger.info("removed %d temporary file(s) of an interrupted write", len(removed))
-        run.update_manifest(batches=len(batches))
+        run.update_manifest(batches=len(batches), batch_size=batch_size)
         logger.info(
             "run %s: %d batches, %d stored, %d to evaluate",
             run.id,

@@ -23,22 +23,32 @@ from ovtraj.runs.schemas import stored_trajectory
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_batches_grow_past_max_batches(scenario):
+def test_batches_grow_with_the_doe_and_past_max_batches(scenario):
     doe = scenario.mission.doe
-    assert doe.max_batches is not None and doe.batch_size < 100_000 // doe.max_batches
+    batching = doe.batching
+    assert batching is not None
+    # the pipeline's default DoE keeps the configured size
     assert doe.batch_size_for(24) == doe.batch_size
-    assert doe.batch_size_for(100_000) == -(-100_000 // doe.max_batches)
-    assert -(-100_000 // doe.batch_size_for(100_000)) <= doe.max_batches <= 1000
-    unbounded = doe.model_copy(update={"max_batches": None})
-    assert unbounded.batch_size_for(100_000) == doe.batch_size
+    # mid-size: each worker keeps batches_per_worker batches
+    balanced = doe.batch_size_for(400)
+    assert doe.batch_size < balanced < batching.preferred_batch_size
+    assert -(-400 // balanced) >= batching.batches_per_worker * doe.workers
+    # large: the preferred size, and no more than max_batches batches (task runs)
+    assert doe.batch_size_for(10_000) == batching.preferred_batch_size
+    for samples in (100_000, 1_000_000):
+        assert -(-samples // doe.batch_size_for(samples)) <= min(batching.max_batches, 1000)
+    unbatched = doe.model_copy(update={"batching": None})
+    assert unbatched.batch_size_for(100_000) == doe.batch_size
 
 
 def test_a_run_stores_the_same_results_however_it_is_batched(tmp_path, scenario):
     """12 samples in 3 batches of 4 (the shipped size) and in 2 of 6 (max_batches 2): the
     same run id and the same totals, stage rows and trajectory rows to the bit; the
-    trajectories as the per-sample selection (stored_trajectory) keeps them."""
+    trajectories as the per-sample selection (stored_trajectory) keeps them; a run keeps
+    the size it was stored with under other settings."""
     fit = find_launch_fit(scenario)
-    doe = scenario.mission.doe.model_copy(update={"max_batches": 2})
+    doe = scenario.mission.doe
+    doe = doe.model_copy(update={"batching": doe.batching.model_copy(update={"max_batches": 2})})
     coarse = scenario.model_copy(
         update={"mission": scenario.mission.model_copy(update={"doe": doe})}
     )
@@ -50,6 +60,10 @@ def test_a_run_stores_the_same_results_however_it_is_batched(tmp_path, scenario)
     fine, coarse_run = runs
     assert fine.id == coarse_run.id
     assert len(fine.done_batches()) == 3 and len(coarse_run.done_batches()) == 2
+    assert fine.batch_size(doe) == 4 and coarse_run.batch_size(scenario.mission.doe) == 6
+    # a run stored before the size was recorded: its stored batches' size
+    fine.update_manifest(batch_size=None)
+    assert fine.batch_size(doe) == 4
     pd.testing.assert_frame_equal(fine.totals(), coarse_run.totals())
     for stage in ("rendezvous", "deorbit", "reentry"):
         pd.testing.assert_frame_equal(fine.stage(stage), coarse_run.stage(stage))

@@ -27,6 +27,23 @@ class MissionBoundsConfig(StrictModel):
     separation_delay_h: Bound  # t_dsp, after the configured stay
 
 
+class BatchingSettings(StrictModel):
+    """How a DoE's samples are cut into batches past ``batch_size`` (issue 48)."""
+
+    preferred_batch_size: int = bounded(
+        ge=1, le=10000, description="samples a batch grows to in a large DoE"
+    )
+    batches_per_worker: int = bounded(
+        ge=1, le=1000, description="batches each worker gets at least, before batches grow"
+    )
+    max_batches: int = bounded(
+        ge=1,
+        le=100000,
+        description="batches of a run at most (Prefect task runs, files per store folder); "
+        "past it batches grow beyond preferred_batch_size",
+    )
+
+
 class DoeSettings(StrictModel):
     """Design of experiments over ``mission.design_bounds`` and how the flow runs it."""
 
@@ -35,12 +52,9 @@ class DoeSettings(StrictModel):
     batch_size: int = bounded(ge=1, le=10000, description="samples per Prefect task")
     # Optional (null when absent: batch_size samples a batch, however many): the configs
     # stored with runs made before it existed still read.
-    max_batches: int | None = bounded(
-        ge=1,
-        le=100000,
+    batching: BatchingSettings | None = Field(
         default=None,
-        description="a run's batches are made larger than batch_size when it would have "
-        "more than this many (Prefect task runs, stored files per folder)",
+        description="batches larger than batch_size for larger DoEs (docs/mission.md, 'Scaling')",
     )
     task_runner: Runner = Field(description="serial | threads | processes | dask (RUNNERS)")
     workers: int = bounded(ge=1, le=1024)
@@ -54,13 +68,23 @@ class DoeSettings(StrictModel):
     task_retries: int = bounded(ge=0, le=10)
 
     def batch_size_for(self, samples: int) -> int:
-        """Samples a batch of a run of ``samples`` samples: ``batch_size``, or more when
-        that makes more than ``max_batches`` batches (a 100,000-sample DoE in at most
-        ``max_batches`` task runs; each batch's files cost ~0.1 s however many samples
-        it holds, docs/mission.md)."""
-        if self.max_batches is None:
-            return self.batch_size
-        return max(self.batch_size, -(-samples // self.max_batches))
+        """Samples a batch of a run of ``samples`` samples (``batching``: null, always
+        ``batch_size``).
+
+        A batch's files cost ~0.1 s however many samples it holds (fsync'ed Parquet
+        files and a marker: 36 ms a sample in batches of 4, 6.4 ms in batches of 96,
+        docs/mission.md), so a large DoE's batches grow towards ``preferred_batch_size``
+        while each worker keeps ``batches_per_worker`` of them to balance the load, and
+        past ``max_batches`` batches (Prefect task runs, files per folder) they grow
+        further.
+        """
+        size = self.batch_size
+        if self.batching is None:
+            return size
+        batching = self.batching
+        balanced = -(-samples // (batching.batches_per_worker * self.workers))
+        size = max(size, min(batching.preferred_batch_size, balanced))
+        return max(size, -(-samples // batching.max_batches))
 
     @field_validator("dask_address", mode="before")
     @classmethod

@@ -305,7 +305,7 @@ def run_doe(
         with run.working() as removed:
             if removed:
                 say(f"removed {len(removed)} temporary file(s) of an interrupted write")
-            run.update_manifest(batches=len(batches))
+            run.update_manifest(batches=len(batches), batch_size=batch_size)
             started = (
                 nullcontext(pool)
                 if pool is not None

@@ -345,9 +345,19 @@ class Run:
         return (self.directory / "batches" / f"{batch}.json").is_file()
 
     def batch_size(self, doe: DoeSettings) -> int:
-        """Samples a batch of this run under ``doe`` (:meth:`DoeSettings.batch_size_for`
-        of the run's sample count)."""
-        return doe.batch_size_for(len(self.samples()))
+        """Samples a batch of this run: the size its batches were stored with (the
+        manifest's ``batch_size``, or the largest stored batch of a run made before it was
+        recorded), else ``doe``'s for its sample count (:meth:`DoeSettings.batch_size_for`).
+
+        A batch's index names its samples only under one size: a run resumed under
+        other settings keeps the size it started with."""
+        manifest = self.manifest
+        recorded = manifest.get("batch_size")
+        if isinstance(recorded, int) and not isinstance(recorded, bool) and recorded >= 1:
+            return recorded
+        inherited = int(manifest.get("inherited_batches", 0))
+        own = [len(m["sample_ids"]) for k, m in self.markers().items() if k >= inherited]
+        return max(own) if own else doe.batch_size_for(len(self.samples()))
 
     def batches(self, batch_size: int) -> list[tuple[int, pd.DataFrame]]:
         """Every batch of the run as (index, samples), stored or not.
