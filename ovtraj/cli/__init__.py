@@ -32,6 +32,7 @@ _FAMILIES = (
     "doe",
     "store",
     "pipeline",
+    "window",
     "mission",
     "target",
     "tracking",

@@ -17,6 +17,19 @@ chains are independent and run in parallel in the Prefect flow.
 
 The argument of latitude is unwrapped along the grid before fitting and wrapped
 into ``[0, 360)`` deg on evaluation.
+
+**One grid, many launch days** (issue 48). The ascent relative to the Earth does not
+depend on the day or on the target's node: an ascent depends on the launcher, the drop,
+the settings and the inclination of the plane it aims at; the day and the node only time
+the drop (:func:`ovtraj.launch.stage.insertion_time_s`). So the expensive grid is solved
+once, for the *grid day* (the campaign epoch's UTC date, :func:`grid_launch_day`) and
+keyed by :func:`launch_grid_key` (the launch section without its day, the Earth model and
+the target plane's mean inclination on that day: no day, no node); a day's fit is that
+grid's designs flown again and timed on the day (:func:`retimed_launch_fit`, 2-5 s), then
+fitted and stored under the day's own :func:`launch_fit_key` (:func:`day_launch_fit`).
+The target's mean inclination moves by at most ~2e-5 deg over a year of J2 (600 times
+under the insertion tolerance; docs/window.md), and every row is checked against the
+day's tolerances again when it is flown.
 """
 
 from __future__ import annotations
@@ -32,16 +45,20 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario
-from ovtraj.config.launch import FitGridConfig
+from ovtraj.config.launch import DESIGN_VARIABLES, FitGridConfig
+from ovtraj.launch.ascent_optimization import OptimisationOutcome
 from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
-from ovtraj.launch.inputs import LaunchInput
+from ovtraj.launch.inputs import LaunchInput, launch_input, target_plane_at
 from ovtraj.launch.result import ROW_SCHEMA, LaunchResult
-from ovtraj.launch.stage import solve_launch
+from ovtraj.launch.stage import finish_launch, launch_problem, solve_launch
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.store.files import Digest, StoreError, read_json
 from ovtraj.store.paths import reference_dir, workspace
 from ovtraj.store.products import Product
-from ovtraj.store.records import table_from_rows
+from ovtraj.store.records import plain, table_from_rows
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +81,10 @@ FITTED_OUTPUTS = {
     "insertion_u_deg": ("deg", "insertion_u_deg"),
     "flight_time_s": ("s", "flight_time_s"),  # drop to insertion: the mission's start
 }
+# The fitted outputs a launch day moves (the first in-plane drop after its 0 h); the
+# payload, the flight time and the argument of latitude at insertion are the ascent's
+# (a rotation about the pole leaves u), the same on every day (module notes).
+DAY_OUTPUTS = ("insertion_time_s",)
 
 
 def fit_roots() -> tuple[Path, Path]:
@@ -291,9 +312,16 @@ class LaunchFit:
 
 
 def fit_rows(
-    rows: list[dict[str, Any]], fit: FitGridConfig, launcher: str, key: str = ""
+    rows: list[dict[str, Any]],
+    fit: FitGridConfig,
+    launcher: str,
+    key: str = "",
+    *,
+    kept: LaunchFit | None = None,
 ) -> LaunchFit:
-    """Fit every output over solved grid rows (``LaunchResult.to_row()``)."""
+    """Fit every output over solved grid rows (``LaunchResult.to_row()``). ``kept``: a fit
+    of the same ascents on another day, whose series of the outputs that do not depend on
+    the day are taken as they are; only :data:`DAY_OUTPUTS` are fitted."""
     bad = [r for r in rows if not r["feasible"]]
     if bad:
         listing = ", ".join(f"{r['target_altitude_km']:g} km ({r['reason']})" for r in bad)
@@ -302,6 +330,9 @@ def fit_rows(
     h = grid["target_altitude_km"].to_numpy(dtype=float) * 1e3
     series, ridges = {}, {}
     for name, (unit, column) in FITTED_OUTPUTS.items():
+        if kept is not None and name not in DAY_OUTPUTS:
+            series[name], ridges[name] = kept.series[name], kept.ridges[name]
+            continue
         y = grid[column].to_numpy(dtype=float)
         if name == "insertion_u_deg":
             y = np.degrees(np.unwrap(np.radians(y)))
@@ -373,7 +404,11 @@ def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] | None = None) -
     is an interrupted save, or a fit of an older format that is solved again. The fit
     found is loaded with every file checked.
     """
-    key = launch_fit_key(scenario)
+    return _stored_fit(launch_fit_key(scenario), roots)
+
+
+def _stored_fit(key: str, roots: tuple[Path, ...] | None) -> LaunchFit | None:
+    """The complete stored fit whose ``meta.json`` names ``key`` (first root first)."""
     for root in roots or fit_roots():
         candidates = [root / key, *sorted(root.glob("*"))] if root.is_dir() else []
         for directory in candidates:
@@ -384,3 +419,151 @@ def find_launch_fit(scenario: Scenario, roots: tuple[Path, ...] | None = None) -
             if isinstance(meta, dict) and meta.get("kind") == KIND and meta.get("key") == key:
                 return LaunchFit.load(directory)
     return None
+
+
+# -- one grid for every launch day (module notes) ---------------------------------------
+
+
+def grid_launch_day(scenario: Scenario) -> str:
+    """The launch day the shared grid is solved for: the campaign epoch's UTC date
+    (``YYYY-MM-DD``), whatever the scenario's own launch day."""
+    return scenario.epoch.iso()[:10]
+
+
+def grid_scenario(scenario: Scenario) -> Scenario:
+    """The scenario launched on :func:`grid_launch_day` (the target, its epoch and every
+    setting unchanged): the problem the shared grid solves."""
+    if scenario.launch is None:
+        raise ValueError("the scenario has no launch section")
+    launch = scenario.launch.model_copy(update={"launch_date_utc": grid_launch_day(scenario)})
+    return scenario.model_copy(update={"launch": launch})
+
+
+def launch_grid_key(scenario: Scenario) -> str:
+    """Content hash of what the solved grid's ascents depend on: the launch section
+    without its day, the Earth model, and the inclination of the target's mean plane on
+    :func:`grid_launch_day` (exact, as the grid's problem takes it). Neither the launch
+    day nor the target's node enters (a target of another node shares the grid when its
+    inclination comes out to the same last bit; else it gets a grid of its own: a miss,
+    never a wrong share); the solvers' wall-time limits are left out as in
+    :func:`launch_fit_key`."""
+    if scenario.launch is None:
+        raise ValueError("the scenario has no launch section")
+    resolved = scenario.resolved()
+    day = Epoch.from_iso(grid_launch_day(scenario))
+    content = {
+        "launch": {k: v for k, v in resolved["launch"].items() if k != "launch_date_utc"},
+        "earth": resolved["earth"],
+        "target_inclination_rad": repr(float(target_plane_at(scenario, day).inclination_rad)),
+    }
+    text = json.dumps(_without_time_limits(content), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def find_launch_grid(scenario: Scenario, roots: tuple[Path, ...] | None = None) -> LaunchFit | None:
+    """The stored grid the scenario's days share: one stored under
+    :func:`launch_grid_key`, else the stored fit of :func:`grid_scenario` (solved for
+    the grid day, e.g. the shipped reference of the default scenario); None without."""
+    return _stored_fit(launch_grid_key(scenario), roots) or find_launch_fit(
+        grid_scenario(scenario), roots
+    )
+
+
+def solve_launch_grid(scenario: Scenario, on_progress: Progress | None = None) -> LaunchFit:
+    """Solve the shared grid (:func:`grid_scenario`'s launch fit, ~4 min here), store it in
+    the workspace under :func:`launch_grid_key` and return it as stored."""
+    key = launch_grid_key(scenario)
+    inp = launch_input(grid_scenario(scenario))
+    solved = launch_fit(inp, scenario.launch.fit, key=key, on_progress=on_progress)
+    directory = fit_roots()[0] / key
+    solved.save(directory)
+    return LaunchFit.load(directory)
+
+
+def retimed_launch_fit(grid: LaunchFit, scenario: Scenario) -> LaunchFit:
+    """The scenario's launch fit from a shared grid: each grid design flown again by the
+    stage (:func:`~ovtraj.launch.stage.finish_launch`) on the scenario's launch day, so
+    every row's timing, insertion state and errors are the day's, checked against its
+    tolerances, then fitted (key: :func:`launch_fit_key`). ``ValueError`` names the grid
+    points the day cannot fly, or a grid that holds no solved rows."""
+    if grid.grid.empty:
+        raise ValueError("the shared launch grid holds no solved rows (coefficients only)")
+    inp = launch_input(scenario)  # the day's plane, once
+    stored = sorted(grid.grid.to_dict(orient="records"), key=lambda r: r["target_altitude_km"])
+    rows = [_flown(inp, row) for row in stored]
+    # The stage times each point at its first in-plane drop after 0 h. A day whose first
+    # drop comes within the grid's spread of drop times (~3 min) would split the grid
+    # between two crossings a day apart, and the insertion-time series would jump: the
+    # points on the earlier crossing are timed on the later one, one return of the
+    # target's plane over the drop point later (the step of stage.insertion_time_s).
+    period = TWO_PI / (inp.earth.omega - inp.target_plane.raan_rate_rad_s)
+    latest = max(row["insertion_time_s"] for row in rows)
+    for k, row in enumerate(rows):
+        if latest - row["insertion_time_s"] > period / 2.0:
+            rows[k] = _flown(inp, stored[k], row["insertion_time_s"] + period)
+    day = scenario.launch.launch_date_utc
+    try:
+        return fit_rows(
+            rows, scenario.launch.fit, grid.launcher, key=launch_fit_key(scenario), kept=grid
+        )
+    except ValueError as err:
+        raise ValueError(f"the shared launch grid on {day}: {err}") from None
+
+
+def _flown(inp: LaunchInput, row: dict[str, Any], insertion_time: float | None = None) -> dict:
+    """A stored grid row's design flown again on ``inp``'s day: its result row (no
+    optimisation phases: the design is the grid's)."""
+    point = inp.at_altitude(float(row["target_altitude_km"]) * 1e3)
+    problem = launch_problem(point)
+    x = problem.to_scaled(np.array([row[f"design_{n}"] for n in DESIGN_VARIABLES], dtype=float))
+    evaluation = problem.evaluate(x)
+    outcome = OptimisationOutcome(
+        x=x,
+        payload_kg=float(evaluation.payload_kg[0]),
+        max_violation=float(evaluation.violation[0]),
+        max_residual=float(evaluation.residual[0]),
+        phases=[],
+        trajectories=0,
+        wall_time_s=0.0,
+    )
+    # wall time 0: the stored fit depends on its inputs only
+    return finish_launch(point, problem, outcome, 0.0, insertion_time=insertion_time).to_row()
+
+
+def grid_data(fit: LaunchFit) -> dict[str, Any]:
+    """A fit with its solved grid as plain JSON data (:meth:`LaunchFit.to_dict` and the
+    grid's rows): what a process with no stored grid on its disk (a Dask worker
+    elsewhere) needs to retime it."""
+    return {**fit.to_dict(), "grid": plain(fit.grid.to_dict(orient="records"))}
+
+
+def grid_from_data(data: Any) -> LaunchFit:
+    """The fit of :func:`grid_data`, its rows checked against :data:`GRID_SCHEMA`;
+    ``ValueError`` naming what is malformed."""
+    fit = LaunchFit.from_dict(data)
+    rows = data.get("grid") if isinstance(data, dict) else None
+    if not isinstance(rows, list) or not rows:
+        raise ValueError("not a launch grid's data: no solved rows")
+    table = table_from_rows(rows, GRID_SCHEMA, "launch grid")
+    return LaunchFit(fit.series, table.to_pandas(), fit.launcher, fit.ridges, fit.key)
+
+
+def day_launch_fit(
+    scenario: Scenario, roots: tuple[Path, ...] | None = None, grid: LaunchFit | None = None
+) -> LaunchFit | None:
+    """The scenario's launch fit: the stored one (:func:`find_launch_fit`), else the
+    shared grid (``grid``, else :func:`find_launch_grid`) retimed to its day, stored in the
+    workspace under its key and returned as stored; None when there is no grid. One BLAS
+    thread: any process derives the same bytes (a stored fit is never overwritten by
+    another)."""
+    found = find_launch_fit(scenario, roots)
+    if found is not None:
+        return found
+    grid = grid or find_launch_grid(scenario, roots)
+    if grid is None:
+        return None
+    with blas_threads(EVALUATION_BLAS_THREADS):
+        fit = retimed_launch_fit(grid, scenario)
+    directory = fit_roots()[0] / fit.key
+    fit.save(directory)
+    return LaunchFit.load(directory)

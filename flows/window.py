@@ -1,0 +1,151 @@
+"""Flow: a launch-window scan (``flows/window.py:window_flow``; issue 48, docs/window.md).
+
+The library's one driver (:func:`ovtraj.window.scan.scan_window`, as ``ovtraj window``),
+with each launch day a task (``tasks/window.py``) on the flow's task runner
+(``serial | threads | processes | dask``: the ``runner`` parameter, else
+``mission.doe.task_runner``; ``serial`` and ``threads`` one day after another):
+
+1. the scenario and its days (the launch day moves, the target stays);
+2. a task per day not stored yet: the day's launch fit (the shared grid flown on the
+   day), then its whole pipeline, runs, front, plan and report in the run store;
+3. the window's table, plot and page in ``<run store>/windows/<window id>/``, then
+   artifacts: the days' table and the plot.
+
+A second flow run with nothing changed submits no task: every day's record is stored.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from prefect import flow, get_run_logger
+from prefect.artifacts import create_markdown_artifact, create_table_artifact
+from prefect.futures import as_completed
+
+from flows.common import embedded_plots, label_flow_run, run_name, run_tags
+from flows.runners import task_runner
+from ovtraj.pipeline import Pick
+from ovtraj.pipeline.pick import weights_problem
+from ovtraj.runs import RunStore
+from ovtraj.runs.runners import RunnerChoice, choose_runner
+from ovtraj.store.paths import scenario_file
+from ovtraj.target_sources import load_scenario_with_target
+from ovtraj.window.report import window_rows
+from ovtraj.window.scan import DayJob, WindowRequest, scan_window, window_id
+from ovtraj.window.settings import load_window_settings
+from tasks.common import code_version
+from tasks.window import window_day_task
+
+WINDOW = load_window_settings()
+
+
+@dataclass(frozen=True)
+class TaskDays:
+    """The flow's :class:`ovtraj.window.scan.DayRunner`: a task per day on the task runner
+    of ``choice`` (``choice.workers`` days at once on processes or Dask)."""
+
+    choice: RunnerChoice
+
+    def run(self, jobs: Sequence[DayJob]) -> Iterator[dict[str, Any]]:
+        if not jobs:
+            return
+        choice = self.choice
+        workers = 1 if choice.runner in ("serial", "threads") else min(choice.workers, len(jobs))
+        with task_runner(choice.runner, workers, choice.dask_address) as started:
+            futures = [started.submit(window_day_task, {"job": asdict(job)}) for job in jobs]
+            for future in as_completed(futures):
+                yield future.result()
+
+
+@flow(
+    name="launch-window",
+    flow_run_name=run_name("window"),
+    timeout_seconds=WINDOW.flow_timeout_s,
+    log_prints=True,
+)
+def window_flow(
+    config: str | None = None,
+    days: int = 1,
+    samples: int | None = None,
+    seed: int | None = None,
+    weights: list[float] | None = None,
+    max_time_h: float | None = None,
+    max_dv: float | None = None,
+    min_payload: float | None = None,
+    store_root: str | None = None,
+    target: str | None = None,
+    runner: str | None = None,
+    workers: int | None = None,
+    dask_address: str | None = None,
+) -> dict[str, Any]:
+    """``days`` launch days from the scenario's, a pipeline each; the best plan of each
+    day by ``weights`` (T, dV, M on the normalised objectives; equal by default) among
+    the front points within the limits, and the best day. Returns the window's paths and
+    the days' rows.
+
+    ``config``: the scenario file (default: the shipped scenario). ``target``: a TLE/OMM
+    file or URL replacing the scenario's target. ``runner``/``workers``/``dask_address``:
+    where the days run (default: ``mission.doe``'s runner and workers; ``dask_address``
+    else ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
+    """
+    logger = get_run_logger()
+    path = scenario_file(config)
+    scenario = load_scenario_with_target(path, target)
+    if scenario.mission is None:
+        raise ValueError(f"{path}: the scenario has no mission section")
+    problem = weights_problem(weights)
+    if problem is not None:
+        raise ValueError(f"weights {weights}: {problem}")
+    pick = Pick(None, None if weights is None else tuple(weights), max_time_h, max_dv, min_payload)
+    choice = choose_runner(scenario.mission.doe, runner, dask_address)
+    if workers is not None:
+        choice = RunnerChoice(choice.runner, workers, choice.dask_address)
+    store = RunStore.for_scenario(scenario, config, store_root)
+    request = WindowRequest(days=days, samples=samples, seed=seed, pick=pick)
+    code = code_version()
+    identity = window_id(scenario, request, code)
+    label_flow_run(f"window {scenario.name} {identity}", run_tags("window", scenario.name))
+    logger.info("window %s: %d days, runner %s", identity, days, choice.runner)
+    outcome = scan_window(scenario, request, store, code, TaskDays(choice), progress=logger.info)
+    rows = window_rows(outcome.records, outcome.best_day)
+    create_table_artifact(
+        key="launch-window",
+        table=rows,
+        description=f"launch window {identity} of {scenario.name}: a row per launch day "
+        "(T_total [h], dV_total [m/s], M_load [kg] of the day's picked plan, its score)",
+    )
+    best = outcome.best_day
+    verdict = (
+        "no day has a plan"
+        if best is None
+        else f"best day {outcome.records[best]['date']} (day {best}), "
+        f"score {outcome.records[best]['score']:.4f}"
+    )
+    files = {name: str(path) for name, path in outcome.files.items()}
+    create_markdown_artifact(
+        key="launch-window-plot",
+        markdown="\n\n".join(
+            [
+                f"**{verdict}**",
+                f"- page: `{files['window.html']}`",
+                *embedded_plots([outcome.files["window.png"]]),
+            ]
+        ),
+        description=f"launch window {identity} of {scenario.name}",
+    )
+    logger.info("%s; page %s", verdict, files["window.html"])
+    return {
+        "window_id": identity,
+        "reused": outcome.reused,
+        "best_day": best,
+        "best_date": None if best is None else outcome.records[best]["date"],
+        "planned_days": outcome.planned_days,
+        "rows": rows,
+        "files": files,
+    }
+
+
+if __name__ == "__main__":
+    print(window_flow())

@@ -1,0 +1,224 @@
+"""The launch-window scan: ``ovtraj window SCENARIO --days N`` (issue 48; docs/window.md)."""
+
+from __future__ import annotations
+
+import logging
+from typing import Annotated, Any
+
+import typer
+
+from ovtraj.cli.common import (
+    ConfigArg,
+    JsonOpt,
+    StoreOpt,
+    TargetOpt,
+    _load,
+    _print_json,
+    _store,
+    app,
+)
+from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, _runner_choice
+from ovtraj.cli.picking import MaxDvOpt, MaxTimeOpt, MinLoadOpt, WeightsOpt, _pick
+from ovtraj.cli.progress import echo, progress_bar
+from ovtraj.formatting import quantity
+
+DaysOpt = Annotated[
+    int,
+    typer.Option(
+        "--days",
+        help="launch days from the scenario's launch.launch_date_utc, a whole pipeline each "
+        "(1 to configs/window.yaml max_days)",
+        show_default=False,
+    ),
+]
+DaysRunnerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--runner",
+        help="serial | threads | processes | dask: where the days run, a day's pipeline "
+        "whole in one process (default: the config's mission.doe.task_runner; serial and "
+        "threads: one day after another)",
+        show_default=False,
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        min=1,
+        help="days at once on --runner processes or a local Dask cluster (default: the "
+        "config's mission.doe.workers)",
+        show_default=False,
+    ),
+]
+
+
+@app.command()
+def window(
+    days: DaysOpt,
+    config: ConfigArg = None,
+    samples: SamplesOpt = None,
+    seed: SeedOpt = None,
+    weights: WeightsOpt = None,
+    max_time_h: MaxTimeOpt = None,
+    max_dv: MaxDvOpt = None,
+    min_payload: MinLoadOpt = None,
+    store_root: StoreOpt = None,
+    target: TargetOpt = None,
+    runner: DaysRunnerOpt = None,
+    workers: WorkersOpt = None,
+    dask_address: DaskAddressOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Launch-window scan: the whole pipeline for each of ``--days`` launch days (each
+    day's runs, front, plan and report in the run store, as ``ovtraj pipeline``), the
+    plan each day picks by ``--weights``, and the best day. Writes a table, a plot of
+    T_total, dV_total and M_load against the launch day and an HTML page linking each
+    day's report, in the run store's windows/ folder. A second scan with nothing changed
+    simulates nothing. Exit 1 when no day has a plan."""
+    from dataclasses import replace
+
+    from ovtraj.window.settings import load_window_settings
+
+    chosen = _pick(None, weights, max_time_h, max_dv, min_payload)  # refused before any work
+    limit = load_window_settings().max_days
+    if not 1 <= days <= limit:
+        shown = f"must lie in 1..{limit} (configs/window.yaml max_days)"
+        typer.echo(f"--days {days}: {shown}", err=True)
+        raise typer.Exit(code=2)
+    scenario = _load(config, target)
+    if scenario.mission is None or scenario.launch is None:
+        typer.echo(f"{config}: the scenario has no mission section", err=True)
+        raise typer.Exit(code=2)
+    choice = _runner_choice(scenario.mission.doe, runner, dask_address)
+    if workers is not None:
+        choice = replace(choice, workers=workers)
+    store = _store(store_root, scenario, config)
+    outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
+    files = {name: path.resolve() for name, path in outcome.files.items()}
+    best = outcome.best_day
+    if as_json:
+        _print_json(
+            {
+                "window_id": outcome.window_id,
+                "reused": outcome.reused,
+                "days": len(outcome.records),
+                "planned_days": outcome.planned_days,
+                "best_day": best,
+                "best_date": None if best is None else outcome.records[best]["date"],
+                "rows": _json_rows(outcome, store),
+                "files": {name: str(path) for name, path in files.items()},
+            }
+        )
+    else:
+        _print_table(outcome, store)
+        if best is None:
+            typer.echo("no day has a plan")
+        else:
+            record = outcome.records[best]
+            typer.echo(f"best day: {record['date']} (day {best}), score {record['score']:.4f}")
+        for label, name in (
+            ("table", "window.parquet"),
+            ("plot", "window.png"),
+            ("plot", "window.svg"),
+            ("page", "window.html"),
+            ("window", "window.json"),
+        ):
+            typer.echo(f"{label}: {files[name]}")
+    if best is None:
+        raise typer.Exit(code=1)
+
+
+def _scan(
+    scenario: Any,
+    days: int,
+    samples: int | None,
+    seed: int | None,
+    pick: Any,
+    store: Any,
+    choice: Any,
+    as_json: bool,
+) -> Any:
+    """The library's driver (:func:`ovtraj.window.scan.scan_window`, as the window flow)
+    with the days on the library's pool; a fault is one line on stderr, exit 2."""
+    from ovtraj.config.orchestration import load_orchestration
+    from ovtraj.runs import StoreError
+    from ovtraj.runs.execute import BatchesFailed
+    from ovtraj.runs.runners import ClusterError
+    from ovtraj.surrogate import SurrogateError
+    from ovtraj.version import code_version
+    from ovtraj.window.scan import PoolDays, WindowRequest, scan_window
+
+    say = logging.getLogger("ovtraj.window").info if as_json else echo
+    request = WindowRequest(days=days, samples=samples, seed=seed, pick=pick)
+    runner = PoolDays(choice, load_orchestration().dask)
+    try:
+        with progress_bar("launch grid", enabled=not as_json) as update:
+            return scan_window(
+                scenario, request, store, code_version(), runner, progress=say, grid_progress=update
+            )
+    except (StoreError, SurrogateError, ValueError, ClusterError, BatchesFailed) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _plan_path(record: dict[str, Any], store: Any) -> str:
+    return "-" if record["plan"] is None else str(store.root / record["plan"])
+
+
+def _json_rows(outcome: Any, store: Any) -> list[dict[str, Any]]:
+    rows = []
+    for record in outcome.records:
+        t_total = record["t_total_s"]
+        rows.append(
+            {
+                "day": record["day"],
+                "date": record["date"],
+                "status": record["status"],
+                "reason": record["reason"],
+                "t_total_h": None if t_total is None else t_total / 3600.0,
+                "dv_total_mps": record["dv_total_mps"],
+                "m_load_kg": record["m_load_kg"],
+                "score": record["score"],
+                "converged": record["converged"],
+                "best": record["day"] == outcome.best_day,
+                "plan": None if record["plan"] is None else _plan_path(record, store),
+            }
+        )
+    return rows
+
+
+def _print_table(outcome: Any, store: Any) -> None:
+    """The days as a table on stdout (rich; full width when not a terminal)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title=f"launch window {outcome.window_id}" + (" (stored)" if outcome.reused else ""),
+        title_justify="left",
+        box=None,
+        pad_edge=False,
+    )
+    for column in ("day", "date", "T_total", "dV_total", "M_load", "score", "converged", "plan"):
+        table.add_column(column, no_wrap=True)
+    for record in outcome.records:
+        best = record["day"] == outcome.best_day
+        if record["status"] != "planned":
+            table.add_row(
+                str(record["day"]), record["date"], "-", "-", "-", "-", "-", record["reason"]
+            )
+            continue
+        table.add_row(
+            str(record["day"]),
+            record["date"] + (" *" if best else ""),
+            quantity(record["t_total_s"], "s"),
+            quantity(record["dv_total_mps"], "m/s"),
+            quantity(record["m_load_kg"], "kg"),
+            f"{record['score']:.4f}",
+            str(record["converged"]),
+            _plan_path(record, store),
+        )
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console = Console(highlight=False, width=10_000)
+    console.print(table)

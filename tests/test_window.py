@@ -1,0 +1,322 @@
+"""The launch-window scan (issue 48): ``ovtraj window SCENARIO --days N`` and its flow.
+
+A 3-day window of the default scenario with a small pipeline per day (a 12-sample DoE,
+one infill round of two points, two regressors), on the process runner in a workspace
+of its own: its best day must be the best of the days' own stored plans (scored here
+from the plans' files and the scenario's ideal and reference points, not from the
+window's table); a second scan simulates and writes nothing; days 1 and 2 fly the
+shipped grid's launches, retimed, with no launch solved; the flow and the command give
+the same rows. The launch-fit split is checked against the shipped reference fit and a
+launch solved afresh on another day.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from ovtraj.cli import run_command
+from ovtraj.launch.launch_fit import (
+    day_launch_fit,
+    design_of,
+    find_launch_fit,
+    find_launch_grid,
+    launch_fit_key,
+    launch_grid_key,
+    retimed_launch_fit,
+)
+from ovtraj.window.days import day_scenario
+from ovtraj.window.report import WINDOW_SCHEMA
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+
+DAYS = 3
+OVTRAJ = Path(sys.executable).with_name("ovtraj")
+
+
+def _small(store: Path) -> dict:
+    """The default scenario with a small pipeline per day (tests/test_pipeline.py's)."""
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(samples=12, batch_size=6, store=str(store))
+    data["mission"]["verify"].update(
+        points_per_iteration=2, max_iterations=1, budget=2, hypervolume_tolerance=None
+    )
+    data["mission"]["surrogate"].update(
+        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
+    )
+    data["mission"]["optimize"].update(population=32, generations=40)
+    return data
+
+
+def _files(*roots: Path) -> dict[str, tuple[int, int]]:
+    """Every file under ``roots``: (size, modification time)."""
+    found = {}
+    for root in roots:
+        for path in sorted(root.rglob("*")):
+            if path.is_file():
+                stat = path.stat()
+                found[str(path)] = (stat.st_size, stat.st_mtime_ns)
+    return found
+
+
+@pytest.fixture(scope="module")
+def scanned(tmp_path_factory):
+    """The 3-day window scanned twice by the command (its own process, its own
+    workspace): the outputs, the store's files between the two, the data."""
+    tmp = tmp_path_factory.mktemp("window")
+    home = tmp / "home"
+    data = _small(tmp / "runs")
+    config = tmp / "scenario.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    env = dict(os.environ, OVTRAJ_HOME=str(home))
+    command = [str(OVTRAJ), "window", str(config), "--days", str(DAYS), "--runner", "processes"]
+    first = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
+    before = _files(tmp / "runs", home)
+    again = subprocess.run(
+        [*command, "--json"], capture_output=True, text=True, env=env, timeout=900
+    )
+    with pytest.MonkeyPatch.context() as patch:  # the workspace of the checks below
+        patch.setenv("OVTRAJ_HOME", str(home))
+        yield {
+            "first": first,
+            "again": again,
+            "before": before,
+            "after": _files(tmp / "runs", home),
+            "data": data,
+            "config": config,
+            "store": tmp / "runs",
+            "home": home,
+            "tmp": tmp,
+        }
+
+
+def _written(output: str, label: str) -> list[Path]:
+    return [Path(line.split(": ", 1)[1]) for line in output.splitlines() if line.startswith(label)]
+
+
+def test_the_command_writes_the_window_and_prints_its_absolute_paths(scanned):
+    first = scanned["first"]
+    assert first.returncode == 0, first.stderr
+    days = [line for line in first.stdout.splitlines() if re.match(r"day \d \d{4}-", line)]
+    assert len(days) == DAYS  # a line per finished day
+    paths = [
+        p
+        for label in ("table:", "plot:", "page:", "window:")
+        for p in _written(first.stdout, label)
+    ]
+    assert len(paths) == 5 and all(p.is_absolute() and p.is_file() for p in paths)
+    assert {p.parent.parent for p in paths} == {scanned["store"] / "windows"}
+    frame = pd.read_parquet(paths[0])
+    assert list(frame.columns) == WINDOW_SCHEMA.names and list(frame["day"]) == [0, 1, 2]
+    # The page links each day's report and plan, relatively, to files that exist.
+    page = next(p for p in paths if p.suffix == ".html")
+    links = re.findall(r"href='([^']+)'", page.read_text(encoding="utf-8"))
+    reports = [link for link in links if link.endswith("-report.html")]
+    assert len(reports) == DAYS and all(not link.startswith("/") for link in links)
+    assert all((page.parent / link).resolve().is_file() for link in links)
+
+
+def _score(objectives: dict, optimize: dict) -> float:
+    """Equal weights on (value - ideal) / (reference - ideal) of each objective, from the
+    scenario's own numbers (T in hours there, s in the plan)."""
+    values = {
+        "t_total_h": objectives["t_total_s"] / 3600.0,
+        "dv_total_mps": objectives["dv_total_mps"],
+        "m_load_kg": objectives["m_load_kg"],
+    }
+    ideal, reference = optimize["ideal"], optimize["reference"]
+    return float(np.mean([(values[k] - ideal[k]) / (reference[k] - ideal[k]) for k in values]))
+
+
+def test_the_best_day_is_the_best_of_the_days_own_plans(scanned):
+    store = scanned["store"]
+    plans = [
+        json.loads(p.read_text(encoding="utf-8"))
+        for p in sorted(store.glob("*/pipeline/*/plans/plan-*.json"))
+        if not p.name.endswith(".files.json")
+    ]
+    by_date = {plan["launch_day_utc"][:10]: plan for plan in plans}
+    assert len(plans) == DAYS and sorted(by_date) == ["2026-12-01", "2026-12-02", "2026-12-03"]
+    optimize = scanned["data"]["mission"]["optimize"]
+    scores = {
+        date: _score(plan["source"]["front_objectives"], optimize) for date, plan in by_date.items()
+    }
+    best = min(scores, key=scores.get)
+    assert f"best day: {best} " in scanned["first"].stdout
+    frame = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0])
+    assert list(frame.loc[frame["best"], "date"]) == [best]
+    for row in frame.itertuples(index=False):
+        plan = by_date[row.date]
+        front = plan["source"]["front_objectives"]
+        assert row.score == pytest.approx(scores[row.date], rel=1e-12)
+        assert row.dv_total_mps == front["dv_total_mps"] and row.m_load_kg == front["m_load_kg"]
+        assert row.t_total_h == pytest.approx(front["t_total_s"] / 3600.0, rel=1e-15)
+        assert row.plan.startswith(f"{plan['source']['doe_run']}/pipeline/")
+        # The same target on every day: its elements at the campaign epoch, unchanged.
+        assert plan["scenario"]["epoch_utc"] == scanned["data"]["epoch_utc"]
+        assert (
+            plan["scenario"]["target"]["orbit"]
+            == build_scenario(scanned["data"]).resolved()["target"]["orbit"]
+        )
+
+
+def test_day_zero_is_the_scenario_itself(scanned):
+    """Day 0's DoE run holds the scenario as ``ovtraj pipeline`` would store it (run ids
+    hash the resolved config: unchanged by the window)."""
+    from ovtraj.runs import RunStore
+
+    frame = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0])
+    run = RunStore(scanned["store"]).run(frame.loc[frame["day"] == 0, "doe_run"].item())
+    assert run.config == build_scenario(scanned["data"]).resolved()
+    assert day_scenario(build_scenario(scanned["data"]), 0).resolved() == run.config
+
+
+def test_a_second_scan_simulates_and_writes_nothing(scanned):
+    again = scanned["again"]
+    assert again.returncode == 0, again.stderr
+    summary = json.loads(again.stdout)
+    assert summary["reused"] is True and summary["planned_days"] == DAYS
+    assert not re.search(r"^batch \d+/", again.stdout + again.stderr, flags=re.MULTILINE)
+    assert scanned["after"] == scanned["before"]  # no file written, none removed
+    frame = pd.read_parquet(summary["files"]["window.parquet"])
+    assert summary["best_date"] == frame.loc[frame["best"], "date"].item()
+
+
+def test_the_days_fly_the_shipped_grid_retimed(scanned):
+    """No launch was solved: day 0 is the shipped reference fit, days 1 and 2 its grid
+    flown on their days (the payload the same, the launch ~23 min earlier each day: the
+    node regresses ~5 deg/day and the sidereal day is ~4 min short)."""
+    base = build_scenario(scanned["data"])
+    reference = find_launch_fit(base)
+    assert reference is not None and find_launch_grid(base).key == reference.key
+    stored = sorted(p.parent.name for p in (scanned["home"] / "launch_fit").glob("*/meta.json"))
+    days = [day_scenario(base, d) for d in range(DAYS)]
+    assert stored == sorted(launch_fit_key(day) for day in days[1:])
+    assert launch_grid_key(days[1]) == launch_grid_key(base)
+    h = np.linspace(210e3, 490e3, 5)
+    previous = reference.series["insertion_time_s"](h)
+    for day in days[1:]:
+        fit = find_launch_fit(day)
+        assert np.array_equal(fit.series["payload_kg"](h), reference.series["payload_kg"](h))
+        times = fit.series["insertion_time_s"](h)
+        assert np.all((previous - times > 1300.0) & (previous - times < 1500.0))
+        previous = times
+
+
+def test_a_launch_solved_afresh_on_another_day_is_the_retimed_one(scanned):
+    """Day 1's launch at a grid altitude, solved by the stage (its local phases from the
+    grid's design) on day 1: the payload and the insertion time of day 1's retimed fit."""
+    from ovtraj.launch.inputs import launch_input
+    from ovtraj.launch.stage import solve_launch
+
+    base = build_scenario(scanned["data"])
+    reference, day1 = find_launch_fit(base), day_scenario(base, 1)
+    retimed = day_launch_fit(day1)  # stored by the scan
+    row = reference.grid[(reference.grid["target_altitude_km"] - 305.0).abs() < 1e-9].iloc[0]
+    solved = solve_launch(
+        launch_input(day1, altitude_km=305.0),
+        seed_design=design_of(row.to_dict()),
+        global_search=False,
+    )
+    ours = retimed.grid[(retimed.grid["target_altitude_km"] - 305.0).abs() < 1e-9].iloc[0]
+    assert solved.feasible and solved.launch_day.iso()[:10] == "2026-12-02"
+    assert solved.payload_kg == pytest.approx(ours["payload_kg"], abs=1e-3)
+    assert solved.insertion_time_s == pytest.approx(ours["insertion_time_s"], abs=0.1)
+
+
+def test_the_grid_day_retimed_is_the_shipped_fit(scenario):
+    """The reference grid flown again on its own day gives its own series exactly."""
+    reference = find_launch_fit(scenario)
+    again = retimed_launch_fit(reference, scenario)
+    h = np.linspace(200e3, 500e3, 13)
+    for name, series in reference.series.items():
+        assert np.array_equal(again.series[name](h), series(h)), name
+
+
+def test_a_day_whose_first_drop_splits_the_grid_keeps_one_crossing(scenario):
+    """2027-10-30 (day 333): the first in-plane drop after 0 h comes within the grid's
+    spread of drop times, so the stage's own rule would time some altitudes a day later
+    than others; the retimed grid keeps them on one crossing, every drop after 0 h."""
+    day = day_scenario(scenario, 333)
+    fit = retimed_launch_fit(find_launch_fit(scenario), day)
+    times, drops = fit.grid["insertion_time_s"], fit.grid["drop_time_s"]
+    assert times.max() - times.min() < 600.0 and drops.min() >= 0.0
+    assert fit.loo_relative_error("insertion_time_s") < 0.1
+
+
+def test_no_day_with_a_plan_exits_1_and_says_why(scanned, capsys):
+    """A pick no front point meets: the day is recorded without a plan, with the reason
+    (its pipeline is the stored one: nothing evaluated), and the command exits 1."""
+    args = ["window", str(scanned["config"]), "--days", "1", "--max-time-h", "1", "--json"]
+    assert run_command(args) == 1
+    summary = json.loads(capsys.readouterr().out)
+    (row,) = summary["rows"]
+    assert summary["best_day"] is None and row["status"] == "no plan" and row["plan"] is None
+    assert "max_t_total_h = 1" in row["reason"]
+    frame = pd.read_parquet(summary["files"]["window.parquet"])
+    assert not frame["best"].any() and frame["t_total_h"].isna().all()
+
+
+def test_bad_input_is_one_line_and_exit_2(capsys, tmp_path):
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("name: [unclosed\n", encoding="utf-8")
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data.pop("mission")
+    no_mission = tmp_path / "no-mission.yaml"
+    no_mission.write_text(yaml.safe_dump(data), encoding="utf-8")
+    for args, named in (
+        (["window", "--days", "0"], "--days 0"),
+        (["window", "--days", "367"], "--days 367"),
+        (["window", str(broken), "--days", "2"], str(broken)),
+        (["window", str(tmp_path / "missing.yaml"), "--days", "2"], "missing.yaml"),
+        (["window", str(no_mission), "--days", "2"], "no mission section"),
+        (["window", "--days", "2", "--weights", "1,-1,1"], "--weights"),
+    ):
+        assert run_command(args) == 2, args
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and named in err, (args, err)
+
+
+def test_the_flow_and_the_command_give_the_same_days(scanned, prefect_server):
+    """``window_flow`` (a task per day on the process runner, one process: the day tasks
+    travel to it and back) into a store of its own: the rows of its two days are the
+    command's first two."""
+    from flows.window import window_flow
+
+    store = scanned["tmp"] / "flow-runs"
+    summary = window_flow(
+        config=str(scanned["config"]),
+        days=2,
+        store_root=str(store),
+        runner="processes",
+        workers=1,
+    )
+    assert summary["planned_days"] == 2 and summary["reused"] is False
+    from ovtraj.runs import RunStore
+
+    command = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0]).head(2)
+    flow = pd.DataFrame(summary["rows"])
+    columns = [c for c in WINDOW_SCHEMA.names if c != "best"]  # the best of 2 days, not 3
+    # Ids and paths hash the code version too: a checkout edited between the two scans
+    # (another session's work) gives other ids for the same results.
+    versions = {
+        RunStore(root).run(run_id).manifest["code_version"]
+        for root, frame in ((scanned["store"], command), (store, flow))
+        for run_id in frame["doe_run"]
+    }
+    if len(versions) > 1:
+        columns = [c for c in columns if c not in ("doe_run", "pipeline_id", "plan", "report")]
+    pd.testing.assert_frame_equal(
+        flow[columns], command[columns], check_dtype=False, check_exact=True
+    )
+    assert Path(summary["files"]["window.html"]).is_relative_to(store / "windows")
