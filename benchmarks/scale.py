@@ -21,8 +21,9 @@ samples, a month's launch window (issue 48), side by side in one run.
    stage). Overhead per sample = (workers x wall - the jobs' summed time) / samples; also
    the whole wall per sample. Then ``ovtraj runs``, ``show`` and ``verify`` on that
    store (processes, timed) and the largest folder's entry count.
-4. **Launch window.** ``ovtraj window configs/scenario.yaml --days --window-days`` in a
-   fresh workspace (the shipped launch fits), then again unchanged.
+4. **Launch window.** ``ovtraj window configs/scenario.yaml --days N --runner processes``
+   (N = ``--window-days``) in a fresh workspace (the shipped launch fits), then again
+   unchanged.
 
 Goals (issue 48): DoE + fits + front at 10,000 samples <= 300 s wall on these 2 cores;
 fits at 10,000 samples <= 60 s, growing about linearly from 1,000 (exponent <= ~1);
@@ -353,7 +354,8 @@ def window(days: int) -> dict:
     with tempfile.TemporaryDirectory(prefix="ovtraj-window-") as tmp:
         env = {**os.environ, "OVTRAJ_HOME": tmp}
         ovtraj = str(Path(sys.executable).with_name("ovtraj"))
-        command = [ovtraj, "window", str(ROOT / "configs" / "scenario.yaml"), "--days", str(days)]
+        scenario = str(ROOT / "configs" / "scenario.yaml")
+        command = [ovtraj, "window", scenario, "--days", str(days), "--runner", "processes"]
         cold = _timed(command, env)
         rerun = _timed(command, env)
     return {"days": days, "cold_s": cold, "rerun_s": rerun}
