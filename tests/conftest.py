@@ -186,7 +186,13 @@ def prefect_record(folder: Path, key: str) -> Path:
 # test_tracking.py second: it builds the re-plan nights (replan_nights, ~70 s) that
 # test_prefect_ui.py also uses, on the worker not installing; collected in alphabetical
 # order the two met, and one worker waited ~50 s on the other's build.
-LONG_MODULES = ("test_user_install.py", "test_tracking.py", "test_install.py", "test_benchmarks.py")
+LONG_MODULES = (
+    "test_user_install.py",
+    "test_tracking.py",
+    "test_install.py",
+    "test_benchmarks.py",
+    "test_window.py",  # ~100 s: a 3-day scan and its flow; collected last it would end alone
+)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
