@@ -166,33 +166,43 @@ def _quality(fitted) -> dict:
     }
 
 
-def pipeline_at_scale(samples: int, fit_sizes: list[int], baseline: int) -> dict:
+def _evaluated(scenario, store: Path, samples: int, **how):
+    """A fresh DoE run of ``samples`` evaluated by ``run_doe`` (``how``: its runner and
+    job options); (run, the batch jobs' summaries, wall seconds)."""
     from ovtraj.launch.launch_fit import find_launch_fit
-    from ovtraj.optimize import Normalisation, surrogate_front
-    from ovtraj.pipeline import training_data
     from ovtraj.runs import RunStore, prepare_run, run_doe
     from ovtraj.version import code_version
+
+    doe = scenario.mission.doe
+    run = prepare_run(
+        scenario, samples=samples, seed=doe.seed, code=code_version(), store=RunStore(store)
+    )
+    jobs: list[dict] = []
+    start = time.perf_counter()
+    run_doe(
+        scenario,
+        run,
+        find_launch_fit(scenario),
+        batch_size=run.batch_size(doe),
+        on_batch=jobs.append,
+        progress=lambda line: None,
+        **how,
+    )
+    return run, jobs, time.perf_counter() - start
+
+
+def pipeline_at_scale(samples: int, fit_sizes: list[int], baseline: int) -> dict:
+    from ovtraj.optimize import Normalisation, surrogate_front
+    from ovtraj.pipeline import training_data
 
     scenario = _scenario()
     doe = scenario.mission.doe
     out: dict = {"samples": samples, "workers": doe.workers}
     with tempfile.TemporaryDirectory(prefix="ovtraj-scale-") as tmp, PeakMemory() as memory:
-        run = prepare_run(
-            scenario, samples=samples, seed=doe.seed, code=code_version(), store=RunStore(tmp)
+        cpu = _cpu_s()
+        run, jobs, out["doe_s"] = _evaluated(
+            scenario, Path(tmp), samples, runner="processes", workers=doe.workers
         )
-        jobs: list[dict] = []
-        cpu, start = _cpu_s(), time.perf_counter()
-        run_doe(
-            scenario,
-            run,
-            find_launch_fit(scenario),
-            batch_size=run.batch_size(doe),
-            runner="processes",
-            workers=doe.workers,
-            on_batch=jobs.append,
-            progress=lambda line: None,
-        )
-        out["doe_s"] = time.perf_counter() - start
         out["doe_cpu_ms_per_sample"] = 1000 * (_cpu_s() - cpu) / samples
         evaluation = sum(
             float(t)
@@ -300,9 +310,6 @@ def orchestration(samples: int) -> dict:
     from doe import Cluster
 
     from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.launch.launch_fit import find_launch_fit
-    from ovtraj.runs import RunStore, prepare_run, run_doe
-    from ovtraj.version import code_version
 
     scenario = _scenario()
     doe = scenario.mission.doe
@@ -312,24 +319,15 @@ def orchestration(samples: int) -> dict:
         try:
             cluster.wait()
             store = Path(tmp) / "store"
-            run = prepare_run(
-                scenario, samples=samples, seed=doe.seed, code=code_version(), store=RunStore(store)
-            )
-            jobs: list[dict] = []
-            start = time.perf_counter()
-            run_doe(
+            run, jobs, wall = _evaluated(
                 scenario,
-                run,
-                find_launch_fit(scenario),
-                batch_size=run.batch_size(doe),
+                store,
+                samples,
                 runner="dask",
                 dask_address=cluster.address,
                 dask=load_orchestration().dask,
-                on_batch=jobs.append,
-                progress=lambda line: None,
                 job=_synthetic_batch_job,
             )
-            wall = time.perf_counter() - start
         finally:
             cluster.stop()
         busy = sum(job["wall_time_s"] for job in jobs)

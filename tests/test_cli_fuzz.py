@@ -87,12 +87,16 @@ def _cases(ws: Path) -> list[list[str]]:
             ["fly", "plan.json", "--seed", number],
             ["target", str(ISS_TLE), "--span-h", number],
             ["target", str(ISS_TLE), "--catalog-number", number],
+            ["window", "--days", number, *store],
+            ["window", "--days", "2", "--samples", number, *store],
         ]
     for number in ("nan", "inf", "1e400", "-1"):  # refused before the pipeline starts
         cases += [["pipeline", "--max-time-h", number, *store]]
+        cases += [["window", "--days", "2", "--max-dv", number, *store]]
     for weights in WEIGHTS:
         cases += [["plan", "x", "--weights", weights, *store]]
         cases += [["pipeline", "--weights", weights, *store]]
+        cases += [["window", "--days", "2", "--weights", weights, *store]]
     for path in special:
         cases += [
             ["run", path, *store],
@@ -105,11 +109,14 @@ def _cases(ws: Path) -> list[list[str]]:
             ["export", str(ws / "plan.json"), "--format", "opm", "--out", path],
             ["target", path],
             ["run", "--target", path, *store],
+            ["window", path, "--days", "2", *store],
+            ["window", "--days", "2", "--target", path, *store],
         ]
     cases += [
         ["export", "plan.json", "--format", "a\nb", "--out", "../../x.oem"],
         ["target", str(ISS_TLE), "--epoch", "\x1b[31m\nyesterday"],
         ["run", "--runner", "a\nb", *store],
+        ["window", "--days", "2", "--runner", "a\nb", *store],
         ["prune", "--only", "a\nb", *store],
     ]
     return cases
