@@ -262,6 +262,26 @@ def _check_surrogate_vs_direct(f: dict) -> None:
     assert f["met"]["evaluations"] == (f["evaluation_ratio"] <= goals["evaluation_ratio_max"])
 
 
+def _check_scale(f: dict) -> None:
+    """The scaled-down run: every part's figures, the ratios their goals' (the window is
+    tests/test_window.py's)."""
+    pipeline, orchestration, goals = f["pipeline"], f["orchestration"], f["goals"]
+    assert pipeline["samples"] == 24 and set(pipeline["fits"]) == {"16", "24"}
+    assert 0 < pipeline["store_bytes_per_sample"] < goals["store_bytes_per_sample"]
+    assert pipeline["evaluation_ms_per_sample"] > 0 and pipeline["front_points"] > 0
+    assert math.isfinite(pipeline["fit_exponent"])
+    assert _close(f["ratios"]["pipeline"], pipeline["pipeline_s"] / goals["pipeline_s"])
+    # a real 2-worker Dask cluster stored every synthetic sample; runs/show/verify read it
+    assert orchestration["samples"] == orchestration["stored_samples"] == 400
+    assert orchestration["largest_folder_entries"] <= orchestration["batches"] + 2
+    assert min(orchestration[k] for k in ("runs_s", "show_s", "verify_s")) > 0
+    assert _close(
+        f["ratios"]["orchestration"],
+        orchestration["wall_ms_per_sample"] / goals["orchestration_ms_per_sample"],
+    )
+    assert f["met"]["orchestration"] == (f["ratios"]["orchestration"] <= 1.0)
+
+
 @dataclass(frozen=True)
 class Benchmark:
     name: str
@@ -452,6 +472,17 @@ BENCHMARK_CASES = (
         ),
         _check_store,
         ("goal_bytes_per_sample", "samples", "verified_files"),
+    ),
+    Benchmark(
+        "scale",
+        lambda _: [
+            *("--samples", "24", "--fit-sizes", "16,24", "--baseline-size", "0"),
+            *("--synthetic", "400", "--window-days", "0"),
+        ],
+        frozenset({"pipeline", "orchestration", "goals", "ratios", "met"}),
+        _check_scale,
+        ("goals",),
+        twice=False,
     ),
     Benchmark(
         "surrogate_vs_direct",

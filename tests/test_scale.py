@@ -1,19 +1,15 @@
 """DoE and store at scale (issue 48): batches sized by the run, the same results however
-a run is batched, the trajectory selection per batch, and the scale benchmark's smoke run
-(a real Dask cluster, synthetic evaluations, the store commands on its run)."""
+a run is batched, the trajectory selection per batch. The scale benchmark's scaled-down
+run (a real Dask cluster, synthetic evaluations, the store commands on its run) is
+tests/test_benchmarks.py's."""
 
 from __future__ import annotations
 
-import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
-import pytest
 
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.runs import RunStore, prepare_run, run_doe
@@ -84,45 +80,3 @@ def test_a_run_stores_the_same_results_however_it_is_batched(tmp_path, scenario)
     part = fine.directory / "totals"
     assert len(os.listdir(part)) == 3
     assert pq.read_metadata(coarse_run.directory / "totals" / "part-00000.parquet").num_rows == 6
-
-
-def test_scale_benchmark_smoke_run(tmp_path):
-    """The benchmark's every part but the window, scaled down: a real 2-worker Dask cluster
-    with synthetic evaluations stores every sample, and runs/show/verify read its run."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith("OVTRAJ_")}
-    env["OVTRAJ_HOME"] = str(tmp_path / "home")
-    result = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "benchmarks" / "scale.py"),
-            "--samples",
-            "24",
-            "--fit-sizes",
-            "16,24",
-            "--baseline-size",
-            "0",
-            "--synthetic",
-            "400",
-            "--window-days",
-            "0",
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-        timeout=580,
-    )
-    assert result.returncode == 0, result.stderr[-3000:]
-    figures = json.loads(result.stdout.strip().splitlines()[-1])
-    pipeline = figures["pipeline"]
-    assert pipeline["samples"] == 24 and set(pipeline["fits"]) == {"16", "24"}
-    assert 0 < pipeline["store_bytes_per_sample"] < figures["goals"]["store_bytes_per_sample"]
-    assert pipeline["evaluation_ms_per_sample"] > 0 and pipeline["front_points"] > 0
-    assert np.isfinite(pipeline["fit_exponent"])
-    orchestration = figures["orchestration"]
-    assert orchestration["samples"] == orchestration["stored_samples"] == 400
-    assert orchestration["largest_folder_entries"] <= orchestration["batches"] + 2
-    assert figures["ratios"]["orchestration"] == pytest.approx(
-        orchestration["wall_ms_per_sample"] / figures["goals"]["orchestration_ms_per_sample"]
-    )

@@ -78,6 +78,17 @@ def scanned(tmp_path_factory):
     config = tmp / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     env = dict(os.environ, OVTRAJ_HOME=str(home))
+    # Day 0 planned first by `ovtraj pipeline` (serial: the plan in the main process, its
+    # BLAS with a thread per core); the window plans days 1 and 2 on the pool and must
+    # find day 0's plan the same (before the plan was pinned to one BLAS thread, the
+    # window refused it: "a different plan is stored there").
+    pipeline = subprocess.run(
+        [str(OVTRAJ), "pipeline", str(config), "--runner", "serial", "--json"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=900,
+    )
     command = [str(OVTRAJ), "window", str(config), "--days", str(DAYS), "--runner", "processes"]
     first = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
     before = _files(tmp / "runs", home)
@@ -87,6 +98,7 @@ def scanned(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:  # the workspace of the checks below
         patch.setenv("OVTRAJ_HOME", str(home))
         yield {
+            "pipeline": pipeline,
             "first": first,
             "again": again,
             "before": before,
@@ -178,6 +190,16 @@ def test_day_zero_is_the_scenario_itself(scanned):
     run = RunStore(scanned["store"]).run(frame.loc[frame["day"] == 0, "doe_run"].item())
     assert run.config == build_scenario(scanned["data"]).resolved()
     assert day_scenario(build_scenario(scanned["data"]), 0).resolved() == run.config
+
+
+def test_day_zero_is_the_plan_the_pipeline_command_made(scanned):
+    """The window's day 0 is ``ovtraj pipeline``'s plan, the same file (planned in
+    another process with another BLAS thread count)."""
+    pipeline = scanned["pipeline"]
+    assert pipeline.returncode == 0, pipeline.stderr
+    plan = Path(json.loads(pipeline.stdout)["plan_json"])
+    frame = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0])
+    assert scanned["store"] / frame.loc[frame["day"] == 0, "plan"].item() == plan
 
 
 def test_a_second_scan_simulates_and_writes_nothing(scanned):

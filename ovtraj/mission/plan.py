@@ -48,6 +48,7 @@ from ovtraj.mission.chain import (
     evaluate,
     launch_leg,
 )
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.reentry import EntryState, reentry_input
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS
 from ovtraj.reentry.model import EntryModel
@@ -430,17 +431,23 @@ def plan_and_record(
     as given; it must be JSON data. ``launch_cache``: where solved launches are cached
     (default the workspace's ``launch_solves``). Raises :class:`PlanError` naming the
     failed stage and its reason when the design is infeasible.
+
+    One BLAS thread, as every stored evaluation (:data:`ovtraj.parallel.
+    EVALUATION_BLAS_THREADS`): the launch's solve with a thread per core ended 7e-11 kg
+    away in payload from the same solve in a pool's one-thread process, so a window's day
+    refused the plan ``ovtraj pipeline`` had stored for the same front point.
     """
-    solved = plan_launch(context, design, launch_cache)
-    record = evaluate(context, design, launch=solved)
-    if not record.feasible:
-        raise PlanError(
-            f"design {design.as_dict()} is infeasible: the {record.failed_stage} stage "
-            f"failed: {record.reason}",
-            stage=record.failed_stage,
-            reason=record.reason,
-        )
-    return plan_from_record(context, record, source=source, solved=solved), record
+    with blas_threads(EVALUATION_BLAS_THREADS):
+        solved = plan_launch(context, design, launch_cache)
+        record = evaluate(context, design, launch=solved)
+        if not record.feasible:
+            raise PlanError(
+                f"design {design.as_dict()} is infeasible: the {record.failed_stage} stage "
+                f"failed: {record.reason}",
+                stage=record.failed_stage,
+                reason=record.reason,
+            )
+        return plan_from_record(context, record, source=source, solved=solved), record
 
 
 def plan_launch(

@@ -44,7 +44,7 @@ from ovtraj.mission import DESIGN_NAMES
 from ovtraj.mission.design_space import bounds_arrays
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
-from ovtraj.parallel import mapped, started
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads, mapped, started
 from ovtraj.pipeline.data import TrainingData
 from ovtraj.pipeline.features import (
     MissionSurrogates,
@@ -311,7 +311,9 @@ def front_step(
         earlier = previous.front.designs[list(DESIGN_NAMES)].to_numpy(dtype=float)
         initial = earlier if initial is None else np.vstack([initial, earlier])
         search = settings.model_copy(update={"generations": settings.warm_start_generations})
-    front = surrogate_front(fit.surrogates, normalisation, search, initial=initial)
+    # One BLAS thread, as the fits and the evaluations: the same front in any process.
+    with blas_threads(EVALUATION_BLAS_THREADS):
+        front = surrogate_front(fit.surrogates, normalisation, search, initial=initial)
     if front.info.get("time_limit_reached"):
         raise OptimiserStopped(f"{front.info['reason']}: no front stored")
     table = table_from_frame(front.to_frame(), FRONT_SCHEMA, "surrogate front")
