@@ -79,8 +79,25 @@ def _copy(stored, tmp_path: Path) -> tuple[Path, str]:
     return copy, run_id
 
 
-def test_a_path_or_a_control_character_as_an_id_is_refused_in_one_line(stored, tmp_path):
+def _in_process(capsys: pytest.CaptureFixture, *args: str) -> subprocess.CompletedProcess:
+    """The command run in this process (:func:`ovtraj.cli.run_command`, the entry point's
+    body: its exit code and its one-line errors), as :func:`_cli`'s result: where nothing
+    is read (an id refused before any file is opened), the ~2-5 s of a subprocess's
+    imports buy nothing (tests/test_cli_fuzz.py does the same for ~200 cases)."""
+    from ovtraj.cli import run_command
+
+    capsys.readouterr()
+    code = run_command(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(list(args), code, out, err)
+
+
+def test_a_path_or_a_control_character_as_an_id_is_refused_in_one_line(stored, tmp_path, capsys):
     store, run_id = _copy(stored, tmp_path)
+
+    def _cli(*args: str) -> subprocess.CompletedProcess:
+        return _in_process(capsys, *args)
+
     # What `../../outside/x` reaches from the store root: a readable run's files.
     outside = tmp_path / "outside" / "x"
     shutil.copytree(store / run_id, outside)
