@@ -127,7 +127,7 @@ def fitting_pool(scenario: Scenario, samples: int) -> Iterator[Executor | None]:
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=limit_threads,
-        initargs=(1,),
+        initargs=(EVALUATION_BLAS_THREADS,),
     ) as pool:
         yield pool
 

@@ -23,7 +23,7 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from ovtraj.config import Scenario
-from ovtraj.formatting import number
+from ovtraj.formatting import HOUR_S, number
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import pick_weights
 from ovtraj.pipeline.report import _STYLE as REPORT_STYLE  # the pipeline report's look
@@ -50,7 +50,6 @@ KIND = "launch-window"
 MARKER = "window.json"
 TABLE, PNG, SVG, PAGE = "window.parquet", "window.png", "window.svg", "window.html"
 FILES = (TABLE, PNG, SVG, PAGE)
-_HOUR_S = 3600.0
 
 WINDOW_SCHEMA = record_schema(
     [
@@ -85,7 +84,7 @@ def window_rows(records: Sequence[dict[str, Any]], best: int | None) -> list[dic
                 "date": r["date"],
                 "status": r["status"],
                 "reason": r["reason"],
-                "t_total_h": None if t_total is None else t_total / _HOUR_S,
+                "t_total_h": None if t_total is None else t_total / HOUR_S,
                 "dv_total_mps": r["dv_total_mps"],
                 "m_load_kg": r["m_load_kg"],
                 "score": r["score"],
@@ -212,7 +211,7 @@ def window_page(
         r = records[best]
         verdict = (
             f"<p class='verdict ok'>best day {html.escape(r['date'])} (day {r['day']}): "
-            f"T_total {_cell(r['t_total_s'] / _HOUR_S)} h, dV_total {_cell(r['dv_total_mps'])} "
+            f"T_total {_cell(r['t_total_s'] / HOUR_S)} h, dV_total {_cell(r['dv_total_mps'])} "
             f"m/s, M_load {_cell(r['m_load_kg'])} kg, score {r['score']:.4f}.</p>"
         )
     head = (
@@ -228,7 +227,7 @@ def window_page(
             if r[key] is not None:
                 href = html.escape(posixpath.relpath(r[key], window_dir), quote=True)
                 links[k] = f"<a href='{href}'>{html.escape(posixpath.basename(r[key]))}</a>"
-        t_total = None if r["t_total_s"] is None else r["t_total_s"] / _HOUR_S
+        t_total = None if r["t_total_s"] is None else r["t_total_s"] / HOUR_S
         note = "best day" if r["day"] == best else (r["reason"] or "")
         cells = (
             str(r["day"]),

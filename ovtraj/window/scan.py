@@ -39,6 +39,7 @@ from typing import Any, Protocol
 
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
+from ovtraj.formatting import HOUR_S
 from ovtraj.launch.launch_fit import (
     Progress,
     day_launch_fit,
@@ -329,7 +330,7 @@ def day_line(record: dict[str, Any]) -> str:
     if record["status"] != PLANNED:
         return f"day {record['day']} {record['date']}: no plan ({record['reason']})"
     return (
-        f"day {record['day']} {record['date']}: T_total {record['t_total_s'] / 3600.0:.2f} h, "
+        f"day {record['day']} {record['date']}: T_total {record['t_total_s'] / HOUR_S:.2f} h, "
         f"dV_total {record['dv_total_mps']:.2f} m/s, M_load {record['m_load_kg']:.2f} kg, "
         f"score {record['score']:.4f}"
     )
