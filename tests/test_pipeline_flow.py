@@ -100,7 +100,8 @@ def test_the_flows_second_round_starts_from_the_first_rounds_front(flown):
 
 def _stored_files(root) -> dict[str, object]:
     """Every file of a store: its bytes, or for a JSON marker its content without the
-    wall-clock data a store holds: creation times and the timing of batches and fits."""
+    host data a store holds: creation times, the timing of batches and fits, and the
+    environment that computed them."""
     import json
 
     def timeless(value, key=""):
@@ -108,7 +109,7 @@ def _stored_files(root) -> dict[str, object]:
             return {
                 k: timeless(v, k)
                 for k, v in value.items()
-                if k not in ("created_utc", "timing")
+                if k not in ("created_utc", "timing", "environment")
                 # a marker's digest of a nested marker: that one is compared without its times
                 and not (key == "files" and k.endswith(".json"))
             }

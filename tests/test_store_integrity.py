@@ -537,7 +537,7 @@ def test_sigterm_marks_the_run_interrupted_in_its_manifest(tmp_path):
 def test_the_dependency_versions_are_looked_up_once_and_handed_out_as_copies():
     from importlib import metadata
 
-    from ovtraj.runs.store import dependency_versions
+    from ovtraj.environment import dependency_versions
 
     first = dependency_versions()
     assert first["pyarrow"] == metadata.version("pyarrow")

@@ -51,7 +51,8 @@ def entry_point() -> None:
     """The ``ovtraj`` command: every fault is one line on stderr and exit 2, never a traceback.
 
     Exit codes: 0 done, 1 infeasible or unconverged result (or a failed check), 2 bad
-    input or a fault (named), 130 interrupted (SIGINT or SIGTERM; a run being written
+    input or a fault (named; also a process on another OpenBLAS kernel than the pin,
+    :mod:`ovtraj.environment`), 130 interrupted (SIGINT or SIGTERM; a run being written
     says ``interrupted`` in its manifest). ``OVTRAJ_DEBUG=1`` shows tracebacks.
     """
     signal.signal(signal.SIGTERM, _terminated)
@@ -62,6 +63,7 @@ def entry_point() -> None:
 def run_command(args: list[str] | None = None) -> int:
     """Run the command line ``args`` (default: the process's) as :func:`entry_point`
     does, and return its exit code instead of ending the process (the tests call it)."""
+    from ovtraj.environment import BlasKernelError
     from ovtraj.interrupts import interrupt_of
     from ovtraj.store.files import StoreError
 
@@ -80,7 +82,7 @@ def run_command(args: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         code = 130
-    except (StoreError, ConfigError) as err:
+    except (StoreError, ConfigError, BlasKernelError) as err:
         typer.echo(str(err), err=True)
         code = 2
     except Exception as err:

@@ -135,6 +135,13 @@ class ReadSettings(StrictModel):
         description="largest file read without a recorded size (a manifest, a marker, a "
         "Prefect result record `ovtraj prune` parses)",
     )
+    environment_block_max_kib: float = bounded(
+        unit="KiB",
+        gt=0,
+        le=1024,
+        description="largest environment block of a manifest or marker, as JSON "
+        "(ovtraj/store/environment_block.py): a larger one is refused, naming the file",
+    )
 
 
 class CatalogSettings(StrictModel):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ovtraj.config import Scenario
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
 from ovtraj.optimize import Normalisation
@@ -86,6 +87,7 @@ def write_mission_plan(
         "front_objectives": {n: float(row[n]) for n in normalisation.names},
     }
     context = MissionContext(scenario, launch_fit)
+    require_pinned_kernel()  # the plan is stored: computed on the pinned OpenBLAS kernel only
     plan, record = plan_and_record(context, design, source=source)
     run = store.run(result.final_run)
     tolerance = scenario.mission.plan.front_tolerance

@@ -10,6 +10,8 @@ Layout inside a run's directory::
 
 Each ``meta.json`` is written last and lists the size and SHA-256 of every file of its
 directory (:mod:`ovtraj.store.products`); readers check them and the declared schemas.
+A fit or front is computed only in a process on the pinned OpenBLAS kernel
+(:func:`ovtraj.environment.require_pinned_kernel`); loading a stored one needs none.
 
 The plots (``parity-*.png``, ``front.png``) are views: with ``views=False`` a step stores
 its data without them (the pipeline's rounds do: it draws the last round's views in its
@@ -40,6 +42,7 @@ import pandas as pd
 import pyarrow as pa
 
 from ovtraj.config import Scenario
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.mission.design_space import bounds_arrays
 from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
@@ -168,6 +171,7 @@ def fit_step(
     stored = (directory / "meta.json").is_file()
     if stored and not refit:
         return FitOutcome(load_surrogates(directory), directory, fit_id, reused=True)
+    require_pinned_kernel()  # fitted here: the kernel's last bits move the Kriging fits
     if settings.phase_input:
         surrogates = fit_mission_surrogates(
             data, scenario, lower, upper, candidates=candidates, executor=executor
@@ -305,6 +309,7 @@ def front_step(
     directory = product.directory
     if product.exists() and not refit:
         return FrontOutcome(load_front(directory, normalisation), directory, front_id, True)
+    require_pinned_kernel()
     initial = _real_front_designs(run, normalisation) if settings.seed_with_real_front else None
     search = settings
     if warm:

@@ -21,6 +21,7 @@ import pandas as pd
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.io_limits import io_limits
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.formatting import byte_size, printable
 from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
@@ -42,7 +43,13 @@ EVALUATIONS = {"count": 0}
 
 
 def evaluate_batch(context: MissionContext, batch: pd.DataFrame) -> list[MissionRecord]:
-    """Every sample of a batch; a failing sample is recorded, never raised."""
+    """Every sample of a batch; a failing sample is recorded, never raised.
+
+    Every runner's batches come here, in whatever process runs them: one that runs another
+    OpenBLAS kernel than the pin is refused (:class:`~ovtraj.environment.BlasKernelError`),
+    since it would store other last bits under the same run id (:mod:`ovtraj.environment`).
+    """
+    require_pinned_kernel()
     records = []
     with blas_threads(EVALUATION_BLAS_THREADS):
         for row in batch.itertuples(index=False):
@@ -298,6 +305,8 @@ def run_doe(
     todo = [k for k, _ in batches if not run.is_stored(k)]
     if not todo:
         return finish(run)
+    if (pool.runner if pool is not None else runner) in ("serial", "threads"):
+        require_pinned_kernel()  # the batches run here: refused before the run is touched
     counted = _SampleCount(batches, todo, on_progress)
     settings = dask or load_orchestration().dask
     failures: dict[int, str] = {}

@@ -20,6 +20,7 @@ only: no checkout, no shared working folder, no launch fit on its disk.
 from __future__ import annotations
 
 import concurrent.futures
+import logging
 import multiprocessing
 import os
 import sys
@@ -31,6 +32,8 @@ from typing import Any
 from ovtraj.config.io_limits import echoed
 from ovtraj.config.mission import RUNNERS, DoeSettings
 from ovtraj.config.orchestration import DaskSettings
+
+logger = logging.getLogger(__name__)
 
 
 class ClusterError(RuntimeError):
@@ -108,7 +111,9 @@ def limit_threads(threads: int | None) -> dict[str, Any]:
 def check_worker(
     threads: int | None = None, profiler: bool = True, dask_worker: Any = None
 ) -> dict[str, Any]:
-    """Run on every Dask worker by :func:`check_cluster`: can it import and run ovtraj?
+    """Run on every Dask worker by :func:`check_cluster`: can it import and run ovtraj,
+    and which OpenBLAS kernels does it run (``blas_kernels``; ``blas_problem``: the
+    worker's own :func:`ovtraj.environment.check`)?
 
     When it can, the worker is set up for evaluations (:func:`limit_threads`, and Dask's
     statistical profiler stopped unless ``profiler``: it samples the task thread's stack
@@ -126,6 +131,7 @@ def check_worker(
 
         version = importlib.import_module("ovtraj.version")
         runners = importlib.import_module("ovtraj.runs.runners")
+        environment = importlib.import_module("ovtraj.environment")
     except Exception as err:  # any failure is the answer
         return {"ok": False, "error": f"{type(err).__name__}: {err}", "python": sys.executable}
     tuned = runners.limit_threads(threads)
@@ -141,6 +147,14 @@ def check_worker(
         "code": version.code_version(),
         "pid": os.getpid(),
         "cwd": os.getcwd(),
+        "blas_kernels": sorted(
+            {
+                str(lib["architecture"])
+                for lib in environment.blas_libraries()
+                if lib["internal_api"] == "openblas"
+            }
+        ),
+        "blas_problem": environment.check(),
         **tuned,
     }
 
@@ -150,8 +164,12 @@ def check_cluster(client: Any, where: str, settings: DaskSettings) -> dict[str, 
     for evaluations: :func:`check_worker`), all within ``settings.connect_timeout_s``.
 
     Raises :class:`ClusterError` naming the cluster, the workers and the cause when no
-    worker comes in time or a worker cannot import the project (such a worker would exit
-    on the first task it deserialises and leave the run waiting).
+    worker comes in time, a worker cannot import the project (such a worker would exit
+    on the first task it deserialises and leave the run waiting), or a worker runs another
+    OpenBLAS kernel than this process's pin (it would store other last bits under the same
+    run id: :mod:`ovtraj.environment`; a ``dask worker`` started by hand loads numpy before
+    ovtraj can pin, so it needs ``OPENBLAS_CORETYPE`` in its environment). Logs each
+    worker's kernels.
     """
     import cloudpickle
 
@@ -197,7 +215,33 @@ def check_cluster(client: Any, where: str, settings: DaskSettings) -> dict[str, 
             f"Dask cluster at {where}: {len(bad)} of {len(answers)} worker(s) cannot import "
             f"the project ({listing}); install ovtraj in the workers' environment"
         )
+    _check_kernels(answers, where)
     return answers
+
+
+def _check_kernels(answers: dict[str, dict[str, Any]], where: str) -> None:
+    """Refuse workers whose OpenBLAS runs another kernel than this process's pin, or that
+    refuse to compute themselves (:func:`check_worker`'s ``blas_problem``)."""
+    from ovtraj.environment import CORETYPE_ENV, pin
+
+    wanted = pin().kernel
+    off = {}
+    for worker, answer in sorted(answers.items()):
+        kernels = answer.get("blas_kernels") or []
+        logger.info("Dask worker %s: OpenBLAS kernel %s", worker, ", ".join(kernels) or "none")
+        other = [k for k in kernels if wanted is not None and k.lower() != wanted.lower()]
+        if other:
+            off[worker] = f"OpenBLAS runs the {', '.join(other)} kernel, not {wanted}"
+        elif answer.get("blas_problem"):
+            off[worker] = str(answer["blas_problem"])
+    if off:
+        listing = "; ".join(f"{worker}: {why}" for worker, why in off.items())
+        fix = f"{CORETYPE_ENV}={wanted}" if wanted is not None else "the same OpenBLAS kernel"
+        raise ClusterError(
+            f"Dask cluster at {where}: {len(off)} of {len(answers)} worker(s) would store other "
+            f"last bits ({listing}); start each `dask worker` with {fix} in its environment "
+            "(docs/mission.md, 'Reproducibility')"
+        )
 
 
 def count_workers(client: Any) -> int:

@@ -4,7 +4,8 @@ Layout::
 
     manifest.json                    run id, parent, created, code and dependency
                                      versions, seed, samples, status, counts, store
-                                     format, and the digests of config and samples
+                                     format, the digests of config and samples, and
+                                     the environment that created the run
     config.json                      resolved scenario (every default filled in)
     samples.parquet                  sample_id and the design variables
     stages/<stage>/part-<k>.parquet  each stage's own rows, keyed by sample_id
@@ -12,10 +13,14 @@ Layout::
     trajectories/<stage>/part-<k>.parquet   the batch's trajectory tables as stored
     batches/<k>.json                 written last: batch k is complete; its sample ids,
                                      the size and SHA-256 of every file of the batch,
-                                     and the batch's timing record
+                                     the batch's timing record, and the environment of
+                                     the process that computed it
     locks/                           advisory locks of the processes working on the run
 
-Every Parquet file has its dataset's declared schema (:mod:`ovtraj.runs.schemas`).
+Every Parquet file has its dataset's declared schema (:mod:`ovtraj.runs.schemas`). The
+environment blocks (:mod:`ovtraj.store.environment_block`: CPU, BLAS and its kernel,
+library versions) are declared too, and are never in a data file nor in the run id: the
+same inputs store the same data files on every machine (:mod:`ovtraj.environment`).
 
 Guarantees:
 
@@ -52,15 +57,12 @@ manifest says how many batches were adopted (``inherited_batches``).
 from __future__ import annotations
 
 import datetime
-import functools
 import hashlib
 import json
 import os
-import platform
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +72,7 @@ import pyarrow as pa
 
 from ovtraj.config import Scenario
 from ovtraj.config.mission import DoeSettings
+from ovtraj.environment import dependency_versions
 from ovtraj.interrupts import interrupt_of
 from ovtraj.mission import STAGES, MissionRecord
 from ovtraj.runs.schemas import (
@@ -81,6 +84,7 @@ from ovtraj.runs.schemas import (
 )
 from ovtraj.store import locks, paths
 from ovtraj.store.backends import S3Path, location
+from ovtraj.store.environment_block import environment_problem, stamped
 from ovtraj.store.files import (
     TEMPORARY_SUFFIX,
     Digest,
@@ -101,7 +105,6 @@ from ovtraj.store.seals import authenticated, read_authenticated, seal_problem, 
 
 __all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
 
-DEPENDENCIES = ("numpy", "scipy", "pandas", "pyarrow", "heyoka", "numba", "pydantic", "prefect")
 RUN_FILES = ("config.json", "samples.parquet")
 # Waits on the manifest lock: a holder only reads and rewrites one small file.
 MANIFEST_LOCK_WAIT_S = 60.0
@@ -173,24 +176,6 @@ def checked_id(value: Any, what: str = "run id") -> str:
             "lowercase hexadecimal digits, as `ovtraj runs` lists them)"
         )
     return value
-
-
-def dependency_versions() -> dict[str, str]:
-    """The versions of Python and of the dependencies, as this process imported them."""
-    return dict(_installed_versions())
-
-
-@functools.cache
-def _installed_versions() -> dict[str, str]:
-    # Once per process (~5 ms: each lookup scans the installed distributions); a
-    # package upgraded while the process runs does not change the code it imported.
-    versions = {"python": platform.python_version()}
-    for name in DEPENDENCIES:
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            versions[name] = "not installed"
-    return versions
 
 
 def part_name(batch: int) -> str:
@@ -576,7 +561,7 @@ class Run:
             "files": {name: digest.to_json() for name, digest in sorted(files.items())},
             "timing": timing,
         }
-        write_sealed(marker, content)
+        write_sealed(marker, stamped(content))
 
     # -- reading ----------------------------------------------------------------------------
     def _dataset(self, name: str) -> pd.DataFrame:
@@ -663,17 +648,20 @@ class Run:
         covered = {self.directory / MANIFEST}
         expected: list[tuple[Path, Any, pa.Schema | None]] = []
 
-        def check_seal(path: Path, document: Any) -> None:
+        def check_document(path: Path, document: Any) -> None:
             problem = seal_problem(path, document)
             if problem is not None:
                 report.tampered.append(problem)
+            problem = environment_problem(path, document)
+            if problem is not None:
+                report.problems.append(problem)
 
         try:
             manifest = self._manifest_document()
         except StoreError as err:
             report.problems.append(str(err))
             return report
-        check_seal(self.directory / MANIFEST, manifest)
+        check_document(self.directory / MANIFEST, manifest)
         recorded = manifest.get("files")
         recorded = recorded if isinstance(recorded, dict) else {}
         for name in RUN_FILES:
@@ -686,7 +674,7 @@ class Run:
                 listed = marker["files"]
                 if not isinstance(listed, dict):
                     raise TypeError
-                check_seal(path, marker)
+                check_document(path, marker)
                 marker_files(path, marker)  # names inside the run and usable digests
             except StoreError as err:
                 report.problems.append(str(err))
@@ -712,7 +700,7 @@ class Run:
                 if not isinstance(listed, dict):
                     report.problems.append(f"{marker_path}: lists no file digests")
                     continue
-                check_seal(marker_path, marker)
+                check_document(marker_path, marker)
                 try:
                     marker_files(marker_path, marker)  # names inside its folder, usable digests
                 except StoreError as err:
@@ -862,7 +850,7 @@ class RunStore:
                 "feasible": 0,
                 "files": {name: digest.to_json() for name, digest in files.items()},
             }
-            write_sealed(directory / MANIFEST, manifest, replace=True)
+            write_sealed(directory / MANIFEST, stamped(manifest), replace=True)
         return run
 
     def latin_hypercube_run(

@@ -34,6 +34,7 @@ from typing import Any, ClassVar
 import pandas as pd
 import pyarrow as pa
 
+from ovtraj.store.environment_block import stamped
 from ovtraj.store.files import (
     Digest,
     StoreError,
@@ -101,7 +102,7 @@ class BatchedRun:
                 "status": "created",
                 "files": {"config.json": digest.to_json()},
             }
-            write_sealed(run.directory / cls.INFO, content, replace=True)
+            write_sealed(run.directory / cls.INFO, stamped(content), replace=True)
         return run
 
     @property
@@ -190,7 +191,7 @@ class BatchedRun:
                 "files": {part_name(batch): digest.to_json()},
                 "timing": timing,  # [*keys, seconds] per row
             }
-            write_sealed(marker, content)
+            write_sealed(marker, stamped(content))
         return True
 
     def results(self) -> pd.DataFrame:

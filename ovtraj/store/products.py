@@ -33,9 +33,11 @@ import pandas as pd
 import pyarrow as pa
 
 from ovtraj.store.backends import location
+from ovtraj.store.environment_block import stamped, unstamped
 from ovtraj.store.files import (
     Digest,
     StoreError,
+    file_digest,
     read_bytes,
     read_json,
     read_table,
@@ -45,7 +47,7 @@ from ovtraj.store.files import (
     write_parquet,
 )
 from ovtraj.store.locks import hold_directory
-from ovtraj.store.seals import read_authenticated, write_sealed
+from ovtraj.store.seals import canonical_json, read_authenticated, write_sealed
 
 __all__ = ["Product", "ProductWriter", "digests_json", "directory_lock"]
 
@@ -148,11 +150,21 @@ class ProductWriter:
 
     def finish(self, document: Mapping[str, Any]) -> dict[str, Any]:
         """Write the marker: ``document`` with the digests of every file written or added
-        (sealed when a store key is configured: :mod:`ovtraj.store.seals`)."""
+        and the environment of this process (sealed when a store key is configured:
+        :mod:`ovtraj.store.seals`). A marker stored with the same content is kept as it is,
+        with the environment of the process that stored it (:mod:`.environment_block`)."""
         if "files" in document:
             raise ValueError("the marker's 'files' are the writer's own")
-        content = {**document, "files": digests_json(self.files)}
-        self.files[self.product.marker_name] = write_sealed(self.product.marker_path, content)
+        content = stamped({**document, "files": digests_json(self.files)})
+        path = self.product.marker_path
+        if path.is_file():
+            stored = read_authenticated(path)
+            if isinstance(stored, dict) and canonical_json(unstamped(stored)) == canonical_json(
+                unstamped(content)
+            ):
+                self.files[self.product.marker_name] = file_digest(path)
+                return stored
+        self.files[self.product.marker_name] = write_sealed(path, content)
         return content
 
 

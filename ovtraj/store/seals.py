@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.store.backends import S3Path
+from ovtraj.store.environment_block import environment_problem
 from ovtraj.store.files import Digest, StoreError, read_json, write_json
 from ovtraj.store.paths import reference_dir
 from ovtraj.store.records import plain
@@ -154,10 +155,15 @@ def seal_problem(path: Path | S3Path, document: Any) -> str | None:
 
 def authenticated(path: Path | S3Path, document: Any) -> Any:
     """``document`` (read from ``path``) without its seal, once the seal is checked with a
-    key configured (:class:`TamperedError` naming the file)."""
+    key configured (:class:`TamperedError` naming the file). Every reader of a manifest or
+    marker comes here, so its environment block is checked here too
+    (:func:`ovtraj.store.environment_block.environment_problem`, a StoreError)."""
     problem = seal_problem(path, document)
     if problem is not None:
         raise TamperedError(problem)
+    problem = environment_problem(path, document)
+    if problem is not None:
+        raise StoreError(problem)
     if isinstance(document, Mapping) and SEAL_FIELD in document:
         return {k: v for k, v in document.items() if k != SEAL_FIELD}
     return document
