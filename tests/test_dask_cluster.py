@@ -38,6 +38,7 @@ import pytest
 import yaml
 
 from ovtraj.config.orchestration import RESULTS_ENV
+from ovtraj.environment import CORETYPE_ENV, pin
 from ovtraj.runs import RunStore
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, held_claim
 
@@ -54,10 +55,14 @@ def _free_port() -> int:
 
 
 def _environment() -> dict[str, str]:
-    """This environment without the checkout on the path, nor ovtraj or Prefect settings."""
+    """This environment without the checkout on the path, nor ovtraj or Prefect settings;
+    OpenBLAS on ovtraj's pinned kernel, as docs/mission.md starts a `dask worker` (which
+    loads numpy before it imports ovtraj)."""
     drop = ("PYTHONPATH", "OVTRAJ_", "PREFECT_")
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
     env["PREFECT_SERVER_ANALYTICS_ENABLED"] = "false"
+    if pin().kernel is not None:
+        env[CORETYPE_ENV] = pin().kernel
     return env
 
 

@@ -273,13 +273,31 @@ def prune(
 
 
 @app.command()
-def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+def verify(
+    run_id: str,
+    store_root: StoreOpt = None,
+    recompute: Annotated[
+        int,
+        typer.Option(
+            "--recompute",
+            min=0,
+            help="also evaluate N of the run's samples again here (spread evenly over its "
+            "sample ids) and compare every number of their stage rows and totals with the "
+            "stored ones, within the tolerances of configs/reproducibility.yaml (0: checksums "
+            "only)",
+        ),
+    ] = 0,
+    as_json: JsonOpt = False,
+) -> None:
     """Check every file of a run against its recorded size, SHA-256 and schema.
 
     The checksums detect accidents; with OVTRAJ_STORE_KEY set, the manifest's and the
     markers' seals are checked too, and one missing or wrong is reported as tampered.
-    Exit 0 when every covered file is intact, 1 with the list of bad or tampered files,
-    2 when the run cannot be opened.
+    With --recompute N, N stored samples are evaluated again on this machine: each
+    column's largest difference is printed with its tolerance (docs/mission.md,
+    "Reproducibility"). Exit 0 when every covered file is intact (and every recomputed
+    column within its tolerance), 1 with the list of bad or tampered files (or the columns
+    beyond), 2 when the run cannot be opened or recomputed here.
     """
     from ovtraj.runs import StoreError
 
@@ -289,6 +307,8 @@ def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     report = stored.verify()
+    again = _recomputed(stored, recompute) if recompute and report.clean else None
+    failed = not report.clean or (again is not None and not again.ok)
     if as_json:
         _print_json(
             {
@@ -299,9 +319,10 @@ def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
                 "problems": [str(p) for p in report.problems],
                 "tampered": [str(p) for p in report.tampered],
                 "uncovered": [str(p) for p in report.uncovered],
+                "recompute": None if again is None else again.to_json(),
             }
         )
-        raise typer.Exit(code=0 if report.clean else 1)
+        raise typer.Exit(code=1 if failed else 0)
     for problem in report.tampered:
         typer.echo(f"tampered: {problem}")
     for problem in report.problems:
@@ -318,8 +339,73 @@ def verify(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
         f"run {stored.id}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
         f"MB checked: {verdict}"
     )
-    if not report.clean:
+    if recompute and not report.clean:
+        typer.echo(f"run {stored.id}: not recomputed (its files failed their checksums)")
+    if again is not None:
+        _print_recompute(stored, again)
+    if failed:
         raise typer.Exit(code=1)
+
+
+def _recomputed(stored: Any, count: int) -> Any:
+    """:func:`ovtraj.runs.recompute.recompute` of ``count`` samples; one line and exit 2
+    when the run cannot be recomputed here."""
+    from ovtraj.config import ConfigError
+    from ovtraj.runs import StoreError
+    from ovtraj.runs.recompute import RecomputeError, recompute
+
+    try:
+        return recompute(stored, count)
+    except (RecomputeError, StoreError, ConfigError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+
+
+def _print_recompute(stored: Any, again: Any) -> None:
+    """A line per compared column: its largest difference, its tolerance and the verdict."""
+    shown = ", ".join(str(i) for i in again.sample_ids)
+    typer.echo(
+        f"recomputed here: {len(again.sample_ids)} of {len(stored.samples())} samples "
+        f"(ids {shown}); the largest |stored - recomputed| of each column, and its tolerance "
+        "(configs/reproducibility.yaml):"
+    )
+    rows = [
+        (f"{c.dataset}.{c.column}", _difference(c), _tolerance(c), c.verdict) for c in again.checks
+    ]
+    if again.stored_code != again.code:
+        typer.echo(
+            f"note: the run was stored by code {again.stored_code} and is recomputed by "
+            f"{again.code}: a difference may be the code's"
+        )
+    widths = [max(len(row[k]) for row in rows) for k in range(3)]
+    for *texts, verdict in rows:
+        padded = [text.ljust(width) for text, width in zip(texts, widths, strict=True)]
+        typer.echo("  " + "  ".join([*padded, verdict]))
+    beyond = [f"{c.dataset}.{c.column}" for c in again.beyond]
+    typer.echo(
+        f"run {stored.id}: recomputed {len(again.checks)} columns: "
+        + (
+            f"{len(beyond)} beyond their tolerance ({', '.join(beyond)})"
+            if beyond
+            else "all within their tolerances"
+        )
+    )
+
+
+def _difference(check: Any) -> str:
+    if check.exact:
+        return f"{int(check.largest)} differ" if np.isfinite(check.largest) else "missing"
+    if not np.isfinite(check.largest):
+        return "missing values"
+    return f"{check.largest:.3g} {check.unit}".rstrip()
+
+
+def _tolerance(check: Any) -> str:
+    if check.exact:
+        return "exact"
+    if check.tolerance is None:
+        return "not bounded"
+    return f"{check.tolerance:.3g} {check.unit}".rstrip()
 
 
 @app.command()

@@ -182,6 +182,30 @@ def part_name(batch: int) -> str:
     return f"part-{batch:05d}.parquet"
 
 
+def result_rows(
+    pairs: list[tuple[int, MissionRecord]],
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, dict[str, Any]]]:
+    """The rows a batch of (sample id, record) pairs stores, by dataset (``stages/<stage>``,
+    for the stages some sample reached, and ``totals``), and the timing columns taken out of
+    the stage rows (stage -> sample id -> value; kept in the batch marker, never in a table)."""
+    rows: dict[str, list[dict[str, Any]]] = {}
+    timing: dict[str, dict[str, Any]] = {}
+    for stage in STAGES:
+        found = []
+        for sid, rec in pairs:
+            if stage not in rec.stages:
+                continue
+            row = dict(rec.stages[stage])
+            for column in TIMING_COLUMNS:
+                if column in row:
+                    timing.setdefault(stage, {})[str(sid)] = row.pop(column)
+            found.append({"sample_id": sid, **row})
+        if found:
+            rows[f"stages/{stage}"] = found
+    rows["totals"] = [{"sample_id": sid, **rec.totals()} for sid, rec in pairs]
+    return rows, timing
+
+
 def _utc_now() -> str:
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
@@ -504,9 +528,10 @@ class Run:
         pairs = list(zip(sample_ids, records, strict=True))
         part = part_name(batch)
         files: dict[str, Digest] = {}
+        rows, stage_timing = result_rows(pairs)
         timing: dict[str, Any] = {
             "sample_wall_time_s": {str(sid): rec.wall_time_s for sid, rec in pairs},
-            "stage_wall_time_s": {},
+            "stage_wall_time_s": stage_timing,
         }
 
         def store(relative: str, table: pa.Table, dataset: str) -> None:
@@ -514,20 +539,11 @@ class Run:
 
         for stage in STAGES:
             dataset = f"stages/{stage}"
-            rows = []
-            for sid, rec in pairs:
-                if stage not in rec.stages:
-                    continue
-                row = dict(rec.stages[stage])
-                for column in TIMING_COLUMNS:
-                    if column in row:
-                        timing["stage_wall_time_s"].setdefault(stage, {})[str(sid)] = row.pop(
-                            column
-                        )
-                rows.append({"sample_id": sid, **row})
-            if rows:
+            if dataset in rows:
                 store(
-                    f"{dataset}/{part}", table_from_rows(rows, DATASETS[dataset], dataset), dataset
+                    f"{dataset}/{part}",
+                    table_from_rows(rows[dataset], DATASETS[dataset], dataset),
+                    dataset,
                 )
             dataset = f"trajectories/{stage}"
             if dataset not in DATASETS:
@@ -553,8 +569,11 @@ class Run:
                     table_from_frame(frame, DATASETS[dataset], dataset),
                     dataset,
                 )
-        totals = [{"sample_id": sid, **rec.totals()} for sid, rec in pairs]
-        store(f"totals/{part}", table_from_rows(totals, DATASETS["totals"], "totals"), "totals")
+        store(
+            f"totals/{part}",
+            table_from_rows(rows["totals"], DATASETS["totals"], "totals"),
+            "totals",
+        )
         content = {
             "batch": batch,
             "sample_ids": [int(s) for s in sample_ids],
