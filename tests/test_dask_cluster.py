@@ -76,7 +76,11 @@ class Cluster:
         self.processes: dict[str, subprocess.Popen] = {}
         self.folders: dict[str, Path] = {}
 
-    def start(self, name: str, command: list[str]) -> subprocess.Popen:
+    def start(
+        self, name: str, command: list[str], env: dict[str, str] | None = None
+    ) -> subprocess.Popen:
+        """``command`` in a folder and a process group of its own, in :func:`_environment`
+        updated by ``env``."""
         folder = self.root / name
         folder.mkdir()
         logs = self.root / "logs"
@@ -85,7 +89,7 @@ class Cluster:
             process = subprocess.Popen(
                 command,
                 cwd=folder,
-                env=_environment(),
+                env=_environment() | (env or {}),
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,  # its own group: the worker's nanny and process
@@ -93,13 +97,16 @@ class Cluster:
         self.processes[name], self.folders[name] = process, folder
         return process
 
-    def worker(self, name: str, python: Path | None = None) -> subprocess.Popen:
+    def worker(
+        self, name: str, python: Path | None = None, env: dict[str, str] | None = None
+    ) -> subprocess.Popen:
         """``dask worker`` (of ``python``'s environment when given), one thread."""
         if python is None:
             command = [str(DASK), "worker", self.address]
         else:
             command = [str(python), "-m", "distributed.cli.dask_worker", self.address]
-        return self.start(name, [*command, "--nthreads", "1", "--name", name, "--no-dashboard"])
+        options = ["--nthreads", "1", "--name", name, "--no-dashboard"]
+        return self.start(name, [*command, *options], env)
 
     def replace_lost_workers(self, names: list[str]) -> None:
         """Start again each of ``names`` that has exited (a previous test killed it)."""

@@ -93,6 +93,16 @@ class DeorbitSolverConfig(StrictModel):
     nearest_point_tolerance_s: float = bounded(
         unit="s", gt=0, le=10, description="time accuracy of the virtual entry point"
     )
+    pass_cost_margin_mps: float | None = bounded(
+        default=None,
+        unit="m/s",
+        gt=0,
+        le=1000,
+        description="a pass is taken when its corrected impulse exceeds the two-body tangential "
+        "impulse at the shallowest allowed entry angle by at most this; a dearer pass (its burn "
+        "pinned at the preparation orbit's start and steered radially) is passed over for the "
+        "next; null: the first pass whose constraints are met, whatever it costs",
+    )
 
 
 class DeorbitSettings(StrictModel):

@@ -9,6 +9,17 @@
 3. Correct the burn epoch and the impulse vector with SLSQP under J2
    (:mod:`.correction`). If the pass cannot be met within the limits, the next
    pass is tried, up to ``solver.max_passes``.
+4. With ``solver.pass_cost_margin_mps``, a pass met only at a price is passed over
+   too: its corrected impulse must lie within the margin of the two-body tangential
+   impulse at the shallowest allowed entry angle (:func:`pass_cost_bound_mps`). J2 moves
+   a freely placed burn by well under a metre per second from that impulse; a pass whose
+   burn would fall before the preparation orbit begins is met by a burn pinned at its
+   start and steered by a radial component that costs tens of m/s more, rising within a
+   quarter of an hour of separation delay. Without the rule the first pass is taken at
+   any price, and the mission's cost jumps where the pinned burn begins; with it, the
+   cost stays within the margin and the mission waits for the next pass (its time steps
+   by a pass instead). If no pass tried meets the bound, the cheapest accepted one is
+   taken.
 
 Every failure comes back as an infeasible result with its reason; nothing raises
 out of :func:`solve_deorbit` on a numerical failure.
@@ -68,6 +79,16 @@ def burn_estimate(inp: DeorbitInput, state: np.ndarray, fpa_rad: float) -> Tange
     )
 
 
+def pass_cost_bound_mps(inp: DeorbitInput, track_pass: TrackPass) -> float:
+    """The dearest impulse [m/s] at which ``track_pass`` is taken: the two-body tangential
+    impulse from the pass's radius at the shallowest allowed entry angle (the cheapest
+    entry) plus ``solver.pass_cost_margin_mps``; infinite without a margin."""
+    margin = inp.solver.pass_cost_margin_mps
+    if margin is None:
+        return math.inf
+    return burn_estimate(inp, track_pass.state, inp.entry.fpa_max_rad).dv_mps + margin
+
+
 def first_burn_time_s(track_pass: TrackPass, estimate: TangentialDeorbit) -> float:
     """Burn epoch that puts the entry a central angle after the burn, at the virtual point."""
     r, v = track_pass.state[:3], track_pass.state[3:]
@@ -109,7 +130,10 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
         propagator, forecast.trajectory, entry, inp.max_descent_revolutions * period
     )
     tried, reasons = 0, []
-    best: tuple[Correction, TrackPass, TangentialDeorbit] | None = None
+    Option = tuple[Correction, TrackPass, TangentialDeorbit]
+    best: Option | None = None  # the least violation
+    cheapest: tuple[float, Option] | None = None  # the cheapest accepted, its impulse
+    chosen: Option | None = None  # accepted within the cost bound
     for track_pass in candidates:
         if tried >= inp.solver.max_passes:
             break
@@ -135,14 +159,27 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
         if best is None or correction.max_violation < best[0].max_violation:
             best = (correction, track_pass, estimate)
         if _accepted(correction, inp):
-            break
+            impulse = float(np.linalg.norm(correction.shot.dv_rsw_mps))
+            if cheapest is None or impulse < cheapest[0]:
+                cheapest = (impulse, (correction, track_pass, estimate))
+            bound = pass_cost_bound_mps(inp, track_pass)
+            if impulse <= bound:
+                chosen = (correction, track_pass, estimate)
+                break
+            reasons.append(
+                f"pass at {track_pass.t_s:.0f} s: met by {impulse:.2f} m/s, above the "
+                f"{bound:.2f} m/s of deorbit.solver.pass_cost_margin_mps"
+            )
+            continue
         reasons.append(f"pass at {track_pass.t_s:.0f} s: {_failure(correction, inp)}")
         if correction.limit is not None and deadline.reached:
             break
     if best is None:
         reason = "; ".join(reasons) or "no pass could be tried"
         return DeorbitResult(False, reason, inp.epoch, wall_time_s=_since(start))
-    correction, track_pass, estimate = best
+    if chosen is None and cheapest is not None:
+        chosen = cheapest[1]  # no pass within the bound: the cheapest accepted one
+    correction, track_pass, estimate = chosen or best
     feasible = _accepted(correction, inp)
     reason = None if feasible else "; ".join(reasons)
     return _result(
