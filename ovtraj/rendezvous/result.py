@@ -76,7 +76,10 @@ class RendezvousResult:
     """Outcome of the rendezvous (or target-less transfer) stage.
 
     Infeasible results keep every field the stage reached; the rest are ``None``
-    (never NaN), and ``reason`` says why.
+    (never NaN), and ``reason`` says why. A rendezvous refused for its phasing wait keeps
+    the wait it needs in ``wait_time_s``: refined on the propagated phase when it exceeds
+    ``max_wait_time_s`` by less than ``burn_epoch_window_s``, the secular estimate beyond
+    (within ~340 s of the refined wait on the default scenario).
     """
 
     kind: TransferKind

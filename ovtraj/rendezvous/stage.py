@@ -61,6 +61,17 @@ class Infeasible(Exception):
     """Raised inside the stage to stop early with a reason; never escapes it."""
 
 
+class WaitTooLong(Infeasible):
+    """The phasing wait exceeds ``max_wait_time_s``: the result keeps the wait it needs."""
+
+    def __init__(self, wait_s: float, limit_s: float) -> None:
+        super().__init__(
+            f"phasing needs a wait of {wait_s:.0f} s, more than rendezvous.max_wait_time_s "
+            f"({limit_s:.0f} s)"
+        )
+        self.wait_s = wait_s
+
+
 @dataclass(frozen=True)
 class _Plan:
     hohmann: HohmannTransfer
@@ -113,7 +124,9 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
         raise Infeasible("chaser and target have the same period: the phase never changes")
     wait = secular.wait_s
     if wait > s.max_wait_time_s + s.burn_epoch_window_s:
-        raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
+        # Beyond the limit by more than the burn window: the secular estimate, unrefined
+        # (refining would propagate both orbits over the whole longer wait).
+        raise WaitTooLong(wait, s.max_wait_time_s)
 
     hi = s.transfer_time_bounds[1]
     pad = _COVERAGE_PAD * transfer.transfer_time_s
@@ -137,7 +150,7 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
     cover(inp.t0_s + wait + _PHASING_SLACK * transfer.transfer_time_s)
     wait = refine_wait(wait, lead_j2, relative_rate, phase_at, iterations=_PHASING_NEWTON_STEPS)
     if wait > s.max_wait_time_s:
-        raise Infeasible(_wait_reason(wait, s.max_wait_time_s))
+        raise WaitTooLong(wait, s.max_wait_time_s)
     burn_time = inp.t0_s + wait
     cover(burn_time)
     planes = plane_difference(chaser_coast.state_at(burn_time), target_coast.state_at(burn_time))
@@ -226,13 +239,6 @@ def _check_planes(angle: float, limit_deg: float, when: str) -> None:
             f"{limit_deg:g} deg (rendezvous.max_plane_difference_deg): this coplanar stage "
             "does not perform plane changes"
         )
-
-
-def _wait_reason(wait: float, limit: float) -> str:
-    return (
-        f"phasing needs a wait of {wait:.0f} s, more than rendezvous.max_wait_time_s "
-        f"({limit:.0f} s)"
-    )
 
 
 def _solve(
@@ -385,13 +391,20 @@ def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> Rendezvous
     deadline = Deadline(inp.settings.time_limit_s, "rendezvous.time_limit_s")
     prop = _propagator(inp)
 
-    def infeasible(reason: str) -> RendezvousResult:
+    def infeasible(reason: str, wait_s: float | None = None) -> RendezvousResult:
         return RendezvousResult(
-            kind=kind, feasible=False, reason=reason, epoch=inp.epoch, t0_s=inp.t0_s
+            kind=kind,
+            feasible=False,
+            reason=reason,
+            epoch=inp.epoch,
+            t0_s=inp.t0_s,
+            wait_time_s=wait_s,
         )
 
     try:
         plan, correction = _solve(inp, prop, deadline)
+    except WaitTooLong as why:
+        return infeasible(str(why), why.wait_s)
     except Infeasible as why:
         return infeasible(str(why))
     except (FloatingPointError, np.linalg.LinAlgError) as err:
