@@ -256,6 +256,15 @@ class SurrogateSettings(StrictModel):
         "deorbit's correction pinned at the start of the preparation orbit (a costlier regime "
         "at the edge of a pass)",
     )
+    # Optional (false when absent): the configs stored with runs made before it existed
+    # still read.
+    known_limits: bool = Field(
+        default=False,
+        description="phase_input: the chain's known limits on smooth quantities decide "
+        "feasibility where they apply: the wait model's wait against rendezvous."
+        "max_wait_time_s and, with pass_forecast, a usable deorbit pass within the horizon; "
+        "the classifier learns only from samples infeasible for other reasons",
+    )
     # Optional (null when absent): the configs stored with runs made before it existed
     # still read; `selection: shortlist` requires it.
     shortlist_size: int | None = bounded(
@@ -377,6 +386,16 @@ class VerifySettings(StrictModel):
         default=None,
         description="stop when a round adds less than this fraction to the verified front's "
         "hypervolume",
+    )
+    # Optional (null when absent, and then the per-point tolerances decide): the configs
+    # stored before it existed still read.
+    promise_tolerance: float | None = bounded(
+        gt=0,
+        le=1,
+        default=None,
+        description="converged when the surrogates, fitted on every evaluation, promise less "
+        "than this fraction of hypervolume beyond the verified front (their front's points "
+        "not yet evaluated); the loop runs until then or until the budget is spent",
     )
 
 

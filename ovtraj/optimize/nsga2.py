@@ -273,12 +273,19 @@ def surrogate_front(
         values = surrogates.predict(cube.from_unit(units))
         return np.column_stack([values[n] for n in names])
 
-    def model(units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        probability = surrogates.feasibility(cube.from_unit(units))
-        return normalisation.normalise(predicted(units)), (
-            settings.feasibility_threshold - probability
-        )[:, None]
+    threshold = settings.feasibility_threshold
 
+    def constraints(designs: np.ndarray) -> np.ndarray:
+        # A set that models known limits of its own (MissionSurrogates) gives one column
+        # each besides the classifier's; otherwise the classifier's probability alone.
+        if hasattr(surrogates, "constraints"):
+            return surrogates.constraints(designs, threshold)
+        return (threshold - surrogates.feasibility(designs))[:, None]
+
+    def model(units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return normalisation.normalise(predicted(units)), constraints(cube.from_unit(units))
+
+    n_constr = constraints(cube.from_unit(np.full((1, cube.dim), 0.5))).shape[1]
     units, normalised, info = nsga2_front(
         model,
         len(surrogates.input_names),
@@ -286,7 +293,7 @@ def surrogate_front(
         population=settings.population,
         generations=settings.generations,
         seed=settings.seed,
-        n_constr=1,
+        n_constr=n_constr,
         initial=None if initial is None else cube.to_unit(initial),
         deadline=Deadline(settings.time_limit_s, "mission.optimize.time_limit_s"),
     )

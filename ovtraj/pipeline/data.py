@@ -29,6 +29,16 @@ class TrainingData:
     def __len__(self) -> int:
         return len(self.sample_ids)
 
+    def subset(self, rows: np.ndarray) -> TrainingData:
+        """The samples of ``rows`` (a boolean mask or indices), in order."""
+        return TrainingData(
+            sample_ids=self.sample_ids[rows],
+            designs=self.designs[rows],
+            outputs={name: values[rows] for name, values in self.outputs.items()},
+            feasible=self.feasible[rows],
+            components={name: values[rows] for name, values in self.components.items()},
+        )
+
     def frame(self) -> pd.DataFrame:
         frame = pd.DataFrame(self.designs, columns=list(DESIGN_NAMES))
         frame.insert(0, "sample_id", self.sample_ids)
@@ -74,6 +84,8 @@ COMPONENTS = {
     "dv_deorbit_mps": ("deorbit", "dv_mps"),
     # 0 when the deorbit's correction pinned the burn at the preparation orbit's start.
     "deorbit_wait_s": ("deorbit", "wait_time_s"),
+    # 0 when the ground track crosses no entry region within the deorbit's horizon.
+    "deorbit_passes": ("deorbit", "passes_in_region"),
 }
 
 

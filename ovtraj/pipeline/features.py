@@ -72,11 +72,12 @@ from ovtraj.store.products import Product
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
 from ovtraj.surrogate.validation import holdout_mask
 
-KIND = "mission-phase-surrogates/4"
-# Stored by earlier versions and still read: /3 had no burn phase.
-READABLE_KINDS = ("mission-phase-surrogates/3",)
+KIND = "mission-phase-surrogates/5"
+# Stored by earlier versions and still read: /4 had no known limits, /3 no burn phase.
+READABLE_KINDS = ("mission-phase-surrogates/4", "mission-phase-surrogates/3")
 WAIT = "rendezvous_wait_s"
 DEORBIT_WAIT = "deorbit_wait_s"
+DEORBIT_PASSES = "deorbit_passes"
 DV_PARTS = get_args(DvPart)
 PHASE_INPUTS = WAIT_PHASE_INPUTS
 PAYLOAD = "payload_kg"
@@ -168,6 +169,50 @@ class DvFloors:
         return asdict(self)
 
 
+@dataclass(frozen=True)
+class KnownLimits:
+    """Limits of the chain on quantities the surrogates model smoothly, applied to those
+    models instead of being left to the feasibility classifier (``surrogate.known_limits``).
+
+    The cheapest designs lie where the phasing wait reaches ``rendezvous.max_wait_time_s``
+    (the rendezvous costs less as H_P0 nears the target's altitude, and the wait grows):
+    the wait model predicts the wait to ~130 s held out, where a classifier that knows
+    nothing of the limit smears the boundary over kilometres of H_P0. And where the ground
+    track crosses no entry region within the deorbit's horizon the pass model finds no
+    pass either (:meth:`PassModel.has_pass`).
+
+    ``max_wait_s``: the longest phasing wait [s] (None: not applied);
+    ``pass_within_horizon``: a design needs a usable pass by the pass model.
+    """
+
+    max_wait_s: float | None
+    pass_within_horizon: bool
+
+    @classmethod
+    def of(cls, scenario: Scenario, pass_model: PassModel | None) -> KnownLimits | None:
+        if not scenario.mission.surrogate.known_limits:
+            return None
+        return cls(scenario.rendezvous.max_wait_time_s, pass_model is not None)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> KnownLimits:
+        wait = data["max_wait_s"]
+        return cls(None if wait is None else float(wait), bool(data["pass_within_horizon"]))
+
+    def explained(self, data: Any) -> np.ndarray:
+        """The infeasible samples (n,) these limits account for: a wait past the longest
+        allowed (the rendezvous keeps the wait it needs when it refuses one), or no entry
+        pass within the deorbit's horizon."""
+        wait = np.asarray(data.components[WAIT], dtype=float)
+        passes = np.asarray(data.components[DEORBIT_PASSES], dtype=float)
+        explained = np.zeros(len(wait), dtype=bool)
+        if self.max_wait_s is not None:
+            explained |= wait > self.max_wait_s
+        if self.pass_within_horizon:
+            explained |= passes == 0
+        return explained & ~np.asarray(data.feasible, dtype=bool)
+
+
 class MissionSurrogates:
     """The wait model and the phase-input model, composed into the mission objectives.
 
@@ -194,9 +239,13 @@ class MissionSurrogates:
         pass_model: PassModel | None = None,
         burn_phase: BurnPhaseModel | None = None,
         departure_phase: bool = False,
+        limits: KnownLimits | None = None,
     ) -> None:
         if departure_phase and pass_model is None:
             raise SurrogateError("the departure phase needs the pass model (its separation time)")
+        if limits is not None and limits.pass_within_horizon and pass_model is None:
+            raise SurrogateError("the pass limit needs the pass model")
+        self.limits = limits
         self.wait, self._main, self.period_s = wait, main, float(period_s)
         self.pass_model, self.burn_phase = pass_model, burn_phase
         self.departure_phase = departure_phase
@@ -288,7 +337,37 @@ class MissionSurrogates:
         }
 
     def feasibility(self, designs: np.ndarray) -> np.ndarray:
-        return self.main.feasibility(self.features(designs))
+        """Probability of a feasible mission (m,): the classifier's, 0 where a known limit
+        is broken."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        wait = self.waits(designs)
+        probability = self.main.feasibility(self.features(designs, wait))
+        if self.limits is None:
+            return probability
+        return np.where(np.all(self._violations(designs, wait) <= 0.0, axis=1), probability, 0.0)
+
+    def constraints(self, designs: np.ndarray, threshold: float) -> np.ndarray:
+        """NSGA-II's constraints (m, k), each met when <= 0: the classifier's probability at
+        least ``threshold``, then every known limit (:class:`KnownLimits`), each scaled so
+        that its violation grows with the distance past the limit where it can."""
+        designs = np.atleast_2d(np.asarray(designs, dtype=float))
+        wait = self.waits(designs)
+        probability = self.main.feasibility(self.features(designs, wait))
+        columns = [threshold - probability]
+        if self.limits is not None:
+            columns.append(self._violations(designs, wait))
+        return np.column_stack(columns)
+
+    def _violations(self, designs: np.ndarray, wait: np.ndarray) -> np.ndarray:
+        """Each known limit's violation (m, 2), > 0 when broken: the predicted wait past
+        the longest allowed, as a fraction of it; 1 without a usable deorbit pass."""
+        limits = self.limits
+        violations = np.zeros((len(designs), 2))
+        if limits.max_wait_s is not None:
+            violations[:, 0] = (wait - limits.max_wait_s) / limits.max_wait_s
+        if limits.pass_within_horizon:
+            violations[:, 1] = np.where(self.pass_model.has_pass(designs, wait), -1.0, 1.0)
+        return violations
 
     def save(
         self,
@@ -315,6 +394,7 @@ class MissionSurrogates:
             "pass_model": None if self.pass_model is None else self.pass_model.to_dict(),
             "burn_phase": None if self.burn_phase is None else self.burn_phase.to_dict(),
             "departure_phase": self.departure_phase,
+            "limits": None if self.limits is None else asdict(self.limits),
             "lower": self.cube.lower.tolist(),
             "upper": self.cube.upper.tolist(),
             "selected": self.selected,
@@ -354,6 +434,9 @@ class MissionSurrogates:
             # Absent from sets of the kind before it (always the wait's phase there).
             burn = meta.get("burn_phase")
             burn_phase = None if burn is None else BurnPhaseModel.from_dict(burn)
+            # Absent from sets of the kinds before it (no known limits there).
+            known = meta.get("limits")
+            limits = None if known is None else KnownLimits.from_dict(known)
         except (KeyError, TypeError, ValueError) as err:
             raise SurrogateError(f"{product.marker_path}: {err}") from None
         return cls(
@@ -371,6 +454,7 @@ class MissionSurrogates:
             burn_phase=burn_phase,
             # Absent from sets stored before it (no departure phase there).
             departure_phase=bool(meta.get("departure_phase", False)),
+            limits=limits,
         )
 
 
@@ -441,7 +525,13 @@ def fit_mission_surrogates(
     payload = launch_payload(scenario, data)
     floors = DvFloors.of(scenario)
     wait = data.components[WAIT]
-    known = np.isfinite(wait)
+    # The waits refined on the propagated phase: every feasible one, and with the known
+    # limits those the rendezvous refused by less than its burn window (the wait model
+    # then sees both sides of the limit); further beyond, a secular estimate only.
+    longest = scenario.rendezvous.max_wait_time_s
+    if settings.known_limits:
+        longest += scenario.rendezvous.burn_epoch_window_s
+    known = np.isfinite(wait) & (wait <= longest)
     # The wait depends on H_P0 alone: one sample per distinct H_P0 (infill points at a
     # bound share it, and repeated inputs make Kriging's correlation matrix singular).
     _, first = np.unique(data.designs[:, 0], return_index=True)
@@ -486,8 +576,13 @@ def fit_mission_surrogates(
         "pass_model": pass_model,
         "burn_phase": burn_phase,
         "departure_phase": settings.departure_phase,
+        "limits": KnownLimits.of(scenario, pass_model),
     }
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
+    if composed.limits is not None:
+        # The samples a known limit made infeasible say nothing of the other causes the
+        # classifier is left to learn (nor of a dV part: they are infeasible).
+        data = data.subset(~composed.limits.explained(data))
     time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
     outputs = {
         **time,
