@@ -9,6 +9,8 @@ design already evaluated are skipped: their real values are already known.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -92,3 +94,35 @@ def hypervolume_picks(
         rest = spread_picks(normalised, units, taken, count - len(picks), min_distance)
         picks += [k for k in rest if k not in picks]
     return picks
+
+
+def promised_gain(
+    normalised: np.ndarray,
+    units: np.ndarray,
+    evaluated_units: np.ndarray,
+    real_normalised: np.ndarray,
+    min_distance: float,
+) -> float:
+    """The hypervolume the surrogate front still promises over the real one, relative.
+
+    The front's points within ``min_distance`` (unit cube) of an evaluated design are left
+    out: the chain has answered for them, and the real front holds that answer. The rest
+    are promises; ``HV(real + promises) / HV(real) - 1`` is what verifying all of them
+    would add if the surrogates are right (infinite without a real front).
+    """
+    from ovtraj.optimize.front import hypervolume
+
+    normalised = np.asarray(normalised, dtype=float)
+    units = np.asarray(units, dtype=float)
+    base = np.asarray(real_normalised, dtype=float).reshape(-1, normalised.shape[1])
+    real = hypervolume(base)
+    if real <= 0.0:
+        return math.inf
+    if len(units) == 0:
+        return 0.0
+    evaluated = np.asarray(evaluated_units, dtype=float).reshape(-1, units.shape[1])
+    fresh = np.ones(len(units), dtype=bool)
+    if len(evaluated):
+        distance = np.linalg.norm(units[:, None, :] - evaluated[None, :, :], axis=2)
+        fresh = distance.min(axis=1) >= min_distance
+    return hypervolume(np.vstack([base, normalised[fresh]])) / real - 1.0

@@ -51,7 +51,9 @@ from ovtraj.optimize import (
     non_dominated,
     spread_picks,
 )
+from ovtraj.optimize.infill import promised_gain
 from ovtraj.pipeline.data import TrainingData, training_data
+from ovtraj.pipeline.reference_front import reference_for
 from ovtraj.pipeline.steps import (
     OBJECTIVE_NAMES,
     FitOutcome,
@@ -237,7 +239,10 @@ def run_pipeline(
     last: tuple[FitOutcome, FrontOutcome, Run] | None = None  # the last round's models
     parity: Callable[[], list[bytes]] | None = None  # its parity plots, begun early
     real = real_hypervolume(run, normalisation)  # of the current run's real front
-    for iteration in range(1, verify.max_iterations + 1):
+    promising = verify.promise_tolerance is not None
+    # By promise, the surrogates fitted after the last round's verification get their say.
+    rounds = verify.max_iterations + (1 if promising else 0)
+    for iteration in range(1, rounds + 1):
         data = training_data(run)
         fit = steps.fit(run, data, scenario, code, candidates=kept, views=False)
         settings = scenario.mission.surrogate
@@ -248,7 +253,7 @@ def run_pipeline(
         # Only the last round's parity plots are kept: begin them on the pool only in a
         # round that is surely the last (a round that stops early has them drawn at the
         # end), so that no round's evaluations queue behind plots that are thrown away.
-        surely_last = iteration == verify.max_iterations or verify.budget - spent <= 0
+        surely_last = iteration == rounds or verify.budget - spent <= 0
         parity = None
         if steps.predraw is not None and surely_last:
             parity = steps.predraw(parity_views(fit.surrogates))
@@ -266,13 +271,21 @@ def run_pipeline(
             "surrogate_hypervolume": front.hypervolume,
         }
         iterations.append(record)
+        promise = _promise(scenario, front, data) if promising else None
+        record["promised_gain"] = promise
         say(
             f"iteration {iteration}: {len(data)} samples ({record['feasible']} feasible), "
             f"surrogate front {len(front)} points, hypervolume {front.hypervolume:.4f}"
+            + ("" if promise is None else f", promising {promise:.2%} over the verified front")
         )
         if len(front) == 0:
             stop = "empty surrogate front"
             break
+        if promise is not None and spent > 0 and promise < verify.promise_tolerance:
+            stop = "converged"
+            break
+        if iteration > verify.max_iterations:
+            break  # the check after the last round's verification
         remaining = verify.budget - spent
         if remaining <= 0:
             stop = "budget"
@@ -310,6 +323,8 @@ def run_pipeline(
         real = after
         record.update(real_hypervolume=after, hypervolume_gain=gain)
         run = child
+        if promising:
+            continue  # the next fit says whether the front is reached
         accurate = bool(verified["real_feasible"].all()) and worst < verify.tolerance
         tolerance = verify.hypervolume_tolerance
         stable = tolerance is not None and gain is not None and gain < tolerance
@@ -342,6 +357,22 @@ def run_pipeline(
         last,
         steps.draw,
         parity,
+    )
+
+
+def _promise(scenario: Scenario, front: Any, data: Any) -> float:
+    """What the surrogate front promises beyond the real one (relative hypervolume,
+    :func:`ovtraj.optimize.infill.promised_gain`): its points not yet evaluated."""
+    verify = scenario.mission.verify
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    real = np.column_stack([data.outputs[n] for n in normalisation.names])[data.feasible]
+    real = normalisation.normalise(real)
+    return promised_gain(
+        front.normalised,
+        unit_designs(scenario, front.designs.to_numpy()),
+        unit_designs(scenario, data.designs),
+        real[non_dominated(real)] if len(real) else real,
+        verify.min_distance,
     )
 
 
@@ -439,6 +470,12 @@ def _finish(
         "ideal_point": normalisation.ideal.tolist(),
         "iterations": iterations,
     }
+    reference = reference_for(scenario)
+    if reference is not None:
+        # The direct reference front of this very scenario (data/reference/direct_front).
+        summary["reference_hypervolume"] = reference.hypervolume
+        summary["reference_evaluations"] = int(reference.meta["evaluations"])
+        summary["reference_ratio"] = summary["hypervolume"] / reference.hypervolume
     totals = run.totals()
 
     def views() -> list[Path]:

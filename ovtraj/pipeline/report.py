@@ -60,10 +60,54 @@ _STOPS = {
 }
 
 
+# With mission.verify.promise_tolerance: what the last surrogates promise decides.
+_PROMISE_STOPS = {
+    "converged": "converged: the surrogates fitted on all {evaluations} real evaluations "
+    "promise {promise} of hypervolume beyond the verified front, under "
+    "mission.verify.promise_tolerance ({promise_tolerance})",
+    "front already evaluated": "converged: every point of the surrogate front has already "
+    "been evaluated with the real chain",
+    "max_iterations": "not converged: stopped after {max_iterations} rounds "
+    "(mission.verify.max_iterations) with the surrogates still promising {promise} of "
+    "hypervolume beyond the verified front (tolerance {promise_tolerance}); the verified front "
+    "holds real values only, but more of the front may lie where they point",
+    "budget": "not converged: the budget of {budget} real infill evaluations "
+    "(mission.verify.budget) is spent with the surrogates still promising {promise} of "
+    "hypervolume beyond the verified front (tolerance {promise_tolerance})",
+    "empty surrogate front": "not converged: NSGA-II found no surrogate point predicted "
+    "feasible; the verified front comes from the DoE samples only",
+}
+
+
 def stop_explanation(summary: dict[str, Any], verify: Any) -> str:
     """One sentence: converged or not, and why the loop stopped (``verify``: the
-    scenario's ``mission.verify`` settings)."""
+    scenario's ``mission.verify`` settings), and the verified front's hypervolume against
+    the direct reference's when the summary holds that ratio."""
+    sentence = _stop_sentence(summary, verify)
+    ratio = summary.get("reference_ratio")
+    if ratio is None:
+        return sentence
+    return (
+        f"{sentence}. Hypervolume {summary['hypervolume']:.4f}: {ratio:.3f} of the direct "
+        f"reference front's {summary['reference_hypervolume']:.4f} "
+        f"({summary['reference_evaluations']:,} real evaluations, data/reference/direct_front)"
+    )
+
+
+def _stop_sentence(summary: dict[str, Any], verify: Any) -> str:
     rounds = summary.get("iterations", [])
+    promises = [i["promised_gain"] for i in rounds if i.get("promised_gain") is not None]
+    if getattr(verify, "promise_tolerance", None) is not None and promises:
+        real = summary.get("real_evaluations", {})
+        template = _PROMISE_STOPS.get(summary["stop_reason"], "stopped: {reason}")
+        return template.format(
+            evaluations=int(real.get("doe", 0)) + int(real.get("infill", 0)),
+            promise=f"{promises[-1]:.2%}",
+            promise_tolerance=f"{verify.promise_tolerance:.2%}",
+            max_iterations=verify.max_iterations,
+            budget=verify.budget,
+            reason=summary["stop_reason"],
+        )
     errors = [i["max_error"] for i in rounds if "max_error" in i]
     gains = [i["hypervolume_gain"] for i in rounds if i.get("hypervolume_gain") is not None]
     tolerance = verify.hypervolume_tolerance
