@@ -239,6 +239,9 @@ def _pipeline(
         "hypervolume": result.summary["hypervolume"],
         "stop": result.summary["stop_reason"],
         "converged": result.summary["converged"],
+        "rounds": len(result.summary["iterations"]),
+        "promised_gain": result.summary["iterations"][-1].get("promised_gain"),
+        "reference_ratio": result.summary.get("reference_ratio"),
         "wall_s": wall,
         # Where the wall time went: real evaluations (DoE and infill), surrogate fits,
         # NSGA-II on the surrogates; the rest is the store and the verified front.
