@@ -470,6 +470,29 @@ def test_stored_pipeline_products_list_every_file_with_the_declared_schemas(smal
     assert load_pipeline(result.directory).front.equals(result.front)
 
 
+def test_every_marker_of_a_pipeline_records_the_environment_that_wrote_it(small):
+    """The DoE run's manifest and batch markers, each fit's and front's meta.json and
+    pipeline.json carry the declared environment block (ovtraj.store.environment_block)
+    of the process that wrote them: this one, on the pinned OpenBLAS kernel."""
+    from ovtraj.environment import environment
+    from ovtraj.store.environment_block import EnvironmentBlock
+
+    doe, here = small["doe"].directory, environment()
+    documents = [
+        doe / "manifest.json",
+        *sorted(doe.glob("batches/*.json")),
+        *sorted(doe.glob("surrogates/*/meta.json")),
+        *sorted(doe.glob("fronts/*/meta.json")),
+        *sorted(doe.glob("pipeline/*/pipeline.json")),
+    ]
+    names = {p.name for p in documents}
+    assert {"manifest.json", "0.json", "meta.json", "pipeline.json"} <= names
+    for path in documents:
+        block = json.loads(path.read_text())["environment"]
+        EnvironmentBlock.model_validate(block)
+        assert block["blas_pin"] == here["blas_pin"] and block["cpu"] == here["cpu"], path
+
+
 def test_a_changed_surrogate_set_or_front_is_refused_naming_the_file(small):
     from ovtraj.pipeline.features import load_surrogates
 

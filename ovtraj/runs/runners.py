@@ -147,6 +147,7 @@ def check_worker(
         "code": version.code_version(),
         "pid": os.getpid(),
         "cwd": os.getcwd(),
+        "name": None if dask_worker is None else str(dask_worker.name),
         "blas_kernels": sorted(
             {
                 str(lib["architecture"])
@@ -226,7 +227,9 @@ def _check_kernels(answers: dict[str, dict[str, Any]], where: str) -> None:
 
     wanted = pin().kernel
     off = {}
-    for worker, answer in sorted(answers.items()):
+    for address, answer in sorted(answers.items()):
+        named = answer.get("name")
+        worker = address if named in (None, address) else f"{address} ({named})"
         kernels = answer.get("blas_kernels") or []
         logger.info("Dask worker %s: OpenBLAS kernel %s", worker, ", ".join(kernels) or "none")
         other = [k for k in kernels if wanted is not None and k.lower() != wanted.lower()]
