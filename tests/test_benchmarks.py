@@ -243,6 +243,21 @@ def _check_plan_vs_front(f: dict) -> None:
     assert aimed["design_space"]["designs"] == 2
 
 
+def _check_reproducibility(f: dict) -> None:
+    rows = f["variants"]
+    assert [(r["openblas_coretype"], r["openblas_threads"]) for r in rows] == [
+        ("Haswell", 1),
+        ("Sandybridge", 2),
+    ]
+    assert f["pinned"] and f["goals"]["byte_identical"] == "all"
+    identical = sum(r["files_identical"] == r["files"] == rows[0]["files"] for r in rows)
+    assert f["figures"]["identical_variants"] == identical
+    assert _close(f["ratios"]["identical_variants"], identical / len(rows))
+    assert f["met"] == (identical == len(rows))
+    assert f["met"], rows  # the pin holds: the same bytes under both kernels
+    assert f["figures"]["pipeline_ids"] == 1 and len(f["figures"]["picked_samples"]) == 1
+
+
 def _check_store(f: dict) -> None:
     goal = f["goal_bytes_per_sample"]
     assert _close(f["ratio_bytes_to_goal"], f["bytes_per_sample"] / goal)
@@ -457,6 +472,17 @@ BENCHMARK_CASES = (
         frozenset({"solve_s", "goal_s", "ratio", "met", "result", "trajectories"}),
         _check_timed,
         ("goal_s", "result", "trajectories"),
+    ),
+    Benchmark(
+        "reproducibility",
+        lambda folder: [
+            *("--config", str(small_pipeline(folder)), "--samples", "16"),
+            *("--variants", "Haswell:1,Sandybridge:2"),
+        ],
+        frozenset({"variants", "figures", "goals", "ratios", "met"}),
+        _check_reproducibility,
+        ("goals",),
+        twice=False,
     ),
     Benchmark(
         "store",
