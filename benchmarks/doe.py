@@ -50,6 +50,8 @@ from pathlib import Path
 
 import yaml
 
+from ovtraj.environment import CORETYPE_ENV, pin
+
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -105,6 +107,8 @@ class Cluster:
             if not k.startswith(("PYTHONPATH", "PREFECT_", "OVTRAJ_"))
         }
         env["PREFECT_SERVER_ANALYTICS_ENABLED"] = "false"
+        if pin().kernel is not None:  # a worker loads numpy before ovtraj can pin its kernel
+            env[CORETYPE_ENV] = pin().kernel
         self.env = env
         scheduler = [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", str(self.port)]
         self._start(root / f"{name}-scheduler", [*scheduler, "--no-dashboard"])
