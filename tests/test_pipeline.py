@@ -48,12 +48,9 @@ OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
 def _data(**verify) -> dict:
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    # The loop runs its rounds to the budget here (the stop on a stable front is tested
-    # on its own, below): no stop on a stable front, and an error tolerance the smooth
-    # objectives of the aimed plane would meet in the first round (issue 43) made
-    # unreachable.
-    data["mission"]["verify"]["hypervolume_tolerance"] = None
-    data["mission"]["verify"]["tolerance"] = 1e-6
+    # The loop runs its rounds to the budget here (its stops are tested on their own,
+    # below): a promise tolerance no surrogate front meets.
+    data["mission"]["verify"]["promise_tolerance"] = 1e-12
     data["mission"]["verify"].update(verify)
     # Two regressors, one classifier, 3 folds: the candidates' mechanics are tested in
     # test_surrogate.py; here the pipeline around them (keeps the suite in budget).
@@ -142,6 +139,84 @@ def test_front_points_are_verified_with_the_real_chain(small):
     )
 
 
+def _verify_changed(scenario, **update):
+    verify = scenario.mission.verify.model_copy(update=update)
+    changed = scenario.model_copy(
+        update={"mission": scenario.mission.model_copy(update={"verify": verify})}
+    )
+    return changed, verify
+
+
+def test_the_loop_converges_once_the_surrogates_promise_nothing_more(small, tmp_path):
+    from ovtraj.optimize import non_dominated
+    from ovtraj.optimize.infill import promised_gain
+    from ovtraj.pipeline.report import stop_explanation
+    from ovtraj.pipeline.steps import load_front, unit_designs
+
+    scenario, store = small["scenario"], _copied_store(small, tmp_path)
+    rounds = small["result"].summary["iterations"]
+    # Every round records what its surrogate front promised beyond the real front of the
+    # samples it was fitted on; the last check follows the last verification (budget spent).
+    assert len(rounds) == 3 and small["result"].summary["stop_reason"] in (
+        "budget",
+        "max_iterations",
+    )
+    assert small["result"].summary["converged"] is False
+    normalisation = Normalisation.mission(scenario.mission.optimize)
+    for record in rounds:
+        run = store.run(record["run_id"])
+        data = training_data(run)
+        front = load_front(run.directory / "fronts" / record["front_id"], normalisation)
+        real = normalisation.normalise(
+            np.column_stack([data.outputs[n] for n in normalisation.names])[data.feasible]
+        )
+        expected = promised_gain(
+            front.normalised,
+            unit_designs(scenario, front.designs.to_numpy()),
+            unit_designs(scenario, data.designs),
+            real[non_dominated(real)],
+            scenario.mission.verify.min_distance,
+        )
+        assert record["promised_gain"] == pytest.approx(expected, rel=1e-9)
+    text = stop_explanation(small["result"].summary, scenario.mission.verify)
+    assert text.startswith("not converged") and f"{rounds[-1]['promised_gain']:.2%}" in text
+    # A tolerance above the second check's promise: converged there, after one round of
+    # verification, the stored child run reused (nothing simulated).
+    tolerance = rounds[1]["promised_gain"] * 1.01
+    converging, verify = _verify_changed(scenario, promise_tolerance=tolerance)
+    before = execute.EVALUATIONS["count"]
+    result = run_pipeline(
+        converging,
+        store.run(small["doe"].id),
+        store=store,
+        code=small["code"],
+        steps=PipelineSteps(evaluate=small["evaluate_run"]),
+    )
+    assert execute.EVALUATIONS["count"] == before
+    summary = result.summary
+    assert summary["stop_reason"] == "converged" and summary["converged"] is True
+    assert len(summary["iterations"]) == 2 and summary["final_run"] == rounds[0]["infill_run"]
+    text = stop_explanation(summary, verify)
+    assert text.startswith("converged") and f"{tolerance:.2%}" in text
+    assert f"{rounds[1]['promised_gain']:.2%}" in text
+
+
+def test_the_direct_reference_is_reported_for_its_own_scenario_only(small):
+    from ovtraj.pipeline.reference_front import load, reference_for
+
+    reference = load()
+    assert reference is not None and reference.matches(small["scenario"])
+    summary = small["result"].summary
+    assert summary["reference_hypervolume"] == reference.hypervolume
+    assert summary["reference_ratio"] == pytest.approx(
+        summary["hypervolume"] / reference.hypervolume, rel=1e-12
+    )
+    # Another chain (a longer stay) is not the scenario the reference was made for.
+    data = _data()
+    data["mission"]["stay_h"] = 30.0
+    assert reference_for(build_scenario(data)) is None
+
+
 def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small, tmp_path):
     from ovtraj.pipeline.loop import real_hypervolume
     from ovtraj.pipeline.report import stop_explanation
@@ -163,11 +238,11 @@ def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small, tm
         parent = child
     first_gain = rounds[0]["hypervolume_gain"]
     assert first_gain >= 0.0
-    # A tolerance above the first round's gain stops the loop there, converged: the same
-    # picks, so the stored child run is reused and nothing is simulated.
-    verify = scenario.mission.verify.model_copy(update={"hypervolume_tolerance": 1.0})
-    stable = scenario.model_copy(
-        update={"mission": scenario.mission.model_copy(update={"verify": verify})}
+    # Without a promise tolerance (the configs stored before it), a hypervolume tolerance
+    # above the first round's gain stops the loop there, converged: the same picks, so the
+    # stored child run is reused and nothing is simulated.
+    stable, verify = _verify_changed(
+        scenario, hypervolume_tolerance=1.0, promise_tolerance=None, tolerance=1e-6
     )
     before = execute.EVALUATIONS["count"]
     result = run_pipeline(
@@ -183,8 +258,7 @@ def test_the_loop_stops_when_a_round_no_longer_improves_the_real_front(small, tm
     assert len(summary["iterations"]) == 1 and summary["final_run"] == rounds[0]["infill_run"]
     text = stop_explanation(summary, verify)
     assert text.startswith("converged") and f"{first_gain:.2%}" in text and "100.00%" in text
-    # Off (null, as in configs stored before it): the budget or max_iterations decide.
-    assert scenario.mission.verify.hypervolume_tolerance is None
+    # With a promise tolerance the promise decides: a stable round is no stop of its own.
     assert small["result"].summary["stop_reason"] != "front stable"
 
 

@@ -79,6 +79,8 @@ def training_data(run: Run) -> TrainingData:
 # Training-data name -> (stage, column of the stage's rows).
 COMPONENTS = {
     "rendezvous_wait_s": ("rendezvous", "wait_time_s"),
+    # The wait the rendezvous checks against its limit; kept when it refuses one too.
+    "rendezvous_phasing_wait_s": ("rendezvous", "phasing_wait_s"),
     "dv_rendezvous_mps": ("rendezvous", "dv_total_mps"),
     "dv_transfer_mps": ("transfer", "dv_total_mps"),
     "dv_deorbit_mps": ("deorbit", "dv_mps"),

@@ -76,6 +76,7 @@ KIND = "mission-phase-surrogates/5"
 # Stored by earlier versions and still read: /4 had no known limits, /3 no burn phase.
 READABLE_KINDS = ("mission-phase-surrogates/4", "mission-phase-surrogates/3")
 WAIT = "rendezvous_wait_s"
+PHASING_WAIT = "rendezvous_phasing_wait_s"
 DEORBIT_WAIT = "deorbit_wait_s"
 DEORBIT_PASSES = "deorbit_passes"
 DV_PARTS = get_args(DvPart)
@@ -84,6 +85,7 @@ PAYLOAD = "payload_kg"
 PASS_MODEL = "pass model"  # T_total's model when it is the pass model (no regressor)
 MARKER = "meta.json"
 PARTS = ("wait", "main")
+LIMIT_PARTS = ("phasing",)  # stored with the known limits only
 
 
 def above(floor: np.ndarray, value: np.ndarray, softness: float) -> np.ndarray:
@@ -176,7 +178,9 @@ class KnownLimits:
 
     The cheapest designs lie where the phasing wait reaches ``rendezvous.max_wait_time_s``
     (the rendezvous costs less as H_P0 nears the target's altitude, and the wait grows):
-    the wait model predicts the wait to ~130 s held out, where a classifier that knows
+    a model of the phasing wait (the wait the rendezvous checks against its limit, refined
+    on the propagated phase, before the J2 correction moves the burn) on H_P0, trained on
+    both sides of the limit, places it within ~100 s, where a classifier that knows
     nothing of the limit smears the boundary over kilometres of H_P0. And where the ground
     track crosses no entry region within the deorbit's horizon the pass model finds no
     pass either (:meth:`PassModel.has_pass`).
@@ -200,10 +204,10 @@ class KnownLimits:
         return cls(None if wait is None else float(wait), bool(data["pass_within_horizon"]))
 
     def explained(self, data: Any) -> np.ndarray:
-        """The infeasible samples (n,) these limits account for: a wait past the longest
-        allowed (the rendezvous keeps the wait it needs when it refuses one), or no entry
-        pass within the deorbit's horizon."""
-        wait = np.asarray(data.components[WAIT], dtype=float)
+        """The infeasible samples (n,) these limits account for: a phasing wait past the
+        longest allowed (the rendezvous keeps the wait it needs when it refuses one), or no
+        entry pass within the deorbit's horizon."""
+        wait = np.asarray(data.components[PHASING_WAIT], dtype=float)
         passes = np.asarray(data.components[DEORBIT_PASSES], dtype=float)
         explained = np.zeros(len(wait), dtype=bool)
         if self.max_wait_s is not None:
@@ -240,12 +244,15 @@ class MissionSurrogates:
         burn_phase: BurnPhaseModel | None = None,
         departure_phase: bool = False,
         limits: KnownLimits | None = None,
+        phasing: SurrogateSet | None = None,
     ) -> None:
         if departure_phase and pass_model is None:
             raise SurrogateError("the departure phase needs the pass model (its separation time)")
         if limits is not None and limits.pass_within_horizon and pass_model is None:
             raise SurrogateError("the pass limit needs the pass model")
-        self.limits = limits
+        if limits is not None and limits.max_wait_s is not None and phasing is None:
+            raise SurrogateError("the wait limit needs the phasing wait's model")
+        self.limits, self.phasing = limits, phasing
         self.wait, self._main, self.period_s = wait, main, float(period_s)
         self.pass_model, self.burn_phase = pass_model, burn_phase
         self.departure_phase = departure_phase
@@ -261,25 +268,28 @@ class MissionSurrogates:
         return self._main
 
     @property
-    def parts(self) -> tuple[SurrogateSet, SurrogateSet]:
-        return self.wait, self.main
+    def parts(self) -> tuple[SurrogateSet, ...]:
+        return (self.wait, self.main) + (() if self.phasing is None else (self.phasing,))
 
     @property
     def selected(self) -> dict[str, str]:
         passes = {} if self.pass_model is None else {"t_total_s": PASS_MODEL}
-        return {**self.wait.selected, **self.main.selected, **passes}
+        chosen = {**self.wait.selected, **self.main.selected, **passes}
+        if self.phasing is not None:
+            chosen[PHASING_WAIT] = self.phasing.selected[PHASING_WAIT]
+        return chosen
 
     @property
     def validation(self) -> pd.DataFrame:
-        return pd.concat([self.wait.validation, self.main.validation], ignore_index=True)
+        return pd.concat([part.validation for part in self.parts], ignore_index=True)
 
     @property
     def predictions(self) -> pd.DataFrame:
-        return pd.concat([self.wait.predictions, self.main.predictions], ignore_index=True)
+        return pd.concat([part.predictions for part in self.parts], ignore_index=True)
 
     @property
     def data_hash(self) -> str:
-        return f"{self.wait.data_hash}-{self.main.data_hash}"
+        return "-".join(part.data_hash for part in self.parts)
 
     def features(self, designs: np.ndarray, wait: np.ndarray | None = None) -> np.ndarray:
         """Designs (m, 3) -> the main model's inputs (m, 5, or 7 with the departure
@@ -359,12 +369,14 @@ class MissionSurrogates:
         return np.column_stack(columns)
 
     def _violations(self, designs: np.ndarray, wait: np.ndarray) -> np.ndarray:
-        """Each known limit's violation (m, 2), > 0 when broken: the predicted wait past
-        the longest allowed, as a fraction of it; 1 without a usable deorbit pass."""
+        """Each known limit's violation (m, 2), > 0 when broken: the predicted phasing wait
+        past the longest allowed, as a fraction of it; 1 without a usable deorbit pass
+        (``wait``: the wait model's, for the pass model)."""
         limits = self.limits
         violations = np.zeros((len(designs), 2))
         if limits.max_wait_s is not None:
-            violations[:, 0] = (wait - limits.max_wait_s) / limits.max_wait_s
+            phasing = self.phasing.predict(designs[:, :1])[PHASING_WAIT]
+            violations[:, 0] = (phasing - limits.max_wait_s) / limits.max_wait_s
         if limits.pass_within_horizon:
             violations[:, 1] = np.where(self.pass_model.has_pass(designs, wait), -1.0, 1.0)
         return violations
@@ -376,7 +388,8 @@ class MissionSurrogates:
         meta: dict[str, Any],
         views: dict[str, Digest] | None = None,
     ) -> dict[str, Digest]:
-        """``wait/`` and ``main/`` (each a stored set), then ``meta.json`` last.
+        """``wait/``, ``main/`` and, with the known limits, ``phasing/`` (each a stored set),
+        then ``meta.json`` last.
 
         ``meta.json`` is the product's marker: it lists the digest of every file of both
         parts (their own ``meta.json`` included) and of the ``views`` (plots already
@@ -401,7 +414,10 @@ class MissionSurrogates:
             **meta,
         }
         with Product(directory, MARKER).writing() as out:
-            for name, part in (("wait", self.wait), ("main", self.main)):
+            named = [("wait", self.wait), ("main", self.main)]
+            if self.phasing is not None:
+                named.append(("phasing", self.phasing))
+            for name, part in named:
                 # Until this marker is stored, a part's marker is an interrupted save's.
                 out.discard(f"{name}/{MARKER}")
                 for relative, digest in part.save(directory / name, meta=meta).items():
@@ -417,7 +433,8 @@ class MissionSurrogates:
         product = Product(directory, MARKER)
         try:
             meta = product.marker()
-            digests = {name: product.digest(f"{name}/{MARKER}", meta) for name in PARTS}
+            stored = PARTS + (LIMIT_PARTS if meta.get("limits") is not None else ())
+            digests = {name: product.digest(f"{name}/{MARKER}", meta) for name in stored}
         except StoreError as err:
             raise SurrogateError(str(err)) from None
         if meta.get("kind") not in (KIND, *READABLE_KINDS):
@@ -455,6 +472,9 @@ class MissionSurrogates:
             # Absent from sets stored before it (no departure phase there).
             departure_phase=bool(meta.get("departure_phase", False)),
             limits=limits,
+            phasing=None
+            if limits is None
+            else SurrogateSet.load(product.directory / "phasing", digests["phasing"]),
         )
 
 
@@ -525,13 +545,7 @@ def fit_mission_surrogates(
     payload = launch_payload(scenario, data)
     floors = DvFloors.of(scenario)
     wait = data.components[WAIT]
-    # The waits refined on the propagated phase: every feasible one, and with the known
-    # limits those the rendezvous refused by less than its burn window (the wait model
-    # then sees both sides of the limit); further beyond, a secular estimate only.
-    longest = scenario.rendezvous.max_wait_time_s
-    if settings.known_limits:
-        longest += scenario.rendezvous.burn_epoch_window_s
-    known = np.isfinite(wait) & (wait <= longest)
+    known = np.isfinite(wait)
     # The wait depends on H_P0 alone: one sample per distinct H_P0 (infill points at a
     # bound share it, and repeated inputs make Kriging's correlation matrix singular).
     _, first = np.unique(data.designs[:, 0], return_index=True)
@@ -578,6 +592,8 @@ def fit_mission_surrogates(
         "departure_phase": settings.departure_phase,
         "limits": KnownLimits.of(scenario, pass_model),
     }
+    if bounds["limits"] is not None:
+        bounds["phasing"] = _phasing_wait_set(data, scenario, lower, upper, candidates, executor)
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     if composed.limits is not None:
         # The samples a known limit made infeasible say nothing of the other causes the
@@ -603,6 +619,44 @@ def fit_mission_surrogates(
         left_out=_pinned_deorbit_burns(data, settings),
     )
     return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)
+
+
+def _phasing_wait_set(
+    data: Any,
+    scenario: Scenario,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    candidates: dict[str, str] | None,
+    executor: Executor | None,
+) -> SurrogateSet:
+    """The phasing wait [s] on H_P0 for the wait limit: every sample whose rendezvous got
+    as far as a refined phasing wait (feasible ones, and those refused by less than the
+    burn window: both sides of the limit); further beyond, the stage kept a secular
+    estimate only, and those samples stay out."""
+    settings = scenario.mission.surrogate
+    rendezvous = scenario.rendezvous
+    wait = np.asarray(data.components[PHASING_WAIT], dtype=float)
+    longest = rendezvous.max_wait_time_s + rendezvous.burn_epoch_window_s
+    known = np.isfinite(wait) & (wait <= longest)
+    _, first = np.unique(data.designs[:, 0], return_index=True)  # one per distinct H_P0
+    known &= np.isin(np.arange(len(wait)), first)
+    if known.sum() < settings.min_training_samples:
+        raise SurrogateError(
+            f"the wait limit needs the phasing wait of at least "
+            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
+        )
+    return fit_surrogates(
+        data.designs[known][:, :1],
+        {PHASING_WAIT: wait[known]},
+        np.ones(int(known.sum()), dtype=bool),
+        lower[:1],
+        upper[:1],
+        settings,
+        input_names=DESIGN_NAMES[:1],
+        sample_ids=data.sample_ids[known],
+        candidates=candidates,
+        executor=executor,
+    )
 
 
 def pinned_deorbit_burns(data: Any) -> np.ndarray:

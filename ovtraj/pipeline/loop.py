@@ -266,6 +266,7 @@ def run_pipeline(
             "samples": len(data),
             "feasible": int(data.feasible.sum()),
             "fit_id": fit.fit_id,
+            "front_id": outcome.front_id,
             "selected": dict(fit.surrogates.selected),
             "surrogate_front_points": len(front),
             "surrogate_hypervolume": front.hypervolume,

@@ -76,10 +76,14 @@ class RendezvousResult:
     """Outcome of the rendezvous (or target-less transfer) stage.
 
     Infeasible results keep every field the stage reached; the rest are ``None``
-    (never NaN), and ``reason`` says why. A rendezvous refused for its phasing wait keeps
-    the wait it needs in ``wait_time_s``: refined on the propagated phase when it exceeds
-    ``max_wait_time_s`` by less than ``burn_epoch_window_s``, the secular estimate beyond
-    (within ~340 s of the refined wait on the default scenario).
+    (never NaN), and ``reason`` says why.
+
+    ``phasing_wait_s`` is the wait the stage checks against ``max_wait_time_s``: the
+    phasing wait refined on the propagated phase, before the J2 correction moves the first
+    burn (``wait_time_s``, up to ``burn_epoch_window_s`` away). A rendezvous refused for its
+    wait keeps it too: refined when it exceeds the limit by less than the burn window, the
+    secular estimate beyond (on the default scenario 150-340 s from the refined wait at
+    the waits the limit allows, 448 s at a 3.4-day wait).
     """
 
     kind: TransferKind
@@ -88,6 +92,7 @@ class RendezvousResult:
     epoch: Epoch
     t0_s: float
     wait_time_s: float | None = None
+    phasing_wait_s: float | None = None
     burn1: Impulse | None = None
     burn2: Impulse | None = None
     transfer_time_s: float | None = None
@@ -124,6 +129,7 @@ class RendezvousResult:
             "epoch_utc": self.epoch.iso(),
             "t0_s": self.t0_s,
             "wait_time_s": self.wait_time_s,
+            "phasing_wait_s": self.phasing_wait_s,
             "transfer_time_s": self.transfer_time_s,
             "transfer_time_two_body_s": self.transfer_time_two_body_s,
             "dv1_mps": _magnitude(self.burn1),
@@ -162,6 +168,7 @@ ROW_SCHEMA = record_schema(
         ("epoch_utc", TEXT),
         ("t0_s", FLOAT),
         ("wait_time_s", FLOAT),
+        ("phasing_wait_s", FLOAT),
         ("transfer_time_s", FLOAT),
         ("transfer_time_two_body_s", FLOAT),
         ("dv1_mps", FLOAT),

@@ -62,7 +62,8 @@ class Infeasible(Exception):
 
 
 class WaitTooLong(Infeasible):
-    """The phasing wait exceeds ``max_wait_time_s``: the result keeps the wait it needs."""
+    """The phasing wait exceeds ``max_wait_time_s``: the result keeps the wait it needs
+    (``phasing_wait_s``)."""
 
     def __init__(self, wait_s: float, limit_s: float) -> None:
         super().__init__(
@@ -323,6 +324,7 @@ def _result(
         epoch=inp.epoch,
         t0_s=inp.t0_s,
         wait_time_s=c.burn_time_s - inp.t0_s,
+        phasing_wait_s=plan.burn_time_s - inp.t0_s,
         burn1=burn1,
         burn2=burn2,
         transfer_time_s=c.transfer_time_s,
@@ -391,14 +393,14 @@ def _run(kind: TransferKind, inp: RendezvousInput | TransferInput) -> Rendezvous
     deadline = Deadline(inp.settings.time_limit_s, "rendezvous.time_limit_s")
     prop = _propagator(inp)
 
-    def infeasible(reason: str, wait_s: float | None = None) -> RendezvousResult:
+    def infeasible(reason: str, phasing_wait_s: float | None = None) -> RendezvousResult:
         return RendezvousResult(
             kind=kind,
             feasible=False,
             reason=reason,
             epoch=inp.epoch,
             t0_s=inp.t0_s,
-            wait_time_s=wait_s,
+            phasing_wait_s=phasing_wait_s,
         )
 
     try:
