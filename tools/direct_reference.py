@@ -91,7 +91,10 @@ def main() -> None:
             seed=args.seed,
         )
     directory = (args.out or reference_front.reference_front_directory()).resolve()
-    command = "python tools/direct_reference.py " + shlex.join(sys.argv[1:])
+    # The command that makes this front again (where it is written does not change it).
+    given = sys.argv[1:]
+    kept = [a for k, a in enumerate(given) if a != "--out" and (k == 0 or given[k - 1] != "--out")]
+    command = "python tools/direct_reference.py " + shlex.join(kept)
     written = reference_front.store(
         directory,
         front,
