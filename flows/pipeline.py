@@ -12,7 +12,10 @@ pipeline``), with the batches as cached Prefect tasks on the flow's task runner
    plots, report), written in the pipeline's directory;
 4. artifacts: the last fit's validation table, the verified front, the verification
    table, and the mission plan: its files and its plots, shown in the markdown (embedded
-   PNGs, their paths as captions).
+   PNGs, their paths as captions);
+5. the state: Completed when the verification loop converged, else Failed with the verdict
+   as its message (``ovtraj pipeline``'s exit 1; ``require_converged=False``: Completed,
+   named "Not converged"), everything stored and published first (``flows/verdict.py``).
 
 Fits and fronts are stored in the run and reused by content (a second flow run loads
 them); only the batches are tasks, cached on their inputs.
@@ -35,6 +38,7 @@ from flows.common import (
 from flows.doe import TaskBatches, ensure_launch_fit
 from flows.optimize import front_table
 from flows.surrogate import publish_validation
+from flows.verdict import run_from_command_line, verdict_state
 from ovtraj.pipeline import Pick, PipelineResult
 from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
 from ovtraj.pipeline.planning import last_surrogates
@@ -64,8 +68,10 @@ def mission_flow(
     target: str | None = None,
     runner: str | None = None,
     dask_address: str | None = None,
-) -> dict[str, Any]:
-    """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths.
+    require_converged: bool = True,
+) -> Any:
+    """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths,
+    whether the verification loop converged and its verdict.
 
     ``config``: the scenario file (default: the shipped scenario, as ``ovtraj``'s).
     ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
@@ -73,6 +79,9 @@ def mission_flow(
     one reuses every stored result). ``runner`` (``serial | threads | processes |
     dask``) overrides ``mission.doe``'s for the DoE and infill batches; ``dask_address``:
     the ``dask`` runner's scheduler (else ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
+    ``require_converged``: a loop that did not converge ends the flow run Failed, the
+    verdict as its message (False: Completed, named "Not converged"); the result is
+    stored and published either way (``flows/verdict.py``).
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
     logger = get_run_logger()
@@ -103,7 +112,7 @@ def mission_flow(
     _publish(result, planned, outcome.verdict)
     _publish_last_fit(store, outcome)
     _publish_history(store, planned)
-    return {
+    summary = {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
         "pipeline_id": result.pipeline_id,
@@ -115,8 +124,15 @@ def mission_flow(
         "plan_json": str(planned["json"]),
         "plan_yaml": str(planned["yaml"]),
         "report": str(planned["report"]),
-        "converged": result.summary["converged"],
+        "converged": outcome.converged,
+        "verdict": outcome.verdict,
     }
+    return verdict_state(
+        summary,
+        outcome.verdict,
+        converged=outcome.converged,
+        require_converged=require_converged,
+    )
 
 
 def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
@@ -214,4 +230,4 @@ def _publish(result: PipelineResult, planned: dict[str, Any], verdict: str = "")
 
 
 if __name__ == "__main__":
-    print(mission_flow())
+    run_from_command_line(mission_flow)

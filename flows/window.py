@@ -9,7 +9,11 @@ with each launch day a task (``tasks/window.py``) on the flow's task runner
 2. a task per day not stored yet: the day's launch fit (the shared grid flown on the
    day), then its whole pipeline, runs, front, plan and report in the run store;
 3. the window's table, plot and page in ``<run store>/windows/<window id>/``, then
-   artifacts: the days' table and the plot.
+   artifacts: the days' table and the plot;
+4. the state: Completed when every planned day's verification loop converged, else Failed
+   with the line ``ovtraj window`` prints after its table (the days that did not, or "no
+   day has a plan") as its message; ``require_converged=False``: a window whose days did
+   not all converge ends Completed, named "Not converged" (``flows/verdict.py``).
 
 A second flow run with nothing changed submits no task: every day's record is stored.
 """
@@ -26,12 +30,14 @@ from prefect.futures import as_completed
 
 from flows.common import embedded_plots, label_flow_run, run_name, run_tags
 from flows.runners import task_runner
+from flows.verdict import run_from_command_line, verdict_state
 from ovtraj.pipeline import Pick
 from ovtraj.pipeline.pick import weights_problem
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import RunnerChoice, choose_runner
 from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
+from ovtraj.window.records import window_verdict
 from ovtraj.window.report import window_rows
 from ovtraj.window.scan import DayJob, WindowRequest, scan_window, window_id
 from ovtraj.window.settings import load_window_settings
@@ -79,7 +85,8 @@ def window_flow(
     runner: str | None = None,
     workers: int | None = None,
     dask_address: str | None = None,
-) -> dict[str, Any]:
+    require_converged: bool = True,
+) -> Any:
     """``days`` launch days from the scenario's, a pipeline each; the best plan of each
     day by ``weights`` (T, dV, M on the normalised objectives; equal by default) among
     the front points within the limits, and the best day. Returns the window's paths and
@@ -88,7 +95,10 @@ def window_flow(
     ``config``: the scenario file (default: the shipped scenario). ``target``: a TLE/OMM
     file or URL replacing the scenario's target. ``runner``/``workers``/``dask_address``:
     where the days run (default: ``mission.doe``'s runner and workers; ``dask_address``
-    else ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
+    else ``OVTRAJ_DASK_ADDRESS``, else a local cluster). ``require_converged``: a day
+    whose verification loop did not converge ends the flow run Failed, the days named in
+    its message (False: Completed, named "Not converged"); a window with no planned day
+    ends Failed either way. The window is stored and published first.
     """
     logger = get_run_logger()
     path = scenario_file(config)
@@ -109,43 +119,58 @@ def window_flow(
     label_flow_run(f"window {scenario.name} {identity}", run_tags("window", scenario.name))
     logger.info("window %s: %d days, runner %s", identity, days, choice.runner)
     outcome = scan_window(scenario, request, store, code, TaskDays(choice), progress=logger.info)
-    rows = window_rows(outcome.records, outcome.best_day)
+    rows = [
+        row | {"verdict": record["verdict"]}  # the day's pipeline's, as `ovtraj window --json`
+        for row, record in zip(
+            window_rows(outcome.records, outcome.best_day), outcome.records, strict=True
+        )
+    ]
     create_table_artifact(
         key="launch-window",
         table=rows,
         description=f"launch window {identity} of {scenario.name}: a row per launch day "
-        "(T_total [h], dV_total [m/s], M_load [kg] of the day's picked plan, its score)",
+        "(T_total [h], dV_total [m/s], M_load [kg] of the day's picked plan, its score, "
+        "its verification loop's verdict)",
     )
     best = outcome.best_day
-    verdict = (
-        "no day has a plan"
+    converged, verdict = window_verdict(outcome.records)
+    headline = (
+        verdict
         if best is None
         else f"best day {outcome.records[best]['date']} (day {best}), "
-        f"score {outcome.records[best]['score']:.4f}"
+        f"score {outcome.records[best]['score']:.4f}; {verdict}"
     )
     files = {name: str(path) for name, path in outcome.files.items()}
     create_markdown_artifact(
         key="launch-window-plot",
         markdown="\n\n".join(
             [
-                f"**{verdict}**",
+                f"**{headline}**",
                 f"- page: `{files['window.html']}`",
                 *embedded_plots([outcome.files["window.png"]]),
             ]
         ),
         description=f"launch window {identity} of {scenario.name}",
     )
-    logger.info("%s; page %s", verdict, files["window.html"])
-    return {
+    logger.info("%s; page %s", headline, files["window.html"])
+    summary = {
         "window_id": identity,
         "reused": outcome.reused,
+        "converged": converged,
+        "verdict": verdict,
         "best_day": best,
         "best_date": None if best is None else outcome.records[best]["date"],
         "planned_days": outcome.planned_days,
         "rows": rows,
         "files": files,
     }
+    return verdict_state(
+        summary,
+        verdict,
+        converged=converged,
+        require_converged=require_converged or best is None,
+    )
 
 
 if __name__ == "__main__":
-    print(window_flow())
+    run_from_command_line(window_flow)

@@ -198,7 +198,8 @@ def pipeline(prefect_server, tmp_path_factory):
         _set_code(patch, CODE_A)
         calls = _pipeline_work(patch)
         before = execute.EVALUATIONS["count"]
-        first = mission_flow(config=config)
+        # one round of one point: whether it converges is not this module's business
+        first = mission_flow(config=config, require_converged=False)
         evaluations = execute.EVALUATIONS["count"] - before
     return {
         "config": config,
@@ -244,14 +245,14 @@ def test_mission_flow_recomputes_after_a_code_change_only(pipeline, monkeypatch)
     _set_code(monkeypatch, CODE_A)
     before = execute.EVALUATIONS["count"]
     plan = Path(first["plan_json"]).read_bytes()
-    again = mission_flow(config=pipeline["config"])
+    again = mission_flow(config=pipeline["config"], require_converged=False)
     assert execute.EVALUATIONS["count"] == before  # the store serves the batches
     # fits and fronts loaded from the run, not computed; the plan written again, the same
     assert calls["fit_mission_surrogates"] == 0 and calls["surrogate_front"] == 0
     assert calls["write_mission_plan"] == 1 and Path(again["plan_json"]).read_bytes() == plan
     assert again == first
     _set_code(monkeypatch, CODE_B)
-    changed = mission_flow(config=pipeline["config"])
+    changed = mission_flow(config=pipeline["config"], require_converged=False)
     assert changed["doe_run"] != first["doe_run"]
     assert execute.EVALUATIONS["count"] - before == 10 + changed["real_evaluations"]["infill"]
     assert calls["fit_mission_surrogates"] >= 1 and calls["surrogate_front"] >= 1

@@ -290,6 +290,7 @@ def test_the_pipeline_fits_and_draws_on_the_cluster_the_files_of_a_serial_run(cl
     for runner in ("dask", "serial"):
         config = _pipeline_config(tmp_path / runner)
         command = [str(OVTRAJ), "pipeline", str(config), "--samples", "12", "--runner", runner]
+        command.append("--allow-unconverged")  # one round of 2 points: the files, not the verdict
         environment = _environment()
         if runner == "dask":  # named by the environment (issue 44: never by the scenario)
             environment["OVTRAJ_DASK_ADDRESS"] = cluster.address

@@ -52,6 +52,14 @@ JsonOpt = Annotated[
         help="print one JSON object on stdout, nothing else (progress and logs on stderr)",
     ),
 ]
+AllowUnconvergedOpt = Annotated[
+    bool,
+    typer.Option(
+        "--allow-unconverged",
+        help="exit 0 when the verification loop did not converge (by default exit 1; the "
+        "front, plan and report are stored and printed either way)",
+    ),
+]
 TargetOpt = Annotated[
     str | None,
     typer.Option(

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from ovtraj.cli.common import (
+    AllowUnconvergedOpt,
     ConfigArg,
     JsonOpt,
     StoreOpt,
@@ -93,18 +94,18 @@ def pipeline(
     target: TargetOpt = None,
     runner: RunnerOpt = None,
     dask_address: DaskAddressOpt = None,
-    require_converged: Annotated[
-        bool,
-        typer.Option(
-            "--require-converged",
-            help="exit 1 when the verification loop stops before its tolerance is met "
-            "(the front, plan and report are stored all the same)",
-        ),
-    ] = False,
+    allow_unconverged: AllowUnconvergedOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """The whole pipeline: DoE, surrogates, NSGA-II, verification and infill, the plan
-    and its HTML report. Says whether the verification loop converged and why it stopped."""
+    and its HTML report. Says whether the verification loop converged and why it stopped.
+
+    Exit 0: the loop converged. Exit 1: it did not (the verdict line says why; the front,
+    plan and report are stored and printed all the same; --allow-unconverged: exit 0), or
+    the plan does not fly its front point, or the optimiser stopped. Exit 2: bad input or
+    a fault, one line naming it. The mission flow says the same by its state: Failed with
+    the verdict as its message (require_converged=false: Completed, named "Not
+    converged")."""
     from ovtraj.pipeline.drive import PipelineRequest
 
     chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
@@ -154,7 +155,7 @@ def pipeline(
         for path in views:
             typer.echo(f"plot: {path}")
         _print_plan(planned, False, {})
-    if require_converged and not converged:
+    if not converged and not allow_unconverged:
         raise typer.Exit(code=1)
 
 

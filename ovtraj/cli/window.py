@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from ovtraj.cli.common import (
+    AllowUnconvergedOpt,
     ConfigArg,
     JsonOpt,
     StoreOpt,
@@ -68,6 +69,7 @@ def window(
     runner: DaysRunnerOpt = None,
     workers: WorkersOpt = None,
     dask_address: DaskAddressOpt = None,
+    allow_unconverged: AllowUnconvergedOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Launch-window scan: the whole pipeline for each of ``--days`` launch days (each
@@ -75,9 +77,17 @@ def window(
     plan each day picks by ``--weights``, and the best day. Writes a table, a plot of
     T_total, dV_total and M_load against the launch day and an HTML page linking each
     day's report, in the run store's windows/ folder. A second scan with nothing changed
-    simulates nothing. Exit 1 when no day has a plan."""
+    simulates nothing.
+
+    Exit 0: every planned day's verification loop converged. Exit 1: no day has a plan,
+    or a day's loop did not converge (the line after the table names those days; every
+    day is stored and the window written all the same; --allow-unconverged: exit 0).
+    Exit 2: bad input or a fault, one line naming it. The window flow says the same by
+    its state: Failed with that line as its message (require_converged=false: Completed,
+    named "Not converged")."""
     from dataclasses import replace
 
+    from ovtraj.window.records import window_verdict
     from ovtraj.window.settings import load_window_settings
 
     chosen = _pick(None, weights, max_time_h, max_dv, min_payload)  # refused before any work
@@ -97,11 +107,14 @@ def window(
     outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
     files = {name: path.resolve() for name, path in outcome.files.items()}
     best = outcome.best_day
+    converged, verdict = window_verdict(outcome.records)
     if as_json:
         _print_json(
             {
                 "window_id": outcome.window_id,
                 "reused": outcome.reused,
+                "converged": converged,
+                "verdict": verdict,
                 "days": len(outcome.records),
                 "planned_days": outcome.planned_days,
                 "best_day": best,
@@ -112,9 +125,8 @@ def window(
         )
     else:
         _print_table(outcome, store)
-        if best is None:
-            typer.echo("no day has a plan")
-        else:
+        typer.echo(verdict)
+        if best is not None:
             record = outcome.records[best]
             typer.echo(f"best day: {record['date']} (day {best}), score {record['score']:.4f}")
         for label, name in (
@@ -125,7 +137,7 @@ def window(
             ("window", "window.json"),
         ):
             typer.echo(f"{label}: {files[name]}")
-    if best is None:
+    if best is None or not (converged or allow_unconverged):
         raise typer.Exit(code=1)
 
 
@@ -181,6 +193,7 @@ def _json_rows(outcome: Any, store: Any) -> list[dict[str, Any]]:
                 "m_load_kg": record["m_load_kg"],
                 "score": record["score"],
                 "converged": record["converged"],
+                "verdict": record["verdict"],
                 "best": record["day"] == outcome.best_day,
                 "plan": None if record["plan"] is None else _plan_path(record, store),
             }

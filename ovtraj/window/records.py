@@ -1,5 +1,7 @@
 """A window's day records: one JSON per launch day in ``<window>/days/``, what it holds,
-how it is checked when read again, and the best day of a set of them.
+how it is checked when read again, the best day of a set of them and what they say
+together about convergence (:func:`window_verdict`, the verdict ``ovtraj window`` prints and
+the window flow's state carries).
 
 A record is written (sealed when a store key is configured) as its day's pipeline ends,
 so a scan stopped half-way resumes with the days it has. Read again, nothing of it is
@@ -34,12 +36,13 @@ __all__ = [
     "record_problem",
     "relative_path",
     "stored_day",
+    "window_verdict",
     "write_day",
 ]
 
 logger = logging.getLogger(__name__)
 
-FORMAT = 1
+FORMAT = 2  # 2: a planned day's record holds its pipeline's verdict
 DAY_KIND = "launch-window-day"
 DAYS_DIR = "days"
 PLANNED, NO_PLAN = "planned", "no plan"
@@ -58,6 +61,7 @@ DAY_KEYS = (
     *ID_FIELDS,
     "converged",
     "stop_reason",
+    "verdict",  # the day's pipeline's own sentence (PipelineOutcome.verdict)
     "front_index",
     "sample_id",
     *NUMBER_FIELDS,
@@ -105,6 +109,23 @@ def best_day(records: Sequence[dict[str, Any]]) -> int | None:
     if not planned:
         return None
     return min(planned, key=lambda r: (r["score"], r["day"]))["day"]
+
+
+def window_verdict(records: Sequence[dict[str, Any]]) -> tuple[bool, str]:
+    """Whether every planned day's verification loop converged, and one line saying so:
+    the days that did not, by date and number, else how many converged. A window with no
+    planned day has not converged ("no day has a plan"). ``records``: day records, or rows
+    with their ``day``, ``date``, ``status`` and ``converged``."""
+    planned = [r for r in records if r["status"] == PLANNED]
+    if not planned:
+        return False, "no day has a plan"
+    unconverged = [r for r in planned if not r["converged"]]
+    if unconverged:
+        days = ", ".join(f"{r['date']} (day {r['day']})" for r in unconverged)
+        return False, f"not converged on {len(unconverged)} of {len(records)} days: {days}"
+    shown = f"converged on {len(planned)} of {len(records)} days"
+    missing = len(records) - len(planned)
+    return True, shown + (f" ({missing} without a plan)" if missing else "")
 
 
 def day_path(directory: Any, day: int) -> Any:
@@ -166,6 +187,8 @@ def record_problem(record: Any, window_id: str, day: int, date: str) -> str | No
             return f"{key} is not a whole number"
     if type(record["converged"]) is not bool or not isinstance(record["stop_reason"], str):
         return "converged or stop_reason is missing"
+    if not isinstance(record["verdict"], str):
+        return "verdict is missing"
     for key in PATH_FIELDS:
         value = record[key]
         if not isinstance(value, str) or value.startswith("/") or ".." in value.split("/"):
