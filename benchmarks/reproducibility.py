@@ -9,7 +9,9 @@ front (``front.parquet``), the plan JSON and every Parquet file of every DoE and
 run are compared byte for byte with the first variant's. ``--unpinned`` runs the same
 variants with the pin switched off (``OVTRAJ_BLAS_KERNEL=native``): what the pin prevents.
 
-Goal: byte-identical files in every variant (``identical_variants`` = all of them).
+Goal: byte-identical files in every variant (``identical_variants`` = all of them). Each
+variant runs the code of the checkout when it starts: run it on a checkout nobody edits
+meanwhile (the table says when the variants ran other code versions).
 
 Run: ``python benchmarks/reproducibility.py [--samples N] [--config FILE] [--variants
 native:1,Haswell:2] [--parallel 2] [--unpinned] [--json]``: ``--json`` prints only the JSON
@@ -92,7 +94,14 @@ def _pipeline(folder: Path, kernel: str, threads: int, args: argparse.Namespace)
             for part in [path] if path.is_file() else sorted(path.rglob("*.parquet")):
                 files[str(part.relative_to(runs))] = part.read_bytes()
     picked = json.loads(plan.read_text())["source"]["sample_id"]
-    return {"summary": summary, "files": files, "wall_s": wall, "sample_id": picked}
+    manifest = json.loads((runs / summary["doe_run"] / "manifest.json").read_text())
+    return {
+        "summary": summary,
+        "files": files,
+        "wall_s": wall,
+        "sample_id": picked,
+        "code_version": manifest["code_version"],
+    }
 
 
 def main() -> None:
@@ -121,6 +130,7 @@ def main() -> None:
                 "openblas_threads": threads,
                 "pipeline_id": summary["pipeline_id"],
                 "doe_run": summary["doe_run"],
+                "code_version": result["code_version"],
                 "picked_sample": result["sample_id"],
                 "hypervolume": summary["hypervolume"],
                 "files": len(files),
@@ -140,6 +150,7 @@ def main() -> None:
             "variants": len(rows),
             "identical_variants": identical,
             "pipeline_ids": len({row["pipeline_id"] for row in rows}),
+            "code_versions": len({row["code_version"] for row in rows}),
             "picked_samples": sorted({row["picked_sample"] for row in rows}),
             "hypervolumes": sorted({row["hypervolume"] for row in rows}),
         },
@@ -163,6 +174,10 @@ def main() -> None:
             f"{row['pipeline_id']:17}{row['picked_sample']:7d}{row['hypervolume']:13.5f}"
             f"{str(row['files_identical']) + '/' + str(row['files']):>17}{row['wall_s']:10.1f}"
         )
+    if report["figures"]["code_versions"] > 1:
+        # the run ids hold the code version: files of other code are other runs, not a
+        # reproducibility result (a checkout edited while the benchmark ran)
+        say("  the code changed while the variants ran: run it on a checkout nobody edits")
     verdict = "met" if report["met"] else "NOT met"
     say(f"  byte-identical variants: {identical} of {len(rows)} (goal: all, {verdict})")
     print(json.dumps(report))
