@@ -34,7 +34,7 @@ import functools
 import os
 import platform
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -120,23 +120,19 @@ def _pinned_now() -> Pin:
     loaded = any(name in sys.modules for name in BLAS_MODULES)
     found = Pin(None, requested, override, loaded)
     if override is not None and override.strip().lower() == NATIVE:
-        return _with(found, reason=f"{KERNEL_ENV}={NATIVE}: OpenBLAS chooses its own kernel")
+        return replace(found, reason=f"{KERNEL_ENV}={NATIVE}: OpenBLAS chooses its own kernel")
     wanted = PINNED_KERNEL if override is None else _kernel_named(override.strip())
     if wanted is None:
-        known = ", ".join([NATIVE, *KERNEL_FLAGS])
-        return _with(found, reason=f"{KERNEL_ENV}={override!r} is not one of {known}", refused=True)
+        known = ", ".join([NATIVE, *KERNEL_FLAGS])  # the value is not echoed: any length
+        return replace(found, reason=f"{KERNEL_ENV} is not one of {known}", refused=True)
     if not _x86_64_linux():
         why = f"{platform.system()} on {platform.machine()}: no x86-64 OpenBLAS kernel to pin"
-        return _with(found, reason=why, refused=override is not None)
+        return replace(found, reason=why, refused=override is not None)
     missing = [flag for flag in KERNEL_FLAGS[wanted] if flag not in cpu_flags()]
     if missing:
         why = f"this CPU lacks {', '.join(missing)}, which OpenBLAS's {wanted} kernel needs"
-        return _with(found, reason=why, refused=override is not None)
-    return _with(found, kernel=wanted)
-
-
-def _with(pin: Pin, **changes: Any) -> Pin:
-    return Pin(**{**pin.__dict__, **changes})
+        return replace(found, reason=why, refused=override is not None)
+    return replace(found, kernel=wanted)
 
 
 def _kernel_named(name: str) -> str | None:
