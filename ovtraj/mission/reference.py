@@ -71,6 +71,13 @@ class ReferenceSettings(StrictModel):
     tolerances: ReferenceTolerances
     # Optional: the markers stored before issue 43 hold settings without it.
     plane_aim: PlaneAimBounds | None = None
+    # Optional: the markers stored before them hold settings without them.
+    extra_designs: list[tuple[float, float, float]] = Field(
+        default_factory=list,
+        max_length=100,
+        description="designs (H_P0 km, H_dp km, t_dsp h) added after the hypercube's: where "
+        "a rule of the chain acts that the hypercube does not reach",
+    )
 
 
 def load_settings(path: str | Path | None = None) -> ReferenceSettings:
@@ -82,14 +89,15 @@ def reference_directory() -> Path:
 
 
 def designs(scenario: Scenario, settings: ReferenceSettings) -> list[MissionDesign]:
-    """The reference designs: ``settings.designs`` of a seeded hypercube over the bounds."""
+    """The reference designs: ``settings.designs`` of a seeded hypercube over the bounds,
+    then ``settings.extra_designs``."""
     from ovtraj.mission.design_space import latin_hypercube
 
     table = latin_hypercube(scenario.mission.design_bounds, settings.designs, settings.seed)
     return [
         MissionDesign(**{name: float(getattr(row, name)) for name in DESIGN_NAMES})
         for row in table.itertuples(index=False)
-    ]
+    ] + [MissionDesign(*map(float, design)) for design in settings.extra_designs]
 
 
 def context(settings: ReferenceSettings) -> MissionContext:
