@@ -68,6 +68,7 @@ def _pipeline(folder: Path, kernel: str, threads: int, args: argparse.Namespace)
     drop = ("OVTRAJ_", "OPENBLAS_", "PREFECT_")
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
     env |= {"OVTRAJ_HOME": str(folder), "OPENBLAS_NUM_THREADS": str(threads)}
+    env["OVTRAJ_DEBUG"] = "1"  # a fault's traceback in the message below
     if kernel != NATIVE:
         env["OPENBLAS_CORETYPE"] = kernel
     if args.unpinned:
