@@ -959,8 +959,8 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     """``ovtraj pipeline`` end to end in its own process, on the process runner: the DoE and
     the infill run on one pool, every path printed is absolute, and the same command again
     reuses every stored run and result (no batch evaluated). Its loop does not converge
-    (the 1e-6 tolerance): exit 1, everything stored and printed, the verdict saying why;
-    exit 0 with ``--allow-unconverged``."""
+    (a promise tolerance no round meets): exit 1, everything stored and printed, the
+    verdict saying why; exit 0 with ``--allow-unconverged``."""
     import subprocess
     import sys
 
@@ -994,7 +994,7 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     assert {"front.png", "surrogate-front.png", "parity-dv_rendezvous_mps.png"} <= names
     assert all(p.is_absolute() and p.is_file() for p in plots)
     # It says that the loop did not converge and why it stopped (one infill round of 2
-    # points: the round limit ends it, the 1e-6 tolerance unmet).
+    # points: the round limit ends it, the promise tolerance unmet).
     verdict = next(line for line in lines if re.match(r"(not )?converged: ", line))
     assert verdict.startswith("not converged: ") and "Traceback" not in done.stderr
     report = Path(next(line for line in lines if line.startswith("report: ")).split(": ", 1)[1])

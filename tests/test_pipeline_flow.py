@@ -1,13 +1,19 @@
 """``flows/pipeline.py:mission_flow`` under a temporary Prefect server (issue 7).
 
-A 12-sample DoE, one verification round of 3 front points, the plan: the verified
+A 12-sample DoE, two verification rounds of 3 front points, the plan: the verified
 front's values must be the real chain's and the artifacts published. (That a second
 run simulates nothing is tested on the library pipeline, tests/test_pipeline.py, and
-on the DoE flow, tests/test_doe.py.)
+on the DoE flow, tests/test_doe.py.) Its loop cannot converge (no promise tolerance, an
+error tolerance of 1e-6): the flow run ends Failed, or Completed named "Not converged",
+with the verdict ``ovtraj pipeline --json`` gives; a loop that converges ends Completed,
+the command exit 0.
 """
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -21,27 +27,81 @@ from ovtraj.runs import RunStore, execute
 from ovtraj.store.files import read_parquet
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
+OVTRAJ = Path(sys.executable).with_name("ovtraj")
+
+
+def _small(store: Path, **verify) -> dict:
+    """The default scenario with a 12-sample DoE, two regressors and a short NSGA-II, the
+    verification settings ``verify``, the store ``store``."""
+    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
+    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
+    data["mission"]["doe"].update(samples=12, batch_size=6, store=str(store))
+    data["mission"]["verify"].update(verify)
+    data["mission"]["surrogate"].update(
+        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
+    )
+    data["mission"]["optimize"].update(population=32, generations=40, warm_start_generations=10)
+    return data
+
+
+def _flow_run_state(state):
+    """The flow run's final state as the Prefect server holds it."""
+    from prefect.client.orchestration import get_client
+
+    with get_client(sync_client=True) as client:
+        return client.read_flow_run(state.state_details.flow_run_id).state
+
+
+def _flow_result(state) -> dict:
+    """What the flow returned: the state's result, or the result a Failed one carries."""
+    from flows.verdict import NotConverged
+
+    value = state.result(raise_on_failure=False)
+    return value.result if isinstance(value, NotConverged) else value
+
+
+def _command_json(config: Path, store: Path) -> tuple[int, dict]:
+    """``ovtraj pipeline CONFIG --store STORE --json`` in its own process: exit code, JSON."""
+    done = subprocess.run(
+        [str(OVTRAJ), "pipeline", str(config), "--store", str(store), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert done.returncode in (0, 1), done.stderr[-3000:]
+    return done.returncode, json.loads(done.stdout)
+
+
+def _same_code(*runs: tuple[Path, str]) -> None:
+    """The (store, DoE run) pairs were computed by the same code, else the comparison is
+    not this test's: a checkout edited while the test ran (another session's work) gives
+    the command in its own process other code than this process imported."""
+    versions = {RunStore(root).run(run_id).manifest["code_version"] for root, run_id in runs}
+    if len(versions) > 1:
+        pytest.skip(f"the checkout changed during the test: code versions {sorted(versions)}")
+
 
 @pytest.fixture(scope="module")
 def flown(prefect_server, tmp_path_factory):
     from flows.pipeline import mission_flow
 
     tmp = tmp_path_factory.mktemp("mission-flow")
-    data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
-    data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
-    data["mission"]["doe"].update(samples=12, batch_size=6, store=str(tmp / "runs"))
-    # Two rounds, the second's NSGA-II warm from the first's front (through the front task).
-    data["mission"]["verify"].update(
-        points_per_iteration=3, max_iterations=2, budget=6, hypervolume_tolerance=None
+    # Two rounds, the second's NSGA-II warm from the first's front (through the front task);
+    # judged by the error on the front (no promise tolerance: a fit after each round only),
+    # with a tolerance no round meets: the loop stops on its rounds, not converged.
+    data = _small(
+        tmp / "runs",
+        points_per_iteration=3,
+        max_iterations=2,
+        budget=6,
+        promise_tolerance=None,
+        tolerance=1e-6,
+        hypervolume_tolerance=None,
     )
-    data["mission"]["surrogate"].update(
-        regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
-    )
-    data["mission"]["optimize"].update(population=32, generations=40, warm_start_generations=10)
     config = tmp / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     before = execute.EVALUATIONS["count"]
-    first = mission_flow(config=str(config))
+    state = mission_flow(config=str(config), return_state=True)
     middle = execute.EVALUATIONS["count"]
     # The same pipeline through the command line, into a store of its own (issue 45).
     from ovtraj.cli import run_command
@@ -52,11 +112,14 @@ def flown(prefect_server, tmp_path_factory):
 
     artifacts = {key: Artifact.get(key) for key in ("verified-front", "surrogate-validation")}
     return {
-        "first": first,
+        "first": _flow_result(state),
+        "failed": state.result(raise_on_failure=False),  # NotConverged, the result in it
+        "state": _flow_run_state(state),
         "evaluations": (middle - before,),
         "artifacts": artifacts,
         "scenario": build_scenario(data),
         "store": RunStore(tmp / "runs"),
+        "config": config,
         "cli_exit": cli_exit,
         "cli_store": cli_store,
     }
@@ -153,8 +216,9 @@ def test_the_flow_and_the_command_line_store_the_same_pipeline(flown):
     """``mission_flow`` and ``ovtraj pipeline`` are adapters of one driver
     (``ovtraj.pipeline.drive``): the same inputs give the same stored files, byte for byte
     (JSON markers without their creation times and timing): runs, batches, fits, fronts, the
-    verified front, the plan, its plots and report."""
-    assert flown["cli_exit"] == 0
+    verified front, the plan, its plots and report. Not converged: the command exits 1,
+    everything stored all the same."""
+    assert flown["cli_exit"] == 1
     flow_files = _stored_files(flown["store"].root)
     cli_files = _stored_files(flown["cli_store"])
     assert sorted(flow_files) == sorted(cli_files)
@@ -184,3 +248,66 @@ def _diff_json(run_command, args):
     with contextlib.redirect_stdout(out):
         assert run_command(["diff", *args, "--json"]) == 0
     return json.loads(out.getvalue())
+
+
+@pytest.mark.slow
+def test_an_unconverged_flow_run_is_failed_with_the_commands_verdict(flown):
+    """The loop that did not converge: the flow run Failed on the server, the verdict its
+    message, the flow's result (stored, published) carried by the state; ``ovtraj pipeline
+    --json`` in its own process gives the same flag and verdict, exit 1 (the store is the
+    command's own: a second run, its results reused)."""
+    from prefect.client.schemas.objects import StateType
+
+    first, state = flown["first"], flown["state"]
+    assert first["converged"] is False and first["verdict"].startswith("not converged: ")
+    assert state.type == StateType.FAILED and state.message == first["verdict"]
+    assert str(flown["failed"]) == first["verdict"]
+    assert Path(first["plan_json"]).is_file() and Path(first["report"]).is_file()
+    code, printed = _command_json(flown["config"], flown["cli_store"])
+    _same_code((flown["store"].root, first["doe_run"]), (flown["cli_store"], printed["doe_run"]))
+    assert code == 1
+    assert (printed["converged"], printed["verdict"]) == (first["converged"], first["verdict"])
+    assert printed["stop_reason"] == first["stop_reason"] == "max_iterations"
+
+
+def test_an_unconverged_flow_run_allowed_is_completed_and_named(flown):
+    """``require_converged=False``: Completed, named "Not converged", the verdict its
+    message; the flow returns its result (everything served by the store)."""
+    from prefect.client.schemas.objects import StateType
+
+    from flows.pipeline import mission_flow
+    from flows.verdict import NOT_CONVERGED
+
+    before = execute.EVALUATIONS["count"]
+    state = mission_flow(config=str(flown["config"]), require_converged=False, return_state=True)
+    assert execute.EVALUATIONS["count"] == before
+    again = state.result()
+    assert again == flown["first"]
+    stored = _flow_run_state(state)
+    assert stored.type == StateType.COMPLETED and stored.name == NOT_CONVERGED
+    assert stored.message == again["verdict"]
+
+
+@pytest.mark.slow
+def test_a_converged_loop_is_a_completed_flow_run_and_exit_0(prefect_server, tmp_path):
+    """One round, then converged by promise (the shipped criterion) once the surrogates
+    promise less than the verified front's whole hypervolume again: ``ovtraj pipeline
+    --json`` exits 0, converged; ``mission_flow`` on the command's store (its results
+    reused) says the same verdict, and its run is Completed, the plain state."""
+    from prefect.client.schemas.objects import StateType
+
+    from flows.pipeline import mission_flow
+
+    store = tmp_path / "runs"
+    data = _small(store, points_per_iteration=2, max_iterations=1, budget=2, promise_tolerance=1.0)
+    config = tmp_path / "scenario.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    code, printed = _command_json(config, store)
+    assert (code, printed["converged"]) == (0, True), printed["verdict"]
+    state = mission_flow(config=str(config), store_root=str(store), return_state=True)
+    flow = _flow_result(state)
+    _same_code((store, flow["doe_run"]), (store, printed["doe_run"]))
+    assert (flow["converged"], flow["verdict"]) == (printed["converged"], printed["verdict"])
+    assert Path(flow["plan_json"]).resolve() == Path(printed["plan_json"])
+    stored = _flow_run_state(state)
+    assert stored.type == StateType.COMPLETED and stored.name == "Completed"

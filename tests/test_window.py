@@ -6,8 +6,9 @@ of its own: its best day must be the best of the days' own stored plans (scored 
 from the plans' files and the scenario's ideal and reference points, not from the
 window's table); a second scan simulates and writes nothing; days 1 and 2 fly the
 shipped grid's launches, retimed, with no launch solved; the flow and the command give
-the same rows. The launch-fit split is checked against the shipped reference fit and a
-launch solved afresh on another day.
+the same rows. No day's loop converges (a 1e-6 error tolerance): the command exits 1
+naming the days, the flow run ends Failed with the same line. The launch-fit split is
+checked against the shipped reference fit and a launch solved afresh on another day.
 """
 
 from __future__ import annotations
@@ -43,12 +44,19 @@ OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
 
 def _small(store: Path) -> dict:
-    """The default scenario with a small pipeline per day (tests/test_pipeline.py's)."""
+    """The default scenario with a small pipeline per day (tests/test_pipeline.py's): one
+    round judged by the error on the front (no promise tolerance: no fit after it), with a
+    tolerance no day meets (none converges)."""
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))
     data["launch"]["launcher"] = str(REPO / "configs" / "launchers" / "pegasus_xl.yaml")
     data["mission"]["doe"].update(samples=12, batch_size=6, store=str(store))
     data["mission"]["verify"].update(
-        points_per_iteration=2, max_iterations=1, budget=2, hypervolume_tolerance=None
+        points_per_iteration=2,
+        max_iterations=1,
+        budget=2,
+        hypervolume_tolerance=None,
+        promise_tolerance=None,
+        tolerance=1e-6,
     )
     data["mission"]["surrogate"].update(
         regressors=["KRG", "RBF"], classifiers=["logistic"], folds=3
@@ -93,7 +101,11 @@ def scanned(tmp_path_factory):
     first = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
     before = _files(tmp / "runs", home)
     again = subprocess.run(
-        [*command, "--json"], capture_output=True, text=True, env=env, timeout=900
+        [*command, "--json", "--allow-unconverged"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=900,
     )
     with pytest.MonkeyPatch.context() as patch:  # the workspace of the checks below
         patch.setenv("OVTRAJ_HOME", str(home))
@@ -117,7 +129,7 @@ def _written(output: str, label: str) -> list[Path]:
 
 def test_the_command_writes_the_window_and_prints_its_absolute_paths(scanned):
     first = scanned["first"]
-    assert first.returncode == 0, first.stderr
+    assert first.returncode == 1, first.stderr  # no day converged (below)
     days = [line for line in first.stdout.splitlines() if re.match(r"day \d \d{4}-", line)]
     assert len(days) == DAYS  # a line per finished day
     paths = [
@@ -194,12 +206,34 @@ def test_day_zero_is_the_scenario_itself(scanned):
 
 def test_day_zero_is_the_plan_the_pipeline_command_made(scanned):
     """The window's day 0 is ``ovtraj pipeline``'s plan, the same file (planned in
-    another process with another BLAS thread count)."""
+    another process with another BLAS thread count), and its verdict: not converged, exit
+    1 there, the day's verdict in the window's JSON."""
     pipeline = scanned["pipeline"]
-    assert pipeline.returncode == 0, pipeline.stderr
-    plan = Path(json.loads(pipeline.stdout)["plan_json"])
+    assert pipeline.returncode == 1, pipeline.stderr
+    printed = json.loads(pipeline.stdout)
+    plan = Path(printed["plan_json"])
     frame = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0])
     assert scanned["store"] / frame.loc[frame["day"] == 0, "plan"].item() == plan
+    day0 = json.loads(scanned["again"].stdout)["rows"][0]
+    assert printed["converged"] is False and printed["verdict"].startswith("not converged: ")
+    assert (day0["converged"], day0["verdict"]) == (printed["converged"], printed["verdict"])
+
+
+def test_days_that_did_not_converge_exit_1_named_on_one_line(scanned):
+    """Exit 1, the line after the table naming every day (none converged), the table and
+    the window written all the same; ``--allow-unconverged``: exit 0, the same verdict in
+    the JSON, each day's own verdict in its row."""
+    first = scanned["first"].stdout.splitlines()
+    dates = ["2026-12-01", "2026-12-02", "2026-12-03"]
+    expected = (
+        f"not converged on 3 of 3 days: {', '.join(f'{d} (day {k})' for k, d in enumerate(dates))}"
+    )
+    assert expected in first
+    assert first.index(expected) < first.index(next(x for x in first if x.startswith("table:")))
+    summary = json.loads(scanned["again"].stdout)
+    assert (summary["converged"], summary["verdict"]) == (False, expected)
+    assert all(row["converged"] is False for row in summary["rows"])
+    assert all(row["verdict"].startswith("not converged: ") for row in summary["rows"])
 
 
 def test_a_second_scan_simulates_and_writes_nothing(scanned):
@@ -279,10 +313,11 @@ def test_no_day_with_a_plan_exits_1_and_says_why(scanned, capsys):
     """A pick no front point meets: the day is recorded without a plan, with the reason
     (its pipeline is the stored one: nothing evaluated), and the command exits 1."""
     args = ["window", str(scanned["config"]), "--days", "1", "--max-time-h", "1", "--json"]
-    assert run_command(args) == 1
+    assert run_command([*args, "--allow-unconverged"]) == 1
     summary = json.loads(capsys.readouterr().out)
     (row,) = summary["rows"]
     assert summary["best_day"] is None and row["status"] == "no plan" and row["plan"] is None
+    assert (summary["converged"], summary["verdict"]) == (False, "no day has a plan")
     assert "max_t_total_h = 1" in row["reason"]
     frame = pd.read_parquet(summary["files"]["window.parquet"])
     assert not frame["best"].any() and frame["t_total_h"].isna().all()
@@ -312,18 +347,39 @@ def test_bad_input_is_one_line_and_exit_2(capsys, tmp_path):
 def test_the_flow_and_the_command_give_the_same_days(scanned, prefect_server):
     """``window_flow`` (a task per day on the process runner, one process: the day tasks
     travel to it and back) into a store of its own: the rows of its two days are the
-    command's first two."""
+    command's first two, and so is the verdict: its run Failed on the server, the line the
+    command prints its message; ``require_converged=False``: Completed, named "Not
+    converged" (the window served by the store)."""
+    from prefect.client.orchestration import get_client
+    from prefect.client.schemas.objects import StateType
+
+    from flows.verdict import NOT_CONVERGED
     from flows.window import window_flow
+    from ovtraj.window.records import window_verdict
 
     store = scanned["tmp"] / "flow-runs"
-    summary = window_flow(
-        config=str(scanned["config"]),
-        days=2,
-        store_root=str(store),
-        runner="processes",
-        workers=1,
-    )
+    arguments = {
+        "config": str(scanned["config"]),
+        "days": 2,
+        "store_root": str(store),
+        "runner": "processes",
+        "workers": 1,
+    }
+    state = window_flow(**arguments, return_state=True)
+    summary = state.result(raise_on_failure=False).result
     assert summary["planned_days"] == 2 and summary["reused"] is False
+    rows = json.loads(scanned["again"].stdout)["rows"][:2]
+    assert (summary["converged"], summary["verdict"]) == window_verdict(rows)
+    allowed = window_flow(**arguments, require_converged=False, return_state=True)
+    assert allowed.result()["reused"] is True
+    with get_client(sync_client=True) as client:
+        failed, completed = (
+            client.read_flow_run(s.state_details.flow_run_id).state for s in (state, allowed)
+        )
+    assert failed.type == StateType.FAILED and failed.message == summary["verdict"]
+    assert completed.type == StateType.COMPLETED and completed.name == NOT_CONVERGED
+    assert completed.message == summary["verdict"]
+    assert [row["verdict"] for row in summary["rows"]] == [row["verdict"] for row in rows]
     from ovtraj.runs import RunStore
 
     command = pd.read_parquet(_written(scanned["first"].stdout, "table:")[0]).head(2)
