@@ -1,21 +1,30 @@
 """Surrogates, NSGA-II, verification with the real chain and infill (issue 7).
 
-For a DoE run, repeat up to ``verify.max_iterations`` times:
+For a DoE run, round after round:
 
 1. fit the surrogates on every evaluated sample (:func:`.steps.fit_step`);
 2. find the surrogate front with NSGA-II (:func:`.steps.front_step`);
-3. pick ``verify.points_per_iteration`` front points spread along it
-   (:func:`ovtraj.optimize.spread_picks`), skipping designs already evaluated;
-4. evaluate them with the real chain in a child run (the infill: parent batches are
-   adopted, only the new points are simulated) and compare: the error of each
-   objective as a fraction of its ideal-to-reference span;
-5. stop when every picked point is feasible and every error is below
-   ``verify.tolerance`` (with a ``verify.hypervolume_tolerance``, only once the front is
-   stable too); when the round added less than ``verify.hypervolume_tolerance``
-   (relative) to the verified front's hypervolume (the front is stable: more infill of
-   this kind no longer improves the real front); when ``verify.budget`` real
-   evaluations are spent; or when the front holds no design that is not already
-   evaluated.
+3. with ``verify.promise_tolerance``: stop, converged, when the front's points not yet
+   evaluated (beyond ``verify.min_distance`` in the unit cube of every evaluated design)
+   would add less than that fraction to the verified front's hypervolume
+   (:func:`ovtraj.optimize.infill.promised_gain`), once at least one round has been
+   verified: the surrogates, fitted on everything the chain has said, no longer point to
+   a better front than the one it has confirmed. An infeasible pick or a T_total a pass
+   off is no error to count: it is a sample the next fit learns from, and the promise of
+   the next front says whether anything remains;
+4. pick ``verify.points_per_iteration`` front points by their predicted hypervolume gain
+   (:func:`ovtraj.optimize.hypervolume_picks`), skipping designs already evaluated;
+5. evaluate them with the real chain in a child run (the infill: parent batches are
+   adopted, only the new points are simulated) and record the error of each objective as
+   a fraction of its ideal-to-reference span;
+6. stop, not converged, when ``verify.budget`` real evaluations or
+   ``verify.max_iterations`` rounds are spent (the fit after the last round still has its
+   say), or when NSGA-II finds no front.
+
+Without ``promise_tolerance`` (configs stored before it) the round's picks decide: every
+one feasible and within ``verify.tolerance`` (with a ``verify.hypervolume_tolerance``,
+once the front is stable too), or a round that added less than
+``verify.hypervolume_tolerance`` to the verified front's hypervolume ("front stable").
 
 The verified front is the non-dominated set of every feasible real evaluation (DoE
 and infill): real values only, each row saying where it comes from. Outputs go to
@@ -313,11 +322,19 @@ def run_pipeline(
         rows.append(verified)
         worst = float(verified["max_error"].max())
         record.update(verified_points=len(picks), max_error=worst, infill_run=child.id)
-        say(
-            f"  verified {len(picks)} front points in run {child.id}: "
-            f"{int(verified['real_feasible'].sum())} feasible, largest error {worst:.1%} of the "
-            f"objective span (tolerance {verify.tolerance:.1%}; an infeasible point counts 100 %)"
-        )
+        feasible = int(verified["real_feasible"].sum())
+        if promising:
+            # The errors are reported; the next fit's promise decides.
+            say(
+                f"  verified {len(picks)} front points in run {child.id}: {feasible} feasible, "
+                f"largest error {_largest(verified):.1%} of the objective span"
+            )
+        else:
+            say(
+                f"  verified {len(picks)} front points in run {child.id}: {feasible} feasible, "
+                f"largest error {worst:.1%} of the objective span (tolerance "
+                f"{verify.tolerance:.1%}; an infeasible point counts 100 %)"
+            )
         after = real_hypervolume(child, normalisation)
         # Relative gain of the real front in this round; none when there was no front.
         gain = (after - real) / real if real > 0 else None
@@ -359,6 +376,12 @@ def run_pipeline(
         steps.draw,
         parity,
     )
+
+
+def _largest(verified: pd.DataFrame) -> float:
+    """The largest error among the feasible verified points (0 when none is feasible)."""
+    feasible = verified[verified["real_feasible"].astype(bool)]
+    return float(feasible["max_error"].max()) if len(feasible) else 0.0
 
 
 def _promise(scenario: Scenario, front: Any, data: Any) -> float:
