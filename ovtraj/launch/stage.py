@@ -30,6 +30,7 @@ from ovtraj.astro.frames import ecef_to_eci, ecef_to_geocentric
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.config.physical import default_atmosphere
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.launch.ascent import (
     AERO,
     BACK_PRESSURE,
@@ -143,7 +144,10 @@ def solve_launch(
     phases' start when ``global_search`` is off. Never raises on a numerical
     failure: the result comes back infeasible with the reason. ``on_progress(done, total,
     phase)`` follows the optimiser (:func:`~ovtraj.launch.ascent_optimization.optimise_launch`).
+    Refused in a process on another OpenBLAS kernel than the pin (a launch fit's points and
+    a plan's launch are stored: :func:`ovtraj.environment.require_pinned_kernel`).
     """
+    require_pinned_kernel()
     start = time.perf_counter()
     try:
         problem = launch_problem(inp)

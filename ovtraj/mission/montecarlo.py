@@ -75,6 +75,7 @@ from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.deorbit import deorbit_input, solve_deorbit
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.mission.chain import rendezvous_settings
 from ovtraj.mission.fly import (
@@ -956,6 +957,7 @@ def simulate_batch(
     closed loop under ``force_model``'s sky when given (:func:`monte_carlo`)."""
     import time
 
+    require_pinned_kernel()  # stored rows: the pinned OpenBLAS kernel only (ovtraj.environment)
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     rows = []
     for run in runs:

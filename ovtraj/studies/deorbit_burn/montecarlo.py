@@ -39,6 +39,7 @@ from ovtraj.astro.angles import TWO_PI, wrap_to_pi
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.config.deorbit_burn import DispersionsConfig
 from ovtraj.deadline import Deadline
+from ovtraj.environment import require_pinned_kernel
 from ovtraj.studies.deorbit_burn.flight import initial_state
 from ovtraj.studies.deorbit_burn.powered import ThrustSettings
 from ovtraj.studies.deorbit_burn.problem import DeorbitBurnProblem
@@ -282,7 +283,9 @@ def simulate_runs(
     on_progress: Callable[[int, int, str], None] | None = None,
 ) -> pd.DataFrame:
     """Rows (``RUN_SCHEMA``) of the given run numbers, every strategy, sorted by run;
-    ``on_progress(runs done, runs, "runs")`` after each run (and a debug log line)."""
+    ``on_progress(runs done, runs, "runs")`` after each run (and a debug log line). Stored
+    rows: refused on another OpenBLAS kernel than the pin (:mod:`ovtraj.environment`)."""
+    require_pinned_kernel()
     rows: list[dict[str, Any]] = []
     for done, run in enumerate(runs, start=1):
         rows.extend(context.simulate(int(run), strategies, seed))
