@@ -18,8 +18,9 @@
    quarter of an hour of separation delay. Without the rule the first pass is taken at
    any price, and the mission's cost jumps where the pinned burn begins; with it, the
    cost stays within the margin and the mission waits for the next pass (its time steps
-   by a pass instead). If no pass tried meets the bound, the cheapest accepted one is
-   taken.
+   by a pass instead). If no pass within the horizon (and ``max_passes``) meets the
+   bound, the result is infeasible, its reason listing the passes passed over and their
+   price: the pass model of the surrogates finds no usable pass there either.
 
 Every failure comes back as an infeasible result with its reason; nothing raises
 out of :func:`solve_deorbit` on a numerical failure.
@@ -132,7 +133,6 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     tried, reasons = 0, []
     Option = tuple[Correction, TrackPass, TangentialDeorbit]
     best: Option | None = None  # the least violation
-    cheapest: tuple[float, Option] | None = None  # the cheapest accepted, its impulse
     chosen: Option | None = None  # accepted within the cost bound
     for track_pass in candidates:
         if tried >= inp.solver.max_passes:
@@ -160,8 +160,6 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
             best = (correction, track_pass, estimate)
         if _accepted(correction, inp):
             impulse = float(np.linalg.norm(correction.shot.dv_rsw_mps))
-            if cheapest is None or impulse < cheapest[0]:
-                cheapest = (impulse, (correction, track_pass, estimate))
             bound = pass_cost_bound_mps(inp, track_pass)
             if impulse <= bound:
                 chosen = (correction, track_pass, estimate)
@@ -177,10 +175,8 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     if best is None:
         reason = "; ".join(reasons) or "no pass could be tried"
         return DeorbitResult(False, reason, inp.epoch, wall_time_s=_since(start))
-    if chosen is None and cheapest is not None:
-        chosen = cheapest[1]  # no pass within the bound: the cheapest accepted one
     correction, track_pass, estimate = chosen or best
-    feasible = _accepted(correction, inp)
+    feasible = chosen is not None
     reason = None if feasible else "; ".join(reasons)
     return _result(
         inp,

@@ -29,16 +29,6 @@ class TrainingData:
     def __len__(self) -> int:
         return len(self.sample_ids)
 
-    def subset(self, rows: np.ndarray) -> TrainingData:
-        """The samples of ``rows`` (a boolean mask or indices), in order."""
-        return TrainingData(
-            sample_ids=self.sample_ids[rows],
-            designs=self.designs[rows],
-            outputs={name: values[rows] for name, values in self.outputs.items()},
-            feasible=self.feasible[rows],
-            components={name: values[rows] for name, values in self.components.items()},
-        )
-
     def frame(self) -> pd.DataFrame:
         frame = pd.DataFrame(self.designs, columns=list(DESIGN_NAMES))
         frame.insert(0, "sample_id", self.sample_ids)

@@ -595,10 +595,9 @@ def fit_mission_surrogates(
     if bounds["limits"] is not None:
         bounds["phasing"] = _phasing_wait_set(data, scenario, lower, upper, candidates, executor)
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
-    if composed.limits is not None:
-        # The samples a known limit made infeasible say nothing of the other causes the
-        # classifier is left to learn (nor of a dV part: they are infeasible).
-        data = data.subset(~composed.limits.explained(data))
+    # The samples a known limit made infeasible say nothing of the other causes the
+    # classifier is left to learn.
+    classified = None if composed.limits is None else ~composed.limits.explained(data)
     time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
     outputs = {
         **time,
@@ -617,6 +616,7 @@ def fit_mission_surrogates(
         executor=executor,
         output_inputs={k: v for k, v in settings.part_inputs.items() if k in outputs},
         left_out=_pinned_deorbit_burns(data, settings),
+        classified=classified,
     )
     return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)
 

@@ -682,6 +682,7 @@ def fit_surrogates(
     executor: Executor | None = None,
     output_inputs: Mapping[str, Sequence[str]] | None = None,
     left_out: Mapping[str, np.ndarray] | None = None,
+    classified: np.ndarray | None = None,
 ) -> SurrogateSet:
     """Fit, cross-validate and select the surrogates of ``outputs`` and of feasibility.
 
@@ -728,6 +729,10 @@ def fit_surrogates(
     output's model is not meant to describe; they still count for the other outputs and
     for the feasibility model. Each output keeps at least ``min_training_samples``.
 
+    ``classified`` ((n,) bool) trains and scores the feasibility classifier on those
+    samples alone (its hold-out rows among them), e.g. without samples whose
+    infeasibility another model accounts for; the regressors are not affected.
+
     A candidate that fails gets its reason in the ``error`` column and is not selected.
     Raises :class:`SurrogateError` for unusable data (no samples, none feasible, too few
     feasible training samples, shapes, NaN) or when no candidate of a model can be fitted.
@@ -762,11 +767,21 @@ def fit_surrogates(
             )
 
     with _serial_blas():
-        classified: list[tuple[FeasibilityClassifier, list[dict], pd.DataFrame]] = []
+        fitted: list[tuple[FeasibilityClassifier, list[dict], pd.DataFrame]] = []
+        rows_of = np.ones(n, dtype=bool) if classified is None else np.asarray(classified, bool)
+        if rows_of.shape != (n,) or not rows_of.any():
+            raise SurrogateError(f"classified: expected a boolean array of shape ({n},), not empty")
 
         def classify() -> None:
-            classified.append(
-                _fit_classifier(u, flags, ids, held, settings, (candidates or {}).get(FEASIBLE))
+            fitted.append(
+                _fit_classifier(
+                    u[rows_of],
+                    flags[rows_of],
+                    ids[rows_of],
+                    held[rows_of],
+                    settings,
+                    (candidates or {}).get(FEASIBLE),
+                )
             )
 
         # The classifier is fitted here while the pool fits the regressors.
@@ -783,7 +798,7 @@ def fit_surrogates(
             columns,
             omitted,
         )
-        classifier, rows_cls, table_cls = classified[0]
+        classifier, rows_cls, table_cls = fitted[0]
     selected[FEASIBLE] = classifier.name
     rows += rows_cls
     tables.append(table_cls)
