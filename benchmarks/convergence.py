@@ -98,7 +98,7 @@ def cliffs(scenario, pool, designs: int, seed: int) -> dict:
     return {
         "designs": designs,
         "feasible_pairs": pairs,
-        "smooth_share": (pairs - len(large)) / pairs if pairs else float("nan"),
+        "smooth_share": (pairs - len(large)) / pairs if pairs else None,
         "large_changes": large,
         "large_without_pass_change": len(large) - with_pass,
     }
@@ -172,7 +172,7 @@ def main() -> None:
         "converged_ratio": (figures["converged_ratio_min"] or 0.0) >= GOALS["converged_ratio_min"],
         "worst_ratio": figures["worst_ratio"] >= GOALS["worst_ratio_min"],
         "median_evaluations": figures["median_evaluations"] <= GOALS["median_evaluations_max"],
-        "smooth": smooth["smooth_share"] >= GOALS["smooth_pairs_min"]
+        "smooth": (smooth["smooth_share"] or 0.0) >= GOALS["smooth_pairs_min"]
         and smooth["large_without_pass_change"] == 0,
     }
     figures["ratios"] = {
@@ -180,16 +180,17 @@ def main() -> None:
         "converged_ratio": (figures["converged_ratio_min"] or 0.0) / GOALS["converged_ratio_min"],
         "worst_ratio": figures["worst_ratio"] / GOALS["worst_ratio_min"],
         "median_evaluations": figures["median_evaluations"] / GOALS["median_evaluations_max"],
-        "smooth": smooth["smooth_share"] / GOALS["smooth_pairs_min"],
+        "smooth": (smooth["smooth_share"] or 0.0) / GOALS["smooth_pairs_min"],
     }
     say(
         f"converged {figures['converged']} of {len(rows)} (goal >= {GOALS['converged_min']}), "
         f"worst converged ratio {figures['converged_ratio_min']}, worst ratio "
         f"{figures['worst_ratio']:.4f}, median evaluations {figures['median_evaluations']}"
     )
+    share = "-" if smooth["smooth_share"] is None else f"{smooth['smooth_share']:.2%}"
     say(
         f"cliff probe: {smooth['designs']} designs, {smooth['feasible_pairs']} feasible pairs, "
-        f"{smooth['smooth_share']:.2%} under {SMOOTH_DV_MPS:g} m/s; "
+        f"{share} under {SMOOTH_DV_MPS:g} m/s; "
         f"{len(smooth['large_changes'])} larger, {smooth['large_without_pass_change']} without a "
         "pass change"
     )

@@ -24,6 +24,7 @@ import json
 import math
 import os
 import signal
+import statistics
 import subprocess
 import sys
 from collections.abc import Callable
@@ -263,6 +264,26 @@ def _check_store(f: dict) -> None:
     assert _close(f["ratio_bytes_to_goal"], f["bytes_per_sample"] / goal)
     assert _close(f["ratio_format_2_to_1"], f["bytes_per_sample"] / f["bytes_per_sample_format_1"])
     assert f["goal_met"] == (f["bytes_per_sample"] <= goal)
+
+
+def _check_convergence(f: dict) -> None:
+    runs, goals = f["runs"], f["goals"]
+    assert [r["seed"] for r in runs] == [2026] and f["seeds"] == 1
+    assert f["converged"] == sum(r["converged"] for r in runs)
+    assert _close(f["worst_ratio"], min(r["reference_ratio"] for r in runs), 6)
+    for r in runs:  # each run's ratio is its hypervolume over the stored reference's
+        assert _close(r["reference_ratio"], r["hypervolume"] / f["reference_hypervolume"], 6)
+    assert f["median_evaluations"] == statistics.median(r["evaluations"] for r in runs)
+    assert f["met"]["converged"] == (f["converged"] >= goals["converged_min"])
+    assert f["met"]["median_evaluations"] == (
+        f["median_evaluations"] <= goals["median_evaluations_max"]
+    )
+    probe = f["cliff_probe"]
+    assert probe["designs"] == 2 and 0 <= probe["feasible_pairs"] <= 6
+    large = probe["large_changes"]
+    if probe["feasible_pairs"]:
+        assert _close(f["smooth_share"], 1 - len(large) / probe["feasible_pairs"], 6)
+    assert f["large_without_pass_change"] == sum(c["t_change_h"] < 12.0 for c in large)
 
 
 def _check_surrogate_vs_direct(f: dict) -> None:
@@ -507,6 +528,17 @@ BENCHMARK_CASES = (
         ],
         frozenset({"pipeline", "orchestration", "goals", "ratios", "met"}),
         _check_scale,
+        ("goals",),
+        twice=False,
+    ),
+    Benchmark(
+        "convergence",
+        lambda folder: [
+            *("--seeds", "2026", "--workers", "1", "--cliff-designs", "2"),
+            *("--config", str(small_pipeline(folder))),
+        ],
+        frozenset({"converged", "worst_ratio", "median_evaluations", "cliff_probe", "goals"}),
+        _check_convergence,
         ("goals",),
         twice=False,
     ),

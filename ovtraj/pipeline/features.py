@@ -203,18 +203,25 @@ class KnownLimits:
         wait = data["max_wait_s"]
         return cls(None if wait is None else float(wait), bool(data["pass_within_horizon"]))
 
-    def explained(self, data: Any) -> np.ndarray:
+    def explained(self, data: Any, pass_model: PassModel | None = None) -> np.ndarray:
         """The infeasible samples (n,) these limits account for: a phasing wait past the
-        longest allowed (the rendezvous keeps the wait it needs when it refuses one), or no
-        entry pass within the deorbit's horizon."""
-        wait = np.asarray(data.components[PHASING_WAIT], dtype=float)
-        passes = np.asarray(data.components[DEORBIT_PASSES], dtype=float)
-        explained = np.zeros(len(wait), dtype=bool)
+        longest allowed (the rendezvous keeps the wait it needs when it refuses one), or a
+        deorbit that found no pass (none through the entry region within its horizon, or
+        none within its cost bound) where ``pass_model`` finds no usable pass either."""
+        feasible = np.asarray(data.feasible, dtype=bool)
+        phasing = np.asarray(data.components[PHASING_WAIT], dtype=float)
+        explained = np.zeros(len(phasing), dtype=bool)
         if self.max_wait_s is not None:
-            explained |= wait > self.max_wait_s
-        if self.pass_within_horizon:
-            explained |= passes == 0
-        return explained & ~np.asarray(data.feasible, dtype=bool)
+            explained |= phasing > self.max_wait_s
+        if self.pass_within_horizon and pass_model is not None:
+            # The deorbit was reached (its row holds its count of passes) and refused.
+            refused = np.isfinite(np.asarray(data.components[DEORBIT_PASSES], dtype=float))
+            refused &= ~feasible
+            if refused.any():
+                wait = np.asarray(data.components[WAIT], dtype=float)[refused]
+                passless = ~pass_model.has_pass(data.designs[refused], wait)
+                explained[np.flatnonzero(refused)[passless]] = True
+        return explained & ~feasible
 
 
 class MissionSurrogates:
@@ -597,7 +604,9 @@ def fit_mission_surrogates(
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     # The samples a known limit made infeasible say nothing of the other causes the
     # classifier is left to learn.
-    classified = None if composed.limits is None else ~composed.limits.explained(data)
+    classified = None
+    if composed.limits is not None:
+        classified = ~composed.limits.explained(data, pass_model)
     time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
     outputs = {
         **time,
