@@ -74,7 +74,7 @@ def _command_json(config: Path, store: Path) -> tuple[int, dict]:
 
 def _same_code(*runs: tuple[Path, str]) -> None:
     """The (store, DoE run) pairs were computed by the same code, else the comparison is
-    not this test's: a checkout edited while the test ran (another session's work) gives
+    not this test's: a checkout edited while the test ran gives
     the command in its own process other code than this process imported."""
     versions = {RunStore(root).run(run_id).manifest["code_version"] for root, run_id in runs}
     if len(versions) > 1:

@@ -391,7 +391,7 @@ def test_the_flow_and_the_command_give_the_same_days(scanned, prefect_server):
     flow = pd.DataFrame(summary["rows"])
     columns = [c for c in WINDOW_SCHEMA.names if c != "best"]  # the best of 2 days, not 3
     # Ids and paths hash the code version too: a checkout edited between the two scans
-    # (another session's work) gives other ids for the same results.
+    # gives other ids for the same results.
     versions = {
         RunStore(root).run(run_id).manifest["code_version"]
         for root, frame in ((scanned["store"], command), (store, flow))
