@@ -46,7 +46,7 @@ from ovtraj.config.export import CcsdsExportSettings, kvn_value_problem
 from ovtraj.config.io_limits import echoed
 from ovtraj.mission.fly import EphemerisSegment, FlightReport, replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError
-from ovtraj.store.files import StoreError, write_bytes
+from ovtraj.store.files import StoreError, holds_other, writable_target, write_bytes
 
 __all__ = ["FORMATS", "UnflownPlan", "export_plan", "oem_text", "opm_text"]
 
@@ -221,6 +221,14 @@ def export_plan(
     """
     if fmt not in FORMATS:
         raise PlanError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    # the folder the user named is taken as it is (resolved); the file itself must be a
+    # regular file or absent, checked before the replay
+    out = Path(out)
+    out = out.parent.resolve() / out.name
+    try:
+        writable_target(out)
+    except StoreError as err:
+        raise PlanError(f"--out {err}") from None
     report = None
     if fmt == "oem":
         report, segments = replay_ephemeris(
@@ -234,11 +242,10 @@ def export_plan(
     if plan_id is not None:
         first, rest = text.split("\n", 1)
         text = f"{first}\nCOMMENT ovtraj plan {plan_id}\n{rest}"
-    out = Path(out)
     payload = text.encode("ascii")
-    if out.exists() and out.read_bytes() != payload:
-        raise PlanError(f"{out}: another file is there; refusing to overwrite it")
     try:
+        if holds_other(out, payload):
+            raise PlanError(f"{out}: another file is there; refusing to overwrite it")
         write_bytes(out, payload)
     except StoreError as err:
         raise PlanError(str(err)) from None

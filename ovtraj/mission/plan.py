@@ -55,7 +55,7 @@ from ovtraj.reentry.model import EntryModel
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import Impulse, RendezvousResult
 from ovtraj.store.backends import location
-from ovtraj.store.files import StoreError, write_bytes
+from ovtraj.store.files import StoreError, holds_other, write_bytes
 from ovtraj.store.records import json_text
 from ovtraj.version import code_version
 
@@ -807,7 +807,11 @@ def write_plan(plan: MissionPlan, directory: Path, name: str) -> tuple[Path, Pat
         (directory / f"{name}.yaml", plan_yaml(plan)),
     )
     for path, payload in targets:
-        if path.exists() and path.read_bytes() != payload:
+        try:  # a file already there is read as a stored file (no FIFO, device or link)
+            other = holds_other(path, payload)
+        except StoreError as err:
+            raise PlanError(str(err)) from None
+        if other:
             raise PlanError(
                 f"{path}: a different plan is stored there; refusing to overwrite it "
                 "(choose another name or directory)"

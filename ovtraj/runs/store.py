@@ -89,6 +89,7 @@ from ovtraj.store.files import (
     TEMPORARY_SUFFIX,
     Digest,
     StoreError,
+    make_folders,
     marker_files,
     read_bytes,
     read_json,
@@ -769,7 +770,7 @@ def _link(source: Path | S3Path, target: Path | S3Path, digest: Digest) -> None:
         write_bytes(target, payload)  # an object store has no links
         return
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
+        make_folders(target.parent)
         os.link(source, target)
         return
     except FileExistsError:

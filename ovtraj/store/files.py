@@ -22,6 +22,14 @@ hashes the file; the Parquet decoding of a payload already decoded in this proce
 reused (:class:`DecodedTables`, keyed by the SHA-256 just verified: the same digest is
 the same bytes, so the same table).
 
+No write follows a special file: every folder on the path of a written file must be a
+real folder, not a symbolic link (:func:`make_folders`; the roots, a store's and the
+workspace, are resolved when they are named, so a link chosen for a root is followed and
+one put below it is refused), and a file already at the target is compared through the
+regular-file reader above, never read when its size differs (:func:`holds`). A written
+file gets the permissions the process's umask leaves of ``0o666`` (``open()``'s default),
+as any file the user's tools create: ``umask 077`` keeps the store private.
+
 Every operating-system failure (missing file, read-only file system, full disk)
 becomes one :class:`StoreError` that names the file and the cause; an interrupted
 write leaves at most a temporary file (:func:`remove_orphans` clears them).
@@ -58,6 +66,9 @@ __all__ = [
     "StoreError",
     "decoded_tables",
     "file_digest",
+    "holds",
+    "holds_other",
+    "make_folders",
     "marker_files",
     "os_error_text",
     "parquet_bytes",
@@ -67,6 +78,7 @@ __all__ = [
     "read_table",
     "remove_file",
     "remove_orphans",
+    "writable_target",
     "write_bytes",
     "write_json",
     "write_parquet",
@@ -264,12 +276,11 @@ def write_bytes(path: Path, payload: bytes, *, replace: bool = False) -> Digest:
         return _put_object(path, payload, digest, replace)
     temporary = _temporary_name(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(temporary, "xb") as handle:
+        make_folders(path.parent)
+        with open(temporary, "xb") as handle:  # mode 0o666 less the umask
             handle.write(payload)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(temporary, 0o644)
         if replace:
             os.replace(temporary, path)
         else:
@@ -316,12 +327,90 @@ def _link_new(temporary: Path, path: Path, digest: Digest) -> None:
         if err.errno not in (errno.EPERM, errno.ENOTSUP, errno.EXDEV, errno.EMLINK):
             raise
         # No hard links on this file system: rename, unless the target exists.
-        if not path.exists():
+        if not os.path.lexists(path):
             os.replace(temporary, path)
             return
-    stored = Digest.of(path.read_bytes())
-    if stored != digest:
+    if not holds(path, digest):
         raise StoreError(f"{path}: already stored with other content; not overwritten")
+
+
+def holds(path: Path, digest: Digest) -> bool:
+    """Whether the local file at ``path`` has exactly the content of ``digest``, read as a
+    stored file is (:func:`_open_stored`: StoreError naming a FIFO, a device, a directory or
+    a symbolic link there) and only when its size is ``digest``'s: a file of another size is
+    another content, so at most ``digest.size`` bytes are read."""
+    fd, info = _open_stored(path)
+    try:
+        if info.st_size != digest.size:
+            return False
+        with open(fd, "rb", buffering=0, closefd=False) as handle:
+            content = handle.read(digest.size + 1)  # one more: a file that grew meanwhile
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    finally:
+        os.close(fd)
+    return Digest.of(content) == digest
+
+
+def writable_target(path: Path) -> None:
+    """Nothing, if ``path`` (local) is absent or a regular file; else StoreError naming it
+    (a folder, a FIFO, a device, a socket or a symbolic link is never written over nor
+    read to compare). For a target named by the user, checked before the work that makes
+    its content."""
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as err:
+        raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    if stat.S_ISLNK(info.st_mode):
+        raise StoreError(f"{path}: a symbolic link; not written through it")
+    if not stat.S_ISREG(info.st_mode):
+        raise StoreError(f"{path}: {file_kind(info.st_mode)}, not a regular file; not written")
+
+
+def holds_other(path: Path | S3Path, payload: bytes) -> bool:
+    """Whether a file with content other than ``payload`` is at ``path`` (False: absent or
+    the same bytes). A local file is compared by :func:`holds` (special files refused)."""
+    path = location(path)
+    if isinstance(path, S3Path):
+        try:
+            return path.read_bytes() != payload
+        except FileNotFoundError:
+            return False
+        except OSError as err:
+            raise StoreError(f"{path}: unreadable ({os_error_text(err)})") from None
+    if not os.path.lexists(path):
+        return False
+    return not holds(path, Digest.of(payload))
+
+
+def make_folders(folder: Path) -> None:
+    """Create the local ``folder`` and its missing parents, every existing component checked
+    with ``lstat``: a symbolic link or a non-folder anywhere on the path is a StoreError
+    naming it, so that no write below a store's or the workspace's root (resolved when it was
+    named) is sent elsewhere by a link put inside it (a store's ``catalog/`` linked to an
+    outside folder)."""
+    folder = Path(os.path.abspath(folder))
+    current = Path(folder.anchor)
+    for part in folder.parts[1:]:
+        current = current / part
+        try:
+            info = os.lstat(current)
+        except FileNotFoundError:
+            try:
+                os.mkdir(current)
+                continue
+            except FileExistsError:  # made meanwhile by another writer: checked below
+                info = os.lstat(current)
+        if stat.S_ISLNK(info.st_mode):
+            raise StoreError(
+                f"{current}: a symbolic link on the path of a stored file; nothing written "
+                "through it"
+            )
+        if not stat.S_ISDIR(info.st_mode):
+            what = "a file" if stat.S_ISREG(info.st_mode) else file_kind(info.st_mode)
+            raise StoreError(f"{current}: {what}, not a folder; nothing written in it")
 
 
 def write_json(path: Path, value: Any, *, replace: bool = False) -> Digest:

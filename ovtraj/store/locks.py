@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
-from ovtraj.store.files import StoreError, os_error_text
+from ovtraj.store.files import StoreError, make_folders, os_error_text
 
 __all__ = ["held", "hold", "hold_directory"]
 
@@ -54,8 +54,8 @@ def _regular(fd: int, path: Path) -> int:
 
 def _open(path: Path) -> int:
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | _NO_FOLLOW, 0o644)
+        make_folders(path.parent)  # no symbolic link on the path (a lock is a stored file)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | _NO_FOLLOW, 0o666)  # less the umask
     except OSError as err:
         if err.errno == errno.ELOOP:
             raise StoreError(f"{path}: a symbolic link, so not a lock; left alone") from None
@@ -128,7 +128,7 @@ def hold_directory(directory: Path, *, wait_s: float) -> Iterator[None]:
             yield
         return
     try:
-        directory.mkdir(parents=True, exist_ok=True)
+        make_folders(directory)
         fd = os.open(directory, os.O_RDONLY)
     except OSError as err:
         raise StoreError(f"cannot write {directory}: {os_error_text(err)}") from None

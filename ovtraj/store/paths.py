@@ -10,7 +10,10 @@ as package data (``ovtraj/configs``, ``ovtraj/reference``; see ``setup.py``).
 The workspace (written): ``OVTRAJ_HOME`` if set, else ``<repository>/data`` in a
 source checkout, else ``$XDG_DATA_HOME/ovtraj`` (``~/.local/share/ovtraj``). It
 holds the run store (``runs/``), solved launch fits (``launch_fit/``) and other
-command outputs. Nothing is ever written inside the installed package, and where
+command outputs. The workspace and a store's root are resolved when they are named (a
+symbolic link chosen for them is followed there, once); below them no write passes through
+a symbolic link (:func:`ovtraj.store.files.make_folders`). Nothing is ever written inside
+the installed package, and where
 results go never depends on the current directory: a relative path in a config
 file is relative to that file's folder.
 """
@@ -70,7 +73,7 @@ def workspace() -> Path:
     if os.environ.get("OVTRAJ_HOME"):
         return Path(os.environ["OVTRAJ_HOME"]).expanduser().resolve()
     if source_checkout():
-        return REPO_ROOT / "data"
+        return (REPO_ROOT / "data").resolve()
     base = os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share"
     return Path(base).expanduser().resolve() / "ovtraj"
 
