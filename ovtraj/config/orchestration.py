@@ -152,6 +152,10 @@ class CatalogSettings(StrictModel):
         unit="s", gt=0, le=3600, description="a --where query is interrupted past this"
     )
     where_max_chars: int = bounded(unit="characters", ge=16, le=100_000)
+    query_memory_mib: int = bounded(
+        unit="MiB", ge=16, le=65_536, description="address space a --where query may add"
+    )
+    query_threads: int = bounded(unit="threads", ge=1, le=64)
     tags_per_item: int = bounded(unit="tags", ge=1, le=1000)
     tag_key_max_chars: int = bounded(unit="characters", ge=1, le=256)
     tag_value_max_chars: int = bounded(unit="characters", ge=1, le=4096)

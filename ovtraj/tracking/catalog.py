@@ -23,9 +23,11 @@ SHA-256 of its canonical JSON: the id the plan Monte Carlo run records), a Monte
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
+import resource
 import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -40,7 +42,7 @@ import pyarrow.parquet as pq
 from ovtraj.formatting import printable
 from ovtraj.store import locks
 from ovtraj.store.backends import S3Path, location
-from ovtraj.store.batched import content_id
+from ovtraj.store.batched import SUMMARY, content_id
 from ovtraj.store.files import Digest, StoreError, parquet_bytes, read_bytes, read_json, write_bytes
 from ovtraj.store.layout import (
     MANIFEST,
@@ -50,6 +52,8 @@ from ovtraj.store.layout import (
     PLANS_DIR,
     is_id,
 )
+from ovtraj.store.seals import authenticated, read_authenticated, write_sealed
+from ovtraj.store.verification import VerifyReport
 from ovtraj.tracking.figures import element_set_epoch, target_name
 
 __all__ = [
@@ -64,6 +68,7 @@ __all__ = [
     "read_tags",
     "refresh",
     "set_tags",
+    "verify_catalog",
 ]
 
 CATALOG_DIR = "catalog"
@@ -175,7 +180,16 @@ def _target_columns(scenario: dict[str, Any]) -> dict[str, Any]:
     return {"target": target_name(scenario), "element_set_epoch_utc": element_set_epoch(scenario)}
 
 
+# Columns that name another item: ids read from a stored document, so checked like an id
+# typed on the command line before a reader follows them (`ovtraj runs`, `history`).
+_ID_COLUMNS = ("family", "parent", "doe_run", "run_id", "pipeline_id", "plan_id")
+
+
 def _row(kind: str, item_id: str, source: str, digest: str, **values: Any) -> dict[str, Any]:
+    for column in _ID_COLUMNS:
+        value = values.get(column)
+        if value is not None and not (isinstance(value, str) and is_id(value)):
+            raise ValueError(f"{column} {printable(str(value))[:40]!r} is not an id")
     row: dict[str, Any] = dict.fromkeys(_COLUMNS)
     row.update(kind=kind, id=item_id, source=source, source_sha256=digest, tags="{}")
     row.update(values)
@@ -220,8 +234,10 @@ def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, An
     )
 
 
-def _pipeline_row(source: str, digest: str, payload: bytes, run: dict[str, Any]) -> dict[str, Any]:
-    summary = json.loads(payload)
+def _pipeline_row(
+    marker: Path | S3Path, source: str, digest: str, payload: bytes, run: dict[str, Any]
+) -> dict[str, Any]:
+    summary = authenticated(marker, json.loads(payload))
     if not isinstance(summary, dict):
         raise ValueError("not a JSON object")
     return _row(
@@ -248,7 +264,7 @@ def _pipeline_row(source: str, digest: str, payload: bytes, run: dict[str, Any])
 def _plan_row(
     marker: Path | S3Path, source: str, digest: str, payload: bytes, pipeline: dict[str, Any]
 ) -> dict[str, Any]:
-    files = json.loads(payload)
+    files = authenticated(marker, json.loads(payload))
     name = marker.name[: -len(PLAN_MARKER_SUFFIX)]
     recorded = (files.get("files") or {}).get(f"{name}.json") if isinstance(files, dict) else None
     if recorded is None:
@@ -291,8 +307,8 @@ def _monte_carlo_row(directory: Path | S3Path, source: str, digest: str) -> dict
     plan = config.get("plan") if isinstance(config, dict) else None
     if not isinstance(plan, dict):
         raise ValueError("config.json holds no plan")
-    summary_path = directory / "summary.json"
-    summary = read_json(summary_path) if summary_path.is_file() else {}
+    # The summary as sealed, or built again from the sealed batches: never an edited one.
+    summary = run.summary() if (directory / SUMMARY).is_file() else {}
     scenario = plan.get("scenario") or {}
     total = ((summary.get("dv_mps") or {}).get("total")) or {}
     return _row(
@@ -430,7 +446,8 @@ def _scan(
                 elif kind == "run":
                     row = _run_row(directory, source, digest)
                 elif kind == "pipeline":
-                    row = _pipeline_row(source, digest, payload, runs.get(item.split("/")[0], {}))
+                    run = runs.get(item.split("/")[0], {})
+                    row = _pipeline_row(location(documents[0]), source, digest, payload, run)
                 elif kind == "plan":
                     marker = location(documents[0])
                     row = _plan_row(marker, source, digest, payload, pipelines.get(item, {}))
@@ -440,7 +457,7 @@ def _scan(
                         continue  # another study's batched run (the deorbit burn's)
             if stamp is not None and row["error"] is None:
                 seen[source] = stamp
-        except (StoreError, OSError, ValueError, TypeError, AttributeError) as err:
+        except (StoreError, OSError, ValueError, TypeError, AttributeError, RecursionError) as err:
             name = item.rsplit("/", 1)[-1] if kind != "plan" else source.rsplit("/", 1)[-1]
             row = _row(kind, name, source, "-", error=printable(str(err))[:500])
         if kind == "run":
@@ -483,7 +500,7 @@ def _read(root: Path | S3Path) -> tuple[dict[str, list[Any]] | None, str | None]
     if not marker.is_file():
         return None, "no catalog yet"
     try:
-        recorded = read_json(marker)
+        recorded = read_authenticated(marker)  # with a store key: sealed, else rebuilt
         if not isinstance(recorded, dict) or recorded.get("schema_version") != SCHEMA_VERSION:
             return None, f"{marker}: another catalog format"
         payload = read_bytes(folder / CATALOG_FILE, Digest.from_json(recorded.get("file")))
@@ -506,7 +523,7 @@ def _write(root: Path | S3Path, rows: list[dict[str, Any]]) -> None:
     table = pa.Table.from_pylist(rows, schema=SCHEMA) if rows else SCHEMA.empty_table()
     digest = write_bytes(folder / CATALOG_FILE, parquet_bytes(table), replace=True)
     marker = {"schema_version": SCHEMA_VERSION, "rows": len(rows), "file": digest.to_json()}
-    write_bytes(folder / CATALOG_MARKER, json.dumps(marker, indent=1).encode(), replace=True)
+    write_sealed(folder / CATALOG_MARKER, marker, replace=True)
 
 
 def refresh(store_root: Path | S3Path | str, *, rebuild: bool = False) -> Catalog:
@@ -537,6 +554,48 @@ def refresh(store_root: Path | S3Path | str, *, rebuild: bool = False) -> Catalo
             write_bytes(folder / STAMPS_FILE, json.dumps(seen).encode(), replace=True)
     because = why if stored is None else None
     return Catalog(_frame(rows), folder / CATALOG_FILE, written, because, rows)
+
+
+def verify_catalog(store_root: Path | S3Path | str) -> VerifyReport:
+    """Check the stored catalog without changing it: ``catalog.json``'s seal (with a store
+    key), ``catalog.parquet`` against its recorded digest and :data:`SCHEMA`, every tag
+    file (seal, content), and its rows against those the stored documents give now (a
+    catalog that is not its store's, e.g. one rewritten with a valid digest, is reported).
+    """
+    root = location(store_root)
+    folder = _folder(root)
+    report = VerifyReport(CATALOG_DIR)
+    marker = folder / CATALOG_MARKER
+    try:
+        recorded = read_json(marker)
+    except StoreError as err:
+        report.problems.append(str(err))
+        return report
+    report.check_document(marker, recorded)
+    file = recorded.get("file") if isinstance(recorded, dict) else None
+    report.check_file(folder / CATALOG_FILE, file, SCHEMA)
+    tag_folder = folder / TAGS_DIR
+    for path in sorted(tag_folder.iterdir()) if tag_folder.is_dir() else []:
+        try:
+            report.check_document(path, read_json(path))
+            read_tags(root, checked_id(path.name.removesuffix(".json"), "tag file"))
+        except StoreError as err:
+            report.problems.append(str(err))
+            continue
+        report.checked_files += 1
+    if not report.clean:
+        return report
+    stored, _ = _read(root)
+    tags = _all_tags(root)
+    rows, _ = _scan(root, {}, {})
+    for row in rows:
+        row["tags"] = _tags_text(tags.get(row["id"]))
+    if stored is None or _column_rows(stored) != _ordered(rows):
+        report.problems.append(
+            f"{folder / CATALOG_FILE}: its rows are not those of the store's documents "
+            "(`ovtraj catalog --rebuild` writes them again)"
+        )
+    return report
 
 
 def _tags_text(tags: dict[str, str] | None) -> str:
@@ -604,15 +663,26 @@ def _all_tags(root: Path | S3Path) -> dict[str, dict[str, str]]:
 
 def read_tags(store_root: Path | S3Path | str, item_id: str) -> dict[str, str]:
     """The tags of ``item_id`` (empty when it has none); :class:`StoreError` naming the
-    file when it is not a tag file."""
+    file when it is not a tag file: not the item's, tags beyond what ``ovtraj tag``
+    accepts (:func:`checked_tag`, ``catalog.tags_per_item``), or, with a store key, a seal
+    missing or wrong."""
     path = _tag_file(location(store_root), item_id)
     if not path.is_file():
         return {}
-    document = read_json(path)
+    document = read_authenticated(path)
     tags = document.get("tags") if isinstance(document, dict) else None
-    if document.get("id") != item_id or not isinstance(tags, dict):
+    if not isinstance(tags, dict) or document.get("id") != item_id:
         raise StoreError(f"{path}: not the tags of {item_id}")
-    return {str(k): str(v) for k, v in tags.items()}
+    if len(tags) > catalog_settings().tags_per_item:
+        raise StoreError(f"{path}: {len(tags)} tags, more than catalog.tags_per_item")
+    for key, value in tags.items():
+        try:
+            if not isinstance(value, str):
+                raise ValueError(f"tag {printable(key)[:80]}: not text")
+            checked_tag(key, value)
+        except ValueError as err:
+            raise StoreError(f"{path}: {err}") from None
+    return dict(tags)
 
 
 def checked_tag(key: str, value: str) -> None:
@@ -657,7 +727,7 @@ def set_tags(
                 "(catalog.tags_per_item)"
             )
         document = {"id": item_id, "tags": dict(sorted(current.items()))}
-        write_bytes(_tag_file(root, item_id), json.dumps(document, indent=1).encode(), replace=True)
+        write_sealed(_tag_file(root, item_id), document, replace=True)
     refresh(root)
     return current
 
@@ -668,9 +738,16 @@ def set_tags(
 def query(frame: pd.DataFrame, where: str | None) -> pd.DataFrame:
     """The catalog rows for which the SQL predicate ``where`` holds (DuckDB's dialect over
     the columns of :data:`SCHEMA`, e.g. ``kind = 'plan' AND dv_total_mps > 220``), in the
-    catalog's order. The query sees only this table: DuckDB's access to files and the
-    network is off and its settings locked; it is interrupted past
-    ``catalog.query_time_limit_s`` (:class:`ValueError` saying so, or naming the SQL error)."""
+    catalog's order.
+
+    ``where`` is parsed as one expression (DuckDB's relational ``filter``), never pasted
+    into a statement: a ``;`` or an unbalanced ``)`` is a syntax error, so no second
+    statement runs. The query sees only this table: DuckDB's access to files and the
+    network is off and its settings locked; it runs on ``catalog.query_threads`` threads
+    within ``catalog.query_memory_mib`` (DuckDB's limit, and the process's address space
+    while it runs, :func:`_address_space_limit`), and is interrupted past
+    ``catalog.query_time_limit_s``. Every failure is a :class:`ValueError` of one line
+    naming ``--where``."""
     if where is None or not where.strip():
         return frame
     settings = catalog_settings()
@@ -686,18 +763,25 @@ def query(frame: pd.DataFrame, where: str | None) -> pd.DataFrame:
     connection = duckdb.connect(":memory:")
     try:
         connection.register("catalog", table)
+        connection.execute(f"SET memory_limit = '{settings.query_memory_mib}MiB'")
+        connection.execute(f"SET threads = {settings.query_threads}")
         connection.execute("SET enable_external_access = false")
         connection.execute("SET lock_configuration = true")
         timer = threading.Timer(settings.query_time_limit_s, connection.interrupt)
         timer.start()
         try:
-            found = connection.execute(
-                f"SELECT _row FROM catalog WHERE ({where}) ORDER BY _row"
-            ).fetchnumpy()["_row"]
+            with _address_space_limit(settings.query_memory_mib * 2**20):
+                relation = connection.table("catalog").filter(where)
+                found = relation.project("_row").order("_row").fetchnumpy()["_row"]
         except duckdb.InterruptException:
             raise ValueError(
                 f"--where: the query ran longer than {settings.query_time_limit_s:g} s "
                 "(catalog.query_time_limit_s)"
+            ) from None
+        except (duckdb.OutOfMemoryException, MemoryError):
+            raise ValueError(
+                f"--where: the query needs more than {settings.query_memory_mib} MiB "
+                "(catalog.query_memory_mib)"
             ) from None
         except duckdb.Error as err:
             text = printable(str(err).splitlines()[0] if str(err) else type(err).__name__)
@@ -706,4 +790,44 @@ def query(frame: pd.DataFrame, where: str | None) -> pd.DataFrame:
             timer.cancel()
     finally:
         connection.close()
-    return frame.iloc[list(found)].reset_index(drop=True)
+    rows = [int(k) for k in found]
+    if any(not 0 <= k < len(frame) for k in rows):  # the filter keeps the table's own rows
+        raise ValueError("--where: the query returned rows the catalog does not hold")
+    return frame.iloc[rows].reset_index(drop=True)
+
+
+@contextlib.contextmanager
+def _address_space_limit(extra_bytes: int) -> Iterator[None]:
+    """The process's address space bounded to its current size plus ``extra_bytes`` while
+    the block runs (Linux; elsewhere only DuckDB's own limit holds). DuckDB's memory_limit
+    counts its buffers, not the strings a scalar function builds: ``repeat('x', 1e9)``
+    grew the process by 2.1 GB under a 512 MiB memory_limit. Under this bound the
+    allocation fails and DuckDB reports an out-of-memory error instead."""
+    size = _address_space_bytes()
+    if size is None:
+        yield
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    wanted = size + extra_bytes
+    if soft != resource.RLIM_INFINITY and soft <= wanted:
+        yield  # already bounded tighter by whoever started us
+        return
+    if hard != resource.RLIM_INFINITY:
+        wanted = min(wanted, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def _address_space_bytes() -> int | None:
+    """The process's virtual size [B] (``VmSize`` of /proc/self/status), None off Linux."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
