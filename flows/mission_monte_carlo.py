@@ -33,7 +33,6 @@ from flows.runners import check_runner
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.high_fidelity import high_fidelity_settings
-from ovtraj.mission.montecarlo import loop_summaries, monte_carlo_report
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import read_plan
 from ovtraj.store.paths import config_path
@@ -122,19 +121,14 @@ def plan_monte_carlo_flow(
         deadline=deadline,
         limit=LIMIT,
     )
-    loops = loop_summaries(mission_plan, run.results())
-    stated = mission_plan.terminal.stated_miss_m
     report = {
-        "run_id": run.id,
+        **run.report(),
         "directory": str(run.directory),
-        "runs": n,
-        "stored_runs": len(run.done_runs()),
-        "seed": seed,
         "simulated_runs": len(todo),
-        "status": "incomplete" if failures else "complete",
-        **monte_carlo_report(loops["closed"], loops["open"], seed, stated),
-        "fidelity": fidelity,
     }
+    if failures:
+        report["status"] = "incomplete"
+    loops = {"closed": report, "open": report["open_loop"]}  # the closed loop's at the top
     run.write_summary(report)
     run.update_info(
         status=report["status"], failures=[f"runs from {k}: {why}" for k, why in failures.items()]

@@ -401,3 +401,63 @@ def test_the_flow_flies_the_high_fidelity_monte_carlo_as_the_library_does(
     assert [c.dv_total_mps for c, _ in pairs] == frame[frame["loop"] == "closed"][
         "dv_total_mps"
     ].tolist()
+
+
+# --- the stored Monte Carlo's summary: sealed, and never shown when it is not authentic ---
+
+
+def test_an_edited_summary_is_never_shown_the_report_is_built_again_from_the_batches(
+    plan, tmp_path, monkeypatch
+):
+    """With a store key, a Monte Carlo run's ``summary.json`` is sealed; one edited without
+    the key (the catalog's and history's p95 landing miss and dV margin) is refused by the
+    reader, which builds the report again from the sealed batches, and `ovtraj verify`
+    names it as tampered."""
+    import secrets
+
+    from ovtraj.mission.montecarlo import simulate_batch
+    from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+    from ovtraj.store.seals import STORE_KEY_ENV
+    from ovtraj.tracking.catalog import refresh
+
+    key = secrets.token_hex(32)
+    monkeypatch.setenv(STORE_KEY_ENV, key)
+    config = default_dispersions()
+    run = PlanMonteCarloRun.create(
+        tmp_path,
+        plan=plan.to_dict(),
+        dispersions=config.results_content(),
+        runs=2,
+        seed=3,
+        code="test",
+    )
+    run.write_batch(0, simulate_batch(plan, config, [0, 1], 3))
+    run.write_summary({**run.report(), "simulated_runs": 2})
+    truth = run.report()
+    assert truth["status"] == "complete" and truth["stored_runs"] == 2
+    assert len(json.loads((run.directory / "summary.json").read_bytes())["hmac"]) == 64
+
+    def mc_row() -> dict:
+        frame = refresh(tmp_path).frame
+        return frame[frame["kind"] == "monte_carlo"].iloc[0].to_dict()
+
+    row = mc_row()
+    assert row["mc_landing_miss_p95_m"] == truth["landing_miss_m"]["p95"]
+    done = runner.invoke(app, ["verify", run.id, "--store", str(tmp_path)])
+    assert done.exit_code == 0 and done.stdout.strip().endswith("checked: clean"), done.output
+
+    path = run.directory / "summary.json"
+    forged = json.loads(path.read_bytes())
+    forged["landing_miss_m"]["p95"] = 1.0
+    forged["dv_mps"]["total"]["p95_minus_planned"] = 0.01
+    path.write_text(json.dumps(forged))
+    shown = run.summary()
+    assert shown["landing_miss_m"]["p95"] == truth["landing_miss_m"]["p95"] != 1.0
+    assert {k: shown[k] for k in truth} == truth
+    row = mc_row()
+    assert row["mc_landing_miss_p95_m"] == truth["landing_miss_m"]["p95"]
+    assert row["mc_dv_margin_p95_mps"] == truth["dv_mps"]["total"]["p95_minus_planned"]
+    done = runner.invoke(app, ["verify", run.id, "--store", str(tmp_path)])
+    assert done.exit_code == 1
+    (line,) = [x for x in done.stdout.splitlines() if x.startswith("tampered: ")]
+    assert str(path) in line

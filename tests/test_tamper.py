@@ -25,7 +25,7 @@ import pytest
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionDesign, MissionRecord, reference
 from ovtraj.runs import RunStore, execute, latin_hypercube
-from ovtraj.store.files import StoreError
+from ovtraj.store.files import Digest, StoreError
 from ovtraj.store.paths import reference_dir
 from ovtraj.store.products import Product
 from ovtraj.store.seals import STORE_KEY_ENV, TamperedError
@@ -258,3 +258,114 @@ def test_a_short_store_key_is_one_line_naming_the_variable(tmp_path, scenario, m
     assert done.returncode == 2 and "Traceback" not in done.stderr
     (line,) = done.stderr.strip().splitlines()
     assert STORE_KEY_ENV in line and "6 bytes" in line and "secret" not in line
+
+
+# --- the catalog and the tags: sealed, and rebuilt from the sealed documents otherwise ---
+
+
+def _forge_catalog(store: Path, run_id: str, samples: int) -> Path:
+    """What an attacker without the key does to the catalog: a row's figure changed in
+    catalog.parquet and its size and SHA-256 put in catalog.json (its seal left as it was)."""
+    folder = store / "catalog"
+    table = pq.read_table(folder / "catalog.parquet")
+    frame = table.to_pandas()
+    frame.loc[frame["id"] == run_id, "samples"] = samples
+    pq.write_table(
+        pa.Table.from_pandas(frame, schema=table.schema, preserve_index=False),
+        folder / "catalog.parquet",
+    )
+    payload = (folder / "catalog.parquet").read_bytes()
+    marker = json.loads((folder / "catalog.json").read_bytes())
+    marker["file"] = Digest.of(payload).to_json()
+    (folder / "catalog.json").write_text(json.dumps(marker))
+    return folder / "catalog.json"
+
+
+def _samples_shown(store: Path, run_id: str) -> int:
+    from ovtraj.tracking.catalog import refresh
+
+    frame = refresh(store).frame
+    return int(frame.loc[frame["id"] == run_id, "samples"].item())
+
+
+def test_a_forged_catalog_is_tampered_and_rebuilt_from_the_sealed_manifests(
+    tmp_path, scenario, monkeypatch
+):
+    monkeypatch.setenv(STORE_KEY_ENV, KEY_A)
+    store = tmp_path / "runs"
+    run = _made_up_run(store, scenario)
+    assert _samples_shown(store, run.id) == 6
+    assert len(json.loads((store / "catalog" / "catalog.json").read_bytes())["hmac"]) == 64
+    assert _verify("catalog", store, KEY_A).returncode == 0
+    marker = _forge_catalog(store, run.id, 999)
+    done = _verify("catalog", store, KEY_A)
+    assert done.returncode == 1
+    (line,) = _lines(done, "tampered:")
+    assert str(marker) in line
+    assert _samples_shown(store, run.id) == 6  # rebuilt, the forged row never shown
+    assert _verify("catalog", store, KEY_A).returncode == 0
+    # Without a key only checksums hold: the forged digest matches, but the rows are not
+    # those of the store's documents, which verify compares.
+    _forge_catalog(store, run.id, 999)
+    done = _verify("catalog", store, None)
+    assert done.returncode == 1 and "not those of the store's documents" in done.stdout
+
+
+def test_a_catalog_built_without_the_key_is_not_trusted_with_it(tmp_path, scenario, monkeypatch):
+    monkeypatch.delenv(STORE_KEY_ENV, raising=False)
+    store = tmp_path / "runs"
+    run = _made_up_run(store, scenario)
+    _samples_shown(store, run.id)
+    _forge_catalog(store, run.id, 999)
+    monkeypatch.setenv(STORE_KEY_ENV, KEY_A)
+    from ovtraj.tracking.catalog import refresh
+
+    # The run's own manifest was written without the key: its row is an error, not a figure.
+    catalog = refresh(store)
+    assert "tampered" in catalog.rebuilt_because
+    row = catalog.frame[catalog.frame["id"] == run.id].iloc[0]
+    assert row["samples"] is None and "tampered" in row["error"]
+
+
+def test_tag_files_are_sealed_and_a_forged_or_foreign_one_is_not_shown(
+    tmp_path, scenario, monkeypatch
+):
+    from ovtraj.tracking.catalog import read_tags, refresh, set_tags
+
+    monkeypatch.setenv(STORE_KEY_ENV, KEY_A)
+    store = tmp_path / "runs"
+    run = _made_up_run(store, scenario)
+    set_tags(store, run.id, {"night": "1"})
+    tag_file = store / "catalog" / "tags" / f"{run.id}.json"
+    assert len(json.loads(tag_file.read_bytes())["hmac"]) == 64
+    for forged in (
+        {"id": run.id, "tags": {"night": "2"}},  # no seal
+        [1, 2],  # not a tag file at all
+        {"id": run.id, "tags": {"night": "x" * 5_000_000}},  # beyond what `tag` accepts
+    ):
+        tag_file.write_text(json.dumps(forged))
+        with pytest.raises(StoreError, match=str(tag_file)):
+            read_tags(store, run.id)
+        frame = refresh(store).frame
+        assert frame.loc[frame["id"] == run.id, "tags"].item() == "{}"
+        done = _verify("catalog", store, KEY_A)
+        assert done.returncode == 1 and str(tag_file) in done.stdout
+        assert len(done.stdout) < 10_000
+
+
+def test_an_id_read_from_a_stored_document_is_checked_before_it_is_shown(
+    tmp_path, scenario, monkeypatch
+):
+    """A manifest naming a parent that is a path, not an id: its catalog row is an error
+    naming the field, never a row whose parent a reader would follow."""
+    from ovtraj.tracking.catalog import refresh
+
+    monkeypatch.delenv(STORE_KEY_ENV, raising=False)
+    store = tmp_path / "runs"
+    run = _made_up_run(store, scenario)
+    manifest = run.directory / "manifest.json"
+    content = json.loads(manifest.read_bytes())
+    content["parent"] = "../../outside/fakerun"
+    manifest.write_text(json.dumps(content))
+    row = refresh(store).frame.query("kind == 'run'").iloc[0]
+    assert row["parent"] is None and "parent" in row["error"] and "not an id" in row["error"]

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -403,3 +404,34 @@ def test_the_flow_and_the_command_give_the_same_days(scanned, prefect_server):
         flow[columns], command[columns], check_dtype=False, check_exact=True
     )
     assert Path(summary["files"]["window.html"]).is_relative_to(store / "windows")
+
+
+def test_verify_checks_a_stored_window_and_the_pipeline_of_its_day(scanned, tmp_path):
+    """`ovtraj verify` takes a window id (its files, day records and the plans they name)
+    and a day's pipeline id (checked with the run holding it); a changed file is bad."""
+    summary = json.loads(scanned["again"].stdout)
+    store = tmp_path / "runs"
+    shutil.copytree(scanned["store"], store, symlinks=True)
+
+    def verify(item: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [str(OVTRAJ), "verify", item, "--store", str(store)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+
+    done = verify(summary["window_id"])
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.strip().splitlines()[-1].startswith(f"window {summary['window_id']}: ")
+    assert done.stdout.strip().endswith("checked: clean")
+    pipeline = summary["rows"][0]["pipeline_id"]
+    done = verify(pipeline)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"pipeline {pipeline} (in run " in done.stdout and "clean" in done.stdout
+    svg = store / "windows" / summary["window_id"] / "window.svg"
+    svg.write_bytes(svg.read_bytes().replace(b"<svg", b"<SVG", 1))
+    done = verify(summary["window_id"])
+    assert done.returncode == 1
+    (bad,) = [line for line in done.stdout.splitlines() if line.startswith("bad: ")]
+    assert str(svg) in bad

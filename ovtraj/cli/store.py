@@ -13,8 +13,8 @@ from rich.console import Console
 from rich.table import Table
 
 from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, _store_root, app
-from ovtraj.config.io_limits import echoed
-from ovtraj.formatting import byte_size, number, quantity, utc
+from ovtraj.config.io_limits import echoed, shown_text
+from ovtraj.formatting import byte_size, number, printable, quantity, utc
 
 
 def _families(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -75,9 +75,11 @@ def _where_table(rows: Any, title: str) -> Table:
     for row in rows.to_dict(orient="records"):
         table.add_row(
             *(
-                (utc(row[key]) if unit == "utc" else quantity(row[key], unit))
-                if unit
-                else ("-" if row[key] is None or row[key] != row[key] else str(row[key]))
+                shown_text(
+                    (utc(row[key]) if unit == "utc" else quantity(row[key], unit))
+                    if unit
+                    else ("-" if row[key] is None or row[key] != row[key] else str(row[key]))
+                )
                 for _, key, unit in columns
             )
         )
@@ -117,16 +119,18 @@ def runs(
         typer.echo(f"{root}: {err}", err=True)
         raise typer.Exit(code=2) from None
     shown = catalog_settings().rows_shown if limit is None else limit
-    console = Console(highlight=False)
+    # No rich markup: a stored name holding `[bold]` or `[/]` is text; every stored text
+    # in the tables goes through `shown_text` (escaped, cut).
+    console = Console(highlight=False, markup=False)
     if not console.is_terminal:  # a pipe or a file: every row whole
-        console = Console(highlight=False, width=10_000)
+        console = Console(highlight=False, markup=False, width=10_000)
     if selected is not None:
         if as_json:
             rows = plain(selected.to_dict(orient="records"))
             _print_json({"store": str(root.resolve()), "where": where, "rows": rows})
             return
         part = selected.iloc[-shown:] if shown else selected
-        console.print(_where_table(part, f"catalog rows where {where}"))
+        console.print(_where_table(part, f"catalog rows where {shown_text(where)}"))
         cut = (
             f" (the newest {len(part)} shown; --limit 0 shows all)"
             if len(part) < len(selected)
@@ -163,18 +167,19 @@ def runs(
         table.add_column(column, justify=justify, no_wrap=column == "run")
     for e in listed:
         indent = "  " * e["depth"] + ("└ " if e["depth"] else "")
+        run = indent + shown_text(e["run_id"])
         if e["error"] is not None:
-            table.add_row(indent + e["run_id"], "-", "-", "-", "-", "-", f"error: {e['error']}")
+            table.add_row(run, "-", "-", "-", "-", "-", f"error: {shown_text(e['error'])}")
             continue
         table.add_row(
-            indent + e["run_id"],
-            utc(e["created_utc"]),
-            e["scenario"] or "-",
-            e["origin"] or "-",
-            str(e["samples"]),
-            f"{e['feasible']}/{e['evaluated']}",
-            e["status"] or "-",
-            ", ".join(e["pipelines"]) or "-",
+            run,
+            shown_text(utc(e["created_utc"])),
+            shown_text(e["scenario"] or "-"),
+            shown_text(e["origin"] or "-"),
+            shown_text(e["samples"]),
+            shown_text(f"{e['feasible']}/{e['evaluated']}"),
+            shown_text(e["status"] or "-"),
+            ", ".join(shown_text(p) for p in e["pipelines"]) or "-",
             "-" if e["size_bytes"] is None else byte_size(e["size_bytes"]),
         )
     console.print(table)
@@ -274,7 +279,13 @@ def prune(
 
 @app.command()
 def verify(
-    run_id: str,
+    item_id: Annotated[
+        str,
+        typer.Argument(
+            metavar="ID",
+            help="a run, pipeline result, plan, Monte Carlo run or window id, or 'catalog'",
+        ),
+    ],
     store_root: StoreOpt = None,
     recompute: Annotated[
         int,
@@ -284,51 +295,50 @@ def verify(
             help="also evaluate N of the run's samples again here (spread evenly over its "
             "sample ids) and compare every number of their stage rows and totals with the "
             "stored ones, within the tolerances of configs/reproducibility.yaml (0: checksums "
-            "only)",
+            "only; runs only)",
         ),
     ] = 0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Check every file of a run against its recorded size, SHA-256 and schema.
+    """Check every file of a stored item against its recorded size, SHA-256 and schema.
 
-    The checksums detect accidents; with OVTRAJ_STORE_KEY set, the manifest's and the
-    markers' seals are checked too, and one missing or wrong is reported as tampered.
-    With --recompute N, N stored samples are evaluated again on this machine: each
-    column's largest difference is printed with its tolerance (docs/mission.md,
-    "Reproducibility"). Exit 0 when every covered file is intact (and every recomputed
-    column within its tolerance), 1 with the list of bad or tampered files (or the columns
-    beyond), 2 when the run cannot be opened or recomputed here.
+    ID is a run (its DoE or infill samples, with its surrogate fits, fronts, pipeline
+    results and plans), a pipeline result or plan (checked with the run that holds
+    them), a Monte Carlo run, a launch window, or 'catalog' (the catalog, its tags, and
+    its rows against the store's documents). The checksums detect accidents; with
+    OVTRAJ_STORE_KEY set, every manifest's and marker's seal is checked too, and one
+    missing or wrong is reported as tampered. With --recompute N (a run), N stored
+    samples are evaluated again on this machine: each column's largest difference is
+    printed with its tolerance (docs/mission.md, "Reproducibility"). Exit 0 when every
+    covered file is intact (and every recomputed column within its tolerance), 1 with the
+    list of bad or tampered files (or the columns beyond), 2 when the item cannot be found,
+    opened or recomputed here.
     """
     from ovtraj.runs import StoreError
 
+    store = _store(store_root)
     try:
-        stored = _store(store_root).run(run_id)
+        kind, label, stored, report = _verified(store, item_id)
     except StoreError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    report = stored.verify()
+    if recompute and stored is None:
+        typer.echo(f"--recompute: {label} is not a run of samples", err=True)
+        raise typer.Exit(code=2)
     again = _recomputed(stored, recompute) if recompute and report.clean else None
     failed = not report.clean or (again is not None and not again.ok)
     if as_json:
-        _print_json(
-            {
-                "run_id": stored.id,
-                "clean": report.clean,
-                "checked_files": report.checked_files,
-                "checked_bytes": report.checked_bytes,
-                "problems": [str(p) for p in report.problems],
-                "tampered": [str(p) for p in report.tampered],
-                "uncovered": [str(p) for p in report.uncovered],
-                "recompute": None if again is None else again.to_json(),
-            }
-        )
+        document = {"kind": kind, **report.to_json()}
+        if kind == "run":
+            document = {"run_id": report.item_id, **document}
+        _print_json({**document, "recompute": None if again is None else again.to_json()})
         raise typer.Exit(code=1 if failed else 0)
     for problem in report.tampered:
-        typer.echo(f"tampered: {problem}")
+        typer.echo(f"tampered: {printable(problem)}")
     for problem in report.problems:
-        typer.echo(f"bad: {problem}")
+        typer.echo(f"bad: {printable(problem)}")
     for path in report.uncovered:
-        typer.echo(f"not covered by any marker (never read): {path}")
+        typer.echo(f"not covered by any marker (never read): {printable(path)}")
     found = [
         f"{len(found)} {what} file(s)"
         for found, what in ((report.tampered, "tampered"), (report.problems, "bad"))
@@ -336,15 +346,75 @@ def verify(
     ]
     verdict = "clean" if report.clean else ", ".join(found)
     typer.echo(
-        f"run {stored.id}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
+        f"{label}: {report.checked_files} files, {number(report.checked_bytes / 1e6)} "
         f"MB checked: {verdict}"
     )
     if recompute and not report.clean:
-        typer.echo(f"run {stored.id}: not recomputed (its files failed their checksums)")
+        typer.echo(f"{label}: not recomputed (its files failed their checksums)")
     if again is not None:
         _print_recompute(stored, again)
     if failed:
         raise typer.Exit(code=1)
+
+
+def _verified(store: Any, item_id: str) -> tuple[str, str, Any, Any]:
+    """(kind, label, the run of samples or None, its VerifyReport) of what ``item_id``
+    names in ``store``; StoreError naming it when the store holds nothing of that id."""
+    from ovtraj.runs.store import checked_id
+    from ovtraj.store.layout import MANIFEST
+    from ovtraj.tracking.catalog import verify_catalog
+
+    if item_id == "catalog":
+        return "catalog", f"the catalog of {store.root.resolve()}", None, verify_catalog(store.root)
+    checked_id(item_id, "id")
+    directory = store.root / item_id
+    if (directory / MANIFEST).is_file() or not directory.exists():
+        found = _holder(store, item_id) if not directory.exists() else None
+        if found is not None:
+            kind, run_id = found
+            run = store.run(run_id)
+            return kind, f"{kind} {item_id} (in run {run.id})", run, run.verify()
+        run = store.run(item_id)  # StoreError naming it when there is none
+        return "run", f"run {run.id}", run, run.verify()
+    if (directory / "run.json").is_file():
+        batched = _batched_run(directory)
+        return "monte_carlo", f"Monte Carlo run {item_id}", None, batched.verify()
+    from ovtraj.window.report import verify_window
+    from ovtraj.window.scan import WINDOWS_DIR
+
+    window = store.root / WINDOWS_DIR / item_id
+    if window.is_dir():
+        return "window", f"window {item_id}", None, verify_window(window, store)
+    from ovtraj.runs import StoreError
+
+    raise StoreError(f"{directory}: neither a run, a Monte Carlo run nor a window")
+
+
+def _holder(store: Any, item_id: str) -> tuple[str, str] | None:
+    """(kind, run id) of the pipeline result or plan ``item_id`` by the catalog; None when
+    it names neither (windows are looked up after)."""
+    from ovtraj.tracking.catalog import refresh
+
+    frame = refresh(store.root).frame
+    rows = frame[(frame["id"] == item_id) & frame["kind"].isin(["pipeline", "plan"])]
+    if not len(rows):
+        return None
+    row = rows.iloc[0]
+    return str(row["kind"]), str(row["source"]).split("/", 1)[0]
+
+
+def _batched_run(directory: Path) -> Any:
+    """The Monte Carlo run in ``directory`` as its kind's class (StoreError otherwise)."""
+    from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+    from ovtraj.store.files import StoreError, read_json
+    from ovtraj.studies.deorbit_burn.store import MonteCarloRun
+
+    info = read_json(directory / "run.json")
+    kind = info.get("kind") if isinstance(info, dict) else None
+    for cls in (PlanMonteCarloRun, MonteCarloRun):
+        if kind == cls.KIND:
+            return cls(directory)
+    raise StoreError(f"{directory / 'run.json'}: not a Monte Carlo run of a known kind")
 
 
 def _recomputed(stored: Any, count: int) -> Any:

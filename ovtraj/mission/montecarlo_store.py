@@ -5,19 +5,27 @@ and the dispersions that count for results, each batch's part holds a row per ru
 (``closed``, ``open``) of :data:`~ovtraj.mission.montecarlo.STORED_RUN_SCHEMA`. The run id
 hashes the plan, the dispersions (not their ``execution`` settings), the number of runs, the
 seed and the code version (and the force model of a high-fidelity closed loop).
+
+``summary.json`` is derived from the stored batches (:meth:`PlanMonteCarloRun.report`):
+a reader takes it only when it authenticates (with a store key), and otherwise builds the
+report again from the sealed batches, so an edited summary is never shown.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Any
 
-from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA
-from ovtraj.store.batched import BatchedRun, content_id
+from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA, loop_summaries, monte_carlo_report
+from ovtraj.mission.plan import MissionPlan
+from ovtraj.store.batched import BatchedRun, StoreError, content_id
 
 __all__ = ["PlanMonteCarloRun", "plan_monte_carlo_id"]
 
 RUN_KIND = "mission_monte_carlo"
+
+logger = logging.getLogger(__name__)
 
 
 def plan_monte_carlo_id(
@@ -72,3 +80,35 @@ class PlanMonteCarloRun(BatchedRun):
             config["force_model"] = force_model
             info["fidelity"] = "high"
         return cls.open_or_create(root, rid, config, info)
+
+    def report(self) -> dict[str, Any]:
+        """The Monte Carlo's report from what is stored (the sealed ``run.json``, config and
+        batches): both loops' statistics, ``runs`` asked and ``stored_runs``, ``status``
+        complete when every run is stored. What a flow run adds (``simulated_runs``, the
+        run's ``directory``) is the flow's."""
+        info = self.info
+        config = self.config
+        plan = MissionPlan.model_validate(config["plan"])
+        loops = loop_summaries(plan, self.results())
+        runs, stored = int(info["runs"]), len(self.done_runs())
+        return {
+            "run_id": self.id,
+            "runs": runs,
+            "stored_runs": stored,
+            "seed": int(info["seed"]),
+            "status": "complete" if stored >= runs else "incomplete",
+            **monte_carlo_report(
+                loops["closed"], loops["open"], int(info["seed"]), plan.terminal.stated_miss_m
+            ),
+            "fidelity": info.get("fidelity", "j2"),
+        }
+
+    def summary(self) -> dict[str, Any]:
+        """``summary.json`` when it authenticates, else :meth:`report` built again from the
+        stored batches (a warning names the refused file): the figures a reader shows."""
+        try:
+            stored = self.stored_summary()
+        except StoreError as err:
+            logger.warning("%s; the report is built again from the stored batches", err)
+            stored = None
+        return self.report() if stored is None else stored

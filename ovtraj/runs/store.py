@@ -62,7 +62,6 @@ import json
 import os
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -84,7 +83,7 @@ from ovtraj.runs.schemas import (
 )
 from ovtraj.store import locks, paths
 from ovtraj.store.backends import S3Path, location
-from ovtraj.store.environment_block import environment_problem, stamped
+from ovtraj.store.environment_block import stamped
 from ovtraj.store.files import (
     TEMPORARY_SUFFIX,
     Digest,
@@ -102,7 +101,8 @@ from ovtraj.store.files import (
 )
 from ovtraj.store.layout import ID_HEX_DIGITS, MANIFEST, is_id
 from ovtraj.store.records import table_from_frame, table_from_rows
-from ovtraj.store.seals import authenticated, read_authenticated, seal_problem, write_sealed
+from ovtraj.store.seals import authenticated, read_authenticated, write_sealed
+from ovtraj.store.verification import VerifyReport
 
 __all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
 
@@ -179,6 +179,20 @@ def checked_id(value: Any, what: str = "run id") -> str:
     return value
 
 
+def within_store(root: Path | S3Path, path: Path | S3Path, what: str) -> Path | S3Path:
+    """``path`` if, its links followed, it lies inside the store ``root``, else
+    :class:`StoreError` naming ``what`` (a file and its field): a path built from ids
+    (:func:`checked_id`) cannot climb out of the store by its name, this refuses a folder
+    of the store that is a link to elsewhere. An object store has no links."""
+    if isinstance(root, S3Path) or isinstance(path, S3Path):
+        return path
+    if not path.resolve().is_relative_to(root.resolve()):
+        from ovtraj.formatting import printable
+
+        raise StoreError(f"{what}: {printable(str(path))} leads outside the store {root}")
+    return path
+
+
 def part_name(batch: int) -> str:
     return f"part-{batch:05d}.parquet"
 
@@ -209,24 +223,6 @@ def result_rows(
 
 def _utc_now() -> str:
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-
-
-@dataclass
-class VerifyReport:
-    """What :meth:`Run.verify` found: every problem names its file."""
-
-    run_id: str
-    checked_files: int = 0
-    checked_bytes: int = 0
-    problems: list[str] = field(default_factory=list)
-    uncovered: list[str] = field(default_factory=list)  # files no marker lists (never read)
-    # Manifests and markers whose seal is missing or wrong under the configured store key
-    # (ovtraj.store.seals); empty without a key, since checksums alone cannot tell tampering.
-    tampered: list[str] = field(default_factory=list)
-
-    @property
-    def clean(self) -> bool:
-        return not self.problems and not self.tampered
 
 
 class Run:
@@ -668,20 +664,12 @@ class Run:
         covered = {self.directory / MANIFEST}
         expected: list[tuple[Path, Any, pa.Schema | None]] = []
 
-        def check_document(path: Path, document: Any) -> None:
-            problem = seal_problem(path, document)
-            if problem is not None:
-                report.tampered.append(problem)
-            problem = environment_problem(path, document)
-            if problem is not None:
-                report.problems.append(problem)
-
         try:
             manifest = self._manifest_document()
         except StoreError as err:
             report.problems.append(str(err))
             return report
-        check_document(self.directory / MANIFEST, manifest)
+        report.check_document(self.directory / MANIFEST, manifest)
         recorded = manifest.get("files")
         recorded = recorded if isinstance(recorded, dict) else {}
         for name in RUN_FILES:
@@ -694,7 +682,7 @@ class Run:
                 listed = marker["files"]
                 if not isinstance(listed, dict):
                     raise TypeError
-                check_document(path, marker)
+                report.check_document(path, marker)
                 marker_files(path, marker)  # names inside the run and usable digests
             except StoreError as err:
                 report.problems.append(str(err))
@@ -720,7 +708,7 @@ class Run:
                 if not isinstance(listed, dict):
                     report.problems.append(f"{marker_path}: lists no file digests")
                     continue
-                check_document(marker_path, marker)
+                report.check_document(marker_path, marker)
                 try:
                     marker_files(marker_path, marker)  # names inside its folder, usable digests
                 except StoreError as err:
@@ -730,37 +718,9 @@ class Run:
                     expected.append((marker_path.parent / relative, digest, None))
         for path, digest, schema in expected:
             covered.add(path)
-            try:
-                if digest is None:
-                    raise StoreError(f"{path}: no digest recorded")
-                recorded = Digest.from_json(digest)
-                if schema is not None:
-                    read_table(path, recorded, schema)
-                else:
-                    read_bytes(path, recorded)
-            except StoreError as err:
-                report.problems.append(str(err))
-                continue
-            except ValueError as err:  # a manifest's record: the markers' are checked when read
-                report.problems.append(f"{self.directory / MANIFEST}: {path.name}: {err}")
-                continue
-            report.checked_files += 1
-            report.checked_bytes += recorded.size
-        for path in sorted(p for p in self.directory.rglob("*") if p.is_file()):
-            if path in covered or _is_lock(path.relative_to(self.directory).parts):
-                continue
-            note = (
-                " (temporary file of an interrupted write)"
-                if path.name.endswith(TEMPORARY_SUFFIX)
-                else ""
-            )
-            report.uncovered.append(f"{path}{note}")
+            report.check_file(path, digest, schema)
+        report.find_uncovered(self.directory, covered)
         return report
-
-
-def _is_lock(parts: tuple[str, ...]) -> bool:
-    """A lock file or lease of the run (``locks/``) or of a product (``.lock``)."""
-    return parts[0] == "locks" or parts[-1] == ".lock"
 
 
 def _link(source: Path | S3Path, target: Path | S3Path, digest: Digest) -> None:

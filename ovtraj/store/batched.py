@@ -11,7 +11,8 @@ plan's (:mod:`ovtraj.mission.montecarlo_store`). Layout::
     batches/<k>.json            written last: that batch is complete; its run numbers, the
                                 size and SHA-256 of its part (``"files"``) and the rows' wall
                                 times (``"timing"``)
-    summary.json                the flow's report, rewritten by every flow run
+    summary.json                the flow's report, replaced by every flow run; derived from
+                                the batches, so a subclass can build it again
 
 The run id hashes what changes results (a subclass gives that content; the kind is added).
 Files are written with :mod:`ovtraj.store.files` (temporary name, then linked into place; a stored
@@ -19,8 +20,8 @@ file is never overwritten), a batch counts only once its marker exists, and an i
 run resumes at the first missing batch. Every read is checked: a part's size, SHA-256 and
 schema against its marker, ``config.json`` against ``run.json``; a missing or changed file
 raises :class:`StoreError` naming it (the DoE store's conventions). With a store key
-configured (``OVTRAJ_STORE_KEY``), ``run.json`` and the batch markers carry an HMAC seal,
-checked on every read (:mod:`ovtraj.store.seals`); ``summary.json``, a report, does not.
+configured (``OVTRAJ_STORE_KEY``), ``run.json``, the batch markers and ``summary.json`` carry
+an HMAC seal, checked on every read (:mod:`ovtraj.store.seals`).
 """
 
 from __future__ import annotations
@@ -48,10 +49,12 @@ from ovtraj.store.files import (
 from ovtraj.store.products import directory_lock
 from ovtraj.store.records import plain, table_from_frame
 from ovtraj.store.seals import read_authenticated, write_sealed
+from ovtraj.store.verification import VerifyReport
 
-__all__ = ["STORE_FORMAT", "BatchedRun", "StoreError", "content_id", "part_name"]
+__all__ = ["STORE_FORMAT", "SUMMARY", "BatchedRun", "StoreError", "content_id", "part_name"]
 
 STORE_FORMAT = 2  # 2: file digests in run.json and the batch markers, checked on read
+SUMMARY = "summary.json"
 
 
 def content_id(content: dict[str, Any]) -> str:
@@ -218,7 +221,62 @@ class BatchedRun:
         return frame.sort_values(list(self.KEYS), kind="stable").reset_index(drop=True)
 
     def write_summary(self, summary: dict[str, Any]) -> Path:
-        """``summary.json``: the flow's report (plain JSON, NaN as null), replaced each run."""
-        path = self.directory / "summary.json"
-        write_json(path, summary, replace=True)
+        """``summary.json``: the flow's report (plain JSON, NaN as null; sealed with a store
+        key), replaced each run."""
+        path = self.directory / SUMMARY
+        write_sealed(path, summary, replace=True)
         return path
+
+    def stored_summary(self) -> dict[str, Any] | None:
+        """``summary.json`` as written (its seal checked with a store key); None when there
+        is none. :class:`StoreError` naming the file when it is not a sealed summary."""
+        path = self.directory / SUMMARY
+        if not path.is_file():
+            return None
+        summary = read_authenticated(path)
+        if not isinstance(summary, dict):
+            raise StoreError(f"{path}: not a JSON object")
+        return summary
+
+    def verify(self) -> VerifyReport:
+        """Check every file of the run (like fsck): ``run.json``'s and each marker's seal
+        (with a store key) and environment block, ``config.json`` and every part against
+        their recorded size, SHA-256 and schema, ``summary.json``'s seal; files nothing lists
+        are reported as uncovered."""
+        report = VerifyReport(self.id)
+        info_path = self.directory / self.INFO
+        covered = {info_path}
+        try:
+            info = read_json(info_path)
+        except StoreError as err:
+            report.problems.append(str(err))
+            return report
+        report.check_document(info_path, info)
+        if not isinstance(info, dict) or info.get("kind") != self.KIND:
+            report.problems.append(f"{info_path}: not a {self.KIND} run")
+            return report
+        expected: list[tuple[Path, Any, pa.Schema | None]] = []
+        files = info.get("files")
+        listed = files.get("config.json") if isinstance(files, dict) else None
+        expected.append((self.directory / "config.json", listed, None))
+        for path in sorted((self.directory / "batches").glob("*")):
+            covered.add(path)
+            try:
+                marker = read_json(path)
+                report.check_document(path, marker)
+                for relative, digest in marker_files(path, marker).items():
+                    expected.append((self.directory / relative, digest, self.SCHEMA))
+            except StoreError as err:
+                report.problems.append(str(err))
+        summary = self.directory / SUMMARY
+        if summary.is_file():
+            covered.add(summary)
+            try:
+                report.check_document(summary, read_json(summary))
+            except StoreError as err:
+                report.problems.append(str(err))
+        for path, digest, schema in expected:
+            covered.add(path)
+            report.check_file(path, digest, schema)
+        report.find_uncovered(self.directory, covered)
+        return report

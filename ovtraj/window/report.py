@@ -31,18 +31,29 @@ from ovtraj.plots.embed import png_data_uri
 from ovtraj.plots.front import axis_label
 from ovtraj.plots.render import figure, png_bytes
 from ovtraj.runs import RunStore
-from ovtraj.store.files import StoreError, remove_file
+from ovtraj.store.files import StoreError, marker_files, read_json, remove_file
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_rows
+from ovtraj.store.verification import VerifyReport
 from ovtraj.window.records import (
+    DAYS_DIR,
     FORMAT,
     PLANNED,
     WindowOutcome,
     best_day,
+    plan_problem,
+    record_problem,
     stored_day,
 )
 
-__all__ = ["WINDOW_SCHEMA", "load_window", "window_figure", "window_rows", "write_window"]
+__all__ = [
+    "WINDOW_SCHEMA",
+    "load_window",
+    "verify_window",
+    "window_figure",
+    "window_rows",
+    "write_window",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -344,3 +355,40 @@ def load_window(
         return None
     files = {name: directory / name for name in (*FILES, MARKER)}
     return WindowOutcome(identity, directory, records, best, files, reused=True)
+
+
+def verify_window(directory: Any, store: RunStore) -> VerifyReport:
+    """Check a stored window (like fsck, nothing removed): ``window.json``'s seal (with a
+    store key) and each file it lists against its size, SHA-256 and the table's schema;
+    every day's record (its seal, its fields, the plan bytes it names); files nothing
+    lists reported as uncovered."""
+    report = VerifyReport(directory.name)
+    marker_path = directory / MARKER
+    covered = {marker_path}
+    try:
+        marker = read_json(marker_path)
+        report.check_document(marker_path, marker)
+        listed = marker_files(marker_path, marker)
+    except StoreError as err:
+        report.problems.append(str(err))
+        return report
+    for name, digest in listed.items():
+        covered.add(directory / name)
+        report.check_file(directory / name, digest, WINDOW_SCHEMA if name == TABLE else None)
+    identity = marker.get("window_id")
+    for path in sorted((directory / DAYS_DIR).glob("*.json")):
+        covered.add(path)
+        try:
+            record = read_json(path)
+        except StoreError as err:
+            report.problems.append(str(err))
+            continue
+        report.check_document(path, record)
+        day = int(path.stem) if path.stem.isdigit() else -1
+        date = record.get("date") if isinstance(record, dict) else None
+        date = date if isinstance(date, str) else ""  # a record without one fails below
+        problem = record_problem(record, identity, day, date) or plan_problem(record, store)
+        if problem:
+            report.problems.append(f"{path}: {problem}")
+    report.find_uncovered(directory, covered)
+    return report
