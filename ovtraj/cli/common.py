@@ -114,12 +114,16 @@ def _load(config: Path | None, target: str | None = None) -> Scenario:
 
 def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
     """A title and aligned ``label  value`` lines (a value not yet text through
-    :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits)."""
-    typer.echo(title)
+    :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits). The title
+    and the values may hold text from a file (a scenario's name): escaped and cut
+    (:func:`ovtraj.config.io_limits.shown_text`)."""
+    from ovtraj.config.io_limits import shown_text
+
+    typer.echo(shown_text(title))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         shown = value if isinstance(value, str) else quantity(value)
-        typer.echo(f"  {key:<{width}}  {shown}")
+        typer.echo(f"  {key:<{width}}  {shown_text(shown)}")
 
 
 # A table row of a result: (label, key of the row or function of the row, unit[, digits]);

@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _store, _store_root, app
-from ovtraj.config.io_limits import echoed
+from ovtraj.config.io_limits import echoed, shown_text
 from ovtraj.formatting import quantity, utc
 
 
@@ -28,8 +28,19 @@ class _Item:
 
 
 def _console() -> Console:
-    console = Console(highlight=False)
-    return console if console.is_terminal else Console(highlight=False, width=10_000)
+    """Where the tables go: no rich markup (a stored name holding ``[bold]`` or ``[/]`` is
+    text, not a style or a markup error); every stored text in them goes through
+    :func:`shown_text` (escaped, cut)."""
+    console = Console(highlight=False, markup=False)
+    return console if console.is_terminal else Console(highlight=False, markup=False, width=10_000)
+
+
+def _stored_path(store: Any, catalog: Any, path: Any, field: str) -> Any:
+    """``path``, built from a catalog row's ``field``, if it lies inside the store
+    (:func:`ovtraj.runs.store.within_store`): the catalog is a file like any other."""
+    from ovtraj.runs.store import within_store
+
+    return within_store(store.root, path, f"{catalog.path}: {field}")
 
 
 def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label: str) -> _Item:
@@ -45,7 +56,11 @@ def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label
         & (frame["status"] == "complete")
     ].sort_values(["created_utc", "id"])
     if len(runs):
-        summary = read_json(store.root / runs.iloc[-1]["id"] / "summary.json")
+        from ovtraj.tracking.catalog import checked_id
+
+        run_id = checked_id(runs.iloc[-1]["id"], f"{catalog.path}: id")
+        summary_path = _stored_path(store, catalog, store.root / run_id / "summary.json", "id")
+        summary = read_json(summary_path)
         figures += monte_carlo_figures(summary if isinstance(summary, dict) else {})
     return _Item("plan", label, figures, plan, path)
 
@@ -64,14 +79,15 @@ def _run_item(store: Any, run_id: str) -> _Item:
 
 
 def _pipeline_item(store: Any, marker: Path) -> _Item:
+    from ovtraj.runs.store import checked_id
     from ovtraj.store.files import read_json
     from ovtraj.tracking.figures import pipeline_figures
 
     summary = read_json(marker)
     if not isinstance(summary, dict):
         raise ValueError(f"{marker}: not a pipeline summary")
-    doe = store.run(str(summary.get("doe_run")))
-    label = f"pipeline {summary.get('pipeline_id')}"
+    doe = store.run(checked_id(summary.get("doe_run"), f"{marker}: doe_run"))
+    label = f"pipeline {checked_id(summary.get('pipeline_id'), f'{marker}: pipeline_id')}"
     return _Item("pipeline", label, pipeline_figures(summary, doe.config))
 
 
@@ -97,9 +113,12 @@ def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     if row["kind"] == "run":
         return _run_item(store, ref)
     if row["kind"] == "pipeline":
-        return _pipeline_item(store, store.root / row["source"])
+        return _pipeline_item(
+            store, _stored_path(store, catalog, store.root / row["source"], "source")
+        )
     if row["kind"] == "plan":
-        plan_path = Path(str(plan_file(store.root, row["source"])))
+        plan_path = _stored_path(store, catalog, plan_file(store.root, row["source"]), "source")
+        plan_path = Path(str(plan_path))
         return _plan_item(store, catalog, plan_path, _read_plan(plan_path), f"plan {ref}")
     raise ValueError(f"{ref}: a {row['kind']} (diff takes runs, pipeline results and plans)")
 
@@ -153,9 +172,9 @@ def diff(
         )
         return
     if markdown:
-        typer.echo(markdown_table(found, left.label, right.label))
+        typer.echo(markdown_table(found, shown_text(left.label), shown_text(right.label)))
         return
-    typer.echo(f"A: {left.label}\nB: {right.label}")
+    typer.echo(f"A: {shown_text(left.label)}\nB: {shown_text(right.label)}")
     if not found:
         typer.echo("no differences")
         return
@@ -236,7 +255,8 @@ def history(
             }
         )
         return
-    table = Table(title=f"re-plans of {name}", title_justify="left", box=None, pad_edge=False)
+    title = f"re-plans of {shown_text(name)}"
+    table = Table(title=title, title_justify="left", box=None, pad_edge=False)
     columns = (
         "element set (UTC)",
         "plan",
@@ -254,11 +274,11 @@ def history(
         table.add_column(column, no_wrap=True)
     for r in rows.itertuples(index=False):
         table.add_row(
-            utc(r.element_set_epoch_utc),
-            r.plan_id,
-            r.pipeline_id,
-            r.code_version,
-            utc(r.launch_epoch_utc),
+            shown_text(utc(r.element_set_epoch_utc)),
+            shown_text(quantity(r.plan_id)),
+            shown_text(quantity(r.pipeline_id)),
+            shown_text(quantity(r.code_version)),
+            shown_text(utc(r.launch_epoch_utc)),
             quantity(r.dv_total_mps, "m/s"),
             quantity(r.t_total_s, "s"),
             quantity(r.m_load_kg, "kg"),
@@ -331,9 +351,8 @@ def tag(
     if as_json:
         _print_json({"id": item_id, "tags": tags})
         return
-    typer.echo(
-        f"{item_id}: " + (", ".join(f"{k}={v}" for k, v in sorted(tags.items())) or "no tags")
-    )
+    pairs_shown = ", ".join(f"{shown_text(k)}={shown_text(v)}" for k, v in sorted(tags.items()))
+    typer.echo(f"{shown_text(item_id)}: " + (pairs_shown or "no tags"))
 
 
 @app.command()
@@ -376,17 +395,20 @@ def lineage(
         )
     else:
         table = Table(
-            title=f"lineage of {path.resolve()}", title_justify="left", box=None, pad_edge=False
+            title=f"lineage of {shown_text(path.resolve())}",
+            title_justify="left",
+            box=None,
+            pad_edge=False,
         )
         for column in ("step", "item", "sha256", "state", "detail / path"):
             table.add_column(column, no_wrap=column in ("step", "item"))
         for link in links:
             table.add_row(
-                link.step,
-                link.item,
-                (link.sha256 or "-")[:16],
+                shown_text(link.step),
+                shown_text(link.item),
+                shown_text((link.sha256 or "-")[:16]),
                 link.state,
-                "; ".join(x for x in (link.detail, link.path or "") if x),
+                "; ".join(shown_text(x) for x in (link.detail, link.path or "") if x),
             )
         _console().print(table)
         verdict = "every link verifies" if not broken else f"{len(broken)} link(s) broken"

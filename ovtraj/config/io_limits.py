@@ -4,7 +4,8 @@
   (:func:`read_config_file`; element sets have ``url_max_mib`` of
   ``configs/target_sources.yaml``), read only if it is a regular file
   (:func:`ovtraj.store.paths.read_text_file`);
-* the characters of a value or a name echoed in an error line (:func:`echoed`);
+* the characters of a value or a name echoed in an error line (:func:`echoed`), and of
+  a stored text (a name, a tag, an id) a command's plain output shows (:func:`shown_text`);
 * the disk a DoE sample takes, for the estimate checked against the free disk before a
   DoE writes (:func:`ovtraj.runs.execute.check_free_disk`).
 
@@ -33,6 +34,12 @@ class IoLimits(StrictModel):
     )
     echo_max_chars: int = bounded(
         ge=16, le=1_000_000, description="a value echoed in an error line is cut to this"
+    )
+    shown_max_chars: int = bounded(
+        unit="characters",
+        ge=16,
+        le=1_000_000,
+        description="a stored text shown in a command's plain output is cut to this",
     )
     doe_bytes_per_sample: float = bounded(
         unit="B", gt=0, le=1e12, description="disk a DoE sample takes in the run store"
@@ -93,3 +100,11 @@ def echoed(text: str, max_chars: int | None = None) -> str:
     limit = io_limits().echo_max_chars if max_chars is None else max_chars
     # cut before escaping too: escaping a long text costs its length in time
     return clipped(printable(clipped(text, limit)), limit)
+
+
+def shown_text(value: object) -> str:
+    """A stored text (a scenario or target name, a tag, an id or a status read from a
+    file) as a command's plain output shows it: :func:`echoed` to ``shown_max_chars``, so
+    it stays one line, sends no terminal control sequence and a 5 MB value prints as a
+    few hundred characters (``--json`` gives it whole, escaped by JSON)."""
+    return echoed(str(value), io_limits().shown_max_chars)

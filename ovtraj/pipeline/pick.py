@@ -84,4 +84,16 @@ def weighted_scores(
     """Each front point's weighted mean of its normalised objectives (0 the ideal point,
     1 the reference point): the lowest is picked."""
     values = normalisation.normalise(front[list(normalisation.names)].to_numpy(dtype=float))
-    return values @ (weights / weights.sum())
+    return values @ weight_fractions(weights)
+
+
+def weight_fractions(weights: np.ndarray) -> np.ndarray:
+    """``weights`` as fractions of their sum, which is taken after scaling them by their
+    largest: it then lies between 1 and their count whatever their size (three weights of
+    1e308 would sum to inf, every score be 0 and the first point be picked);
+    ``ValueError`` when they cannot weigh (:func:`weights_problem`)."""
+    problem = weights_problem(weights)
+    if problem is not None:
+        raise ValueError(f"weights {np.asarray(weights).tolist()}: {problem}")
+    scaled = np.asarray(weights, dtype=float) / np.max(weights)
+    return scaled / scaled.sum()

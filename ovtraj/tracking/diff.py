@@ -13,6 +13,7 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from ovtraj.config.io_limits import shown_text
 from ovtraj.formatting import duration, quantity
 from ovtraj.tracking.figures import INPUTS, RESULTS, Figure
 
@@ -106,9 +107,17 @@ def _shown_change(change: Change) -> str:
 
 
 def text_rows(found: list[Change]) -> list[tuple[str, str, str, str, str]]:
-    """(group, field, A, B, change) of each change, values with their units."""
+    """(group, field, A, B, change) of each change, values with their units; a field's
+    name and a text value are stored text, shown escaped and cut (:func:`shown_text`)."""
     return [
-        (c.group, c.name, _shown(c.a, c.unit), _shown(c.b, c.unit), _shown_change(c)) for c in found
+        (
+            c.group,
+            shown_text(c.name),
+            shown_text(_shown(c.a, c.unit)),
+            shown_text(_shown(c.b, c.unit)),
+            _shown_change(c),
+        )
+        for c in found
     ]
 
 

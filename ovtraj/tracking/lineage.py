@@ -16,7 +16,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from ovtraj.runs.store import Run, RunStore
+from ovtraj.formatting import printable
+from ovtraj.runs.store import Run, RunStore, checked_id, within_store
 from ovtraj.store.batched import content_id
 from ovtraj.store.files import Digest, StoreError, file_digest, read_json
 from ovtraj.store.layout import PIPELINE_DIR, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, PLANS_DIR
@@ -48,8 +49,8 @@ class Link:
         return asdict(self)
 
 
-def _run_link(store: RunStore, step: str, run_id: str) -> Link:
-    directory = store.root / run_id
+def _run_link(store: RunStore, step: str, run_id: str, what: str) -> Link:
+    directory = within_store(store.root, store.root / checked_id(run_id, what), what)
     if not directory.is_dir():
         return Link(step, run_id, str(directory), None, MISSING, "not in the store (pruned?)")
     try:
@@ -164,10 +165,33 @@ def _export_links(store: RunStore, the_plan: str) -> list[Link]:
     return links
 
 
+def _stored_ids(
+    store: RunStore, ids: dict[str, Any], fields: tuple[str, ...], what: str
+) -> dict[str, str | None]:
+    """The ids ``fields`` of ``ids`` (a document read from a file), each checked as one
+    typed on the command line (:func:`checked_id`) before any path is built from it, and
+    the folder it names inside the store; None for one the document does not give.
+    :class:`StoreError` naming ``what`` (the file) and the field otherwise: followed as
+    written, a plan whose ``source.pipeline_id`` is ``../../../../outside/x`` would have
+    files outside the store read and verified as its chain."""
+    found: dict[str, str | None] = {}
+    for field in fields:
+        value = ids.get(field)
+        if value is not None:
+            name = f"{what}.{field}"
+            within_store(store.root, store.root / checked_id(value, name), name)
+        found[field] = value
+    return found
+
+
 def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> list[Link]:
-    """The chain of a plan (its parsed JSON and, when stored, its file), each link checked."""
+    """The chain of a plan (its parsed JSON and, when stored, its file), each link checked;
+    an id the plan or a stored document gives that is not an id of the store is a
+    :class:`StoreError` naming the file and the field, raised before anything is read."""
     links: list[Link] = []
     source = plan.get("source") or {}
+    origin = f"{printable(str(plan_path))}: source" if plan_path is not None else "plan source"
+    ids = _stored_ids(store, source, ("doe_run", "pipeline_id"), origin)
     scenario = plan.get("scenario") or {}
     target = scenario.get("target") or {}
     element_set = {k: target[k] for k in ("tle", "omm", "orbit") if k in target}
@@ -182,7 +206,7 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
             "inline in the plan and in the DoE run's config.json",
         )
     )
-    doe_id, pipeline_id = source.get("doe_run"), source.get("pipeline_id")
+    doe_id, pipeline_id = ids["doe_run"], ids["pipeline_id"]
     config: dict[str, Any] | None = None
     if doe_id and (store.root / doe_id / "manifest.json").is_file():
         try:
@@ -194,18 +218,31 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
     elif doe_id:
         links.append(Link("launch fit", "-", None, None, MISSING, "the DoE run is not stored"))
     if doe_id:
-        links.append(_run_link(store, "DoE run", doe_id))
+        links.append(_run_link(store, "DoE run", doe_id, f"{origin}.doe_run"))
     summary: dict[str, Any] = {}
     pipeline_dir = store.root / str(doe_id) / PIPELINE_DIR / str(pipeline_id)
-    if doe_id and pipeline_id and (pipeline_dir / PIPELINE_MARKER).is_file():
+    summary_file = pipeline_dir / PIPELINE_MARKER
+    if doe_id and pipeline_id:
+        within_store(store.root, pipeline_dir, f"{origin}.pipeline_id")
+    if doe_id and pipeline_id and summary_file.is_file():
         try:
-            summary = read_json(pipeline_dir / PIPELINE_MARKER)
+            summary = read_json(summary_file)
         except StoreError:
             summary = {}
-    for step in summary.get("iterations", []) if isinstance(summary, dict) else []:
+    iterations = summary.get("iterations", []) if isinstance(summary, dict) else []
+    for k, step in enumerate(iterations if isinstance(iterations, list) else []):
+        what = f"{printable(str(summary_file))}: iterations[{k}]"
+        if not isinstance(step, dict):
+            raise StoreError(f"{what}: not a JSON object")
+        _stored_ids(store, step, ("run_id", "infill_run"), what)
         child = step.get("infill_run")
         if step.get("run_id") and step.get("fit_id"):
-            fit_dir = store.root / step["run_id"] / "surrogates" / step["fit_id"]
+            fit_id = checked_id(step["fit_id"], f"{what}.fit_id")
+            fit_dir = within_store(
+                store.root,
+                store.root / step["run_id"] / "surrogates" / fit_id,
+                f"{what}.fit_id",
+            )
             links.append(
                 _product_link(
                     f"surrogates (round {step.get('iteration')})",
@@ -215,7 +252,14 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
                 )
             )
         if child:
-            links.append(_run_link(store, f"child run (round {step.get('iteration')})", child))
+            links.append(
+                _run_link(
+                    store,
+                    f"child run (round {step.get('iteration')})",
+                    child,
+                    f"{what}.infill_run",
+                )
+            )
     if pipeline_id:
         links.append(
             _product_link(
