@@ -299,3 +299,25 @@ def test_weights_of_1e308_pick_the_point_weights_1_1_1_pick(scenario):
     # the proportions stay: 1e308 twice and 2e308 weigh as 1, 1, 2
     fractions = weight_fractions(np.array([1e308, 1e308, 1e308]) * [0.5, 0.5, 1.0])
     assert fractions.tolist() == [0.25, 0.25, 0.5]
+
+
+def test_history_refuses_a_catalog_row_whose_id_is_not_an_id(tmp_path):
+    from ovtraj.store.files import StoreError
+    from ovtraj.tracking.catalog import SCHEMA, Catalog
+    from ovtraj.tracking.history import history
+
+    row = dict.fromkeys(SCHEMA.names)
+    row.update(kind="plan", id=PIPELINE_ID, source="x", source_sha256="-", tags="{}")
+    row.update(target="t", doe_run=DOE_ID, run_id=DOE_ID, pipeline_id=PIPELINE_ID)
+    path = tmp_path / "catalog" / "catalog.parquet"
+
+    def catalog(**values: object) -> Catalog:
+        frame = pd.DataFrame([{**row, **values}], columns=SCHEMA.names, dtype=object)
+        return Catalog(frame, path)
+
+    assert history(catalog())["plan_id"].tolist() == [PIPELINE_ID]
+    for column, value in (("pipeline_id", "../../x"), ("doe_run", "a\nb"), ("id", "..")):
+        with pytest.raises(StoreError) as raised:
+            history(catalog(**{column: value}))
+        shown = "plan_id" if column == "id" else column
+        assert str(raised.value).startswith(f"{path}: {shown} {value!r} is not an id"), raised

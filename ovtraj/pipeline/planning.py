@@ -14,7 +14,7 @@ from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import checked_id
+from ovtraj.runs.store import checked_id, within_store
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
 from ovtraj.store.layout import PLAN_MARKER_SUFFIX
@@ -51,10 +51,13 @@ def _since_previous_plan(store: RunStore, plan: dict[str, Any]) -> Any:
     from ovtraj.tracking.figures import plan_figures
     from ovtraj.tracking.history import previous_plan
 
-    row = previous_plan(refresh(store.root), plan)
+    catalog = refresh(store.root)
+    row = previous_plan(catalog, plan)
     if row is None:
         return None
-    previous = read_plan(plan_file(store.root, row["source"])).to_dict()
+    # the catalog is a file like any other: the path its row gives stays inside the store
+    path = within_store(store.root, plan_file(store.root, row["source"]), f"{catalog.path}: source")
+    previous = read_plan(path).to_dict()
     return row, changes(plan_figures(previous), plan_figures(plan))
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import pandas as pd
 
-from ovtraj.tracking.catalog import Catalog
+from ovtraj.tracking.catalog import Catalog, checked_id
 
 __all__ = ["HISTORY_COLUMNS", "history", "previous_plan"]
 
@@ -39,6 +39,8 @@ HISTORY_COLUMNS = (
     "scenario",
     "source",
 )
+# The columns of a history row that name another item: ids, as the catalog file gives them.
+_ID_COLUMNS = ("plan_id", "pipeline_id", "doe_run", "run_id")
 
 
 def _monte_carlo(frame: pd.DataFrame) -> pd.DataFrame:
@@ -56,7 +58,9 @@ def history(
     tags: dict[str, str] | None = None,
 ) -> pd.DataFrame:
     """The plans of ``target`` (its name), ``scenario`` (its name) and carrying ``tags``
-    (every one), oldest element set first (then oldest pipeline, then plan id)."""
+    (every one), oldest element set first (then oldest pipeline, then plan id).
+    :class:`~ovtraj.store.files.StoreError` naming the catalog file and the column when a
+    row's id is not an id of the store."""
     frame = catalog.frame
     plans = frame[(frame["kind"] == "plan") & frame["error"].isna()].copy()
     if target is not None:
@@ -73,6 +77,10 @@ def history(
     plans = plans.sort_values(
         ["element_set_epoch_utc", "created_utc", "plan_id"], na_position="first"
     )
+    for column in _ID_COLUMNS:  # each checked as an id typed on the command line
+        for value in plans[column]:
+            if value is not None:
+                checked_id(value, f"{catalog.path}: {column}")
     return plans[list(HISTORY_COLUMNS)].reset_index(drop=True)
 
 
