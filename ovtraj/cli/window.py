@@ -21,6 +21,7 @@ from ovtraj.cli.common import (
 from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, _runner_choice
 from ovtraj.cli.picking import MaxDvOpt, MaxTimeOpt, MinLoadOpt, WeightsOpt, _pick
 from ovtraj.cli.progress import echo, progress_bar
+from ovtraj.config.io_limits import shown_text
 from ovtraj.formatting import quantity
 
 DaysOpt = Annotated[
@@ -217,21 +218,22 @@ def _print_table(outcome: Any, store: Any) -> None:
     for record in outcome.records:
         best = record["day"] == outcome.best_day
         if record["status"] != "planned":
-            table.add_row(
-                str(record["day"]), record["date"], "-", "-", "-", "-", "-", record["reason"]
-            )
+            date, reason = shown_text(record["date"]), shown_text(record["reason"])
+            table.add_row(str(record["day"]), date, "-", "-", "-", "-", "-", reason)
             continue
         table.add_row(
             str(record["day"]),
-            record["date"] + (" *" if best else ""),
+            shown_text(record["date"]) + (" *" if best else ""),
             quantity(record["t_total_s"], "s"),
             quantity(record["dv_total_mps"], "m/s"),
             quantity(record["m_load_kg"], "kg"),
             f"{record['score']:.4f}",
             str(record["converged"]),
-            _plan_path(record, store),
+            shown_text(_plan_path(record, store)),
         )
-    console = Console(highlight=False)
+    # A day's record is stored text (a reused window's is read back): escaped and cut
+    # (shown_text), and no rich markup.
+    console = Console(highlight=False, markup=False)
     if not console.is_terminal:
-        console = Console(highlight=False, width=10_000)
+        console = Console(highlight=False, markup=False, width=10_000)
     console.print(table)
