@@ -43,6 +43,13 @@ def _stored_path(store: Any, catalog: Any, path: Any, field: str) -> Any:
     return within_store(store.root, path, f"{catalog.path}: {field}")
 
 
+def _stored_plan(store: Any, catalog: Any, row: Any) -> Path:
+    """The plan file of a catalog row, inside the store (:func:`_stored_path`)."""
+    from ovtraj.tracking.catalog import plan_file
+
+    return Path(str(_stored_path(store, catalog, plan_file(store.root, row["source"]), "source")))
+
+
 def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label: str) -> _Item:
     from ovtraj.store.files import read_json
     from ovtraj.tracking.catalog import plan_id
@@ -95,7 +102,6 @@ def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     """A run, pipeline result or plan named by its id (`ovtraj runs`) or a file."""
     from ovtraj.runs.store import RunStore
     from ovtraj.store.layout import MANIFEST, PIPELINE_MARKER
-    from ovtraj.tracking.catalog import plan_file
 
     path = Path(ref)
     if path.is_dir() and (path / MANIFEST).is_file():
@@ -117,8 +123,7 @@ def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
             store, _stored_path(store, catalog, store.root / row["source"], "source")
         )
     if row["kind"] == "plan":
-        plan_path = _stored_path(store, catalog, plan_file(store.root, row["source"]), "source")
-        plan_path = Path(str(plan_path))
+        plan_path = _stored_plan(store, catalog, row)
         return _plan_item(store, catalog, plan_path, _read_plan(plan_path), f"plan {ref}")
     raise ValueError(f"{ref}: a {row['kind']} (diff takes runs, pipeline results and plans)")
 
@@ -364,7 +369,7 @@ def lineage(
     """The chain of a plan, element set -> launch fit -> DoE run -> child runs -> surrogates
     -> front -> plan -> exports, each with its digest and whether it still verifies (exit 1
     when a link is missing or fails)."""
-    from ovtraj.tracking.catalog import plan_file, refresh
+    from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.lineage import lineage as plan_lineage
 
     store = _store(store_root)
@@ -374,12 +379,12 @@ def lineage(
         if path.is_file() and path.suffix.lower() in (".oem", ".opm", ".txt", ".kvn"):
             ref = _exported_plan(path)
             row = found.item(ref)
-            path = Path(str(plan_file(store.root, row["source"])))
+            path = _stored_plan(store, found, row)
         elif not path.is_file():
             row = found.item(plan_ref)
             if row["kind"] != "plan":
                 raise ValueError(f"{plan_ref}: a {row['kind']}, not a plan")
-            path = Path(str(plan_file(store.root, row["source"])))
+            path = _stored_plan(store, found, row)
         path = path.resolve()
         links = plan_lineage(store, _read_plan(path), path)
     except _errors() as err:

@@ -47,6 +47,12 @@ class IoLimits(StrictModel):
     doe_estimate_shown_gib: float = bounded(
         unit="GiB", ge=0, le=1e6, description="a DoE estimated above this says its estimate"
     )
+    json_max_depth: int = bounded(
+        unit="levels", ge=8, le=900, description="deepest nesting of a JSON file read"
+    )
+    json_number_max_chars: int = bounded(
+        unit="characters", ge=24, le=4300, description="longest number in a JSON file read"
+    )
 
     @property
     def config_file_max_bytes(self) -> int:
