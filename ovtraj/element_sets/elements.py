@@ -8,6 +8,7 @@ constants"), and what the reports show: name, catalog number and epoch (UTC).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -54,6 +55,31 @@ class SourceElements:
     def label(self) -> str:
         """``NAME (catalog number N)`` for messages."""
         return f"{self.name or 'unnamed'} (catalog number {self.catalog_number})"
+
+
+def check_physical(values: dict[str, float], where: str, what: str) -> None:
+    """ConfigError naming the first of ``values`` (an element set's real fields, by the
+    name a reader knows them: ``MEAN_MOTION`` or ``mean motion (line 2, columns 53-63)``)
+    that no orbit has: not finite (NaN, inf), a mean motion not above 0 (SGP4 divides by
+    it), an eccentricity outside [0, 1) (not an ellipse). The first two keys are the mean
+    motion [rev/day] and the eccentricity; checked before SGP4 sees them."""
+    for name, value in values.items():
+        if not math.isfinite(value):
+            raise ConfigError([f"{what}: {name} = {value!r} is not a finite number"], where)
+    (motion_name, motion), (eccentricity_name, eccentricity) = list(values.items())[:2]
+    if motion <= 0:
+        raise ConfigError(
+            [f"{what}: {motion_name} = {motion!r} rev/day; an orbit's mean motion is above 0"],
+            where,
+        )
+    if not 0 <= eccentricity < 1:
+        raise ConfigError(
+            [
+                f"{what}: {eccentricity_name} = {eccentricity!r}; an elliptic orbit's "
+                "eccentricity is from 0 to below 1"
+            ],
+            where,
+        )
 
 
 def checked_satrec(sat: Satrec, where: str, what: str) -> Satrec:

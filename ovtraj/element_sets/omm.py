@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
@@ -26,8 +25,9 @@ from sgp4 import omm as sgp4_omm
 from sgp4.api import WGS72, Satrec
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.element_sets.elements import SourceElements, checked_satrec
+from ovtraj.element_sets.elements import SourceElements, check_physical, checked_satrec
 from ovtraj.errors import ConfigError
+from ovtraj.store.files import json_data
 
 __all__ = ["looks_like_omm", "omm_element_sets", "omm_elements"]
 
@@ -114,6 +114,7 @@ def omm_elements(fields: Mapping[str, Any], where: str, label: str = "OMM") -> S
             raise ConfigError(
                 [f"{label}: {key} = {record[key]!r} is not a number"], where
             ) from None
+    check_physical({key: float(record[key]) for key in _REAL_FIELDS}, where, label)
     for key in _INTEGER_FIELDS:
         try:
             int(record[key])
@@ -178,10 +179,10 @@ def _kvn_records(text: str, where: str) -> list[dict[str, Any]]:
 
 
 def _json_records(text: str, where: str) -> list[dict[str, Any]]:
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise ConfigError([f"OMM JSON does not parse: {err}"], where) from None
+    try:  # bounded: nesting depth and number length (configs/io_limits.yaml)
+        data = json_data(text)
+    except ValueError as err:
+        raise ConfigError([f"OMM JSON: {err}"], where) from None
     items = data if isinstance(data, list) else [data]
     if not all(isinstance(item, dict) for item in items):
         raise ConfigError(["OMM JSON: expected an object or a list of objects"], where)

@@ -20,7 +20,7 @@ from sgp4.api import WGS72, Satrec
 from sgp4.earth_gravity import wgs72
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.element_sets.elements import SourceElements, checked_satrec
+from ovtraj.element_sets.elements import SourceElements, check_physical, checked_satrec
 from ovtraj.errors import ConfigError
 
 __all__ = ["tle_element_sets", "tle_elements"]
@@ -66,6 +66,34 @@ def _check_line(line: str, number: int, line_no: int, where: str) -> None:
         )
 
 
+# Line 2's real fields (Spacetrack Report No. 3), columns 1-based inclusive: the mean
+# motion and the eccentricity first (check_physical's order); the eccentricity has an
+# assumed leading decimal point.
+_LINE2_REALS = {
+    "mean motion": (53, 63),
+    "eccentricity": (27, 33),
+    "inclination": (9, 16),
+    "right ascension of the ascending node": (18, 25),
+    "argument of perigee": (35, 42),
+    "mean anomaly": (44, 51),
+}
+
+
+def _check_line2_values(line2: str, line_no: int, where: str) -> None:
+    """ConfigError naming the field of line 2 that no orbit has (a mean motion of 0 would
+    divide by zero in SGP4's initialisation, a NaN or ``inf`` propagate silently); a field
+    that does not parse is left to the reference reader's layout checks."""
+    values = {}
+    for name, (first, last) in _LINE2_REALS.items():
+        text = line2[first - 1 : last].strip()
+        try:
+            value = float(f"0.{text}" if name == "eccentricity" else text)
+        except ValueError:
+            return
+        values[f"{name} (line {line_no}, columns {first}-{last})"] = value
+    check_physical(values, where, "TLE")
+
+
 def tle_elements(lines: Sequence[str], where: str, first_line_no: int = 1) -> SourceElements:
     """One element set from its two lines, or a name line and two lines.
 
@@ -83,6 +111,7 @@ def tle_elements(lines: Sequence[str], where: str, first_line_no: int = 1) -> So
     no1, no2 = first_line_no + len(lines) - 2, first_line_no + len(lines) - 1
     _check_line(line1, 1, no1, where)
     _check_line(line2, 2, no2, where)
+    _check_line2_values(line2, no2, where)
     try:  # the reference reader's column checks (it raises on the first bad line)
         sgp4_io.twoline2rv(line1, line2, wgs72)
     except ValueError as err:

@@ -55,7 +55,7 @@ from ovtraj.reentry.model import EntryModel
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import Impulse, RendezvousResult
 from ovtraj.store.backends import location
-from ovtraj.store.files import StoreError, holds_other, write_bytes
+from ovtraj.store.files import StoreError, holds_other, json_data, write_bytes
 from ovtraj.store.records import json_text
 from ovtraj.version import code_version
 
@@ -832,11 +832,9 @@ def read_plan(path: Path) -> MissionPlan:
         text = read_config_file(path)
     except ConfigError as err:
         raise PlanError(f"{shown}: cannot read the plan file ({'; '.join(err.problems)})") from None
-    try:
-        data = json.loads(text) if suffix == ".json" else parse_yaml(text)
-    except json.JSONDecodeError as err:
-        raise PlanError(f"{shown}: not valid JSON: {err}") from None
-    except ValueError as err:  # parse_yaml: one line, YAML anchors and aliases refused
+    try:  # both bounded: depth and numbers (json_data), anchors and aliases (parse_yaml)
+        data = json_data(text) if suffix == ".json" else parse_yaml(text)
+    except ValueError as err:  # one line
         raise PlanError(f"{shown}: {err}") from None
     if not isinstance(data, dict):
         raise PlanError(f"{shown}: expected a mapping at the top level, got {type(data).__name__}")

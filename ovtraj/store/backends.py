@@ -24,6 +24,8 @@ from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from ovtraj.errors import ConfigError
+
 __all__ = ["PreconditionFailed", "S3Path", "StorageError", "location"]
 
 SCHEME = "s3://"
@@ -84,8 +86,10 @@ class S3Path:
     def from_url(cls, url: str) -> S3Path:
         rest = url.removeprefix(SCHEME)
         bucket, _, key = rest.partition("/")
-        if not bucket:
-            raise ValueError(f"not an s3:// URL with a bucket: {url!r}")
+        if not bucket:  # ConfigError, a ValueError: the commands' one line, exit 2
+            raise ConfigError(
+                ["an object-store location names its bucket: s3://BUCKET[/PREFIX]"], url
+            )
         return cls(bucket, key)
 
     # -- pure path ------------------------------------------------------------------------

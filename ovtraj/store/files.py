@@ -41,6 +41,7 @@ import errno
 import functools
 import hashlib
 import json
+import math
 import os
 import re
 import secrets
@@ -68,6 +69,7 @@ __all__ = [
     "file_digest",
     "holds",
     "holds_other",
+    "json_data",
     "make_folders",
     "marker_files",
     "os_error_text",
@@ -470,12 +472,71 @@ def read_bytes(path: Path, expected: Digest | None = None) -> bytes:
     return payload
 
 
-def read_json(path: Path, expected: Digest | None = None) -> Any:
+def json_data(text: str | bytes) -> Any:
+    """The value of a JSON text read from a file (a plan, an OMM, a stored document),
+    bounded: ``ValueError`` with one readable line for a text that does not parse, a
+    number longer than ``json_number_max_chars`` characters (5000 digits would be ``inf``
+    as a float and cost a quadratic conversion as an int) or beyond a float's range
+    (``1e999``), ``NaN`` or ``Infinity`` (not JSON: :func:`json_text` never writes them),
+    or arrays and objects nested deeper than ``json_max_depth`` (``configs/io_limits.yaml``;
+    Python's parser would end in a RecursionError near 1000 levels)."""
+    from ovtraj.config.io_limits import io_limits
+
+    limits = io_limits()
+    longest = limits.json_number_max_chars
+    where = "json_number_max_chars of configs/io_limits.yaml"
+
+    def number(kind: type) -> Any:
+        def parse(literal: str) -> Any:
+            if len(literal) > longest:
+                raise ValueError(
+                    f"a number of {len(literal)} characters, more than {longest} ({where})"
+                )
+            value = kind(literal)
+            if kind is float and not math.isfinite(value):
+                raise ValueError(f"{literal} is beyond a float's range")
+            return value
+
+        return parse
+
+    def constant(name: str) -> Any:
+        raise ValueError(f"{name} is not a JSON number (write a finite number or null)")
+
+    too_deep = (
+        f"arrays and objects nested deeper than {limits.json_max_depth} levels "
+        "(json_max_depth of configs/io_limits.yaml)"
+    )
     try:
-        return json.loads(read_bytes(path, expected).decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        # ValueError: also an integer of more digits than Python converts; RecursionError:
-        # arrays nested thousands deep.
+        value = json.loads(
+            text, parse_int=number(int), parse_float=number(float), parse_constant=constant
+        )
+    except json.JSONDecodeError as err:
+        raise ValueError(f"not valid JSON: {err}") from None
+    except RecursionError:
+        raise ValueError(too_deep) from None
+    if _depth(value) > limits.json_max_depth:
+        raise ValueError(too_deep)
+    return value
+
+
+def _depth(value: Any) -> int:
+    """How deep arrays and objects nest in the parsed JSON ``value`` (a scalar: 0), walked
+    without recursion."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, level = stack.pop()
+        children = item.values() if isinstance(item, dict) else item
+        if not isinstance(item, dict | list):
+            continue
+        deepest = max(deepest, level)
+        stack.extend((child, level + 1) for child in children if isinstance(child, dict | list))
+    return deepest
+
+
+def read_json(path: Path, expected: Digest | None = None) -> Any:
+    try:  # bounded: nesting depth and number length (json_data)
+        return json_data(read_bytes(path, expected).decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as err:
         raise StoreError(f"{path}: unreadable JSON file ({err})") from None
 
 

@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
-from ovtraj.store.files import StoreError, make_folders, os_error_text
+from ovtraj.store.files import StoreError, json_data, make_folders, os_error_text
 
 __all__ = ["held", "hold", "hold_directory"]
 
@@ -188,8 +188,8 @@ def _lease_state(path: S3Path) -> tuple[dict | None, str | None]:
     except FileNotFoundError:
         return None, None
     try:
-        content = json.loads(payload)
-    except ValueError:
+        content = json_data(payload)
+    except ValueError:  # also nested too deep: not a lease
         content = {}
     return (content if isinstance(content, dict) else {}), etag
 

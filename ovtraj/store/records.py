@@ -5,7 +5,8 @@ The one place where typed results become stored or printed data:
 - :func:`plain` turns numpy scalars and arrays into Python values and every
   non-finite float into ``None``, recursively (a stored or printed result never
   holds NaN: JSON has no NaN and Parquet has null);
-- :func:`json_text` is ``json.dumps`` of the plain value, refusing what JSON cannot hold;
+- :func:`json_text` is ``json.dumps`` of the plain value, refusing what JSON cannot hold
+  (:func:`ovtraj.store.files.json_data` reads one back, bounded);
 - :func:`json_default` is the one numpy -> Python conversion, as ``json.dumps``'s
   ``default`` hook for callers that keep NaN as it is (:func:`plain` uses it too);
 - :func:`record_schema` declares a dataset's columns (all nullable unless named
