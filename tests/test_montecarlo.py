@@ -14,6 +14,8 @@ from ovtraj.cli import app
 from ovtraj.cli.mission import _format_monte_carlo
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig, default_dispersions
+from ovtraj.config.io_limits import io_limits
+from ovtraj.formatting import duration
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import fly_plan
@@ -113,6 +115,8 @@ def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot
     assert mc["loop"] == "closed" and {"runs", "landing_miss_m", "feasible_fraction"} <= set(mc)
     assert closed["runs"] == opened["runs"] == 4
     assert closed["feasible_fraction"] == 1.0 and closed["within_stated_miss_fraction"] == 1.0
+    # Its time estimate said first, on stderr (the JSON on stdout stays whole).
+    assert result.stderr.splitlines()[0].startswith("--monte-carlo 4: about ")
     assert closed["landing_miss_m"]["max"] <= mc["stated_miss_m"]
     # The same draws flown without corrections: far off or not down at all (a percentile
     # that falls on a run that did not land is None).
@@ -229,6 +233,21 @@ def test_a_run_that_cannot_dock_is_a_failure_with_its_reason(plan):
     assert summary["dv_mps"]["transfer burn 1"]["p95"] is None
 
 
+def test_a_monte_carlo_beyond_the_configured_runs_is_refused_with_its_estimate(plan_file):
+    limits = io_limits()
+    runs = limits.fly_monte_carlo_max_runs + 1
+    result = runner.invoke(app, ["fly", str(plan_file), "--monte-carlo", str(runs)])
+    estimate = duration(runs * limits.fly_monte_carlo_j2_s_per_run)
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr.splitlines() == [
+        f"--monte-carlo {runs}: about {estimate} in this process "
+        f"({limits.fly_monte_carlo_j2_s_per_run:g} s a run: fly_monte_carlo_j2_s_per_run of "
+        f"configs/io_limits.yaml): more than fly_monte_carlo_max_runs = "
+        f"{limits.fly_monte_carlo_max_runs}; give --allow-long-run to fly it, or run the "
+        "Monte Carlo flow (flows/mission_monte_carlo.py) on several workers"
+    ]
+
+
 def test_bad_dispersions_are_refused_naming_the_field(plan_file, tmp_path):
     data = yaml.safe_load(config_path("dispersions.yaml").read_text())
     data["burns"]["pointing_deg"] = -1.0
@@ -317,10 +336,17 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
 # --- the plan flown under the high-fidelity sky (issue 47) ---------------------------------
 
 
-def test_the_plan_flown_under_the_high_fidelity_sky_lands_and_reports_its_extra_dv(plan_file):
-    result = runner.invoke(app, ["fly", str(plan_file), "--fidelity", "high", "--json"])
+def test_the_plan_flown_under_the_high_fidelity_sky_lands_and_reports_its_extra_dv(
+    plan_file, tmp_path
+):
+    mine = tmp_path / "my_force_model.yaml"  # the user's file: the report names it
+    mine.write_text(config_path("force_model.yaml").read_text())
+    result = runner.invoke(
+        app, ["fly", str(plan_file), "--fidelity", "high", "--force-model", str(mine), "--json"]
+    )
     assert result.exit_code == 0, result.output
     row = json.loads(result.stdout)
+    assert row["force_model_file"] == str(mine.resolve())
     assert row["fidelity"] == "high" and row["landed_within_stated_miss"] is True
     planned, j2, high = row["plan"], row["closed_loop_j2"], row["closed_loop_high_fidelity"]
     impulses = read_plan(plan_file).impulses()
@@ -344,6 +370,7 @@ def test_the_plan_flown_under_the_high_fidelity_sky_lands_and_reports_its_extra_
     assert row["force_model"]["gravity"] == {"model": "egm2008", "degree": 20, "order": 20}
     text = format_fidelity_report(row)  # what `fly --fidelity high` prints (no flight twice)
     assert "closed loop, high fidelity" in text
+    assert f"(force model: {mine.resolve()})" in text.splitlines()[0]
     assert f"{high['dv_mps']['deorbit burn']:.2f}" in text
     assert f"extra dV under the high-fidelity sky: {row['extra_dv_mps']:+.2f} m/s" in text
 

@@ -714,6 +714,24 @@ def test_a_redirect_to_another_host_only_if_allowed_cached_under_the_url_served(
     assert (len(first.requests), len(other.requests)) == (3, 1)  # 1 refused, 2 allowed
 
 
+def test_a_redirect_to_another_port_of_the_same_host_counts_as_another_host(
+    serve, settings, tmp_path
+):
+    """127.0.0.1:P -> 127.0.0.1:Q: another program may listen on another port, so it is
+    refused like another host (it was followed when only the host names were compared)."""
+    other = serve({"/iss.tle": _ok(ISS_TLE.read_bytes())})
+    served = f"http://127.0.0.1:{other.port}/iss.tle"
+    first = serve({"/iss.tle": _moved(served)})
+    requested = f"http://127.0.0.1:{first.port}/iss.tle"
+    with pytest.raises(ConfigError) as caught:
+        read_source(requested, settings=settings, cache_dir=tmp_path)
+    assert str(caught.value) == (
+        f"invalid configuration in {requested}: redirected to another host, 127.0.0.1 port "
+        f"{other.port} ({served}): refused, not in url_redirect_hosts"
+    )
+    assert other.requests == [] and not (tmp_path / "urls").exists()
+
+
 def test_a_redirect_loop_and_an_empty_allow_list_in_the_resolved_scenario(
     serve, settings, tmp_path
 ):

@@ -63,6 +63,14 @@ def fly(
             show_default=False,
         ),
     ] = None,
+    allow_long_run: Annotated[
+        bool,
+        typer.Option(
+            "--allow-long-run",
+            help="fly --monte-carlo beyond fly_monte_carlo_max_runs of configs/io_limits.yaml "
+            "(its time estimate is printed first; the Monte Carlo flow runs it in parallel)",
+        ),
+    ] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Replay a mission plan through the real dynamics from the carrier's drop: landing miss
@@ -84,8 +92,13 @@ def fly(
     except ConfigError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
+    if monte_carlo:  # the estimate said (stderr) before the work; refused beyond the limit
+        typer.echo(_monte_carlo_estimate(monte_carlo, fidelity.value, allow_long_run), err=True)
     if force_model is not None:
-        row, landed = _high_fidelity(plan, dispersions, force_model)
+        from ovtraj.store.paths import config_path
+
+        read = config_path("force_model.yaml") if force_model_file is None else force_model_file
+        row, landed = _high_fidelity(plan, dispersions, force_model, str(Path(read).resolve()))
         text = row.pop("text")
     else:
         report = fly_plan(plan)
@@ -105,14 +118,40 @@ def fly(
         raise typer.Exit(code=1)
 
 
-def _high_fidelity(plan: Any, dispersions: Any, force_model: Any) -> tuple[dict, bool]:
-    """The nominal closed loop under both skies, reported side by side with the plan."""
+def _high_fidelity(plan: Any, dispersions: Any, force_model: Any, source: str) -> tuple[dict, bool]:
+    """The nominal closed loop under both skies, reported side by side with the plan;
+    ``source``: the force-model file read."""
     from ovtraj.mission.sky_flight import fidelity_report, fly_nominal, format_fidelity_report
 
     j2 = fly_nominal(plan, dispersions)
     high = fly_nominal(plan, dispersions, force_model)
-    report = fidelity_report(plan, j2, high, force_model)
+    report = fidelity_report(plan, j2, high, force_model, source)
     return {**report, "text": format_fidelity_report(report)}, report["landed_within_stated_miss"]
+
+
+def _monte_carlo_estimate(runs: int, fidelity: str, allowed: bool) -> str:
+    """The line that says how long ``runs`` dispersed flights take here (one process);
+    typer.Exit(2) after saying it when ``runs`` is beyond ``fly_monte_carlo_max_runs`` and
+    not ``allowed``."""
+    from ovtraj.config.io_limits import io_limits
+    from ovtraj.formatting import duration
+
+    limits = io_limits()
+    name = f"fly_monte_carlo_{fidelity}_s_per_run"
+    each = getattr(limits, name)
+    line = (
+        f"--monte-carlo {runs}: about {duration(runs * each)} in this process "
+        f"({each:g} s a run: {name} of configs/io_limits.yaml)"
+    )
+    if runs > limits.fly_monte_carlo_max_runs and not allowed:
+        typer.echo(
+            f"{line}: more than fly_monte_carlo_max_runs = {limits.fly_monte_carlo_max_runs}; "
+            "give --allow-long-run to fly it, or run the Monte Carlo flow "
+            "(flows/mission_monte_carlo.py) on several workers",
+            err=True,
+        )
+        raise typer.Exit(code=2)
+    return line
 
 
 def _dispersions(path: Path | None) -> Any:

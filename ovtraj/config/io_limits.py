@@ -7,7 +7,11 @@
 * the characters of a value or a name echoed in an error line (:func:`echoed`), and of
   a stored text (a name, a tag, an id) a command's plain output shows (:func:`shown_text`);
 * the disk a DoE sample takes, for the estimate checked against the free disk before a
-  DoE writes (:func:`ovtraj.runs.execute.check_free_disk`).
+  DoE writes (:func:`ovtraj.runs.execute.check_free_disk`);
+* the nesting depth and the number length of a JSON file read
+  (:func:`ovtraj.store.files.json_data`);
+* the runs ``ovtraj fly --monte-carlo`` flies without ``--allow-long-run``, and the
+  seconds a run takes for the estimate it prints first.
 
 Like ``configs/orchestration.yaml`` these belong to no scenario: they never change a
 result or a run id.
@@ -52,6 +56,18 @@ class IoLimits(StrictModel):
     )
     json_number_max_chars: int = bounded(
         unit="characters", ge=24, le=4300, description="longest number in a JSON file read"
+    )
+    fly_monte_carlo_max_runs: int = bounded(
+        unit="runs",
+        ge=1,
+        le=100_000,
+        description="`ovtraj fly --monte-carlo N` beyond this needs --allow-long-run",
+    )
+    fly_monte_carlo_j2_s_per_run: float = bounded(
+        unit="s", gt=0, le=1e6, description="a dispersed flight under --fidelity j2 takes"
+    )
+    fly_monte_carlo_high_s_per_run: float = bounded(
+        unit="s", gt=0, le=1e6, description="a dispersed flight under --fidelity high takes"
     )
 
     @property

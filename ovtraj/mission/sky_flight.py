@@ -18,7 +18,7 @@ from typing import Any
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
-from ovtraj.formatting import number, split_unit
+from ovtraj.formatting import number, printable, split_unit
 from ovtraj.mission.montecarlo import (
     MANOEUVRES,
     PATH_LIMITS,
@@ -91,10 +91,13 @@ def fidelity_report(
     j2: RunOutcome,
     high: RunOutcome,
     settings: ForceModelSettings,
+    source: str = "configs/force_model.yaml",
 ) -> dict[str, Any]:
     """The plan's dV beside the nominal closed-loop flights under both skies: each
     manoeuvre, the total, the high-fidelity flight's extra dV, the arrival and landing
-    misses, the path-limit margins and whether it landed within the stated miss."""
+    misses, the path-limit margins and whether it landed within the stated miss.
+    ``source`` is the force-model file ``settings`` were read from, which the report
+    names (the shipped one, or the user's ``--force-model``)."""
     limits, planned = path_limits(plan), planned_dv(plan)
     stated = plan.terminal.stated_miss_m
     high_flight = _flight(high, limits)
@@ -105,6 +108,7 @@ def fidelity_report(
     return {
         "fidelity": "high",
         "force_model": settings.model_dump(mode="json"),
+        "force_model_file": source,
         "plan": {
             "dv_mps": {name: planned[name] for name in MANOEUVRES},
             "dv_total_mps": planned["total"],
@@ -167,7 +171,8 @@ def format_fidelity_report(report: dict[str, Any]) -> str:
             )
         )
     widths = [max(len(row[k]) for row in rows) for k in range(4)]
-    lines = ["flown closed loop, no dispersion (force model: configs/force_model.yaml)"]
+    source = printable(report.get("force_model_file", "configs/force_model.yaml"))
+    lines = [f"flown closed loop, no dispersion (force model: {source})"]
     for row in rows:
         lines.append(
             "  "

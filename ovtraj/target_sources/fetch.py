@@ -233,17 +233,35 @@ def _redirect_target(
             ],
             echoed(requested),
         )
-    own = (urllib.parse.urlsplit(requested).hostname or "").lower()
+    first = urllib.parse.urlsplit(requested)
+    own = (first.hostname or "").lower()
     host = (new.hostname or "").lower()
-    if host != own and host not in settings.url_redirect_hosts:
+    # The URL's own server is its host AND port (another port on the same host may be
+    # another program); http -> https on the schemes' default ports is the same server.
+    ports = (_port(first), _port(new))
+    same_server = host == own and (ports[0] == ports[1] or ports == (80, 443))
+    if not same_server and host not in settings.url_redirect_hosts:
+        where = host if host != own else f"{host} port {ports[1]}"
         raise ConfigError(
             [
-                f"redirected to another host, {echoed(host)} ({echoed(target)}): refused, "
+                f"redirected to another host, {echoed(where)} ({echoed(target)}): refused, "
                 "not in url_redirect_hosts"
             ],
             echoed(requested),
         )
     return target
+
+
+_DEFAULT_PORTS = {"http": 80, "https": 443}  # RFC 9110 sec. 4.2
+
+
+def _port(url: urllib.parse.SplitResult) -> int | None:
+    """The port ``url`` is served on: its own, else its scheme's default (a port that does
+    not parse is left to the request, which refuses it)."""
+    try:
+        return url.port or _DEFAULT_PORTS.get(url.scheme)
+    except ValueError:
+        return None
 
 
 def _body(response: http.client.HTTPResponse, where: str, settings: TargetSourceSettings) -> bytes:
