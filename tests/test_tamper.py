@@ -369,3 +369,30 @@ def test_an_id_read_from_a_stored_document_is_checked_before_it_is_shown(
     manifest.write_text(json.dumps(content))
     row = refresh(store).frame.query("kind == 'run'").iloc[0]
     assert row["parent"] is None and "parent" in row["error"] and "not an id" in row["error"]
+
+
+def test_a_forged_export_record_names_no_file_to_hash(tmp_path, monkeypatch, caplog):
+    """The export record beside the catalog is sealed: one rewritten without the key to
+    name another file (lineage would hash it and print its digest) lists no export."""
+    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.lineage import _export_links, record_export
+
+    monkeypatch.setenv(STORE_KEY_ENV, KEY_A)
+    store = tmp_path / "runs"
+    plans = store / ("a" * 16) / "pipeline" / ("b" * 16) / "plans"
+    plans.mkdir(parents=True)
+    plan = {"schema_version": 1, "name": "made up"}
+    (plans / "plan-sample-1.json").write_text(json.dumps(plan))
+    export = tmp_path / "plan.oem"
+    export.write_text("CCSDS_OEM_VERS = 2.0\n")
+    record = record_export(plans / "plan-sample-1.json", plan, export, "oem")
+    assert len(json.loads(record.read_bytes())["hmac"]) == 64
+    (link,) = _export_links(RunStore(store), plan_id(plan))
+    assert (link.path, link.state) == (str(export.resolve()), "ok")
+    secret = tmp_path / "outside.txt"
+    secret.write_text("not for lineage")
+    forged = json.loads(record.read_bytes())
+    forged["exports"] = {str(secret): {"format": "oem", **forged["exports"][str(export.resolve())]}}
+    record.write_text(json.dumps(forged))
+    assert _export_links(RunStore(store), plan_id(plan)) == []
+    assert "tampered" in caplog.text and str(record) in caplog.text

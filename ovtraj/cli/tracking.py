@@ -51,7 +51,6 @@ def _stored_plan(store: Any, catalog: Any, row: Any) -> Path:
 
 
 def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label: str) -> _Item:
-    from ovtraj.store.files import read_json
     from ovtraj.tracking.catalog import plan_id
     from ovtraj.tracking.figures import monte_carlo_figures, plan_figures
 
@@ -63,12 +62,14 @@ def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label
         & (frame["status"] == "complete")
     ].sort_values(["created_utc", "id"])
     if len(runs):
+        from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
         from ovtraj.tracking.catalog import checked_id
 
         run_id = checked_id(runs.iloc[-1]["id"], f"{catalog.path}: id")
         summary_path = _stored_path(store, catalog, store.root / run_id / "summary.json", "id")
-        summary = read_json(summary_path)
-        figures += monte_carlo_figures(summary if isinstance(summary, dict) else {})
+        # Sealed, or built again from the sealed batches: an edited summary is never shown.
+        summary = PlanMonteCarloRun(summary_path.parent).summary()
+        figures += monte_carlo_figures(summary)
     return _Item("plan", label, figures, plan, path)
 
 

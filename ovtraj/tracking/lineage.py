@@ -11,7 +11,7 @@ the reason.
 
 from __future__ import annotations
 
-import json
+import logging
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -22,8 +22,11 @@ from ovtraj.store.batched import content_id
 from ovtraj.store.files import Digest, StoreError, file_digest, read_json
 from ovtraj.store.layout import PIPELINE_DIR, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, PLANS_DIR
 from ovtraj.store.products import Product
+from ovtraj.store.seals import read_authenticated, write_sealed
 from ovtraj.tracking.catalog import CATALOG_DIR, plan_id
 from ovtraj.tracking.figures import element_set_epoch
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["EXPORTS_DIR", "Link", "lineage", "record_export"]
 
@@ -110,8 +113,6 @@ def _launch_fit_link(config: dict[str, Any]) -> Link:
 def record_export(plan_path: Path, plan: dict[str, Any], export: Path, fmt: str) -> Path | None:
     """Note ``export`` of a plan stored in a run store (``<store>/<run>/pipeline/<id>/plans/``)
     beside the store's catalog, for :func:`lineage`; None for a plan outside a store."""
-    from ovtraj.store.files import write_bytes
-
     plan_path = plan_path.resolve()
     if plan_path.parent.name != PLANS_DIR or plan_path.parents[2].name != PIPELINE_DIR:
         return None
@@ -120,16 +121,17 @@ def record_export(plan_path: Path, plan: dict[str, Any], export: Path, fmt: str)
     exports = _exports(record)
     exports[str(export.resolve())] = {"format": fmt, **file_digest(export).to_json()}
     document = {"plan": plan_id(plan), "exports": dict(sorted(exports.items()))}
-    write_bytes(record, json.dumps(document, indent=1).encode(), replace=True)
+    write_sealed(record, document, replace=True)
     return record
 
 
 def _exports(record: Path) -> dict[str, dict[str, Any]]:
     if not record.is_file():
         return {}
-    try:
-        document = read_json(record)
-    except StoreError:
+    try:  # sealed with a store key: a forged record names no file to hash
+        document = read_authenticated(record)
+    except StoreError as err:
+        logger.warning("%s; its exports are not listed", err)
         return {}
     found = document.get("exports") if isinstance(document, dict) else None
     return found if isinstance(found, dict) else {}
