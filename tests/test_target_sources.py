@@ -714,6 +714,42 @@ def test_a_redirect_to_another_host_only_if_allowed_cached_under_the_url_served(
     assert (len(first.requests), len(other.requests)) == (3, 1)  # 1 refused, 2 allowed
 
 
+def _with_mean_motion(text: str, mean_motion: str) -> bytes:
+    """The TLE ``text`` with line 2's mean motion (columns 53-63) replaced, checksum redone."""
+    name, line1, line2 = text.splitlines()[:3]
+    line2 = line2[:52] + mean_motion.rjust(11) + line2[63:68]
+    digits = sum(int(c) if c.isdigit() else c == "-" for c in line2)
+    return f"{name}\n{line1}\n{line2}{digits % 10}\n".encode()
+
+
+@pytest.mark.parametrize("mean_motion", ["0.00000000", "-1.0000000", "nan"])
+def test_an_element_set_no_orbit_has_is_refused_naming_the_field_also_from_a_url(
+    mean_motion, serve, settings, tmp_path
+):
+    """A mean motion of 0 once ended in ZeroDivisionError inside SGP4's initialisation
+    (an internal error), from a file or a URL alike."""
+    body = _with_mean_motion(ISS_TLE.read_text(), mean_motion)
+    server = serve({"/iss.tle": _ok(body)})
+    url = f"http://127.0.0.1:{server.port}/iss.tle"
+    with pytest.raises(ConfigError) as caught:
+        read_source(url, settings=settings, cache_dir=tmp_path)
+    value = float(mean_motion)
+    why = (
+        "is not a finite number"
+        if math.isnan(value)
+        else ("rev/day; an orbit's mean motion is above 0")
+    )
+    assert str(caught.value) == (
+        f"invalid configuration in {url}: TLE: mean motion (line 3, columns 53-63) = "
+        f"{value!r} {why}"
+    )
+    local = tmp_path / "iss.tle"
+    local.write_bytes(body)
+    result = runner.invoke(app, ["target", str(local)])
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr.splitlines() == [str(caught.value).replace(url, str(local))]
+
+
 def test_a_redirect_to_another_port_of_the_same_host_counts_as_another_host(
     serve, settings, tmp_path
 ):

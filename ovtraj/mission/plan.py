@@ -26,11 +26,11 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.config.base import ConfigError, format_validation_error, parse_yaml
@@ -61,6 +61,10 @@ from ovtraj.version import code_version
 
 SCHEMA_VERSION = "ovtraj.mission-plan/2"
 Vector3 = tuple[float, float, float]
+# What no flown plan holds: a mass, an altitude, a speed or a tolerance at or below zero, a
+# duration or a magnitude below zero (a plan file refused naming the field, before a flight).
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
 _BANK = HISTORY_COLUMNS.index("bank_rad")
 _TIME = HISTORY_COLUMNS.index("time_s")
 _SPEED = HISTORY_COLUMNS.index("speed_mps")
@@ -166,7 +170,7 @@ class PlannedImpulse(_Model):
     dv_radial_mps: float
     dv_along_track_mps: float
     dv_cross_track_mps: float
-    dv_mps: float
+    dv_mps: NonNegative
 
     @property
     def eci(self) -> np.ndarray:
@@ -197,8 +201,8 @@ class DropPlan(_Model):
     t_s: float
     latitude_deg: float
     longitude_deg: float
-    altitude_m: float
-    mach: float
+    altitude_m: NonNegative
+    mach: NonNegative
     fpa_deg: float
     r_eci_m: Vector3
     v_eci_mps: Vector3
@@ -211,9 +215,9 @@ class LaunchPlan(_Model):
     drop_t_s: float
     insertion_epoch_utc: str
     insertion_t_s: float
-    flight_time_s: float
-    parking_altitude_m: float
-    payload_kg: float
+    flight_time_s: NonNegative
+    parking_altitude_m: Positive
+    payload_kg: Positive
     insertion_arg_latitude_deg: float
     plane_inclination_deg: float
     plane_raan_deg: float
@@ -224,20 +228,20 @@ class LaunchPlan(_Model):
     insertion_v_eci_mps: Vector3
     programme: LaunchProgramme
     drop: DropPlan
-    max_dynamic_pressure_pa: float
-    max_axial_load_g: float
+    max_dynamic_pressure_pa: NonNegative
+    max_axial_load_g: NonNegative
 
 
 class RendezvousPlan(_Model):
-    wait_time_s: float
-    transfer_time_s: float
+    wait_time_s: NonNegative
+    transfer_time_s: NonNegative
     lead_angle_deg: float
     burn1: PlannedImpulse
     burn2: PlannedImpulse
     arrival_epoch_utc: str
     arrival_t_s: float
-    arrival_miss_m: float
-    miss_tolerance_m: float
+    arrival_miss_m: NonNegative
+    miss_tolerance_m: Positive
     # Between the chaser's and the target's planes at the first burn as phased; plan files
     # before issue 43 lack it.
     plane_difference_deg: float | None = None
@@ -248,11 +252,11 @@ class StayPlan(_Model):
     docking_t_s: float
     separation_epoch_utc: str
     separation_t_s: float
-    duration_s: float
+    duration_s: NonNegative
 
 
 class TransferPlan(_Model):
-    preparation_altitude_m: float
+    preparation_altitude_m: Positive
     burn1: PlannedImpulse
     burn2: PlannedImpulse
     arrival_epoch_utc: str
@@ -272,11 +276,11 @@ class EntryPlan(_Model):
     t_s: float
     latitude_deg: float
     longitude_deg: float
-    altitude_m: float
-    speed_mps: float
+    altitude_m: Positive
+    speed_mps: Positive
     fpa_deg: float
     heading_deg: float
-    inertial_speed_mps: float
+    inertial_speed_mps: Positive
     inertial_fpa_deg: float
     r_eci_m: Vector3
     v_eci_mps: Vector3
@@ -301,9 +305,9 @@ class BankProfile(_Model):
     law: str
     sigma0_deg: float
     sigma1_deg: float
-    speed_start_mps: float
-    speed_end_mps: float
-    max_bank_deg: float
+    speed_start_mps: NonNegative
+    speed_end_mps: NonNegative
+    max_bank_deg: NonNegative
     initial_sign: Literal[-1, 1]
     reversals: list[BankReversal]
     alpha_schedule_mach: list[float]
@@ -321,12 +325,12 @@ class BankProfile(_Model):
 class ReentryPlan(_Model):
     entry: EntryPlan
     bank_profile: BankProfile
-    flight_time_s: float
+    flight_time_s: NonNegative
     integrator: str
-    max_heat_rate_w_m2: float
-    max_load_g: float
-    max_dynamic_pressure_pa: float
-    max_bank_deg: float
+    max_heat_rate_w_m2: NonNegative
+    max_load_g: NonNegative
+    max_dynamic_pressure_pa: NonNegative
+    max_bank_deg: NonNegative
 
 
 class TerminalPlan(_Model):
@@ -337,28 +341,28 @@ class TerminalPlan(_Model):
     latitude_deg: float
     longitude_deg: float
     altitude_m: float
-    speed_mps: float
+    speed_mps: NonNegative
     fpa_deg: float
     heading_deg: float
-    miss_distance_m: float
+    miss_distance_m: NonNegative
     landing_site_name: str
     landing_site_latitude_deg: float
     landing_site_longitude_deg: float
-    stated_miss_m: float
+    stated_miss_m: Positive
     stated_miss_basis: str
-    prediction_tolerance_m: float
+    prediction_tolerance_m: NonNegative
 
 
 class PlanTotals(_Model):
-    t_total_s: float
-    dv_total_mps: float
-    m_load_kg: float
+    t_total_s: NonNegative
+    dv_total_mps: NonNegative
+    m_load_kg: Positive
 
 
 class PlanDesign(_Model):
-    parking_altitude_km: float
-    preparation_altitude_km: float
-    separation_delay_h: float
+    parking_altitude_km: Positive
+    preparation_altitude_km: Positive
+    separation_delay_h: NonNegative
 
 
 class MissionPlan(_Model):
@@ -845,9 +849,20 @@ def read_plan(path: Path) -> MissionPlan:
             f"{SCHEMA_VERSION!r} plans"
         )
     try:
-        return MissionPlan.model_validate(data)
+        plan = MissionPlan.model_validate(data)
     except ValidationError as err:
         problems = format_validation_error(err, MissionPlan)
+        if len(problems) == 1:  # one line, as ConfigError has it
+            raise PlanError(f"{shown}: invalid mission plan: {problems[0]}") from None
         raise PlanError(
             "\n".join([f"{shown}: invalid mission plan:", *(f"  - {p}" for p in problems)])
         ) from None
+    # the scenario the plan is flown in, checked as a scenario file is (bad input named
+    # here, not a flight that fails later)
+    from ovtraj.config import scenario_from_dict
+
+    try:
+        scenario_from_dict(plan.scenario, f"{shown}: scenario")
+    except ConfigError as err:
+        raise PlanError(str(err)) from None
+    return plan

@@ -605,7 +605,8 @@ def read_table(
         else:
             table = decoded_tables().get(expected.sha256, payload)
     except (OSError, pa.ArrowException) as err:
-        raise StoreError(f"{path}: unreadable Parquet file ({err})") from None
+        why = " ".join(str(err).split())  # Arrow's text may span lines: one line here
+        raise StoreError(f"{path}: unreadable Parquet file ({why})") from None
     if schema is not None and not table.schema.equals(schema, check_metadata=False):
         raise StoreError(f"{path}: columns or types differ from the declared schema")
     return table
