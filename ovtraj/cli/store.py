@@ -361,33 +361,28 @@ def _verified(store: Any, item_id: str) -> tuple[str, str, Any, Any]:
     """(kind, label, the run of samples or None, its VerifyReport) of what ``item_id``
     names in ``store``; StoreError naming it when the store holds nothing of that id."""
     from ovtraj.runs.store import checked_id
-    from ovtraj.store.layout import MANIFEST
     from ovtraj.tracking.catalog import verify_catalog
 
     if item_id == "catalog":
         return "catalog", f"the catalog of {store.root.resolve()}", None, verify_catalog(store.root)
     checked_id(item_id, "id")
     directory = store.root / item_id
-    if (directory / MANIFEST).is_file() or not directory.exists():
-        found = _holder(store, item_id) if not directory.exists() else None
+    if (directory / "run.json").is_file():
+        return "monte_carlo", f"Monte Carlo run {item_id}", None, _batched_run(directory).verify()
+    if not directory.exists():
+        from ovtraj.window.report import verify_window
+        from ovtraj.window.scan import WINDOWS_DIR
+
+        window = store.root / WINDOWS_DIR / item_id
+        if window.is_dir():
+            return "window", f"window {item_id}", None, verify_window(window, store)
+        found = _holder(store, item_id)
         if found is not None:
             kind, run_id = found
             run = store.run(run_id)
             return kind, f"{kind} {item_id} (in run {run.id})", run, run.verify()
-        run = store.run(item_id)  # StoreError naming it when there is none
-        return "run", f"run {run.id}", run, run.verify()
-    if (directory / "run.json").is_file():
-        batched = _batched_run(directory)
-        return "monte_carlo", f"Monte Carlo run {item_id}", None, batched.verify()
-    from ovtraj.window.report import verify_window
-    from ovtraj.window.scan import WINDOWS_DIR
-
-    window = store.root / WINDOWS_DIR / item_id
-    if window.is_dir():
-        return "window", f"window {item_id}", None, verify_window(window, store)
-    from ovtraj.runs import StoreError
-
-    raise StoreError(f"{directory}: neither a run, a Monte Carlo run nor a window")
+    run = store.run(item_id)  # StoreError naming it when the store holds no such run
+    return "run", f"run {run.id}", run, run.verify()
 
 
 def _holder(store: Any, item_id: str) -> tuple[str, str] | None:
