@@ -202,7 +202,7 @@ def test_lineage_follows_the_ids_of_the_store(workspace, plan, capsys):
 def test_diff_shows_a_hostile_scenario_name_escaped_and_cut(workspace, plan, capsys):
     ws = workspace
     a = _plan_file(ws, plan, "a")
-    hostile = {**plan, "scenario": {**plan["scenario"], "name": HOSTILE_NAME, "k\x1b[31m": 1}}
+    hostile = {**plan, "scenario": {**plan["scenario"], "name": HOSTILE_NAME}}
     b = ws / "b.json"
     b.write_text(json.dumps(hostile))
     limit = io_limits().shown_max_chars
@@ -214,7 +214,6 @@ def test_diff_shows_a_hostile_scenario_name_escaped_and_cut(workspace, plan, cap
         _plain(out)
         assert not [line for line in out.splitlines() if line.startswith("FORGED")], out
         assert "evil\\x1b[2J\\x1b]0;pwned\\x07\\nFORGED LINE [bold]x[/] yyy" in out, out
-        assert "scenario.k\\x1b[31m" in out, out
         (row,) = [line for line in out.splitlines() if "scenario.name" in line]
         shown = row[row.index("evil") :].split("|")[0].strip()
         assert len(shown) == limit and "y...y" in shown, shown  # cut in the middle
