@@ -167,14 +167,14 @@ def test_a_marker_recording_an_impossible_size_is_named(stored, tmp_path):
     store, run_id = _copy(stored, tmp_path)
     marker = store / run_id / "batches" / "0.json"
     _record_size(marker, "totals/part-00000.parquet", "1e400")  # JSON's infinity
+    # refused by the bounded JSON reader (a float beyond its range is no JSON number)
+    refused = f"{marker}: unreadable JSON file (1e400 is beyond a float's range)"
     for command in ("show", "replay"):
         line = _one_line_error(_cli(command, run_id, "--store", str(store)))
-        assert line.startswith(f'{marker}: totals/part-00000.parquet: recorded "bytes" is not'), (
-            line
-        )
+        assert line == refused
     checked = _cli("verify", run_id, "--store", str(store))
     assert checked.returncode == 1 and "Traceback" not in checked.stderr, checked.stderr
-    assert f"bad: {marker}: totals/part-00000.parquet: recorded" in checked.stdout
+    assert f"bad: {refused}" in checked.stdout
 
 
 @pytest.mark.parametrize("recorded", ["-1", "true", '"3009"', "1" + "0" * 30, "null", "9" * 5000])

@@ -11,13 +11,14 @@ import base64
 from pathlib import Path
 
 from ovtraj.store.backends import location
+from ovtraj.store.files import read_bytes
 
 __all__ = ["png_data_uri"]
 
 
 def png_data_uri(path: Path | str) -> str:
     """The PNG file at ``path`` as ``data:image/png;base64,...`` (RFC 2397)."""
-    data = location(path).read_bytes()
+    data = read_bytes(location(path))  # a regular file within the read limit, no FIFO
     if not data.startswith(b"\x89PNG\r\n\x1a\n"):
         raise ValueError(f"{path}: not a PNG file")
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")

@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
-from ovtraj.store.files import StoreError, json_data, make_folders, os_error_text
+from ovtraj.store.files import StoreError, json_data, make_folders, os_error_text, read_bytes
 
 __all__ = ["held", "hold", "hold_directory"]
 
@@ -64,9 +64,9 @@ def _open(path: Path) -> int:
 
 
 def _holder(path: Path) -> str:
-    try:
-        text = path.read_text(encoding="utf-8").strip()
-    except OSError:
+    try:  # read as a stored file: a FIFO or a link put there since is not waited on
+        text = read_bytes(path).decode("utf-8", errors="replace").strip()
+    except StoreError:
         text = ""
     return text or "another process"
 
