@@ -43,7 +43,16 @@ from ovtraj.formatting import printable
 from ovtraj.store import locks
 from ovtraj.store.backends import S3Path, location
 from ovtraj.store.batched import SUMMARY, content_id
-from ovtraj.store.files import Digest, StoreError, parquet_bytes, read_bytes, read_json, write_bytes
+from ovtraj.store.files import (
+    Digest,
+    StoreError,
+    json_data,
+    make_folders,
+    parquet_bytes,
+    read_bytes,
+    read_json,
+    write_bytes,
+)
 from ovtraj.store.layout import (
     MANIFEST,
     PIPELINE_DIR,
@@ -237,7 +246,7 @@ def _run_row(directory: Path | S3Path, source: str, digest: str) -> dict[str, An
 def _pipeline_row(
     marker: Path | S3Path, source: str, digest: str, payload: bytes, run: dict[str, Any]
 ) -> dict[str, Any]:
-    summary = authenticated(marker, json.loads(payload))
+    summary = authenticated(marker, json_data(payload))
     if not isinstance(summary, dict):
         raise ValueError("not a JSON object")
     return _row(
@@ -264,7 +273,7 @@ def _pipeline_row(
 def _plan_row(
     marker: Path | S3Path, source: str, digest: str, payload: bytes, pipeline: dict[str, Any]
 ) -> dict[str, Any]:
-    files = authenticated(marker, json.loads(payload))
+    files = authenticated(marker, json_data(payload))
     name = marker.name[: -len(PLAN_MARKER_SUFFIX)]
     recorded = (files.get("files") or {}).get(f"{name}.json") if isinstance(files, dict) else None
     if recorded is None:
@@ -534,7 +543,7 @@ def refresh(store_root: Path | S3Path | str, *, rebuild: bool = False) -> Catalo
     settings = catalog_settings()
     local = not isinstance(root, S3Path)
     if local:
-        folder.mkdir(parents=True, exist_ok=True)
+        make_folders(folder)  # no link on the way: the catalog stays in its store
     with locks.hold(folder / "catalog.lock", wait_s=settings.lock_wait_s):
         stored, why = (None, "rebuild asked") if rebuild else _read(root)
         stamps = {} if stored is None else _read_stamps(root)

@@ -9,11 +9,11 @@ child run does not remove a plan: plans live in their DoE run's pipeline folder.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import pandas as pd
 
+from ovtraj.store.files import json_data
 from ovtraj.tracking.catalog import Catalog, checked_id
 
 __all__ = ["HISTORY_COLUMNS", "history", "previous_plan"]
@@ -68,7 +68,7 @@ def history(
     if scenario is not None:
         plans = plans[plans["scenario"] == scenario]
     for key, value in (tags or {}).items():
-        plans = plans[[json.loads(t).get(key) == value for t in plans["tags"]]]
+        plans = plans[[_tags(t).get(key) == value for t in plans["tags"]]]
     plans = plans.drop(
         columns=["plan_id", "mc_runs", "mc_landing_miss_p95_m", "mc_dv_margin_p95_mps"]
     )
@@ -95,3 +95,13 @@ def previous_plan(catalog: Catalog, plan: dict[str, Any]) -> pd.Series | None:
     key = (values["element_set_epoch_utc"] or "",)
     earlier = rows[[(e or "",) < key for e in rows["element_set_epoch_utc"]]]
     return None if not len(earlier) else earlier.iloc[-1]
+
+
+def _tags(text: str) -> dict[str, Any]:
+    """A catalog row's tags (a JSON object; anything else in a catalog read without a store
+    key counts as no tags)."""
+    try:
+        found = json_data(text)
+    except ValueError:
+        return {}
+    return found if isinstance(found, dict) else {}
