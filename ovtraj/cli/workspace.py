@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ovtraj.cli.common import JsonOpt, _print_json, _print_rows, app
+from ovtraj.config.orchestration import load_orchestration
 from ovtraj.store import paths as where
 
 
@@ -16,6 +17,8 @@ def paths(as_json: JsonOpt = False) -> None:
         "workspace": str(where.workspace()),
         "run_store": str(where.store_root(None, None, None)),
         "launch_fits": str(where.workspace() / "launch_fit"),
+        "optimal_entry": str(where.workspace() / "optimal_entry"),  # `optimal-entry`'s default
+        "prefect_results": load_orchestration().results.location(),
         "source_checkout": where.source_checkout(),
     }
     if as_json:
