@@ -307,7 +307,10 @@ def test_json_alone_on_stdout_progress_on_stderr_and_quiet(tmp_path):
         assert result.exit_code == 0, result.output
         assert _one_object(result.stdout)["run_id"] == rid and result.stderr == ""
     paths = runner.invoke(app, ["paths", "--json"])
-    assert paths.exit_code == 0 and "run_store" in _one_object(paths.stdout)
+    assert paths.exit_code == 0
+    named = _one_object(paths.stdout)
+    assert {"run_store", "launch_fits", "optimal_entry", "prefect_results"} <= set(named)
+    assert named["prefect_results"] == str(Path(named["workspace"]) / "prefect-results")
     again = runner.invoke(app, args[:-1])  # stored: nothing evaluated
     assert again.exit_code == 0, again.output
     assert re.search(r"^  min t total +\d+\.\d{3} h$", again.stdout, flags=re.M)
