@@ -285,6 +285,9 @@ def test_cli_run_runs_show_and_replay(tmp_path):
     manifest = json.loads(shown.stdout)["manifest"]
     assert manifest["run_id"] == rid and manifest["status"] == "complete"
     assert {"numpy", "heyoka", "prefect"} <= manifest["dependencies"].keys()
+    one_line = runner.invoke(app, ["show", rid, "--store", store, "--json"])
+    assert one_line.exit_code == 0 and one_line.stdout.count("\n") == 1
+    assert json.loads(one_line.stdout)["manifest"] == manifest
     replayed = runner.invoke(app, ["replay", rid, "--store", store])
     assert replayed.exit_code == 0
     assert "largest difference from the stored totals  0" in replayed.stdout

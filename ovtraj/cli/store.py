@@ -194,8 +194,9 @@ def runs(
 
 
 @app.command()
-def show(run_id: str, store_root: StoreOpt = None) -> None:
-    """Print a run's manifest and summary as one JSON object."""
+def show(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
+    """Print a run's manifest and summary as one JSON object (indented; --json: on one
+    line, as every command's --json)."""
     from ovtraj.runs import StoreError
 
     try:
@@ -204,7 +205,11 @@ def show(run_id: str, store_root: StoreOpt = None) -> None:
     except StoreError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    typer.echo(json.dumps({"manifest": manifest, "summary": summary}, indent=2, default=str))
+    document = {"manifest": manifest, "summary": summary}
+    if as_json:
+        _print_json(document)
+        return
+    typer.echo(json.dumps(document, indent=2, default=str))
 
 
 PruneKinds = Annotated[
