@@ -71,8 +71,12 @@ def test_infeasible_case_exits_1_with_reason(tmp_path):
 
 
 def test_version():
+    from ovtraj import __version__
+    from ovtraj.version import code_version
+
     result = runner.invoke(app, ["--version"])
-    assert result.exit_code == 0 and result.stdout.startswith("ovtraj ")
+    assert result.exit_code == 0 and result.stdout == f"ovtraj {code_version()}\n"
+    assert code_version().startswith(__version__ + "+")  # what stored runs record
 
 
 def test_ci_runs_the_readme_test_command():

@@ -11,7 +11,6 @@ from typing import Annotated, Any
 import typer
 import typer.core
 
-from ovtraj import __version__
 from ovtraj.cli.progress import configure_logging
 from ovtraj.config import ConfigError, Scenario
 from ovtraj.formatting import joined, quantity, split_unit
@@ -71,8 +70,12 @@ TargetOpt = Annotated[
 
 
 def _version(value: bool) -> None:
+    """The code version every stored run records (``0.1.0+g<commit>``, or ``+s<source
+    digest>`` for an installed package): what ``history`` and ``runs`` show."""
     if value:
-        typer.echo(f"ovtraj {__version__}")
+        from ovtraj.version import code_version
+
+        typer.echo(f"ovtraj {code_version()}")
         raise typer.Exit()
 
 
