@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -345,3 +346,21 @@ def test_progress_bar_only_on_a_terminal_and_never_quiet(monkeypatch):
         assert shown(terminal=False) == ""  # a pipe: debug messages only
     finally:
         cli_progress.configure_logging()
+
+
+@pytest.mark.parametrize(
+    ("words", "cword", "expected"),
+    [("ovtraj pip", 1, "pipeline"), ("ovtraj verify --rec", 2, "--recompute")],
+)
+def test_the_shell_completes_commands_and_options(words, cword, expected):
+    """Bash's completion as `ovtraj --install-completion` installs it asks the command."""
+    env = dict(os.environ, _OVTRAJ_COMPLETE="complete_bash", COMP_WORDS=words)
+    env["COMP_CWORD"] = str(cword)
+    done = subprocess.run(
+        [str(Path(sys.executable).with_name("ovtraj"))],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0 and done.stdout.split() == [expected], done.stdout + done.stderr

@@ -18,7 +18,9 @@ from ovtraj.store.paths import scenario_file
 from ovtraj.store.records import json_text, plain
 
 app = typer.Typer(
-    add_completion=False,
+    # `ovtraj --install-completion` adds tab completion of commands and options to the
+    # user's shell (bash, zsh, fish, PowerShell).
+    add_completion=True,
     no_args_is_help=True,
     help="Whole-mission trajectory planning of a small reusable orbital vehicle.",
     # Markdown, not rich markup: rich would take a unit such as `[m/s]` in a help text
