@@ -15,6 +15,7 @@ import datetime
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -258,3 +259,23 @@ def test_the_commands_run_as_a_user_runs_them(nights):
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "'nope'" in done.stderr
+
+
+def test_front_lists_the_verified_front_a_plan_was_picked_from(nights):
+    """`ovtraj front RUN` shows the indices `--pick` takes: the plan's front point is the
+    row of its front index, with the objectives the plan recorded from the front."""
+    plan = json.loads(nights["plans"][-1].read_text())
+    source = plan["source"]
+    store = str(nights["store"])
+    found = _json("front", source["doe_run"], "--pipeline", source["pipeline_id"], "--store", store)
+    stored = pd.read_parquet(found["front"])
+    assert found["pipeline_id"] == source["pipeline_id"] and len(found["points"]) == len(stored)
+    (point,) = [p for p in found["points"] if p["front_index"] == source["front_index"]]
+    assert point["sample_id"] == source["sample_id"]
+    assert {k: point[k] for k in source["front_objectives"]} == source["front_objectives"]
+    shown = _invoke("front", source["doe_run"], "--store", store)
+    assert shown.exit_code == 0, shown.output
+    rows = [line for line in shown.stdout.splitlines() if re.match(r"^ +\d+ +\d+ ", line)]
+    assert len(rows) == len(stored)
+    missing = _invoke("front", "0123456789abcdef", "--store", store)
+    assert missing.exit_code == 2 and len(missing.stderr.strip().splitlines()) == 1

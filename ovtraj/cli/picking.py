@@ -17,7 +17,7 @@ PickIndexOpt = Annotated[
     typer.Option(
         "--pick",
         min=0,
-        help="front index, see the front table (default: the best by --weights)",
+        help="front index, as `ovtraj front RUN` lists them (default: the best by --weights)",
         show_default=False,
     ),
 ]

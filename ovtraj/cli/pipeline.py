@@ -300,6 +300,59 @@ def optimize(
 
 
 @app.command()
+def front(
+    run_id: Annotated[
+        str,
+        typer.Argument(help="any run of a pipeline family: its DoE run, an infill or final run"),
+    ],
+    pipeline_id: Annotated[
+        str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
+    ] = None,
+    store_root: StoreOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """The verified front of a run's pipeline result, as `ovtraj pipeline` printed it:
+    the indices `plan --pick` and `pipeline --pick` take, each point's design and real
+    objectives, and the loop's verdict.
+
+    Example: `ovtraj front 1fe6042587a62a93` then `ovtraj plan 1fe6042587a62a93 --pick 3`."""
+    from ovtraj.pipeline import PipelineError
+    from ovtraj.pipeline.catalog import family_root
+    from ovtraj.pipeline.planning import find_pipeline
+    from ovtraj.runs import StoreError
+
+    try:
+        stored = family_root(_store(store_root), run_id)
+        result = find_pipeline(stored, pipeline_id)
+    except (StoreError, PipelineError, ValueError) as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    summary = result.summary
+    converged = bool(summary.get("converged"))
+    if as_json:
+        _print_json(
+            {
+                "doe_run": stored.id,
+                "pipeline_id": result.pipeline_id,
+                "final_run": result.final_run,
+                "converged": converged,
+                "hypervolume": summary.get("hypervolume"),
+                "front": str(Path(result.front_path).resolve()),
+                "points": result.front.to_dict(orient="records"),
+            }
+        )
+        return
+    typer.echo(
+        f"verified front of DoE run {stored.id} (pipeline {result.pipeline_id}, final run "
+        f"{result.final_run}): {len(result.front)} points, hypervolume "
+        f"{number(summary.get('hypervolume'), '', 6)}, "
+        + ("converged" if converged else "not converged")
+    )
+    _print_front(result.front)
+    typer.echo(f"front: {Path(result.front_path).resolve()}")
+
+
+@app.command()
 def plan(
     run_id: Annotated[
         str,
