@@ -425,7 +425,8 @@ def test_verify_checks_a_stored_window_and_the_pipeline_of_its_day(scanned, tmp_
     assert done.returncode == 0, done.stdout + done.stderr
     assert done.stdout.strip().splitlines()[-1].startswith(f"window {summary['window_id']}: ")
     assert done.stdout.strip().endswith("checked: clean")
-    pipeline = summary["rows"][0]["pipeline_id"]
+    day = store / "windows" / summary["window_id"] / "days" / "0000.json"
+    pipeline = json.loads(day.read_text())["pipeline_id"]
     done = verify(pipeline)
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"pipeline {pipeline} (in run " in done.stdout and "clean" in done.stdout
