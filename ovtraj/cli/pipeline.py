@@ -47,6 +47,19 @@ if TYPE_CHECKING:  # the driver and the runners load the numerics: imported when
     from ovtraj.runs.runners import RunnerChoice
 
 
+# A pipeline result named by any run of its family, as `front` and `plan` take it.
+FamilyRunArg = Annotated[
+    str,
+    typer.Argument(
+        help="any run of a pipeline family: its DoE run, an infill run (also a pruned one) or "
+        "the final run"
+    ),
+]
+PipelineIdOpt = Annotated[
+    str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
+]
+
+
 def _run_scenario(stored: Any, config: Path | None) -> Scenario:
     from ovtraj.pipeline import run_scenario
 
@@ -301,13 +314,8 @@ def optimize(
 
 @app.command()
 def front(
-    run_id: Annotated[
-        str,
-        typer.Argument(help="any run of a pipeline family: its DoE run, an infill or final run"),
-    ],
-    pipeline_id: Annotated[
-        str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
-    ] = None,
+    run_id: FamilyRunArg,
+    pipeline_id: PipelineIdOpt = None,
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -354,21 +362,13 @@ def front(
 
 @app.command()
 def plan(
-    run_id: Annotated[
-        str,
-        typer.Argument(
-            help="any run of a pipeline family: its DoE run, an infill run (also a pruned "
-            "one) or the final run"
-        ),
-    ],
+    run_id: FamilyRunArg,
     pick: PickIndexOpt = None,
     weights: WeightsOpt = None,
     max_time_h: MaxTimeOpt = None,
     max_dv: MaxDvOpt = None,
     min_payload: MinLoadOpt = None,
-    pipeline_id: Annotated[
-        str | None, typer.Option("--pipeline", help="pipeline id (default: the newest)")
-    ] = None,
+    pipeline_id: PipelineIdOpt = None,
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
 ) -> None:

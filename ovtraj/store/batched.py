@@ -246,12 +246,9 @@ class BatchedRun:
         report = VerifyReport(self.id)
         info_path = self.directory / self.INFO
         covered = {info_path}
-        try:
-            info = read_json(info_path)
-        except StoreError as err:
-            report.problems.append(str(err))
+        info = report.read_document(info_path)
+        if info is None:
             return report
-        report.check_document(info_path, info)
         if not isinstance(info, dict) or info.get("kind") != self.KIND:
             report.problems.append(f"{info_path}: not a {self.KIND} run")
             return report
@@ -261,9 +258,10 @@ class BatchedRun:
         expected.append((self.directory / "config.json", listed, None))
         for path in sorted((self.directory / "batches").glob("*")):
             covered.add(path)
+            marker = report.read_document(path)
+            if marker is None:
+                continue
             try:
-                marker = read_json(path)
-                report.check_document(path, marker)
                 for relative, digest in marker_files(path, marker).items():
                     expected.append((self.directory / relative, digest, self.SCHEMA))
             except StoreError as err:
@@ -271,10 +269,7 @@ class BatchedRun:
         summary = self.directory / SUMMARY
         if summary.is_file():
             covered.add(summary)
-            try:
-                report.check_document(summary, read_json(summary))
-            except StoreError as err:
-                report.problems.append(str(err))
+            report.read_document(summary)
         for path, digest, schema in expected:
             covered.add(path)
             report.check_file(path, digest, schema)

@@ -17,7 +17,14 @@ import pyarrow as pa
 
 from ovtraj.store.backends import S3Path
 from ovtraj.store.environment_block import environment_problem
-from ovtraj.store.files import TEMPORARY_SUFFIX, Digest, StoreError, read_bytes, read_table
+from ovtraj.store.files import (
+    TEMPORARY_SUFFIX,
+    Digest,
+    StoreError,
+    read_bytes,
+    read_json,
+    read_table,
+)
 from ovtraj.store.seals import seal_problem
 
 __all__ = ["VerifyReport"]
@@ -52,6 +59,17 @@ class VerifyReport:
         problem = environment_problem(path, document)
         if problem is not None:
             self.problems.append(problem)
+
+    def read_document(self, path: Path | S3Path) -> Any:
+        """A manifest or marker read (bounded) and checked (:meth:`check_document`); None,
+        with the problem recorded, when it cannot be read."""
+        try:
+            document = read_json(path)
+        except StoreError as err:
+            self.problems.append(str(err))
+            return None
+        self.check_document(path, document)
+        return document
 
     def check_file(self, path: Path | S3Path, digest: Any, schema: pa.Schema | None = None) -> None:
         """A listed file against its recorded digest (``None``: none recorded) and, for a

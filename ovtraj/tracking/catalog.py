@@ -575,18 +575,16 @@ def verify_catalog(store_root: Path | S3Path | str) -> VerifyReport:
     folder = _folder(root)
     report = VerifyReport(CATALOG_DIR)
     marker = folder / CATALOG_MARKER
-    try:
-        recorded = read_json(marker)
-    except StoreError as err:
-        report.problems.append(str(err))
+    recorded = report.read_document(marker)
+    if recorded is None:
         return report
-    report.check_document(marker, recorded)
     file = recorded.get("file") if isinstance(recorded, dict) else None
     report.check_file(folder / CATALOG_FILE, file, SCHEMA)
     tag_folder = folder / TAGS_DIR
     for path in sorted(tag_folder.iterdir()) if tag_folder.is_dir() else []:
+        if report.read_document(path) is None:
+            continue
         try:
-            report.check_document(path, read_json(path))
             read_tags(root, checked_id(path.name.removesuffix(".json"), "tag file"))
         except StoreError as err:
             report.problems.append(str(err))

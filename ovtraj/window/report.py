@@ -31,7 +31,7 @@ from ovtraj.plots.embed import png_data_uri
 from ovtraj.plots.front import axis_label
 from ovtraj.plots.render import figure, png_bytes
 from ovtraj.runs import RunStore
-from ovtraj.store.files import StoreError, marker_files, read_json, remove_file
+from ovtraj.store.files import StoreError, marker_files, remove_file
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_rows
 from ovtraj.store.verification import VerifyReport
@@ -365,9 +365,10 @@ def verify_window(directory: Any, store: RunStore) -> VerifyReport:
     report = VerifyReport(directory.name)
     marker_path = directory / MARKER
     covered = {marker_path}
+    marker = report.read_document(marker_path)
+    if marker is None:
+        return report
     try:
-        marker = read_json(marker_path)
-        report.check_document(marker_path, marker)
         listed = marker_files(marker_path, marker)
     except StoreError as err:
         report.problems.append(str(err))
@@ -378,12 +379,9 @@ def verify_window(directory: Any, store: RunStore) -> VerifyReport:
     identity = marker.get("window_id")
     for path in sorted((directory / DAYS_DIR).glob("*.json")):
         covered.add(path)
-        try:
-            record = read_json(path)
-        except StoreError as err:
-            report.problems.append(str(err))
+        record = report.read_document(path)
+        if record is None:
             continue
-        report.check_document(path, record)
         day = int(path.stem) if path.stem.isdigit() else -1
         date = record.get("date") if isinstance(record, dict) else None
         date = date if isinstance(date, str) else ""  # a record without one fails below
