@@ -682,6 +682,15 @@ def test_a_redirect_to_another_scheme_is_refused(location, scheme, serve, settin
     assert server.requests == ["/iss.tle"]
 
 
+def _redirect_to(serve, host: str) -> tuple:
+    """A server of the ISS TLE reached as ``host`` and a first server on 127.0.0.1 that
+    redirects there: (the target's server, its URL, the first server, the URL asked)."""
+    other = serve({"/iss.tle": _ok(ISS_TLE.read_bytes())})
+    served = f"http://{host}:{other.port}/iss.tle"
+    first = serve({"/iss.tle": _moved(served)})
+    return other, served, first, f"http://127.0.0.1:{first.port}/iss.tle"
+
+
 def test_a_redirect_to_another_host_only_if_allowed_cached_under_the_url_served(
     serve, settings, tmp_path
 ):
@@ -689,10 +698,7 @@ def test_a_redirect_to_another_host_only_if_allowed_cached_under_the_url_served(
     url_redirect_hosts. Allowed, the bytes are cached under the URL that served them,
     the record naming both; asked again, the redirect is asked again (not cached) and
     its target read from the cache."""
-    other = serve({"/iss.tle": _ok(ISS_TLE.read_bytes())})
-    served = f"http://localhost:{other.port}/iss.tle"
-    first = serve({"/iss.tle": _moved(served)})
-    requested = f"http://127.0.0.1:{first.port}/iss.tle"
+    other, served, first, requested = _redirect_to(serve, "localhost")
     with pytest.raises(ConfigError) as caught:
         read_source(requested, settings=settings, cache_dir=tmp_path)
     assert str(caught.value) == (
@@ -755,10 +761,7 @@ def test_a_redirect_to_another_port_of_the_same_host_counts_as_another_host(
 ):
     """127.0.0.1:P -> 127.0.0.1:Q: another program may listen on another port, so it is
     refused like another host (it was followed when only the host names were compared)."""
-    other = serve({"/iss.tle": _ok(ISS_TLE.read_bytes())})
-    served = f"http://127.0.0.1:{other.port}/iss.tle"
-    first = serve({"/iss.tle": _moved(served)})
-    requested = f"http://127.0.0.1:{first.port}/iss.tle"
+    other, served, _, requested = _redirect_to(serve, "127.0.0.1")
     with pytest.raises(ConfigError) as caught:
         read_source(requested, settings=settings, cache_dir=tmp_path)
     assert str(caught.value) == (
