@@ -1,5 +1,5 @@
 """The package as README command 1 installs it, and every command of the README's "Use"
-section run once by that install; the package as ``pip install .`` installs it, and the
+section and of docs/commands.md run once by that install; the package as ``pip install .`` installs it, and the
 "Use" commands that need its package data (issue 44).
 
 tests/test_install.py installs the wheel without its dependencies into a venv that
@@ -89,14 +89,22 @@ PROJECT = ("ovtraj", "tasks", "flows")
 moto_s3 = test_object_store.s3
 
 
+def _bash_block(path: Path, section: str | None = None) -> str:
+    """The first bash block of ``path`` (of its section ``## section`` if named)."""
+    text = path.read_text(encoding="utf-8")
+    if section is not None:
+        text = text.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+    found = re.search(r"```bash\n(.*?)```", text, flags=re.DOTALL)
+    assert found, f"{path.name}: no bash block"
+    return found.group(1)
+
+
 def _use_commands() -> list[str]:
-    """The commands of the README's "Use" section, comments removed, continued lines joined."""
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    section = text.split("\n## Use\n", 1)[1].split("\n## ", 1)[0]
-    found = re.search(r"```bash\n(.*?)```", section, flags=re.DOTALL)
-    assert found, "README.md: no bash block in the Use section"
+    """The commands of the README's "Use" section, then docs/commands.md's, comments
+    removed, continued lines joined."""
+    block = _bash_block(REPO / "README.md", "Use") + _bash_block(REPO / "docs" / "commands.md")
     commands, pending = [], ""
-    for line in found.group(1).splitlines():
+    for line in block.splitlines():
         code = re.sub(r"(^|\s+)#.*$", "", line).strip()
         if code.endswith("\\"):
             pending += code.removesuffix("\\")
