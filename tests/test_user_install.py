@@ -1,6 +1,6 @@
 """The package as README command 1 installs it, and every command of the README's "Use"
-section and of docs/commands.md run once by that install; the package as ``pip install .`` installs it, and the
-"Use" commands that need its package data (issue 44).
+section and of docs/commands.md run once by that install; the package as ``pip install .``
+installs it, and the "Use" commands that need its package data (issue 44).
 
 tests/test_install.py installs the wheel without its dependencies into a venv that
 borrows this one's packages, so it cannot see a dependency missing from pyproject.toml:
