@@ -210,8 +210,8 @@ def test_weights_are_finite_non_negative_and_not_all_zero(scenario, tmp_path, ca
     store = ["--store", str(tmp_path)]
     assert run_command(["plan", "0123456789abcdef", "--weights", "nan,1,1", *store]) == 2
     assert _one_line(capsys) == "--weights 'nan,1,1': every weight must be a finite number"
-    assert run_command(["plan", "0123456789abcdef", "--max-dv", "inf", *store]) == 2
-    assert _one_line(capsys) == "--max-dv inf: must be a finite number"
+    assert run_command(["plan", "0123456789abcdef", "--max-dv-mps", "inf", *store]) == 2
+    assert _one_line(capsys) == "--max-dv-mps inf: must be a finite number"
 
 
 # --------------------------------------------------------------------------- #

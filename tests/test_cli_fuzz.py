@@ -81,8 +81,10 @@ def _cases(ws: Path) -> list[list[str]]:
             ["run", "--seed", number, *store],
             ["plan", "x", "--pick", number, *store],
             ["plan", "x", "--max-time-h", number, *store],
-            ["plan", "x", "--max-dv", number, *store],
-            ["plan", "x", "--min-payload", number, *store],
+            ["plan", "x", "--max-dv-mps", number, *store],
+            ["plan", "x", "--min-payload-kg", number, *store],
+            ["run", "--workers", number, *store],
+            ["pipeline", "--workers", number, *store],
             ["fly", "plan.json", "--monte-carlo", number],
             ["fly", "plan.json", "--seed", number],
             ["target", str(ISS_TLE), "--span-h", number],
@@ -92,7 +94,7 @@ def _cases(ws: Path) -> list[list[str]]:
         ]
     for number in ("nan", "inf", "1e400", "-1"):  # refused before the pipeline starts
         cases += [["pipeline", "--max-time-h", number, *store]]
-        cases += [["window", "--days", "2", "--max-dv", number, *store]]
+        cases += [["window", "--days", "2", "--max-dv-mps", number, *store]]
     for weights in WEIGHTS:
         cases += [["plan", "x", "--weights", weights, *store]]
         cases += [["pipeline", "--weights", weights, *store]]
@@ -102,7 +104,7 @@ def _cases(ws: Path) -> list[list[str]]:
             ["run", path, *store],
             ["pipeline", path, *store],
             ["rendezvous", path],
-            ["optimize", "x", "--config", path, *store],
+            ["optimize", "x", path, *store],
             ["fly", path],
             ["fly", str(ws / "plan.json"), "--monte-carlo", "1", "--dispersions", path],
             ["export", path, "--format", "oem", "--out", str(ws / "out.oem")],

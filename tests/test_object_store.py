@@ -129,9 +129,9 @@ def test_run_show_replay_verify_and_refit_on_the_object_store(s3, client, tmp_pa
     assert shown["summary"]["evaluated"] == 20 and shown["summary"]["status"] == "complete"
     replayed = _cli(s3, "replay", rid, "--store", store)
     assert "largest difference from the stored totals  0" in replayed.stdout, replayed.stderr
-    fitted = _cli(s3, "optimize", rid, "--config", str(config), "--store", store)
+    fitted = _cli(s3, "optimize", rid, str(config), "--store", store)
     assert fitted.returncode == 0, fitted.stderr
-    refit = _cli(s3, "optimize", rid, "--config", str(config), "--refit", "--store", store)
+    refit = _cli(s3, "optimize", rid, str(config), "--refit", "--store", store)
     assert re.search(r"identical to the stored front +True", refit.stdout), refit.stderr
     verified = _cli(s3, "verify", rid, "--store", store)
     assert verified.returncode == 0 and "clean" in verified.stdout, verified.stdout

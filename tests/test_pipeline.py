@@ -956,7 +956,7 @@ def test_nsga2_stopped_by_its_time_limit_stores_no_front_and_exits_1(small, tmp_
     config = tmp_path / "stopped.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     store = str(small["store"].root)
-    done = CliRunner().invoke(app, ["optimize", doe.id, "--config", str(config), "--store", store])
+    done = CliRunner().invoke(app, ["optimize", doe.id, str(config), "--store", store])
     assert done.exit_code == 1 and "no front stored" in done.stderr
 
 

@@ -77,7 +77,7 @@ def _tree_digests(root: Path) -> dict[str, str]:
 
 
 def test_three_replans_give_a_three_row_history_equal_to_the_plans(nights):
-    found = _json("history", "--target", TARGET, "--store", str(nights["store"]))
+    found = _json("history", "--target-name", TARGET, "--store", str(nights["store"]))
     rows = found["rows"]
     assert len(rows) == NIGHTS
     epochs = [r["element_set_epoch_utc"] for r in rows]
@@ -220,7 +220,7 @@ def test_history_survives_a_pruned_child_run_and_lineage_says_it_is_gone(nights,
     shutil.rmtree(store / child)
     part = sorted((store / doe / "totals").glob("*.parquet"))[0]
     part.write_bytes(part.read_bytes() + b"\0")
-    rows = _json("history", "--target", TARGET, "--store", str(store))["rows"]
+    rows = _json("history", "--target-name", TARGET, "--store", str(store))["rows"]
     assert len(rows) == NIGHTS
     broken = _invoke("lineage", str(store / plan), "--store", str(store), "--json")
     assert broken.exit_code == 1

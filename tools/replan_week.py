@@ -62,7 +62,7 @@ def main() -> None:
     for tle in sorted((work / "tles").glob("*.tle")):
         run(f"ovtraj launch-fit week.yaml --target tles/{tle.name}", keep=2)
         run(f"ovtraj pipeline week.yaml --target tles/{tle.name}", keep=4)
-    run("ovtraj history --target 'ISS-like space target'")
+    run("ovtraj history --target-name 'ISS-like space target'")
     (work / "transcript.md").write_text("\n".join(transcript), encoding="utf-8")
     print(work / "transcript.md")
 

@@ -1,12 +1,13 @@
 """What every ``ovtraj`` command shares: the typer app and its callback (``--version``,
 ``--quiet``, ``--verbose``), the options several command families take (the scenario,
-``--json``, ``--target``, ``--store``), loading the scenario, and printing a result (a
-table of labelled rows, or one JSON object on one line)."""
+``--json``, ``--target``, ``--store``), the old spellings of renamed options
+(:func:`renamed_options`), loading the scenario, and printing a result (a table of
+labelled rows, or one JSON object on one line)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import typer
 import typer.core
@@ -38,6 +39,64 @@ def _flag_type(option: Any, ctx: Any) -> str | None:
 _OPTION_TYPE = getattr(typer.core.TyperOption, "display_type_rich", None)
 if _OPTION_TYPE is not None:
     typer.core.TyperOption.display_type_rich = _flag_type
+
+
+class _RenamedOptions(typer.core.TyperCommand):
+    """A command that still takes its options' old spellings (:func:`renamed_options`)."""
+
+    renames: ClassVar[dict[str, str]] = {}
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        # Shell completion parses resiliently, on every key press: no warning there.
+        respelled = _respelled(args, self.renames, warn=not ctx.resilient_parsing)
+        return super().parse_args(ctx, respelled)
+
+
+def renamed_options(renames: dict[str, str]) -> type[typer.core.TyperCommand]:
+    """The command class (``@app.command(cls=...)``) that takes each old spelling of
+    ``renames`` (old -> new) as its new one, for one release, with one line on stderr:
+    ``--max-dv is deprecated: use --max-dv-mps``. A new name without dashes (``CONFIG``)
+    is an argument now: the old option's value is given as that argument. The old
+    spellings are no options of the command, so its help and completion show the new
+    ones only."""
+    return type("RenamedOptions", (_RenamedOptions,), {"renames": dict(renames)})
+
+
+def _respelled(args: list[str], renames: dict[str, str], warn: bool) -> list[str]:
+    """``args`` with every old spelling of ``renames`` (``--old V``, ``--old=V``) in its new
+    one; the value of an option that became an argument moved after the other words.
+    Nothing after ``--`` is an option."""
+    kept: list[str] = []
+    moved: list[str] = []
+    k = 0
+    while k < len(args):
+        word = args[k]
+        if word == "--":
+            kept += args[k:]
+            break
+        name, equals, value = word.partition("=")
+        new = renames.get(name) if name.startswith("--") else None
+        if new is None:
+            kept.append(word)
+        elif new.startswith("--"):
+            _deprecated(name, f"use {new}", warn)
+            kept.append(new + equals + value)
+        elif equals or k + 1 < len(args):
+            _deprecated(name, f"give it as the argument {new}", warn)
+            if not equals:
+                k += 1
+                value = args[k]
+            moved.append(value)
+        else:  # no value: the parser names the option
+            kept.append(word)
+        k += 1
+    return kept + moved
+
+
+def _deprecated(old: str, instead: str, warn: bool) -> None:
+    if warn:
+        typer.echo(f"{old} is deprecated: {instead}", err=True)
+
 
 ConfigArg = Annotated[
     Path | None,

@@ -1,5 +1,5 @@
 """The ``run`` command (a DoE of the whole mission into the run store) and what the
-``pipeline`` command shares with it: the runner options and their choice
+``pipeline`` and ``window`` commands share with it: the runner options and their choice
 (:func:`_runner_choice`), the sample options, the launch fit a run needs."""
 
 from __future__ import annotations
@@ -47,6 +47,18 @@ DaskAddressOpt = Annotated[
     ),
 ]
 
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        **_limits(DoeSettings, "workers"),
+        help="batches at once on --runner threads, processes or a local Dask cluster "
+        "(default: the config's mission.doe.workers; the batches and their results are the "
+        "same for any number)",
+        show_default=False,
+    ),
+]
+
 
 SamplesOpt = Annotated[
     int | None,
@@ -84,23 +96,27 @@ def run(
     store_root: StoreOpt = None,
     target: TargetOpt = None,
     runner: RunnerOpt = None,
+    workers: WorkersOpt = None,
     dask_address: DaskAddressOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """DoE of the whole mission into the run store (a progress bar on stderr; a line per
     batch on stdout, on stderr with --json).
 
-    ``--runner`` says where the batches run (``serial`` here; a pool of ``threads`` or
-    ``processes``; ``dask``: the cluster at ``--dask-address`` or a local one); each
-    batch is stored where the run is by the process that computed it. No Prefect: the
-    flows (``flows/doe.py``) run the same batches as Prefect tasks.
+    ``--runner`` says where the batches run (``serial`` here; a pool of ``--workers``
+    ``threads`` or ``processes``; ``dask``: the cluster at ``--dask-address`` or a local
+    one of ``--workers`` processes); each batch is stored where the run is by the process
+    that computed it. No Prefect: the flows (``flows/doe.py``) run the same batches as
+    Prefect tasks.
+
+    Example: `ovtraj run --samples 24 --runner processes --workers 2`
     """
     scenario = _load(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
     settings = scenario.mission.doe
-    choice = _runner_choice(settings, runner, dask_address)
+    choice = _runner_choice(settings, runner, dask_address, workers)
     from ovtraj.config.orchestration import load_orchestration
     from ovtraj.runs import StoreError, prepare_run, run_doe
     from ovtraj.runs.execute import BatchesFailed
@@ -148,17 +164,28 @@ def run(
 
 
 def _runner_choice(
-    settings: DoeSettings, runner: str | None, dask_address: str | None
+    settings: DoeSettings,
+    runner: str | None,
+    dask_address: str | None,
+    workers: int | None = None,
 ) -> RunnerChoice:
-    """The runner chosen (:func:`ovtraj.runs.runners.choose_runner`: the option, else the
-    config's ``mission.doe``); a bad choice is one line naming the option, exit 2."""
+    """The runner chosen (:func:`ovtraj.runs.runners.choose_runner`: the options, else the
+    config's ``mission.doe``), its pool of ``workers`` (``--workers``) when given; a bad
+    choice is one line naming the option, exit 2.
+
+    ``--workers`` sizes the pool only: a run's batches are cut by the config's
+    ``mission.doe.workers`` (:meth:`ovtraj.config.mission.DoeSettings.batch_size_for`), so
+    the stored run is the same for any number of workers."""
+    from dataclasses import replace
+
     from ovtraj.runs.runners import choose_runner
 
     try:
-        return choose_runner(settings, runner, dask_address, as_options=True)
+        choice = choose_runner(settings, runner, dask_address, as_options=True)
     except ValueError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
+    return choice if workers is None else replace(choice, workers=workers)
 
 
 def _launch_fit_or_exit(scenario: Scenario, target: str | None = None) -> Any:

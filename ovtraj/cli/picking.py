@@ -1,6 +1,7 @@
 """Which point of a verified front a mission plan flies (the options ``--pick``,
-``--weights``, ``--max-time-h``, ``--max-dv``, ``--min-payload`` of ``pipeline`` and
-``plan``), and the written plan's paths as the two commands print them."""
+``--weights``, ``--max-time-h``, ``--max-dv-mps``, ``--min-payload-kg`` of ``pipeline``
+and ``plan``; ``window`` takes all but ``--pick``), and the written plan's paths as the
+two commands print them."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ovtraj.cli.common import _print_json
+from ovtraj.cli.common import _print_json, renamed_options
 from ovtraj.config.io_limits import echoed
 
 PickIndexOpt = Annotated[
@@ -41,7 +42,7 @@ MaxTimeOpt = Annotated[
 MaxDvOpt = Annotated[
     float | None,
     typer.Option(
-        "--max-dv",
+        "--max-dv-mps",
         min=0.0,
         help="pick among points with dV_total <= this [m/s] (default: no limit)",
         show_default=False,
@@ -50,12 +51,15 @@ MaxDvOpt = Annotated[
 MinLoadOpt = Annotated[
     float | None,
     typer.Option(
-        "--min-payload",
+        "--min-payload-kg",
         min=0.0,
         help="pick among points with M_load >= this [kg] (default: no limit)",
         show_default=False,
     ),
 ]
+
+# The limits' spellings before their names said their units: still taken for one release.
+PickCommand = renamed_options({"--max-dv": "--max-dv-mps", "--min-payload": "--min-payload-kg"})
 
 
 def _pick(
@@ -80,7 +84,7 @@ def _pick(
         if problem is not None:
             typer.echo(f"--weights {echoed(repr(weights))}: {problem}", err=True)
             raise typer.Exit(code=2) from None
-    limits = {"--max-time-h": max_time_h, "--max-dv": max_dv, "--min-payload": min_payload}
+    limits = {"--max-time-h": max_time_h, "--max-dv-mps": max_dv, "--min-payload-kg": min_payload}
     for option, value in limits.items():
         if value is not None and not math.isfinite(value):  # their min= lets inf (1e400) by
             typer.echo(f"{option} {value}: must be a finite number", err=True)

@@ -20,12 +20,14 @@ from ovtraj.cli.common import (
     _print_rows,
     _store,
     app,
+    renamed_options,
 )
 from ovtraj.cli.doe import (
     DaskAddressOpt,
     RunnerOpt,
     SamplesOpt,
     SeedOpt,
+    WorkersOpt,
     _launch_fit_or_exit,
     _runner_choice,
 )
@@ -33,6 +35,7 @@ from ovtraj.cli.picking import (
     MaxDvOpt,
     MaxTimeOpt,
     MinLoadOpt,
+    PickCommand,
     PickIndexOpt,
     WeightsOpt,
     _pick,
@@ -87,7 +90,7 @@ def _print_front(front: Any) -> None:
     )
 
 
-@app.command()
+@app.command(cls=PickCommand)
 def pipeline(
     config: ConfigArg = None,
     samples: SamplesOpt = None,
@@ -106,6 +109,7 @@ def pipeline(
     store_root: StoreOpt = None,
     target: TargetOpt = None,
     runner: RunnerOpt = None,
+    workers: WorkersOpt = None,
     dask_address: DaskAddressOpt = None,
     allow_unconverged: AllowUnconvergedOpt = False,
     as_json: JsonOpt = False,
@@ -118,7 +122,9 @@ def pipeline(
     the plan does not fly its front point, or the optimiser stopped. Exit 2: bad input or
     a fault, one line naming it. The mission flow says the same by its state: Failed with
     the verdict as its message (require_converged=false: Completed, named "Not
-    converged")."""
+    converged").
+
+    Example: `ovtraj pipeline --samples 24 --weights 1,1,2 --max-dv-mps 250`"""
     from ovtraj.pipeline.drive import PipelineRequest
 
     chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
@@ -127,7 +133,7 @@ def pipeline(
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
     fit = _launch_fit_or_exit(scenario, target)
-    choice = _runner_choice(scenario.mission.doe, runner, dask_address)
+    choice = _runner_choice(scenario.mission.doe, runner, dask_address, workers)
     request = PipelineRequest(samples, seed, from_run, config, refit, chosen)
     outcome = _drive(scenario, fit, _store(store_root, scenario, config), choice, request, as_json)
     doe_run, result, planned = outcome.doe_run, outcome.result, outcome.planned
@@ -222,14 +228,19 @@ def _drive(
         raise typer.Exit(code=2) from None
 
 
-@app.command()
+# The scenario was an option, `--config FILE`, before it was an argument as everywhere
+# else: still taken for one release.
+@app.command(cls=renamed_options({"--config": "CONFIG"}))
 def optimize(
-    run_id: str,
+    run_id: Annotated[
+        str, typer.Argument(metavar="RUN_ID", help="a stored DoE run (`ovtraj runs`)")
+    ],
     config: Annotated[
         Path | None,
-        typer.Option(
-            "--config",
-            help="surrogate/optimisation settings from this scenario YAML (default: the run's own)",
+        typer.Argument(
+            metavar="CONFIG",
+            help="scenario YAML whose surrogate and optimisation settings to use (default: "
+            "the run's own)",
             show_default=False,
         ),
     ] = None,
@@ -239,7 +250,9 @@ def optimize(
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation)."""
+    """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation).
+
+    Example: `ovtraj optimize 1fe6042587a62a93 --refit`"""
     from ovtraj.pipeline import (
         OptimiserStopped,
         PipelineError,
@@ -360,7 +373,7 @@ def front(
     typer.echo(f"front: {Path(result.front_path).resolve()}")
 
 
-@app.command()
+@app.command(cls=PickCommand)
 def plan(
     run_id: FamilyRunArg,
     pick: PickIndexOpt = None,
@@ -373,7 +386,9 @@ def plan(
     as_json: JsonOpt = False,
 ) -> None:
     """Write the mission plan (JSON and YAML), its plots and its HTML report, of a point
-    of the verified front of a run's pipeline result."""
+    of the verified front of a run's pipeline result.
+
+    Example: `ovtraj plan 1fe6042587a62a93 --max-time-h 150 --min-payload-kg 400`"""
     from ovtraj.mission.plan import PlanError, PlanMismatch
     from ovtraj.pipeline import PipelineError
     from ovtraj.pipeline.catalog import family_root

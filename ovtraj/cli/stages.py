@@ -20,6 +20,7 @@ from ovtraj.cli.common import (
     _report,
     _rows,
     app,
+    renamed_options,
 )
 from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError, Scenario
@@ -56,7 +57,9 @@ _RENDEZVOUS_ROWS: RowSpec = [
 
 @app.command()
 def rendezvous(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
-    """Rendezvous of the OV with the space target: modified Hohmann transfer under J2."""
+    """Rendezvous of the OV with the space target: modified Hohmann transfer under J2.
+
+    Example: `ovtraj rendezvous configs/scenario.yaml --json`"""
     from ovtraj.rendezvous import rendezvous_input, solve_rendezvous
 
     scenario = _load(config)
@@ -115,7 +118,9 @@ def launch(
     as_json: JsonOpt = False,
 ) -> None:
     """Air launch: maximum payload to the target orbit (GA, SLSQP, then trust-constr; a
-    progress bar on stderr)."""
+    progress bar on stderr).
+
+    Example: `ovtraj launch --altitude-km 300`"""
     from ovtraj.launch import launch_input, solve_launch
 
     scenario = _load(config)
@@ -149,13 +154,14 @@ def launch(
         raise typer.Exit(code=1)
 
 
-@app.command("launch-fit")
+# `--out` was `--output`: still taken for one release.
+@app.command("launch-fit", cls=renamed_options({"--output": "--out"}))
 def launch_fit_command(
     config: ConfigArg = None,
     output: Annotated[
         Path | None,
         typer.Option(
-            "--output",
+            "--out",
             help="directory for coefficients.json and grid.parquet (default: "
             "launch_fit/KEY in the workspace, `ovtraj paths`)",
             show_default=False,
@@ -165,7 +171,9 @@ def launch_fit_command(
     as_json: JsonOpt = False,
 ) -> None:
     """Launch fit (patent 5.1): solve the altitude grid, fit the Fourier series (a
-    progress bar and a line per altitude on stderr)."""
+    progress bar and a line per altitude on stderr).
+
+    Example: `ovtraj launch-fit --target configs/targets/iss-like-2026-12-01.tle`"""
     from ovtraj.launch import launch_input
     from ovtraj.launch.launch_fit import fit_roots, launch_fit, launch_fit_key
 
@@ -254,7 +262,9 @@ _DEORBIT_ROWS: RowSpec = [
 
 @app.command()
 def deorbit(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
-    """Deorbit: ground-track forecast, two-body estimate, SQP correction under J2."""
+    """Deorbit: ground-track forecast, two-body estimate, SQP correction under J2.
+
+    Example: `ovtraj deorbit configs/scenario.yaml`"""
     from ovtraj.deorbit import deorbit_input, solve_deorbit
 
     scenario = _load(config)
@@ -287,7 +297,9 @@ _REENTRY_ROWS: RowSpec = [
 
 @app.command()
 def reentry(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
-    """Reentry: guided lifting entry to the terminal interface near the landing site."""
+    """Reentry: guided lifting entry to the terminal interface near the landing site.
+
+    Example: `ovtraj reentry --json`"""
     from ovtraj.reentry import reentry_input, solve_reentry
 
     scenario = _load(config)

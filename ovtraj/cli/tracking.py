@@ -13,7 +13,15 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _store, _store_root, app
+from ovtraj.cli.common import (
+    JsonOpt,
+    StoreOpt,
+    _print_json,
+    _store,
+    _store_root,
+    app,
+    renamed_options,
+)
 from ovtraj.config.io_limits import echoed, shown_text
 from ovtraj.formatting import quantity, utc
 
@@ -155,7 +163,9 @@ def diff(
 ) -> None:
     """What differs between two runs, pipeline results or plans: inputs (scenario fields,
     element set and its epoch, design, code version) and results (the plan's figures, the
-    front, the Monte Carlo), each with both values, the change and its unit."""
+    front, the Monte Carlo), each with both values, the change and its unit.
+
+    Example: `ovtraj diff 3b8ebf38684e45f1 7c2d1e5a9f0b4c68 --md`"""
     from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.diff import changes, markdown_table, text_rows
 
@@ -209,10 +219,13 @@ def _pairs(values: list[str] | None, what: str) -> dict[str, str]:
     return found
 
 
-@app.command()
+# `--target-name` was `--target` (elsewhere a TLE/OMM file or URL), `--out` was `--plot`:
+# still taken for one release.
+@app.command(cls=renamed_options({"--target": "--target-name", "--plot": "--out"}))
 def history(
     target: Annotated[
-        str | None, typer.Option("--target", help="the target's name (scenario target.name)")
+        str | None,
+        typer.Option("--target-name", help="the target's name (scenario target.name)"),
     ] = None,
     scenario: Annotated[str | None, typer.Option("--scenario", help="the scenario's name")] = None,
     deployment: Annotated[
@@ -222,14 +235,16 @@ def history(
     tag: _TagOpt = None,
     plot: Annotated[
         Path | None,
-        typer.Option("--plot", help="the trend PNG (default: STORE/catalog/history/)"),
+        typer.Option("--out", help="the trend PNG (default: STORE/catalog/history/)"),
     ] = None,
     store_root: StoreOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """The re-plans of a target in element-set order: epoch, ids, code version, launch
     epoch, dV_total, T_total, M_load, landing miss, Monte Carlo p95 and dV margin; and a
-    trend plot of them with the code-version changes marked."""
+    trend plot of them with the code-version changes marked.
+
+    Example: `ovtraj history --target-name 'ISS-like space target' --out trend.png`"""
     from ovtraj.plots.history import history_plot
     from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import CATALOG_DIR, refresh
@@ -305,7 +320,9 @@ def catalog(
     as_json: JsonOpt = False,
 ) -> None:
     """Bring the store's catalog (one Parquet table: a row per run, pipeline result, plan and
-    plan Monte Carlo) up to date, or rebuild it; prints its path."""
+    plan Monte Carlo) up to date, or rebuild it; prints its path.
+
+    Example: `ovtraj catalog --rebuild`"""
     from ovtraj.tracking.catalog import refresh
 
     root = _store_root(store_root)
@@ -341,7 +358,9 @@ def tag(
     as_json: JsonOpt = False,
 ) -> None:
     """Tag a stored item (tags live beside it, in the catalog's folder: its checksummed
-    files never change); with no KEY=VALUE, print its tags."""
+    files never change); with no KEY=VALUE, print its tags.
+
+    Example: `ovtraj tag 3b8ebf38684e45f1 campaign=december --remove draft`"""
     from ovtraj.tracking.catalog import read_tags, refresh, set_tags
 
     root = _store_root(store_root)
@@ -369,7 +388,9 @@ def lineage(
 ) -> None:
     """The chain of a plan, element set -> launch fit -> DoE run -> child runs -> surrogates
     -> front -> plan -> exports, each with its digest and whether it still verifies (exit 1
-    when a link is missing or fails)."""
+    when a link is missing or fails).
+
+    Example: `ovtraj lineage night7.opm`"""
     from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.lineage import lineage as plan_lineage
 

@@ -13,15 +13,17 @@ from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
     TargetOpt,
+    _limits,
     _load,
     _print_json,
     _store,
     app,
 )
 from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, _runner_choice
-from ovtraj.cli.picking import MaxDvOpt, MaxTimeOpt, MinLoadOpt, WeightsOpt, _pick
+from ovtraj.cli.picking import MaxDvOpt, MaxTimeOpt, MinLoadOpt, PickCommand, WeightsOpt, _pick
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config.io_limits import shown_text
+from ovtraj.config.mission import DoeSettings
 from ovtraj.formatting import quantity
 
 DaysOpt = Annotated[
@@ -47,7 +49,7 @@ WorkersOpt = Annotated[
     int | None,
     typer.Option(
         "--workers",
-        min=1,
+        **_limits(DoeSettings, "workers"),
         help="days at once on --runner processes or a local Dask cluster (default: the "
         "config's mission.doe.workers)",
         show_default=False,
@@ -55,7 +57,7 @@ WorkersOpt = Annotated[
 ]
 
 
-@app.command()
+@app.command(cls=PickCommand)
 def window(
     days: DaysOpt,
     config: ConfigArg = None,
@@ -85,9 +87,9 @@ def window(
     day is stored and the window written all the same; --allow-unconverged: exit 0).
     Exit 2: bad input or a fault, one line naming it. The window flow says the same by
     its state: Failed with that line as its message (require_converged=false: Completed,
-    named "Not converged")."""
-    from dataclasses import replace
+    named "Not converged").
 
+    Example: `ovtraj window --days 7 --runner processes --workers 2`"""
     from ovtraj.window.records import window_verdict
     from ovtraj.window.settings import load_window_settings
 
@@ -101,9 +103,7 @@ def window(
     if scenario.mission is None or scenario.launch is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    choice = _runner_choice(scenario.mission.doe, runner, dask_address)
-    if workers is not None:
-        choice = replace(choice, workers=workers)
+    choice = _runner_choice(scenario.mission.doe, runner, dask_address, workers)
     store = _store(store_root, scenario, config)
     outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
     files = {name: path.resolve() for name, path in outcome.files.items()}
