@@ -14,6 +14,7 @@ from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig, MonteCarloExecution, default_dispersions
+from ovtraj.config.export import ExportFormat
 from ovtraj.formatting import number, split_unit
 
 
@@ -232,10 +233,11 @@ def _format_dv_spent(dv: dict) -> list[str]:
 @app.command()
 def export(
     plan_file: Annotated[Path, typer.Argument(help="mission plan (JSON or YAML)")],
-    fmt: Annotated[
-        str,
+    chosen: Annotated[
+        ExportFormat,
         typer.Option(
             "--format",
+            case_sensitive=False,
             help="oem: the whole trajectory (CCSDS 502.0 OEM 2.0); opm: the insertion state "
             "and the five impulses (OPM 2.0)",
         ),
@@ -250,17 +252,16 @@ def export(
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Export a mission plan as a CCSDS OEM or OPM (KVN, EME2000, UTC) for GMAT, Orekit, STK."""
+    """Export a mission plan as a CCSDS OEM or OPM (KVN, EME2000, UTC) for GMAT, Orekit, STK.
+
+    Example: `ovtraj export plan-sample-30.json --format oem --out chosen.oem`"""
     from ovtraj.config.export import CcsdsExportSettings, default_export_settings
-    from ovtraj.mission.ccsds import FORMATS, UnflownPlan, export_plan
+    from ovtraj.mission.ccsds import UnflownPlan, export_plan
     from ovtraj.mission.plan import PlanError, read_plan
     from ovtraj.tracking.catalog import plan_id
     from ovtraj.tracking.lineage import record_export
 
-    fmt = fmt.lower()
-    if fmt not in FORMATS:
-        typer.echo(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}", err=True)
-        raise typer.Exit(code=2)
+    fmt = chosen.value
     try:
         settings = (
             default_export_settings()

@@ -9,12 +9,26 @@ written into a message is printable ASCII (:func:`kvn_value_problem`).
 
 from __future__ import annotations
 
+from enum import StrEnum
 from functools import lru_cache
 from typing import Literal
 
 from pydantic import Field, field_validator
 
 from ovtraj.config.base import StrictModel, bounded, load_model
+
+
+class ExportFormat(StrEnum):
+    """The messages a plan is exported as: ``oem`` the whole trajectory, ``opm`` the
+    insertion state and the impulses. Here, with the export's settings, not with the
+    writer (:mod:`ovtraj.mission.ccsds`): ``ovtraj export --help`` offers them without
+    loading the mission's dynamics (~6 s)."""
+
+    oem = "oem"
+    opm = "opm"
+
+
+FORMATS: tuple[str, ...] = tuple(member.value for member in ExportFormat)
 
 # The characters of a KVN message: printable ASCII and the blank, 32-126 (CCSDS
 # 502.0-B-3, Orbit Data Messages, 2023, the KVN chapter: lines of printable ASCII

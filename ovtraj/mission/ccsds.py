@@ -42,15 +42,13 @@ from ovtraj.astro.eme2000 import teme_to_eme2000
 from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
 from ovtraj.astro.rocket import burn_durations
 from ovtraj.config import scenario_from_dict
-from ovtraj.config.export import CcsdsExportSettings, kvn_value_problem
+from ovtraj.config.export import FORMATS, CcsdsExportSettings, kvn_value_problem
 from ovtraj.config.io_limits import echoed
 from ovtraj.mission.fly import EphemerisSegment, FlightReport, replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.store.files import StoreError, holds_other, writable_target, write_bytes
 
 __all__ = ["FORMATS", "UnflownPlan", "export_plan", "oem_text", "opm_text"]
-
-FORMATS = ("oem", "opm")
 
 
 class UnflownPlan(PlanError):
