@@ -78,7 +78,9 @@ def fly(
     and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights
     (a progress bar on stderr); with --fidelity high, the closed loop under the
     high-fidelity force model: each manoeuvre's dV against the plan's, the arrival and
-    landing misses, the path-limit margins."""
+    landing misses, the path-limit margins.
+
+    Example: `ovtraj fly plan-sample-30.json --monte-carlo 20 --seed 1`"""
     from ovtraj.mission.fly import fly_plan, format_flight_report
     from ovtraj.mission.high_fidelity import high_fidelity_settings
     from ovtraj.mission.plan import PlanError, read_plan

@@ -106,7 +106,9 @@ def runs(
 ) -> None:
     """List the stored runs by family: each DoE run, then the runs that extend it (a
     pipeline's infill rounds, `run --append`), with their pipeline results and sizes; with
-    --where, the catalog's rows (runs, pipeline results, plans) a predicate selects."""
+    --where, the catalog's rows (runs, pipeline results, plans) a predicate selects.
+
+    Example: `ovtraj runs --where "kind = 'plan' AND dv_total_mps > 220"`"""
     from ovtraj.store.files import StoreError, tree_bytes
     from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import catalog_settings, query, refresh
@@ -196,7 +198,9 @@ def runs(
 @app.command()
 def show(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
     """Print a run's manifest and summary as one JSON object (indented; --json: on one
-    line, as every command's --json)."""
+    line, as every command's --json).
+
+    Example: `ovtraj show 1fe6042587a62a93`"""
     from ovtraj.runs import StoreError
 
     try:
@@ -236,7 +240,9 @@ def prune(
     """List, and with --yes delete, what the store can lose without losing a result:
     child runs whose samples a later complete run holds (never a family's DoE run nor a
     pipeline's final run), surrogate fits and fronts no longer loaded by this code
-    version, and Prefect's task results (a cache). See docs/mission.md."""
+    version, and Prefect's task results (a cache). See docs/mission.md.
+
+    Example: `ovtraj prune --only children --yes`"""
     from ovtraj.config.orchestration import load_orchestration
     from ovtraj.pipeline.prune import KINDS, prunable, remove
     from ovtraj.runs import StoreError
@@ -318,6 +324,8 @@ def verify(
     covered file is intact (and every recomputed column within its tolerance), 1 with the
     list of bad or tampered files (or the columns beyond), 2 when the item cannot be found,
     opened or recomputed here.
+
+    Example: `ovtraj verify 1fe6042587a62a93 --recompute 3`
     """
     from ovtraj.runs import StoreError
 
@@ -480,7 +488,9 @@ def _tolerance(check: Any) -> str:
 
 @app.command()
 def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> None:
-    """Re-derive the mission totals from the stored stage rows (no simulation)."""
+    """Re-derive the mission totals from the stored stage rows (no simulation).
+
+    Example: `ovtraj replay 1fe6042587a62a93 --json`"""
     from ovtraj.runs import StoreError
     from ovtraj.runs import replay as replay_run
 

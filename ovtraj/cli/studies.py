@@ -90,7 +90,9 @@ def optimal_entry(
         ),
     ] = None,
 ) -> None:
-    """Optimal lifting entry by Gauss pseudospectral collocation (seed 001)."""
+    """Optimal lifting entry by Gauss pseudospectral collocation (seed 001).
+
+    Example: `ovtraj optimal-entry configs/cases/suborbital_return.yaml --transcription lgr`"""
     from ovtraj.studies.optimal_entry import (
         load_optimal_entry,
         solve_optimal_entry,
@@ -141,7 +143,9 @@ def maneuver(
     config: Annotated[Path, typer.Argument(help="manoeuvre YAML file", show_default=False)],
     as_json: JsonOpt = False,
 ) -> None:
-    """Quick multi-impulse manoeuvre of an upper stage, then finite burns (seed 003)."""
+    """Quick multi-impulse manoeuvre of an upper stage, then finite burns (seed 003).
+
+    Example: `ovtraj maneuver configs/cases/upper_stage_rendezvous.yaml --json`"""
     from ovtraj.studies.maneuver import comparison_rows, load_maneuver, solve_maneuver
 
     try:
@@ -201,7 +205,9 @@ def deorbit_burn(
         ),
     ] = None,
 ) -> None:
-    """Finite-thrust deorbit burn by osculating-element prediction (seed 004)."""
+    """Finite-thrust deorbit burn by osculating-element prediction (seed 004).
+
+    Example: `ovtraj deorbit-burn configs/cases/shuttle_deorbit.yaml --monte-carlo 100`"""
     from ovtraj.studies.deorbit_burn import deorbit_burn_report, format_report, load_deorbit_burn
 
     try:

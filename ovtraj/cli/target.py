@@ -41,7 +41,9 @@ def target(
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """The project's mean elements of a TLE / OMM, fitted to its SGP4 ephemeris."""
+    """The project's mean elements of a TLE / OMM, fitted to its SGP4 ephemeris.
+
+    Example: `ovtraj target configs/targets/iss-like-2026-12-01.tle --span-h 24`"""
     from ovtraj.target_sources import fit_source
 
     with warnings.catch_warnings(record=True) as caught:

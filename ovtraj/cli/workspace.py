@@ -9,7 +9,9 @@ from ovtraj.store import paths as where
 
 @app.command()
 def paths(as_json: JsonOpt = False) -> None:
-    """Where ovtraj reads its shipped files and writes its results (the workspace)."""
+    """Where ovtraj reads its shipped files and writes its results (the workspace).
+
+    Example: `ovtraj paths --json`"""
     found = {
         "configs": str(where.config_dir()),
         "reference": str(where.reference_dir()),
