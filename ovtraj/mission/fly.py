@@ -46,6 +46,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
@@ -63,6 +64,7 @@ from ovtraj.formatting import duration, number, utc
 from ovtraj.launch.ascent import simulate
 from ovtraj.launch.frame import launch_frame_axes, launch_to_ecef
 from ovtraj.launch.inputs import launch_input
+from ovtraj.launch.result import trajectory_table
 from ovtraj.launch.stage import ascent_model, launch_problem
 from ovtraj.mission.plan import MissionPlan, PlannedImpulse
 from ovtraj.reentry import EntryState, reentry_input
@@ -818,6 +820,26 @@ def fly_ascent(
         load_max <= limits.max_axial_load_g * slack,
     )
     return np.r_[r, v], t_ins
+
+
+def ascent_trajectory(plan: MissionPlan, scenario: Scenario) -> pd.DataFrame:
+    """The plan's ascent from the drop as the launch stage tabulates its own
+    (:func:`ovtraj.launch.result.trajectory_table`: time from the drop, altitude, Earth-relative
+    and inertial speed, flight-path angle, mass, dynamic pressure, axial load...): the plan's
+    programme flown by the stage's model, sampled every ``launch.integration.
+    trajectory_step_s`` and at each phase's ends. Raises :class:`ReplayFailed` when the
+    plan's scenario does not pose the launch its programme was solved for."""
+    inp, model, design = _ascent(plan, scenario)
+    outcome = simulate(model, design, keep_history=True)
+    axes = launch_frame_axes(model.drop.latitude_rad, model.drop.longitude_rad, float(design[0, 0]))
+    return trajectory_table(
+        outcome.history,
+        row=0,
+        axes=axes,
+        earth=inp.earth,
+        drop_time_s=plan.launch.drop_t_s,
+        step_s=inp.integration.trajectory_step_s,
+    )
 
 
 def _record_ascent(plan: MissionPlan, scenario: Scenario, recorder: _Recorder) -> None:
