@@ -40,7 +40,7 @@ from ovtraj.plots.coastlines import draw_coastlines, split_at_wrap, with_breaks
 from ovtraj.plots.render import figure, write_png
 from ovtraj.store.backends import location
 
-__all__ = ["PHASES", "limit_labels", "mission_figures", "mission_plots"]
+__all__ = ["PHASES", "limit_labels", "mission_figures", "mission_plots", "scenario_when"]
 
 # (stage, phase) -> colour and legend text; the phases are the tables' ``phase`` column.
 PHASES: dict[tuple[str, str], tuple[str, str]] = {
@@ -140,7 +140,7 @@ def _launch_day(scenario: Scenario) -> Epoch:
     return scenario.epoch
 
 
-def _when(scenario: Scenario) -> str:
+def scenario_when(scenario: Scenario) -> str:
     """The scenario's name and day, from the config (never the wall clock)."""
     if scenario.launch is not None:
         return f"scenario {scenario.name}, launch day {scenario.launch.launch_date_utc}"
@@ -199,7 +199,7 @@ def _profile(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> Any:
         fig.legend(
             list(entries.values()), list(entries), loc="outside lower center", ncols=4, fontsize=8
         )
-    fig.suptitle(f"Mission profile: {_when(scenario)}")
+    fig.suptitle(f"Mission profile: {scenario_when(scenario)}")
     return fig
 
 
@@ -402,7 +402,7 @@ def _ground_track(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> Any:
         ncols=3,
         fontsize=8,
     )
-    fig.suptitle(f"Ground track: {_when(scenario)}")
+    fig.suptitle(f"Ground track: {scenario_when(scenario)}")
     return fig
 
 
@@ -503,5 +503,5 @@ def _corridor(table: pd.DataFrame | None, scenario: Scenario) -> Any:
     ax.legend(
         fontsize=8, loc="upper left", title="limits: exceeded below each line", title_fontsize=8
     )
-    ax.set_title(f"Reentry corridor: {_when(scenario)}", fontsize=11)
+    ax.set_title(f"Reentry corridor: {scenario_when(scenario)}", fontsize=11)
     return fig
