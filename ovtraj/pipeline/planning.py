@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from ovtraj.config import Scenario
@@ -106,6 +107,7 @@ def write_mission_plan(
     name = f"plan-sample-{sample_id}"
     json_path, yaml_path = write_plan(plan, directory, name)
     plots = mission_plots(record.trajectories, scenario, directory, prefix=name)
+    ascent, entry = plan_detail_plots(plan, record.trajectories, scenario, directory, name)
     from ovtraj.plots.front import front_plot
 
     totals = run.totals()
@@ -136,7 +138,10 @@ def write_mission_plan(
         surrogates=last_surrogates(store, result),
         plots=[result.directory / "front.png", *(location(p) for p in plots)],
         since_previous=since,
+        ascent_plot=ascent,
+        entry_plot=entry,
     )
+    plots += [p for p in (ascent, entry) if p is not None]
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
     files = {path.name: file_digest(path) for path in paths}
     write_sealed(
@@ -153,6 +158,31 @@ def write_mission_plan(
         "report": report,
         "pick": pick_explanation(result.front, normalisation, pick, row),
     }
+
+
+def plan_detail_plots(
+    plan: Any, trajectories: dict[str, Any], scenario: Scenario, directory: Any, name: str
+) -> tuple[Path | None, Path | None]:
+    """The plan's ascent from the drop (its programme flown by the launch stage's model,
+    :func:`ovtraj.mission.fly.ascent_trajectory`) and its entry's time histories (the
+    reentry's trajectory table), drawn as ``<name>_ascent.png`` and
+    ``<name>_entry_histories.png`` in ``directory``; None for a figure without its data."""
+    from ovtraj.mission.fly import ReplayFailed, ascent_trajectory
+    from ovtraj.plots.ascent import ascent_plot
+    from ovtraj.plots.entry import entry_histories_plot
+
+    directory = location(directory)
+    try:
+        ascent = ascent_plot(
+            ascent_trajectory(plan, scenario), scenario, directory / f"{name}_ascent.png"
+        )
+    except ReplayFailed:  # a plan whose scenario no longer poses its launch: no figure
+        ascent = None
+    table = trajectories.get("reentry")
+    entry = None
+    if table is not None and len(table):
+        entry = entry_histories_plot(table, scenario, directory / f"{name}_entry_histories.png")
+    return ascent, entry
 
 
 def stored_stage_rows(run: Run, sample_id: int) -> dict[str, dict[str, Any]]:

@@ -3,7 +3,9 @@
 :func:`stop_explanation` says whether the verification loop converged and why it stopped;
 :func:`pick_explanation` why the planned point was chosen; :func:`write_report` writes
 ``<plan>-report.html`` next to the plan: the verdict, the rounds, the surrogates'
-validation, the verified front, the plan's key figures and every plot, embedded
+validation, the verified front, the plan's key figures, its path peaks against their
+limits, its manoeuvres, the ascent from the drop, the entry's time histories, a flight of
+the plan when one is passed in (:mod:`.report_tables`) and every plot, embedded
 (``data:`` URIs), so the file can be mailed or opened on another machine. The report holds
 only stored results (no wall clock, no host): the same plan gives the same bytes.
 """
@@ -17,10 +19,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ovtraj.config import scenario_from_dict
 from ovtraj.formatting import number, utc
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.features import PASS_MODEL, unregressed
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
+from ovtraj.pipeline.report_tables import flight_shown, manoeuvres_shown, margins_shown
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.store.files import write_bytes
 
@@ -309,6 +313,73 @@ def _since_previous_section(since: tuple[Any, list[Any]] | None) -> list[str]:
     return [head, _table(frame)]
 
 
+def _figure(path: Path, alt: str, caption: str) -> str:
+    """A PNG embedded as a figure: ``alt`` names what it shows, the caption adds its file."""
+    return (
+        f"<figure><img alt='{html.escape(alt)}' src='{png_data_uri(path)}'>"
+        f"<figcaption>{html.escape(caption)} ({html.escape(path.name)})</figcaption></figure>"
+    )
+
+
+# Alt text of the plan's own figures (the test of the rendered report finds them by it).
+ASCENT_ALT = "ascent profile from the drop"
+ENTRY_ALT = "entry time histories against their limits"
+
+
+def _plan_sections(
+    plan: Any, ascent_plot: Path | None, entry_plot: Path | None, flight: Any
+) -> list[str]:
+    """Path peaks against their limits, the manoeuvres, the ascent, the entry's time
+    histories and the flight of the plan (or where to get one)."""
+    scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
+    manoeuvres, note = manoeuvres_shown(plan, scenario)
+    parts = [
+        "<h2>Path peaks against their limits</h2>",
+        "<p>Each peak of the plan against the limit its scenario sets (margin = limit - "
+        "peak, in the limit's unit and as a percentage of it; negative: over the limit).</p>",
+        _table(margins_shown(plan, scenario)),
+        "<h2>Manoeuvres</h2>",
+        f"<p>{html.escape(note)}.</p>",
+        _table(manoeuvres),
+        "<h2>Ascent from the drop</h2>",
+    ]
+    if ascent_plot is None:
+        parts.append("<p>no ascent profile: the plan's programme was not flown again.</p>")
+    else:
+        parts.append(
+            _figure(
+                ascent_plot,
+                ASCENT_ALT,
+                "Altitude, speed, flight-path angle, dynamic pressure, axial load and mass "
+                "against time from the drop: the plan's programme flown by the launch stage's "
+                "model, the launcher's limits dashed",
+            )
+        )
+    parts.append("<h2>Entry time histories</h2>")
+    if entry_plot is None:
+        parts.append("<p>no entry time histories: the reentry's trajectory is not given.</p>")
+    else:
+        parts.append(
+            _figure(
+                entry_plot,
+                ENTRY_ALT,
+                "Heat rate, load factor, dynamic pressure and bank angle against time from the "
+                "entry interface (the reentry stage's trajectory table), each limit dashed",
+            )
+        )
+    parts.append("<h2>Flown</h2>")
+    if flight is None:
+        parts.append(
+            "<p>No flight of this plan is part of this report: <code>ovtraj fly PLAN</code> "
+            "(J2 replay) and <code>ovtraj fly PLAN --fidelity high</code> print their results "
+            "(<code>--json</code>) and store none.</p>"
+        )
+    else:
+        sentence, frame = flight_shown(flight, plan)
+        parts += [f"<p>{html.escape(sentence)}.</p>", _table(frame)]
+    return parts
+
+
 def write_report(
     path: Path,
     *,
@@ -322,13 +393,23 @@ def write_report(
     surrogates: Any,
     plots: list[Path],
     since_previous: tuple[Any, list[Any]] | None = None,
+    ascent_plot: Path | None = None,
+    entry_plot: Path | None = None,
+    flight: Any = None,
 ) -> Path:
     """The HTML report of a planned pipeline result at ``path`` (rewritten with the plan:
     it is a view of stored results); returns ``path``. ``since_previous``: the previous
     plan of this target (its history row) and the changes since
-    (:mod:`ovtraj.tracking.diff`), a section of their own."""
+    (:mod:`ovtraj.tracking.diff`), a section of their own. ``ascent_plot`` and
+    ``entry_plot``: the PNGs of the plan's ascent (:mod:`ovtraj.plots.ascent`) and entry
+    time histories (:mod:`ovtraj.plots.entry`), each in its own section. ``flight``: a
+    flight of this plan as ``ovtraj fly PLAN --json`` prints it (the J2 replay, or the
+    ``--fidelity high`` result), shown beside the plan; a mapping of neither kind, or the
+    flight of another plan, raises
+    :class:`~ovtraj.pipeline.report_tables.FlightResultError` before anything is written."""
     converged = bool(summary.get("converged"))
     evaluations = summary["real_evaluations"]
+    plan_parts = _plan_sections(plan, ascent_plot, entry_plot, flight)
     title = f"ovtraj mission report: {scenario_name}"
     parts = [
         f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
@@ -345,6 +426,7 @@ def write_report(
         "<h2>The plan</h2>",
         f"<p>{html.escape(pick_text)}.</p>",
         _table(_plan_rows(plan)),
+        *plan_parts,
         *_since_previous_section(since_previous),
         "<h2>Verification rounds</h2>",
         _table(_rounds_frame(summary)),
