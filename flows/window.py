@@ -8,8 +8,8 @@ with each launch day a task (``tasks/window.py``) on the flow's task runner
 1. the scenario and its days (the launch day moves, the target stays);
 2. a task per day not stored yet: the day's launch fit (the shared grid flown on the
    day), then its whole pipeline, runs, front, plan and report in the run store;
-3. the window's table, plot and page in ``<run store>/windows/<window id>/``, then
-   artifacts: the days' table and the plot;
+3. the window's tables, plots (the days' objectives, the porkchop) and page in
+   ``<run store>/windows/<window id>/``, then artifacts: the days' table and the plots;
 4. the state: Completed when every planned day's verification loop converged, else Failed
    with the line ``ovtraj window`` prints after its table (the days that did not, or "no
    day has a plan") as its message; ``require_converged=False``: a window whose days did
@@ -147,7 +147,7 @@ def window_flow(
             [
                 f"**{headline}**",
                 f"- page: `{files['window.html']}`",
-                *embedded_plots([outcome.files["window.png"]]),
+                *embedded_plots([outcome.files["window.png"], outcome.files["porkchop.png"]]),
             ]
         ),
         description=f"launch window {identity} of {scenario.name}",

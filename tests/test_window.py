@@ -7,8 +7,10 @@ from the plans' files and the scenario's ideal and reference points, not from th
 window's table); a second scan simulates and writes nothing; days 1 and 2 fly the
 shipped grid's launches, retimed, with no launch solved; the flow and the command give
 the same rows. No day's loop converges (a 1e-6 error tolerance): the command exits 1
-naming the days, the flow run ends Failed with the same line. The launch-fit split is
-checked against the shipped reference fit and a launch solved afresh on another day.
+naming the days, the flow run ends Failed with the same line. The porkchop is each day's
+plan swept and evaluated again by the chain, and its figure is drawn from the stored
+tables. The launch-fit split is checked against the shipped reference fit and a launch
+solved afresh on another day.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from ovtraj.launch.launch_fit import (
     retimed_launch_fit,
 )
 from ovtraj.window.days import day_scenario
+from ovtraj.window.porkchop import PORKCHOP_SCHEMA
 from ovtraj.window.report import WINDOW_SCHEMA
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
@@ -135,10 +138,10 @@ def test_the_command_writes_the_window_and_prints_its_absolute_paths(scanned):
     assert len(days) == DAYS  # a line per finished day
     paths = [
         p
-        for label in ("table:", "plot:", "page:", "window:")
+        for label in ("table:", "plot:", "porkchop:", "page:", "window:")
         for p in _written(first.stdout, label)
     ]
-    assert len(paths) == 5 and all(p.is_absolute() and p.is_file() for p in paths)
+    assert len(paths) == 8 and all(p.is_absolute() and p.is_file() for p in paths)
     assert {p.parent.parent for p in paths} == {scanned["store"] / "windows"}
     frame = pd.read_parquet(paths[0])
     assert list(frame.columns) == WINDOW_SCHEMA.names and list(frame["day"]) == [0, 1, 2]
@@ -192,6 +195,92 @@ def test_the_best_day_is_the_best_of_the_days_own_plans(scanned):
             plan["scenario"]["target"]["orbit"]
             == build_scenario(scanned["data"]).resolved()["target"]["orbit"]
         )
+
+
+def test_the_porkchop_is_each_days_plan_swept_and_drawn_from_the_store(scanned):
+    """``porkchop.parquet``: each day's plan (its design in ``window.parquet``, the plan
+    file's) with the configured variable at evenly spaced values over its bounds, each
+    point the chain's own result (one evaluated again here); the figure written is the
+    one the stored tables draw, its contours spanning the stored values and its markers
+    at the stored plans, the best day's a star."""
+    from matplotlib.dates import date2num
+
+    from ovtraj.mission import DESIGN_NAMES, MissionContext
+    from ovtraj.optimize import Normalisation
+    from ovtraj.plots.render import png_bytes
+    from ovtraj.runs.execute import evaluate_batch
+    from ovtraj.window.porkchop import Sweep
+    from ovtraj.window.report import porkchop_figure_of, svg_bytes
+    from ovtraj.window.settings import load_window_settings
+
+    written = {p.name: p for p in _written(scanned["first"].stdout, "porkchop:")}
+    assert sorted(written) == ["porkchop.parquet", "porkchop.png", "porkchop.svg"]
+    directory = written["porkchop.parquet"].parent
+    marker = json.loads((directory / "window.json").read_text(encoding="utf-8"))
+    window = pd.read_parquet(directory / "window.parquet")
+    porkchop = pd.read_parquet(written["porkchop.parquet"])
+    assert list(porkchop.columns) == PORKCHOP_SCHEMA.names
+    base = build_scenario(scanned["data"])
+    settings = load_window_settings().porkchop
+    variable = settings.variable
+    bounds = getattr(base.mission.design_bounds, variable)
+    values = np.linspace(bounds.lower, bounds.upper, settings.points)
+    assert marker["porkchop"] == {"variable": variable, "values": list(values)}
+    plans = {
+        json.loads(p.read_text(encoding="utf-8"))["launch_day_utc"][:10]: p
+        for p in scanned["store"].glob("*/pipeline/*/plans/plan-*.json")
+        if not p.name.endswith(".files.json")
+    }
+    assert len(porkchop) == DAYS * settings.points
+    for row in window.itertuples(index=False):
+        plan = json.loads(plans[row.date].read_text(encoding="utf-8"))
+        design = {name: getattr(row, name) for name in DESIGN_NAMES}
+        assert design == {name: plan["design"][name] for name in DESIGN_NAMES}
+        day = porkchop[porkchop["day"] == row.day].sort_values("node")
+        assert np.array_equal(day[variable], values)
+        for name in DESIGN_NAMES:
+            if name != variable:
+                assert (day[name] == design[name]).all(), name
+        record = json.loads(
+            (directory / "days" / f"{row.day:04d}.json").read_text(encoding="utf-8")
+        )
+        sweep = record["sweep"]
+        assert list(day["feasible"]) == sweep["feasible"]
+        assert np.array_equal(
+            day["dv_total_mps"], np.array(sweep["dv_total_mps"], dtype=float), equal_nan=True
+        )
+    # One feasible point of day 1 evaluated again by the chain on its day, as a batch is
+    # (its BLAS threads pinned: the same last bits in any process).
+    feasible = porkchop[(porkchop["day"] == 1) & porkchop["feasible"]].iloc[len(values) // 4]
+    day1 = day_scenario(base, 1)
+    (again,) = evaluate_batch(
+        MissionContext(day1, day_launch_fit(day1)), feasible.to_frame().T[list(DESIGN_NAMES)]
+    )
+    assert again.feasible and again.dv_total_mps == feasible["dv_total_mps"]
+    assert again.t_total_s / 3600.0 == pytest.approx(feasible["t_total_h"], rel=1e-15)
+    # The figure: the stored tables draw the stored bytes (PNG first, as the window does).
+    normalisation = Normalisation.mission(base.mission.optimize)
+    title = (
+        f"porkchop of {base.name}: 2026-12-01 to 2026-12-03 ({DAYS} days)\n"
+        f"each day's plan with {variable} at {len(values)} values, the rest kept"
+    )
+    sweep = Sweep(variable, tuple(values))
+    fig = porkchop_figure_of(window, porkchop, sweep, normalisation, title)
+    assert png_bytes(fig) == written["porkchop.png"].read_bytes()
+    assert svg_bytes(fig) == written["porkchop.svg"].read_bytes()
+    panels = [ax for ax in fig.axes if any(line.get_gid() == "chosen" for line in ax.lines)]
+    assert [ax.get_title() for ax in panels] == ["dV_total", "T_total"]
+    best = window.loc[window["best"]].iloc[0]
+    for ax, column in zip(panels, ("dv_total_mps", "t_total_h"), strict=True):
+        (contours,) = [c for c in ax.collections if hasattr(c, "levels")]
+        finite = porkchop[column].dropna()
+        assert (contours.zmin, contours.zmax) == (finite.min(), finite.max())
+        lines = {line.get_gid(): line for line in ax.lines}
+        chosen, star = lines["chosen"], lines["best"]
+        assert np.array_equal(chosen.get_xdata(), date2num(pd.to_datetime(window["date"])))
+        assert np.array_equal(chosen.get_ydata(), window[variable])
+        assert list(star.get_xdata()) == [date2num(pd.Timestamp(best["date"]))]
+        assert list(star.get_ydata()) == [best[variable]]
 
 
 def test_day_zero_is_the_scenario_itself(scanned):

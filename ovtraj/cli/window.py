@@ -78,9 +78,10 @@ def window(
     """Launch-window scan: the whole pipeline for each of ``--days`` launch days (each
     day's runs, front, plan and report in the run store, as ``ovtraj pipeline``), the
     plan each day picks by ``--weights``, and the best day. Writes a table, a plot of
-    T_total, dV_total and M_load against the launch day and an HTML page linking each
-    day's report, in the run store's windows/ folder. A second scan with nothing changed
-    simulates nothing.
+    T_total, dV_total and M_load against the launch day, a porkchop (dV_total and T_total
+    over the launch day and configs/window.yaml's porkchop variable, each day's plan
+    swept) and an HTML page linking each day's report, in the run store's windows/
+    folder. A second scan with nothing changed simulates nothing.
 
     Exit 0: every planned day's verification loop converged. Exit 1: no day has a plan,
     or a day's loop did not converge (the line after the table names those days; every
@@ -134,6 +135,9 @@ def window(
             ("table", "window.parquet"),
             ("plot", "window.png"),
             ("plot", "window.svg"),
+            ("porkchop", "porkchop.parquet"),
+            ("porkchop", "porkchop.png"),
+            ("porkchop", "porkchop.svg"),
             ("page", "window.html"),
             ("window", "window.json"),
         ):

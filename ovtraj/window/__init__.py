@@ -5,7 +5,8 @@ plan of each day by the pick's weights, and the best day (``ovtraj window``,
 - :mod:`.days`: one scenario per launch day;
 - :mod:`.scan`: the driver (:func:`~.scan.scan_window`) and where the days run;
 - :mod:`.records`: a day's record, checked when read again, and the best day;
-- :mod:`.report`: the window's table, plot, HTML page and ``window.json``;
+- :mod:`.porkchop`: each planned day's plan swept along one design variable;
+- :mod:`.report`: the window's tables, plots, HTML page and ``window.json``;
 - :mod:`.settings`: ``configs/window.yaml``.
 
 Nothing is imported here: the command line loads the pipeline only when it runs.

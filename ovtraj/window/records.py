@@ -20,10 +20,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ovtraj.mission import DESIGN_NAMES
 from ovtraj.runs import RunStore
 from ovtraj.runs.store import checked_id
 from ovtraj.store.files import StoreError, file_digest, remove_file
 from ovtraj.store.seals import read_authenticated, write_sealed
+from ovtraj.window.porkchop import Sweep, sweep_problem
 
 __all__ = [
     "DAY_KEYS",
@@ -42,13 +44,13 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-FORMAT = 2  # 2: a planned day's record holds its pipeline's verdict
+FORMAT = 3  # 2: a planned day's record holds its pipeline's verdict; 3: its design, its sweep
 DAY_KIND = "launch-window-day"
 DAYS_DIR = "days"
 PLANNED, NO_PLAN = "planned", "no plan"
 ID_FIELDS = ("doe_run", "pipeline_id", "final_run")
-# The picked plan's front objectives (SI, as the front stores them) and its score.
-NUMBER_FIELDS = ("t_total_s", "dv_total_mps", "m_load_kg", "score")
+# The picked plan's front objectives (SI, as the front stores them), its score, its design.
+NUMBER_FIELDS = ("t_total_s", "dv_total_mps", "m_load_kg", "score", *DESIGN_NAMES)
 PATH_FIELDS = ("plan", "report")  # relative to the run store's root
 DAY_KEYS = (
     "format",
@@ -67,6 +69,7 @@ DAY_KEYS = (
     *NUMBER_FIELDS,
     *PATH_FIELDS,
     "plan_sha256",
+    "sweep",  # the plan swept along the porkchop's variable (ovtraj.window.porkchop)
 )
 
 
@@ -140,10 +143,11 @@ def write_day(directory: Any, record: dict[str, Any]) -> None:
 
 
 def stored_day(
-    directory: Any, window_id: str, day: int, date: str, store: RunStore
+    directory: Any, window_id: str, day: int, date: str, store: RunStore, sweep: Sweep
 ) -> dict[str, Any] | None:
-    """The day's stored record when it checks (its seal, every field, its plan's bytes);
-    None otherwise, with a warning naming the file when one is there."""
+    """The day's stored record when it checks (its seal, every field, the window's
+    ``sweep``, its plan's bytes); None otherwise, with a warning naming the file when one
+    is there."""
     path = day_path(directory, day)
     if not path.is_file():
         return None
@@ -152,15 +156,18 @@ def stored_day(
     except StoreError as err:
         logger.warning("%s; the day runs again", err)
         return None
-    problem = record_problem(record, window_id, day, date) or plan_problem(record, store)
+    problem = record_problem(record, window_id, day, date, sweep) or plan_problem(record, store)
     if problem:
         logger.warning("%s: %s; the day runs again", path, problem)
         return None
     return {key: record[key] for key in DAY_KEYS}  # without the seal
 
 
-def record_problem(record: Any, window_id: str, day: int, date: str) -> str | None:
-    """Why ``record`` is not day ``day``'s record of window ``window_id``; None when it is."""
+def record_problem(
+    record: Any, window_id: str, day: int, date: str, sweep: Sweep | None = None
+) -> str | None:
+    """Why ``record`` is not day ``day``'s record of window ``window_id`` (with ``sweep``:
+    holding that sweep); None when it is."""
     if not isinstance(record, dict):
         return "not a JSON object"
     missing = [key for key in DAY_KEYS if key not in record]
@@ -171,6 +178,8 @@ def record_problem(record: Any, window_id: str, day: int, date: str) -> str | No
         if type(record[key]) is not type(value) or record[key] != value:
             return f"{key} is not {value!r}"
     if record["status"] == NO_PLAN:
+        if record["sweep"] is not None:
+            return "a day with no plan has a sweep"
         return None if isinstance(record["reason"], str) else "a day with no plan gives no reason"
     if record["status"] != PLANNED:
         return f"status is neither {PLANNED!r} nor {NO_PLAN!r}"
@@ -196,7 +205,7 @@ def record_problem(record: Any, window_id: str, day: int, date: str) -> str | No
     sha256 = record["plan_sha256"]
     if not isinstance(sha256, str) or len(sha256) != 64:
         return "plan_sha256 is not a SHA-256"
-    return None
+    return sweep_problem(record["sweep"], sweep)
 
 
 def plan_problem(record: dict[str, Any], store: RunStore) -> str | None:

@@ -1,12 +1,17 @@
-"""A window's own files: the table, the porkchop-style plot, the HTML page, ``window.json``.
+"""A window's own files: the tables, the plots, the HTML page, ``window.json``.
 
 In ``<run store>/windows/<window id>/``, one stored product (:class:`ovtraj.store.products.
 Product`): ``window.parquet`` (:data:`WINDOW_SCHEMA`, a row per launch day), ``window.png``
 and ``window.svg`` (T_total, dV_total and M_load of each day's picked plan against the
-launch day, the best day marked), ``window.html`` (the table, each day's report linked
-by a relative link, the plot), then ``window.json`` written last with their digests. The
-files hold stored results only (no wall clock, no host, no absolute path): the same scan
-gives the same bytes, and a scan whose files are stored is not written again.
+launch day, the best day marked), ``porkchop.parquet`` (:data:`ovtraj.window.porkchop.
+PORKCHOP_SCHEMA`, each planned day's plan swept along one design variable),
+``porkchop.png`` and ``porkchop.svg`` (dV_total and T_total as filled contours over the
+launch day and that variable, each day's plan marked, the best day's a red star; drawn
+from ``porkchop.parquet`` and ``window.parquet`` alone, :func:`porkchop_figure_of`),
+``window.html`` (the table, each day's report linked by a relative link, the plots),
+then ``window.json`` written last with their digests. The files hold stored results only
+(no wall clock, no host, no absolute path): the same scan gives the same bytes, and a
+scan whose files are stored is not written again.
 """
 
 from __future__ import annotations
@@ -22,19 +27,24 @@ from dataclasses import asdict
 from datetime import datetime, timedelta
 from typing import Any
 
+import pandas as pd
+
 from ovtraj.config import Scenario
 from ovtraj.formatting import HOUR_S, number
+from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import pick_weights
 from ovtraj.pipeline.report import _STYLE as REPORT_STYLE  # the pipeline report's look
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.plots.front import axis_label
+from ovtraj.plots.porkchop import porkchop_figure
 from ovtraj.plots.render import figure, png_bytes
 from ovtraj.runs import RunStore
 from ovtraj.store.files import StoreError, marker_files, remove_file
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_rows
 from ovtraj.store.verification import VerifyReport
+from ovtraj.window.porkchop import PORKCHOP_SCHEMA, Sweep, porkchop_grid, porkchop_rows
 from ovtraj.window.records import (
     DAYS_DIR,
     FORMAT,
@@ -49,6 +59,7 @@ from ovtraj.window.records import (
 __all__ = [
     "WINDOW_SCHEMA",
     "load_window",
+    "porkchop_figure_of",
     "verify_window",
     "window_figure",
     "window_rows",
@@ -60,7 +71,8 @@ logger = logging.getLogger(__name__)
 KIND = "launch-window"
 MARKER = "window.json"
 TABLE, PNG, SVG, PAGE = "window.parquet", "window.png", "window.svg", "window.html"
-FILES = (TABLE, PNG, SVG, PAGE)
+PORKCHOP, PORKCHOP_PNG, PORKCHOP_SVG = "porkchop.parquet", "porkchop.png", "porkchop.svg"
+FILES = (TABLE, PNG, SVG, PORKCHOP, PORKCHOP_PNG, PORKCHOP_SVG, PAGE)
 
 WINDOW_SCHEMA = record_schema(
     [
@@ -72,6 +84,7 @@ WINDOW_SCHEMA = record_schema(
         ("dv_total_mps", FLOAT),
         ("m_load_kg", FLOAT),
         ("score", FLOAT),  # weighted mean of the normalised objectives: 0 ideal, 1 reference
+        *[(name, FLOAT) for name in DESIGN_NAMES],  # the picked plan's design
         ("converged", BOOL),  # the day's verification loop
         ("best", BOOL),  # the day whose picked plan scores lowest
         ("doe_run", TEXT),
@@ -82,6 +95,8 @@ WINDOW_SCHEMA = record_schema(
     required=("day", "date", "status", "best"),
 )
 """``window.parquet``: a row per launch day, in day order."""
+
+SCHEMAS = {TABLE: WINDOW_SCHEMA, PORKCHOP: PORKCHOP_SCHEMA}  # the tables' declared schemas
 
 
 def window_rows(records: Sequence[dict[str, Any]], best: int | None) -> list[dict[str, Any]]:
@@ -99,6 +114,7 @@ def window_rows(records: Sequence[dict[str, Any]], best: int | None) -> list[dic
                 "dv_total_mps": r["dv_total_mps"],
                 "m_load_kg": r["m_load_kg"],
                 "score": r["score"],
+                **{name: r[name] for name in DESIGN_NAMES},
                 "converged": r["converged"],
                 "best": r["day"] == best,
                 "doe_run": r["doe_run"],
@@ -165,6 +181,45 @@ def window_figure(
     return fig
 
 
+# The porkchop's panels: the table column and the objective it holds.
+PORKCHOP_PANELS = (("dv_total_mps", "dv_total_mps"), ("t_total_h", "t_total_s"))
+
+
+def porkchop_figure_of(
+    window: pd.DataFrame,
+    porkchop: pd.DataFrame,
+    sweep: Sweep,
+    normalisation: Normalisation,
+    title: str,
+) -> Any:
+    """The porkchop (:func:`ovtraj.plots.porkchop.porkchop_figure`) of the stored tables
+    alone: ``porkchop.parquet``'s sweep as dV_total and T_total contours over the days of
+    ``window.parquet``, each planned day's plan at its value of the variable, the best
+    day's a red star."""
+    objectives = {objective.name: objective for objective in normalisation.objectives}
+    dates = list(window["date"])
+    grid = porkchop_grid(porkchop, dates, sweep, [column for column, _ in PORKCHOP_PANELS])
+    panels = {}
+    for column, name in PORKCHOP_PANELS:
+        objective = objectives[name]
+        better = "lower" if objective.sense > 0 else "higher"
+        label = f"{objective.label} [{objective.report_unit}] ({better} is better)"
+        panels[label] = grid.objectives[column]
+    planned = window[window["status"] == PLANNED]
+    chosen = {int(row.day): float(getattr(row, sweep.variable)) for row in planned.itertuples()}
+    best = window.loc[window["best"], "day"]
+    return porkchop_figure(
+        dates,
+        grid.values,
+        f"{sweep.variable} (the day's plan, swept)",
+        panels,
+        chosen=chosen,
+        best=int(best.iloc[0]) if len(best) else None,
+        infeasible=grid.infeasible,
+        title=title,
+    )
+
+
 _CLIP_ID = re.compile(rb"\bp[0-9a-f]{10}\b")
 
 
@@ -183,6 +238,14 @@ def svg_bytes(fig: Any) -> bytes:
         return numbered.setdefault(found.group(0), b"clip%d" % len(numbered))
 
     return _CLIP_ID.sub(number_of, buffer.getvalue())
+
+
+def _porkchop_title(base: Scenario, records: Sequence[dict[str, Any]], sweep: Sweep) -> str:
+    span = f"{records[0]['date']} to {records[-1]['date']} ({len(records)} days)"
+    return (
+        f"porkchop of {base.name}: {span}\n"
+        f"each day's plan with {sweep.variable} at {len(sweep.values)} values, the rest kept"
+    )
 
 
 def _title(base: Scenario, records: Sequence[dict[str, Any]], best: int | None) -> str:
@@ -210,10 +273,12 @@ def window_page(
     weights: Sequence[float],
     plot_png: Any,
     window_dir: str,
+    porkchop_png: Any,
+    sweep: Sweep,
 ) -> bytes:
     """The window's HTML page: the verdict, the table (each day's report and plan linked
     relative to ``window_dir``, the window's folder relative to the run store's root), the
-    plot embedded (its SVG beside it)."""
+    plots embedded (each SVG beside it)."""
     optimize = base.mission.optimize
     title = f"ovtraj launch window: {base.name}"
     if best is None:
@@ -270,6 +335,17 @@ def window_page(
         "<h2>T_total, dV_total and M_load against the launch day</h2>",
         f"<figure><img alt='{PNG}' src='{png_data_uri(plot_png)}'>"
         f"<figcaption><a href='{SVG}'>{SVG}</a></figcaption></figure>",
+        "<h2>Porkchop: dV_total and T_total over the launch day and "
+        f"{html.escape(sweep.variable)}</h2>",
+        f"<p>Each planned day's plan evaluated again by the mission chain with "
+        f"{html.escape(sweep.variable)} at {len(sweep.values)} values from "
+        f"{sweep.values[0]:g} to {sweep.values[-1]:g} (mission.design_bounds), its other "
+        "design variables kept (configs/window.yaml porkchop; the values in "
+        f"<a href='{PORKCHOP}'>{PORKCHOP}</a>). A column is one day's plan varied; the "
+        "contours between days interpolate between the plans of different days. Circles: "
+        "each day's plan; the star: the best day's; dots: infeasible designs.</p>",
+        f"<figure><img alt='{PORKCHOP_PNG}' src='{png_data_uri(porkchop_png)}'>"
+        f"<figcaption><a href='{PORKCHOP_SVG}'>{PORKCHOP_SVG}</a></figcaption></figure>",
         "</body></html>\n",
     ]
     return "\n".join(parts).encode("utf-8")
@@ -284,6 +360,7 @@ def write_window(
     records: Sequence[dict[str, Any]],
     best: int | None,
     store: RunStore,
+    sweep: Sweep,
 ) -> WindowOutcome:
     """Write the window's files, ``window.json`` last (module notes); the same scan
     writes the same bytes, which a stored product takes as a no-op."""
@@ -292,13 +369,30 @@ def write_window(
     table = table_from_rows(window_rows(records, best), WINDOW_SCHEMA, "launch window")
     fig = window_figure(records, best, normalisation, _title(base, records, best))
     png, svg = png_bytes(fig), svg_bytes(fig)
+    sweeps = table_from_rows(porkchop_rows(records), PORKCHOP_SCHEMA, "porkchop")
+    # Drawn from the tables as stored (read back the way a reader gets them).
+    title = _porkchop_title(base, records, sweep)
+    fig = porkchop_figure_of(table.to_pandas(), sweeps.to_pandas(), sweep, normalisation, title)
+    porkchop_png, porkchop_svg = png_bytes(fig), svg_bytes(fig)
     window_dir = posixpath.relpath(str(directory), str(store.root))
     product = Product(directory, MARKER)
     with product.writing() as out:
         out.write_table(TABLE, table, WINDOW_SCHEMA)
         out.write_bytes(PNG, png)
         out.write_bytes(SVG, svg)
-        page = window_page(base, records, best, weights, directory / PNG, window_dir)
+        out.write_table(PORKCHOP, sweeps, PORKCHOP_SCHEMA)
+        out.write_bytes(PORKCHOP_PNG, porkchop_png)
+        out.write_bytes(PORKCHOP_SVG, porkchop_svg)
+        page = window_page(
+            base,
+            records,
+            best,
+            weights,
+            directory / PNG,
+            window_dir,
+            directory / PORKCHOP_PNG,
+            sweep,
+        )
         out.write_bytes(PAGE, page)
         out.finish(
             {
@@ -317,6 +411,7 @@ def write_window(
                 "planned_days": sum(1 for r in records if r["status"] == PLANNED),
                 "best_day": best,
                 "best_date": None if best is None else records[best]["date"],
+                "porkchop": sweep.as_data(),
             }
         )
     files = {name: directory / name for name in (*FILES, MARKER)}
@@ -324,7 +419,7 @@ def write_window(
 
 
 def load_window(
-    directory: Any, identity: str, dates: Sequence[str], store: RunStore
+    directory: Any, identity: str, dates: Sequence[str], store: RunStore, sweep: Sweep
 ) -> WindowOutcome | None:
     """The stored window when it checks: ``window.json`` (its seal, the scan it names) and
     every file it lists (size, SHA-256, the table's schema), every day's record and the
@@ -341,8 +436,11 @@ def load_window(
             raise StoreError(f"{product.marker_path}: not this scan ({', '.join(wrong)})")
         for name in FILES:
             product.read_bytes(name, marker)
-        product.read_table(TABLE, WINDOW_SCHEMA, marker)
-        records = [stored_day(directory, identity, d, dates[d], store) for d in range(len(dates))]
+        for name, schema in SCHEMAS.items():
+            product.read_table(name, schema, marker)
+        records = [
+            stored_day(directory, identity, d, dates[d], store, sweep) for d in range(len(dates))
+        ]
         if any(record is None for record in records):
             raise StoreError(f"{directory}: a day's record or plan changed")
         best = best_day(records)
@@ -375,7 +473,7 @@ def verify_window(directory: Any, store: RunStore) -> VerifyReport:
         return report
     for name, digest in listed.items():
         covered.add(directory / name)
-        report.check_file(directory / name, digest, WINDOW_SCHEMA if name == TABLE else None)
+        report.check_file(directory / name, digest, SCHEMAS.get(name))
     identity = marker.get("window_id")
     for path in sorted((directory / DAYS_DIR).glob("*.json")):
         covered.add(path)

@@ -15,12 +15,14 @@ For a scenario and N days:
    process with its batches in series: a pipeline's fits, NSGA-II and plan run in one
    process anyway, so two days side by side keep two cores busy where one day's batches
    on two processes would leave one idle most of the time (docs/window.md, measured);
-4. each day's record (its picked plan: the front point's objectives and its score by the
-   pick's weights on the normalised objectives, :func:`ovtraj.pipeline.pick.
-   weighted_scores`), written as the day ends, so a stopped scan resumes where it was;
-5. the window, in ``<run store>/windows/<window id>/``: the table (``window.parquet``,
-   :data:`ovtraj.window.report.WINDOW_SCHEMA`), the plot (PNG, SVG), the HTML page linking
-   each day's report, and ``window.json`` written last with their digests.
+4. each day's record (its picked plan: the front point's design, objectives and score by
+   the pick's weights on the normalised objectives, :func:`ovtraj.pipeline.pick.
+   weighted_scores`; the plan swept along the porkchop's variable, :mod:`.porkchop`),
+   written as the day ends, so a stopped scan resumes where it was;
+5. the window, in ``<run store>/windows/<window id>/``: the tables (``window.parquet``,
+   :data:`ovtraj.window.report.WINDOW_SCHEMA`; ``porkchop.parquet``), the plots (PNG,
+   SVG), the HTML page linking each day's report, and ``window.json`` written last with
+   their digests.
 
 The best day is the day whose picked plan scores lowest, under the same weights and the
 same normalisation as each day's pick (the scenario's ``mission.optimize`` ideal and
@@ -49,6 +51,7 @@ from ovtraj.launch.launch_fit import (
     grid_from_data,
     solve_launch_grid,
 )
+from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.pipeline.steps import content_id
@@ -58,6 +61,7 @@ from ovtraj.runs.store import checked_id
 from ovtraj.store.backends import location
 from ovtraj.store.files import StoreError, file_digest
 from ovtraj.window.days import day_scenario, launch_date
+from ovtraj.window.porkchop import Sweep, sweep_day, window_sweep
 from ovtraj.window.records import (
     FORMAT,
     PLANNED,
@@ -107,9 +111,10 @@ class WindowRequest:
 class DayJob:
     """One day's pipeline as plain data (what a pool's process or a Dask worker gets):
     the day's resolved scenario, the run store's root (a folder or ``s3://`` URL), the
-    code version, the DoE's size and seed, the pick (``Pick`` as a mapping) and the
-    launch grid the days share (:func:`ovtraj.launch.launch_fit.grid_data`; None when
-    every day's fit is stored), so that a worker with no grid on its disk retimes it."""
+    code version, the DoE's size and seed, the pick (``Pick`` as a mapping), the
+    porkchop's sweep (``Sweep`` as a mapping) and the launch grid the days share
+    (:func:`ovtraj.launch.launch_fit.grid_data`; None when every day's fit is stored),
+    so that a worker with no grid on its disk retimes it."""
 
     window_id: str
     day: int
@@ -120,6 +125,7 @@ class DayJob:
     samples: int
     seed: int
     pick: dict[str, Any]
+    sweep: dict[str, Any]
     grid: dict[str, Any] | None = None
 
 
@@ -129,8 +135,9 @@ def _pick_of(data: dict[str, Any]) -> Pick:
 
 
 def run_day(job: DayJob) -> dict[str, Any]:
-    """The day's pipeline (``ovtraj pipeline``'s driver, its batches in this process) and
-    its record; a day the pipeline cannot plan (no front, a pick no point meets, the
+    """The day's pipeline (``ovtraj pipeline``'s driver, its batches in this process),
+    its plan swept (:func:`~ovtraj.window.porkchop.sweep_day`) and its record; a day the
+    pipeline cannot plan (no front, a pick no point meets, the
     optimiser stopped, a plan off its front point, a launch the shared grid cannot fly)
     is a record ``no plan`` with the reason. Other faults raise."""
     from ovtraj.mission.plan import PlanMismatch
@@ -172,6 +179,7 @@ def run_day(job: DayJob) -> dict[str, Any]:
     normalisation = Normalisation.mission(scenario.mission.optimize)
     score = weighted_scores(chosen, normalisation, pick_weights(pick))
     plan_path = location(planned["json"])
+    design = {name: float(chosen.iloc[0][name]) for name in DESIGN_NAMES}
     return record | {
         "status": PLANNED,
         "doe_run": result.doe_run,
@@ -184,9 +192,11 @@ def run_day(job: DayJob) -> dict[str, Any]:
         "sample_id": int(source["sample_id"]),
         **{name: float(chosen.iloc[0][name]) for name in normalisation.names},
         "score": float(score[0]),
+        **design,
         "plan": relative_path(plan_path, store.root),
         "plan_sha256": file_digest(plan_path).sha256,
         "report": relative_path(location(planned["report"]), store.root),
+        "sweep": sweep_day(scenario, fit, design, Sweep.from_data(job.sweep)),
     }
 
 
@@ -223,11 +233,15 @@ class PoolDays:
                 yield future.result()
 
 
-def window_id(base: Scenario, request: WindowRequest, code: str) -> str:
+def window_id(
+    base: Scenario, request: WindowRequest, code: str, settings: WindowSettings | None = None
+) -> str:
     """Content id of a scan: the scenario (its first day), the days, the DoE's size and
-    seed as each day's pipeline takes them, the pick and the code version. The runner is
+    seed as each day's pipeline takes them, the pick, the porkchop's sweep
+    (``settings``, default ``configs/window.yaml``) and the code version. The runner is
     not part of it (no result depends on where the days run)."""
     doe = base.mission.doe
+    sweep = window_sweep(base, (settings or load_window_settings()).porkchop)
     return content_id(
         {
             "kind": "launch-window",
@@ -237,6 +251,7 @@ def window_id(base: Scenario, request: WindowRequest, code: str) -> str:
             "samples": doe.samples if request.samples is None else request.samples,
             "seed": doe.seed if request.seed is None else request.seed,
             "pick": asdict(request.pick),
+            "sweep": sweep.as_data(),
             "code": code,
         }
     )
@@ -277,15 +292,16 @@ def scan_window(
         )
     scenarios = [day_scenario(base, d) for d in range(request.days)]
     dates = [launch_date(base, d) for d in range(request.days)]
-    identity = window_id(base, request, code)
+    identity = window_id(base, request, code, settings)
+    sweep = window_sweep(base, settings.porkchop)
     directory = window_directory(store, identity)
-    stored = load_window(directory, identity, dates, store)
+    stored = load_window(directory, identity, dates, store, sweep)
     if stored is not None:
         say(f"window {identity}: stored, every day's plan unchanged (nothing to run)")
         return stored
     records = {}
     for d, date in enumerate(dates):
-        record = stored_day(directory, identity, d, date, store)
+        record = stored_day(directory, identity, d, date, store, sweep)
         if record is not None:
             records[d] = record
     todo = [d for d in range(request.days) if d not in records]
@@ -308,6 +324,7 @@ def scan_window(
             samples=doe.samples if request.samples is None else request.samples,
             seed=doe.seed if request.seed is None else request.seed,
             pick=asdict(request.pick),
+            sweep=sweep.as_data(),
             grid=carried,
         )
         for d in todo
@@ -316,14 +333,15 @@ def scan_window(
         day = record.get("day") if isinstance(record, dict) else None
         job = jobs.get(day) if type(day) is int else None
         problem = "no day of this scan" if job is None else None
-        problem = problem or record_problem(record, identity, job.day, job.date)
+        problem = problem or record_problem(record, identity, job.day, job.date, sweep)
         if problem:
             raise StoreError(f"window {identity}: a day's record came back malformed ({problem})")
         write_day(directory, record)
         records[day] = record
         say(day_line(record))
     ordered = [records[d] for d in range(request.days)]
-    return write_window(directory, identity, base, request, code, ordered, best_day(ordered), store)
+    best = best_day(ordered)
+    return write_window(directory, identity, base, request, code, ordered, best, store, sweep)
 
 
 def day_line(record: dict[str, Any]) -> str:
