@@ -41,9 +41,11 @@ by the stage's own method from the on-board estimate:
    the truth flown between solves in the dispersed atmosphere with the guidance's
    heading-corridor reversals.
 
-Every run ends with its landing miss, whether it reached the terminal speed, and the
-path maxima, reported against the limits as margins (limit minus maximum). Nothing
-raises out of a run: a stage that fails ends it with the stage and the reason.
+Every run ends with its landing point (geocentric latitude and longitude at the terminal
+interface, on the spherical Earth the miss is measured on) and miss, whether it reached the
+terminal speed, and the path maxima, reported against the limits as margins (limit minus
+maximum). Nothing raises out of a run: a stage that fails ends it with the stage and the
+reason.
 
 Every run also records the dV it spent (:data:`MANOEUVRES`): the magnitude of each
 impulse as executed, after its errors (the deorbit burn as cut off on line), under the
@@ -57,6 +59,7 @@ from __future__ import annotations
 import copy
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -153,6 +156,8 @@ RUN_SCHEMA = record_schema(
         ("failed_stage", TEXT),
         ("reason", TEXT),
         ("landing_miss_m", FLOAT),
+        ("landing_latitude_deg", FLOAT),
+        ("landing_longitude_deg", FLOAT),
         ("arrival_miss_m", FLOAT),
         *[(column, FLOAT) for column in MANOEUVRES.values()],
         ("dv_total_mps", FLOAT),
@@ -338,7 +343,8 @@ def scaled_entry_model(model: EntryModel, density: float, lift: float, drag: flo
 
 @dataclass
 class RunOutcome:
-    """One run flown: reached the terminal speed or not, where, and the path maxima.
+    """One run flown: reached the terminal speed or not, where (the miss from the landing
+    site and the point itself), and the path maxima.
 
     ``dv_mps``: the dV [m/s] each manoeuvre the run executed spent (keys of
     :data:`MANOEUVRES`); ``dv_total_mps``: their sum once it executed all of them."""
@@ -353,6 +359,9 @@ class RunOutcome:
     arrival_miss_m: float | None = None
     dv_total_mps: float | None = None
     dv_mps: dict[str, float] = field(default_factory=dict)
+    # Where the run reached the terminal interface [deg] (geocentric: the miss's sphere).
+    landing_latitude_deg: float | None = None
+    landing_longitude_deg: float | None = None
 
     def spend(self, manoeuvre: str, *executed: NDArray[np.float64]) -> None:
         """Record ``manoeuvre`` as flown: the sum of its executed impulses' magnitudes
@@ -382,6 +391,9 @@ def fly_open_loop(plan: MissionPlan, draw: RunDraw) -> RunOutcome:
         maxima=maxima,
         arrival_miss_m=report.rendezvous_arrival_miss_m,
     )
+    if report.terminal is not None:
+        outcome.landing_latitude_deg = report.terminal["latitude_deg"]
+        outcome.landing_longitude_deg = report.terminal["longitude_deg"]
     # The replay executes the k-th planned impulse as flight.burn(k, planned) once it has
     # reported it; no correction between the rendezvous burns.
     for k, planned in enumerate(plan.impulses()[: len(report.burns)]):
@@ -746,6 +758,8 @@ def _guided_entry(
         if elapsed >= limit_s:
             raise _Failed("reentry", f"no terminal speed within {limit_s:g} s")
     outcome.maxima = maxima
+    outcome.landing_latitude_deg = math.degrees(float(x[2]))
+    outcome.landing_longitude_deg = math.degrees(wrap_to_pi(float(x[1])))
     site = settings.landing_site
     outcome.landing_miss_m = great_circle_distance(
         float(x[2]),
@@ -952,9 +966,11 @@ def simulate_batch(
     runs: list[int],
     seed: int,
     force_model: ForceModelSettings | None = None,
+    on_run: Callable[[], None] | None = None,
 ) -> pd.DataFrame:
     """Rows of ``RUN_SCHEMA``: each run flown closed and open loop (timed per row); the
-    closed loop under ``force_model``'s sky when given (:func:`monte_carlo`)."""
+    closed loop under ``force_model``'s sky when given (:func:`monte_carlo`);
+    ``on_run()`` after each run (a progress bar's step)."""
     import time
 
     require_pinned_kernel()  # stored rows: the pinned OpenBLAS kernel only (ovtraj.environment)
@@ -976,6 +992,8 @@ def simulate_batch(
                     "failed_stage": outcome.failed_stage,
                     "reason": outcome.reason,
                     "landing_miss_m": outcome.landing_miss_m,
+                    "landing_latitude_deg": outcome.landing_latitude_deg,
+                    "landing_longitude_deg": outcome.landing_longitude_deg,
                     "arrival_miss_m": outcome.arrival_miss_m,
                     **{c: outcome.dv_mps.get(name) for name, c in MANOEUVRES.items()},
                     "dv_total_mps": outcome.dv_total_mps,
@@ -983,6 +1001,8 @@ def simulate_batch(
                     "wall_time_s": time.perf_counter() - start,
                 }
             )
+        if on_run is not None:
+            on_run()
     return pd.DataFrame(rows, columns=RUN_SCHEMA.names)
 
 
@@ -1003,6 +1023,8 @@ def outcomes_of(frame: pd.DataFrame, loop: str) -> list[RunOutcome]:
                 failed_stage=value(row, "failed_stage"),
                 reason=value(row, "reason"),
                 landing_miss_m=value(row, "landing_miss_m"),
+                landing_latitude_deg=value(row, "landing_latitude_deg"),
+                landing_longitude_deg=value(row, "landing_longitude_deg"),
                 maxima={n: float(row[n]) for n in PATH_LIMITS if value(row, n) is not None},
                 arrival_miss_m=value(row, "arrival_miss_m"),
                 dv_total_mps=value(row, "dv_total_mps"),
