@@ -21,6 +21,7 @@ from prefect import get_run_logger
 
 from flows.runners import ClusterError, count_workers, task_runner
 from ovtraj.plots.embed import png_data_uri
+from ovtraj.store.batched import consecutive_batches
 from ovtraj.store.result_records import is_result_record
 from tasks.common import ORCHESTRATION
 from tasks.results import checked_storage
@@ -185,18 +186,6 @@ class FlowDeadline(TimeoutError):
 
 def _dask_client(runner: Any) -> Any:
     return runner.client if type(runner).__name__ == "DaskTaskRunner" else None
-
-
-def consecutive_batches(todo: list[int], size: int) -> list[list[int]]:
-    """Consecutive run numbers still to do, grouped ``size`` at a time (a gap starts a new
-    group, so a batch's first run number names it whatever the batch size was)."""
-    groups: list[list[int]] = []
-    for run in todo:
-        if groups and len(groups[-1]) < size and groups[-1][-1] == run - 1:
-            groups[-1].append(run)
-        else:
-            groups.append([run])
-    return groups
 
 
 def describe_stored_batch(k: int, summary: dict[str, Any]) -> str:

@@ -11,8 +11,10 @@ plan's (:mod:`ovtraj.mission.montecarlo_store`). Layout::
     batches/<k>.json            written last: that batch is complete; its run numbers, the
                                 size and SHA-256 of its part (``"files"``) and the rows' wall
                                 times (``"timing"``)
-    summary.json                the flow's report, replaced by every flow run; derived from
-                                the batches, so a subclass can build it again
+    summary.json                the report, replaced by every run of the Monte Carlo; derived
+                                from the batches, so a subclass can build it again
+    plots/<name>.png            pictures drawn from the batches, replaced with the summary;
+                                their size and SHA-256 in run.json beside config.json's
 
 The run id hashes what changes results (a subclass gives that content; the kind is added).
 Files are written with :mod:`ovtraj.store.files` (temporary name, then linked into place; a stored
@@ -43,6 +45,7 @@ from ovtraj.store.files import (
     read_json,
     read_table,
     remove_file,
+    write_bytes,
     write_json,
     write_parquet,
 )
@@ -51,10 +54,20 @@ from ovtraj.store.records import plain, table_from_frame
 from ovtraj.store.seals import read_authenticated, write_sealed
 from ovtraj.store.verification import VerifyReport
 
-__all__ = ["STORE_FORMAT", "SUMMARY", "BatchedRun", "StoreError", "content_id", "part_name"]
+__all__ = [
+    "PLOTS",
+    "STORE_FORMAT",
+    "SUMMARY",
+    "BatchedRun",
+    "StoreError",
+    "consecutive_batches",
+    "content_id",
+    "part_name",
+]
 
 STORE_FORMAT = 2  # 2: file digests in run.json and the batch markers, checked on read
 SUMMARY = "summary.json"
+PLOTS = "plots"
 
 
 def content_id(content: dict[str, Any]) -> str:
@@ -65,6 +78,18 @@ def content_id(content: dict[str, Any]) -> str:
 
 def part_name(batch: int) -> str:
     return f"runs/part-{batch:05d}.parquet"
+
+
+def consecutive_batches(todo: list[int], size: int) -> list[list[int]]:
+    """Consecutive run numbers still to do, grouped ``size`` at a time (a gap starts a new
+    group, so a batch's first run number names it whatever the batch size was)."""
+    groups: list[list[int]] = []
+    for run in todo:
+        if groups and len(groups[-1]) < size and groups[-1][-1] == run - 1:
+            groups[-1].append(run)
+        else:
+            groups.append([run])
+    return groups
 
 
 class BatchedRun:
@@ -227,6 +252,21 @@ class BatchedRun:
         write_sealed(path, summary, replace=True)
         return path
 
+    def write_plots(self, pictures: dict[str, bytes]) -> list[Path]:
+        """Store pictures drawn from the batches as ``plots/<name>`` (replaced, as the
+        summary is, when drawn again) and list their digests in ``run.json``'s ``files``,
+        which :meth:`verify` checks; returns their paths."""
+        digests, paths = {}, []
+        for name, payload in pictures.items():
+            if "/" in name or "\\" in name or name in ("", ".", "..") or not name.isprintable():
+                raise ValueError(f"{name!r}: not a plain file name")
+            path = self.directory / PLOTS / name
+            digests[f"{PLOTS}/{name}"] = write_bytes(path, payload, replace=True).to_json()
+            paths.append(path)
+        info = self.info
+        self.update_info(files={**info.get("files", {}), **digests})
+        return paths
+
     def stored_summary(self) -> dict[str, Any] | None:
         """``summary.json`` as written (its seal checked with a store key); None when there
         is none. :class:`StoreError` naming the file when it is not a sealed summary."""
@@ -256,6 +296,13 @@ class BatchedRun:
         files = info.get("files")
         listed = files.get("config.json") if isinstance(files, dict) else None
         expected.append((self.directory / "config.json", listed, None))
+        try:  # the pictures run.json lists (names inside the run, usable digests)
+            listing = marker_files(info_path, info) if isinstance(files, dict) else {}
+            for relative, digest in listing.items():
+                if relative.startswith(f"{PLOTS}/"):
+                    expected.append((self.directory / relative, digest, None))
+        except StoreError as err:
+            report.problems.append(str(err))
         for path in sorted((self.directory / "batches").glob("*")):
             covered.add(path)
             marker = report.read_document(path)
