@@ -1,15 +1,22 @@
 """Flow: dispersed Monte Carlo of a mission plan, closed and open loop.
 
+A thin adapter of the library's driver (:mod:`ovtraj.runs.plan_monte_carlo`, which
+``ovtraj fly PLAN --monte-carlo N`` runs too, so both store the same run for the same
+inputs):
+
 1. read the plan and the dispersions (``configs/dispersions.yaml`` by default);
-2. create (or reopen) the run directory ``<store>/<run_id>/``: the id hashes the plan, the
-   dispersions that count for results, the number of runs, the seed and the code version;
-3. fly the runs the store does not hold yet, closed and open loop, in batches of several
-   runs per task on the configured task runner; each task is cached on its inputs and
-   writes its own batch to Parquet;
-4. the landing-miss statistics of each loop, the landed fractions, the smallest margin
-   of each path limit and the dV spent (``dv_mps``: p50 / p95 / max of the total and of
-   each manoeuvre against the plan's) into ``summary.json``; two table artifacts (the
-   landing miss, the dV); the summary is returned.
+2. the driver creates (or reopens) the run directory ``<store>/<run_id>/``: the id hashes
+   the plan, the dispersions that count for results, the number of runs, the seed and the
+   code version;
+3. it flies the runs the store does not hold yet, closed and open loop, here in batches of
+   several runs per Prefect task on the configured task runner; each task is cached on its
+   inputs and writes its own batch to Parquet;
+4. it writes the landing-miss statistics of each loop, the landed fractions, the smallest
+   margin of each path limit and the dV spent (``dv_mps``: p50 / p95 / max of the total
+   and of each manoeuvre against the plan's) into ``summary.json``, and the pictures (the
+   landing footprint, the dV per manoeuvre) into ``plots/``;
+5. two table artifacts (the landing miss, the dV) and a markdown artifact showing the
+   pictures; the report is returned.
 """
 
 from __future__ import annotations
@@ -19,10 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
-from prefect.artifacts import create_table_artifact
+from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
 from flows.common import (
     FLOW_TIMEOUTS,
+    embedded_plots,
     label_flow_run,
     prune_expired_results,
     run_name,
@@ -35,8 +43,12 @@ from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.high_fidelity import high_fidelity_settings
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan import read_plan
+from ovtraj.runs.plan_monte_carlo import (
+    PlanMonteCarloRequest,
+    drive_plan_monte_carlo,
+    store_of,
+)
 from ovtraj.store.paths import config_path
-from ovtraj.store.paths import store_root as store_root_of
 from tasks.common import TIMEOUTS, code_version
 from tasks.mission_monte_carlo import plan_mc_batch_task
 
@@ -83,56 +95,51 @@ def plan_monte_carlo_flow(
     n = runs or execution.runs
     seed = execution.seed if seed is None else int(seed)
     size = batch_size or execution.batch_size
-    plan_data = mission_plan.to_dict()
     sky = high_fidelity_settings(mission_plan, fidelity, force_model)
-    sky_data = None if sky is None else sky.model_dump(mode="json")
-    run = PlanMonteCarloRun.create(
-        store_root_of(execution.store, config_file.resolve().parent, store_root),
-        plan=plan_data,
-        dispersions=config.results_content(),
+    request = PlanMonteCarloRequest(
+        plan=mission_plan,
+        dispersions=config,
         runs=n,
         seed=seed,
+        root=store_of(config, config_file, store_root),
         code=code_version(),
-        force_model=sky_data,
+        batch_size=size,
+        force_model=sky,
     )
-    labels = run_tags("plan-monte-carlo", mission_plan.scenario.get("name"), run.id)
-    label_flow_run(f"plan-monte-carlo {run.id}", labels)
-    todo = sorted(set(range(n)) - run.done_runs())
-    logger.info("run %s: %d runs, %d to fly", run.id, n, len(todo))
-    url = str(run.directory.resolve())
-    everything = config.model_dump(mode="json")
-    failures = store_missing_batches(
-        run,
-        todo,
-        size,
-        plan_mc_batch_task,
-        lambda group: {
-            "plan": plan_data,
-            "dispersions": everything,
-            "run_url": url,
+
+    def opened(run: PlanMonteCarloRun, todo: int) -> None:
+        labels = run_tags("plan-monte-carlo", mission_plan.scenario.get("name"), run.id)
+        label_flow_run(f"plan-monte-carlo {run.id}", labels)
+        logger.info("run %s: %d runs, %d to fly", run.id, n, todo)
+
+    def fly(run: PlanMonteCarloRun, batches: list[list[int]]) -> dict[int, str]:
+        """Each batch a cached Prefect task (store_missing_batches groups the runs into
+        the same batches again)."""
+        inputs = {
+            "plan": mission_plan.to_dict(),
+            "dispersions": config.model_dump(mode="json"),
+            "run_url": str(run.directory.resolve()),
             "seed": seed,
-            "force_model": sky_data,
-        },
-        runner=chosen_runner,
-        workers=workers or execution.workers,
-        dask_address=dask_address,
-        retries=execution.task_retries,
-        timeout_per_run_s=TIMEOUTS.mission_mc_batch_per_run_s,
-        deadline=deadline,
-        limit=LIMIT,
-    )
-    report = {
-        **run.report(),
-        "directory": str(run.directory),
-        "simulated_runs": len(todo),
-    }
-    if failures:
-        report["status"] = "incomplete"
+            "force_model": None if sky is None else sky.model_dump(mode="json"),
+        }
+        return store_missing_batches(
+            run,
+            [k for runs in batches for k in runs],
+            size,
+            plan_mc_batch_task,
+            lambda group: inputs,
+            runner=chosen_runner,
+            workers=workers or execution.workers,
+            dask_address=dask_address,
+            retries=execution.task_retries,
+            timeout_per_run_s=TIMEOUTS.mission_mc_batch_per_run_s,
+            deadline=deadline,
+            limit=LIMIT,
+        )
+
+    report = drive_plan_monte_carlo(request, fly, opened=opened)
+    run_id = report["run_id"]
     loops = {"closed": report, "open": report["open_loop"]}  # the closed loop's at the top
-    run.write_summary(report)
-    run.update_info(
-        status=report["status"], failures=[f"runs from {k}: {why}" for k, why in failures.items()]
-    )
     create_table_artifact(
         key="plan-monte-carlo",
         table=[
@@ -147,7 +154,7 @@ def plan_monte_carlo_flow(
             }
             for loop, s in loops.items()
         ],
-        description=f"Plan Monte Carlo {run.id} ({n} runs, seed {seed}, {fidelity} sky)",
+        description=f"Plan Monte Carlo {run_id} ({n} runs, seed {seed}, {fidelity} sky)",
     )
     create_table_artifact(
         key="plan-monte-carlo-dv",
@@ -157,13 +164,18 @@ def plan_monte_carlo_flow(
             for name, figures in s["dv_mps"].items()
         ],
         description=(
-            f"Plan Monte Carlo {run.id}: dV spent [m/s], p50 / p95 / max over the runs that "
+            f"Plan Monte Carlo {run_id}: dV spent [m/s], p50 / p95 / max over the runs that "
             "flew each manoeuvre, against the plan"
         ),
     )
-    if failures:
-        text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())
-        raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {text}")
+    create_markdown_artifact(
+        key="plan-monte-carlo-plots",
+        markdown="\n\n".join(embedded_plots(report["plots"])),
+        description=f"Plan Monte Carlo {run_id}: the landing footprint and the dV per manoeuvre",
+    )
+    failed = report["failed_batches"]
+    if failed:
+        raise RuntimeError(f"run {run_id}: {len(failed)} batch(es) failed: {'; '.join(failed)}")
     return report
 
 

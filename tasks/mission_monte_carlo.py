@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -11,8 +10,7 @@ from prefect import task
 from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
-from ovtraj.mission.montecarlo import simulate_batch
-from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
+from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, fly_batch
 from ovtraj.mission.plan import MissionPlan
 from tasks.common import TIMEOUTS, cached, parameter, run_label
 
@@ -38,27 +36,22 @@ def plan_mc_batch_task(
     force_model: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Fly the runs closed and open loop and store them as one batch (the closed loop
-    under ``force_model``'s high-fidelity sky when given).
+    under ``force_model``'s high-fidelity sky when given):
+    :func:`ovtraj.mission.montecarlo_store.fly_batch`, as ``ovtraj fly --monte-carlo``
+    flies its batches.
 
     The worker writes its own Parquet part (atomic, marker last) into the run at
     ``run_url``, so the rows never travel back through Prefect; the task returns a small
     summary. The cache key hashes the inputs and the code version.
     """
-    start = time.perf_counter()
-    frame = simulate_batch(
+    return fly_batch(
+        PlanMonteCarloRun(Path(run_url)),
         MissionPlan.model_validate(plan),
         model_from_dict(DispersionsConfig, dispersions, "the run's dispersions"),
+        batch,
         runs,
         seed,
         None
         if force_model is None
         else model_from_dict(ForceModelSettings, force_model, "the run's force model"),
     )
-    PlanMonteCarloRun(Path(run_url)).write_batch(batch, frame)
-    return {
-        "batch": batch,
-        "runs": len(runs),
-        "rows": len(frame),
-        "failed": int((~frame["landed"].astype(bool)).sum()),
-        "wall_time_s": time.perf_counter() - start,
-    }

@@ -102,7 +102,10 @@ def test_without_dispersions_both_loops_fly_the_plan(plan, undispersed):
     assert abs(closed.landing_miss_m - plan.terminal.miss_distance_m) < 100.0
 
 
-def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot(plan_file):
+def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot(
+    plan_file, tmp_path, monkeypatch
+):
+    monkeypatch.setenv("OVTRAJ_HOME", str(tmp_path / "home"))
     result = runner.invoke(
         app, ["fly", str(plan_file), "--monte-carlo", "4", "--seed", "3", "--json"]
     )
@@ -110,6 +113,12 @@ def test_the_closed_loop_lands_within_the_stated_miss_where_the_open_loop_cannot
     row = json.loads(result.stdout)
     assert row["start"] == "drop" and row["landed_within_stated_miss"] is True
     mc = row["monte_carlo"]
+    # Stored in the workspace's run store (the shipped dispersions name no other), its
+    # summary the report shown.
+    assert mc["directory"] == str(tmp_path / "home" / "runs" / mc["run_id"])
+    stored = json.loads((tmp_path / "home" / "runs" / mc["run_id"] / "summary.json").read_text())
+    assert stored == {k: v for k, v in mc.items() if k in stored}
+    assert set(mc) - set(stored) == {"directory", "simulated_runs", "plots", "failed_batches"}
     # The shape: the closed loop's figures at the top, the open loop's beside.
     closed, opened = mc, mc["open_loop"]
     assert mc["loop"] == "closed" and {"runs", "landing_miss_m", "feasible_fraction"} <= set(mc)

@@ -34,7 +34,8 @@ def fly(
             "--monte-carlo",
             min=0,
             max=_limits(MonteCarloExecution, "runs")["max"],
-            help="also fly this many dispersed runs, closed loop and open loop (0: none)",
+            help="also fly this many dispersed runs, closed loop and open loop, stored with "
+            "their pictures as the Monte Carlo flow stores them (the path is printed; 0: none)",
         ),
     ] = 0,
     seed: Annotated[int, typer.Option("--seed", min=0, help="seed of the dispersed runs")] = 0,
@@ -109,7 +110,7 @@ def fly(
         text = format_flight_report(report)
     if monte_carlo:
         row["monte_carlo"] = _monte_carlo(
-            plan, dispersions, monte_carlo, seed, as_json, force_model
+            plan, dispersions, monte_carlo, seed, as_json, force_model, dispersions_file
         )
     if as_json:
         _print_json(row)
@@ -117,6 +118,7 @@ def fly(
         typer.echo(text)
         if monte_carlo:
             typer.echo(_format_monte_carlo(row["monte_carlo"]))
+            typer.echo(_format_stored(row["monte_carlo"]))
     if not landed:
         raise typer.Exit(code=1)
 
@@ -162,18 +164,73 @@ def _dispersions(path: Path | None) -> Any:
 
 
 def _monte_carlo(
-    plan: Any, dispersions: Any, runs: int, seed: int, as_json: bool, force_model: Any = None
+    plan: Any,
+    dispersions: Any,
+    runs: int,
+    seed: int,
+    as_json: bool,
+    force_model: Any = None,
+    dispersions_file: Path | None = None,
 ) -> dict:
-    """The dispersed runs, closed and open loop, summarised (a progress bar on stderr
-    unless ``as_json``); the closed loop under ``force_model``'s sky when given."""
-    from ovtraj.mission.montecarlo import monte_carlo, monte_carlo_report, outcome_summaries
+    """The dispersed runs, closed and open loop, flown in this process (a progress bar on
+    stderr unless ``as_json``) and stored as the Monte Carlo flow stores them, by the same
+    driver (:mod:`ovtraj.runs.plan_monte_carlo`): the same run id, rows, summary and
+    pictures, in the dispersions file's ``execution.store`` (else the workspace's runs/).
+    The report, with the run's directory and pictures; the closed loop under
+    ``force_model``'s sky when given. A failed batch or an unusable store: one line, exit 2
+    (the stored batches are kept: the same command flies the missing runs)."""
+    from ovtraj.runs.plan_monte_carlo import (
+        PlanMonteCarloRequest,
+        drive_plan_monte_carlo,
+        fly_here,
+        store_of,
+    )
+    from ovtraj.store.files import StoreError
+    from ovtraj.version import code_version
 
+    request = PlanMonteCarloRequest(
+        plan=plan,
+        dispersions=dispersions,
+        runs=runs,
+        seed=seed,
+        root=store_of(dispersions, dispersions_file),
+        code=code_version(),
+        batch_size=dispersions.execution.batch_size,
+        force_model=force_model,
+    )
     with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
-        pairs = monte_carlo(plan, dispersions, runs, seed, progress=update, force_model=force_model)
-    loops = outcome_summaries(plan, [c for c, _ in pairs], [o for _, o in pairs])
-    report = monte_carlo_report(loops["closed"], loops["open"], seed, plan.terminal.stated_miss_m)
-    report["fidelity"] = "j2" if force_model is None else "high"
+        flown = {"done": 0, "total": 0}
+
+        def opened(run: Any, todo: int) -> None:
+            flown["total"] = todo
+
+        def step() -> None:
+            flown["done"] += 1
+            update(flown["done"], flown["total"])
+
+        try:
+            report = drive_plan_monte_carlo(request, fly_here(request, step), opened=opened)
+        except StoreError as err:
+            typer.echo(str(err), err=True)
+            raise typer.Exit(code=2) from None
+    if report["failed_batches"]:
+        typer.echo(
+            f"{report['directory']}: {len(report['failed_batches'])} batch(es) failed "
+            f"({'; '.join(report['failed_batches'])}); the stored runs are kept, the same "
+            "command flies the missing ones",
+            err=True,
+        )
+        raise typer.Exit(code=2)
     return report
+
+
+def _format_stored(report: dict) -> str:
+    """Where the Monte Carlo is stored: the run's directory and its pictures."""
+    flown = report["simulated_runs"]
+    stored = "flown now" if flown == report["runs"] else f"{flown} flown now, the rest stored"
+    lines = [f"monte carlo run {report['run_id']} ({stored}): {report['directory']}"]
+    lines += [f"  picture: {path}" for path in report["plots"]]
+    return "\n".join(lines)
 
 
 def _format_monte_carlo(summary: dict) -> str:

@@ -14,14 +14,23 @@ report again from the sealed batches, so an edited summary is never shown.
 from __future__ import annotations
 
 import logging
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA, loop_summaries, monte_carlo_report
+from ovtraj.config.dispersions import DispersionsConfig
+from ovtraj.config.force_model import ForceModelSettings
+from ovtraj.mission.montecarlo import (
+    STORED_RUN_SCHEMA,
+    loop_summaries,
+    monte_carlo_report,
+    simulate_batch,
+)
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.store.batched import BatchedRun, StoreError, content_id
 
-__all__ = ["PlanMonteCarloRun", "plan_monte_carlo_id"]
+__all__ = ["PlanMonteCarloRun", "fly_batch", "plan_monte_carlo_id"]
 
 RUN_KIND = "mission_monte_carlo"
 
@@ -84,8 +93,9 @@ class PlanMonteCarloRun(BatchedRun):
     def report(self) -> dict[str, Any]:
         """The Monte Carlo's report from what is stored (the sealed ``run.json``, config and
         batches): both loops' statistics, ``runs`` asked and ``stored_runs``, ``status``
-        complete when every run is stored. What a flow run adds (``simulated_runs``, the
-        run's ``directory``) is the flow's."""
+        complete when every run is stored: what ``summary.json`` holds. What one pass
+        adds (``simulated_runs``, the run's ``directory``) is the driver's
+        (:mod:`ovtraj.runs.plan_monte_carlo`)."""
         info = self.info
         config = self.config
         plan = MissionPlan.model_validate(config["plan"])
@@ -112,3 +122,29 @@ class PlanMonteCarloRun(BatchedRun):
             logger.warning("%s; the report is built again from the stored batches", err)
             stored = None
         return self.report() if stored is None else stored
+
+
+def fly_batch(
+    run: PlanMonteCarloRun,
+    plan: MissionPlan,
+    dispersions: DispersionsConfig,
+    batch: int,
+    runs: list[int],
+    seed: int,
+    force_model: ForceModelSettings | None = None,
+    on_run: Callable[[], None] | None = None,
+) -> dict[str, Any]:
+    """Fly ``runs`` closed and open loop (:func:`~ovtraj.mission.montecarlo.simulate_batch`)
+    and store them as the run's batch ``batch`` (its first run number); a small summary
+    back (``batch``, ``runs``, ``rows``, ``failed``, ``wall_time_s``). The Prefect task of
+    a batch and the command's batches in this process are this call."""
+    start = time.perf_counter()
+    frame = simulate_batch(plan, dispersions, runs, seed, force_model, on_run)
+    run.write_batch(batch, frame)
+    return {
+        "batch": batch,
+        "runs": len(runs),
+        "rows": len(frame),
+        "failed": int((~frame["landed"].astype(bool)).sum()),
+        "wall_time_s": time.perf_counter() - start,
+    }
