@@ -55,6 +55,53 @@ def _families(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return ordered
 
 
+def _monte_carlo_runs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The plan Monte Carlo runs of the catalog, newest first (the command's and the
+    flow's alike: one store, one kind of row)."""
+    found = [
+        {
+            "run_id": row["id"],
+            "created_utc": row["created_utc"],
+            "scenario": row["scenario"],
+            "plan_id": row["plan_id"],
+            "status": row["status"],
+            "runs": row["mc_runs"],
+            "landing_miss_p95_m": row["mc_landing_miss_p95_m"],
+            "dv_margin_p95_mps": row["mc_dv_margin_p95_mps"],
+            "size_bytes": None,
+            "error": row["error"],
+        }
+        for row in rows
+        if row["kind"] == "monte_carlo"
+    ]
+    return sorted(found, key=lambda m: (m["created_utc"] or "", m["run_id"]), reverse=True)
+
+
+def _monte_carlo_table(runs: list[dict[str, Any]], title: str) -> Table:
+    table = Table(title=title, title_justify="left", box=None, pad_edge=False)
+    for column in ("run", "created (UTC)", "scenario", "plan", "status", "runs"):
+        table.add_column(column, no_wrap=column == "run")
+    for column in ("landing miss p95", "dV margin p95", "size"):
+        table.add_column(column, justify="right")
+    for m in runs:
+        if m["error"] is not None:
+            error = f"error: {shown_text(m['error'])}"
+            table.add_row(shown_text(m["run_id"]), "-", "-", "-", error)
+            continue
+        table.add_row(
+            shown_text(m["run_id"]),
+            shown_text(utc(m["created_utc"])),
+            shown_text(m["scenario"] or "-"),
+            shown_text(m["plan_id"] or "-"),
+            shown_text(m["status"] or "-"),
+            shown_text(m["runs"] if m["runs"] is not None else "-"),
+            quantity(m["landing_miss_p95_m"], "m"),
+            quantity(m["dv_margin_p95_mps"], "m/s"),
+            "-" if m["size_bytes"] is None else byte_size(m["size_bytes"]),
+        )
+    return table
+
+
 def _where_table(rows: Any, title: str) -> Table:
     table = Table(title=title, title_justify="left", box=None, pad_edge=False)
     columns = (
@@ -106,7 +153,9 @@ def runs(
 ) -> None:
     """List the stored runs by family: each DoE run, then the runs that extend it (a
     pipeline's infill rounds, `run --append`), with their pipeline results and sizes; with
-    --where, the catalog's rows (runs, pipeline results, plans) a predicate selects.
+    --where, the catalog's rows (runs, pipeline results, plans) a predicate selects. The plan
+    Monte Carlo runs (`ovtraj fly PLAN --monte-carlo N`, the flow) follow in a table of
+    their own.
 
     Example: `ovtraj runs --where "kind = 'plan' AND dv_total_mps > 220"`"""
     from ovtraj.store.files import StoreError, tree_bytes
@@ -142,17 +191,24 @@ def runs(
         return
     entries = _families(found.rows)
     listed = entries[:shown] if shown and not as_json else entries
+    monte_carlo = _monte_carlo_runs(found.rows)
+    dispersed = monte_carlo[:shown] if shown and not as_json else monte_carlo
     # Sizes are measured now, not catalogued (a run grows by its surrogates, fronts and
     # pipeline results without its manifest changing); a file hard-linked into another
     # listed run counts once.
     seen: set[tuple[int, int]] = set()
     for entry in listed:
         entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
+    for entry in dispersed:
+        entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
     if as_json:
-        _print_json({"store": str(root.resolve()), "runs": entries})
+        _print_json({"store": str(root.resolve()), "runs": entries, "monte_carlo": monte_carlo})
+        return
+    if not entries and not monte_carlo:
+        typer.echo(f"no runs in {root.resolve()}")
         return
     if not entries:
-        typer.echo(f"no runs in {root.resolve()}")
+        _print_monte_carlo(console, dispersed, monte_carlo, root)
         return
     table = Table(title=f"runs in {root.resolve()}", title_justify="left", box=None, pad_edge=False)
     for column, justify in (
@@ -193,6 +249,17 @@ def runs(
         f"{'for those shown ' if more else ''}(a file shared by hard link counted once); "
         "`ovtraj prune` lists what can go"
     )
+    _print_monte_carlo(console, dispersed, monte_carlo, root)
+
+
+def _print_monte_carlo(console: Console, shown: list, runs: list, root: Any) -> None:
+    """The plan Monte Carlo runs' table (``shown`` of ``runs``) and its count, if any."""
+    if not runs:
+        return
+    console.print(_monte_carlo_table(shown, f"plan Monte Carlo runs in {root.resolve()}"))
+    more = f" ({len(shown)} shown; --limit 0 shows all)" if len(shown) < len(runs) else ""
+    plural = "s" if len(runs) != 1 else ""
+    typer.echo(f"{len(runs)} plan Monte Carlo run{plural}{more}; its pictures in RUN/plots/")
 
 
 @app.command()
