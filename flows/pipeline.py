@@ -24,6 +24,8 @@ them); only the batches are tasks, cached on their inputs.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
@@ -39,8 +41,9 @@ from flows.doe import TaskBatches, ensure_launch_fit
 from flows.optimize import front_table
 from flows.surrogate import publish_validation
 from flows.verdict import run_from_command_line, verdict_state
-from ovtraj.pipeline import Pick, PipelineResult
+from ovtraj.pipeline import PipelineResult
 from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
+from ovtraj.pipeline.pick import checked_pick
 from ovtraj.pipeline.planning import last_surrogates
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import choose_runner
@@ -61,27 +64,43 @@ def mission_flow(
     config: str | None = None,
     samples: int | None = None,
     seed: int | None = None,
-    from_run: str | None = None,
-    store_root: str | None = None,
-    pick_index: int | None = None,
+    run: str | None = None,
+    refit: bool = False,
+    pick: int | None = None,
     weights: list[float] | None = None,
+    max_time_h: float | None = None,
+    max_dv_mps: float | None = None,
+    min_payload_kg: float | None = None,
+    store: str | None = None,
     target: str | None = None,
     runner: str | None = None,
+    workers: int | None = None,
     dask_address: str | None = None,
     require_converged: bool = True,
 ) -> Any:
     """DoE -> surrogates -> NSGA-II -> verification and infill -> plan; returns the paths,
-    whether the verification loop converged and its verdict.
+    the pick, whether the verification loop converged and its verdict.
 
-    ``config``: the scenario file (default: the shipped scenario, as ``ovtraj``'s).
-    ``target``: a TLE/OMM file or URL that replaces the scenario's target: the re-plan
-    from an updated element set (a changed one gives a new run and launch fit, the same
-    one reuses every stored result). ``runner`` (``serial | threads | processes |
-    dask``) overrides ``mission.doe``'s for the DoE and infill batches; ``dask_address``:
-    the ``dask`` runner's scheduler (else ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
-    ``require_converged``: a loop that did not converge ends the flow run Failed, the
-    verdict as its message (False: Completed, named "Not converged"); the result is
-    stored and published either way (``flows/verdict.py``).
+    The parameters are ``ovtraj pipeline``'s options by the same names (``--run`` is
+    ``run``, ``--max-dv-mps`` ``max_dv_mps``, ...) and build the same request of the same
+    driver (tests/test_pipeline_flow.py). ``config``: the scenario file (default: the
+    shipped scenario, as ``ovtraj``'s). ``run``: start from this stored DoE run (no new
+    DoE). ``refit``: refit and re-optimise even when stored. ``pick``: the verified
+    front's index to plan (``ovtraj front RUN``), else the best by ``weights`` (T, dV, M
+    on the normalised objectives; equal by default) among the points within
+    ``max_time_h`` [h], ``max_dv_mps`` [m/s] and ``min_payload_kg`` [kg]. ``store``: the
+    run store (else ``mission.doe.store``, else the workspace's). ``target``: a TLE/OMM
+    file or URL that replaces the scenario's target: the re-plan from an updated element
+    set (a changed one gives a new run and launch fit, the same one reuses every stored
+    result). ``runner`` (``serial | threads | processes | dask``) overrides
+    ``mission.doe``'s for the DoE and infill batches; ``workers``: the pool's size (else
+    ``mission.doe.workers``; the batches are cut by the config's, so the stored run is
+    the same); ``dask_address``: the ``dask`` runner's scheduler (else
+    ``OVTRAJ_DASK_ADDRESS``, else a local cluster).
+    ``require_converged`` (the command's ``--allow-unconverged`` turned around): a loop
+    that did not converge ends the flow run Failed, the verdict as its message (False:
+    Completed, named "Not converged"); the result is stored and published either way
+    (``flows/verdict.py``).
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
     logger = get_run_logger()
@@ -90,28 +109,35 @@ def mission_flow(
     scenario = load_scenario_with_target(path, target)
     if scenario.mission is None:
         raise ValueError(f"{path}: the scenario has no mission section")
+    chosen = checked_pick(pick, weights, max_time_h, max_dv_mps, min_payload_kg)
     choice = choose_runner(scenario.mission.doe, runner, dask_address)
+    if workers is not None:
+        if workers < 1:
+            raise ValueError(f"workers = {workers}: must be at least 1")
+        choice = replace(choice, workers=workers)
     fit = ensure_launch_fit(config, scenario, target)
-    store = RunStore.for_scenario(scenario, config, store_root)
+    run_store = RunStore.for_scenario(scenario, config, store)
+    # As the command builds it (its scenario argument a path).
     request = PipelineRequest(
         samples=samples,
         seed=seed,
-        from_run=from_run,
-        config=config,
-        pick=Pick(index=pick_index, weights=None if weights is None else tuple(weights)),
+        from_run=run,
+        config=None if config is None else Path(config),
+        refit=refit,
+        pick=chosen,
     )
     logger.info("runner %s", choice.runner)
     # The flow run is named and tagged after the DoE run, the first run it evaluates.
     batches = TaskBatches(scenario, fit, choice, deadline=deadline, limit=LIMIT, kind="mission")
     outcome = drive_pipeline(
-        scenario, fit, store, code_version(), batches, request, progress=logger.info
+        scenario, fit, run_store, code_version(), batches, request, progress=logger.info
     )
     result, planned = outcome.result, outcome.planned
     logger.info(outcome.verdict)
     logger.info("picked %s; report %s", planned.get("pick"), planned.get("report"))
     _publish(result, planned, outcome.verdict)
-    _publish_last_fit(store, outcome)
-    _publish_history(store, planned)
+    _publish_last_fit(run_store, outcome)
+    _publish_history(run_store, planned)
     summary = {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
@@ -124,6 +150,7 @@ def mission_flow(
         "plan_json": str(planned["json"]),
         "plan_yaml": str(planned["yaml"]),
         "report": str(planned["report"]),
+        "pick": planned["pick"],
         "converged": outcome.converged,
         "verdict": outcome.verdict,
     }

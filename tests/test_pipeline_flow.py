@@ -239,6 +239,108 @@ def test_the_flow_and_the_command_line_store_the_same_pipeline(flown):
     assert len(everything["fields"]) > 100 and not any(f["changed"] for f in everything["fields"])
 
 
+def test_the_flow_takes_the_commands_options_and_builds_its_request(flown, monkeypatch):
+    """The flow's parameters are ``ovtraj pipeline``'s options by name: the same run,
+    refit, pick weights and limits (binding: the point picked by default is excluded)
+    give the driver the same request from both, and the same plan. Both run the real
+    driver on the command's store (its runs reused); each call's request is recorded on
+    its way in."""
+    import inspect
+
+    import typer
+
+    import flows.pipeline
+    from flows.pipeline import mission_flow
+    from ovtraj.cli import app, run_command
+    from ovtraj.optimize import Normalisation
+    from ovtraj.pipeline import drive
+    from ovtraj.pipeline.pick import Pick, pick_front_point
+
+    # Every option of the command is a parameter of the flow, its name the option's in
+    # snake case; but --json (a flow returns its result) and --allow-unconverged, which
+    # the flow's require_converged turns around.
+    command = typer.main.get_command(app).commands["pipeline"]
+    options = {p.opts[0].lstrip("-").replace("-", "_") for p in command.params}
+    accepted = set(inspect.signature(mission_flow.fn).parameters)
+    assert options - {"json", "allow_unconverged"} | {"require_converged"} == accepted
+    store, doe_run = flown["cli_store"], flown["first"]["doe_run"]
+    front = read_parquet(flown["first"]["front"])
+    # Limits every point meets, then one moved past the point the weights pick without
+    # limits, halfway to the next point that is better in that objective.
+    weights = [1.0, 2.0, 0.5]
+    normalisation = Normalisation.mission(flown["scenario"].mission.optimize)
+    unlimited = pick_front_point(front, normalisation, Pick(weights=tuple(weights)))
+    limits = {
+        "max_time_h": float(front["t_total_s"].max()) / 3600.0,
+        "max_dv_mps": float(front["dv_total_mps"].max()),
+        "min_payload_kg": float(front["m_load_kg"].min()),
+    }
+    for name, column, scale, sense in (
+        ("max_dv_mps", "dv_total_mps", 1.0, -1),
+        ("max_time_h", "t_total_s", 1 / 3600.0, -1),
+        ("min_payload_kg", "m_load_kg", 1.0, 1),
+    ):
+        value = unlimited[column]
+        better = front[column][(front[column] - value) * sense > 0]
+        if len(better):
+            nearest = better.min() if sense > 0 else better.max()
+            limits[name] = float((value + nearest) / 2.0 * scale)
+            break
+    assert len(front) > 1 and limits != {
+        "max_time_h": float(front["t_total_s"].max()) / 3600.0,
+        "max_dv_mps": float(front["dv_total_mps"].max()),
+        "min_payload_kg": float(front["m_load_kg"].min()),
+    }
+    requests = []
+
+    def recorded(real):
+        def driver(*args, **kwargs):
+            requests.append(args[5])
+            return real(*args, **kwargs)
+
+        return driver
+
+    monkeypatch.setattr(drive, "drive_pipeline", recorded(drive.drive_pipeline))
+    monkeypatch.setattr(flows.pipeline, "drive_pipeline", recorded(flows.pipeline.drive_pipeline))
+    args = ["pipeline", str(flown["config"]), "--store", str(store), "--run", doe_run, "--refit"]
+    args += ["--weights", ",".join(f"{w:g}" for w in weights)]
+    args += [f"--{name.replace('_', '-')}={value!r}" for name, value in limits.items()]
+    out = _command_output(run_command, [*args, "--json", "--allow-unconverged"])
+    state = mission_flow(
+        config=str(flown["config"]),
+        store=str(store),
+        run=doe_run,
+        refit=True,
+        weights=weights,
+        **limits,
+        require_converged=False,
+        return_state=True,
+    )
+    flow = state.result()
+    command_request, flow_request = requests
+    assert command_request == flow_request
+    assert flow_request.refit is True and flow_request.from_run == doe_run
+    assert (flow_request.pick.weights, flow_request.pick.max_dv_total_mps) == (
+        tuple(weights),
+        limits["max_dv_mps"],
+    )
+    assert (flow["pick"], flow["plan_json"]) == (out["pick"], out["plan_json"])
+    assert flow["doe_run"] == out["doe_run"] == doe_run
+    chosen = read_plan(flow["plan_json"]).source["front_index"]
+    assert chosen != unlimited["front_index"]  # the limit moved the pick
+
+
+def _command_output(run_command, args):
+    import contextlib
+    import io
+    import json
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert run_command(args) == 0
+    return json.loads(out.getvalue())
+
+
 def _diff_json(run_command, args):
     import contextlib
     import io
@@ -304,7 +406,7 @@ def test_a_converged_loop_is_a_completed_flow_run_and_exit_0(prefect_server, tmp
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     code, printed = _command_json(config, store)
     assert (code, printed["converged"]) == (0, True), printed["verdict"]
-    state = mission_flow(config=str(config), store_root=str(store), return_state=True)
+    state = mission_flow(config=str(config), store=str(store), return_state=True)
     flow = _flow_result(state)
     _same_code((store, flow["doe_run"]), (store, printed["doe_run"]))
     assert (flow["converged"], flow["verdict"]) == (printed["converged"], printed["verdict"])

@@ -23,6 +23,30 @@ class Pick:
     min_m_load_kg: float | None = None
 
 
+def checked_pick(
+    pick: int | None = None,
+    weights: Sequence[float] | None = None,
+    max_time_h: float | None = None,
+    max_dv_mps: float | None = None,
+    min_payload_kg: float | None = None,
+) -> Pick:
+    """The :class:`Pick` of ``ovtraj pipeline``'s pick options under their own names (the
+    flows' parameters), checked as the command checks them before any work: a
+    ``ValueError`` naming the first that is wrong (an index below 0, a limit that is not
+    a finite number >= 0, weights that cannot weigh)."""
+    if pick is not None and pick < 0:
+        raise ValueError(f"pick = {pick}: must be a front index >= 0")
+    limits = {"max_time_h": max_time_h, "max_dv_mps": max_dv_mps, "min_payload_kg": min_payload_kg}
+    for name, value in limits.items():
+        if value is not None and not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} = {value}: must be a finite number >= 0")
+    problem = weights_problem(weights)
+    if problem is not None:
+        raise ValueError(f"weights = {list(weights)}: {problem}")
+    shown = None if weights is None else tuple(float(w) for w in weights)
+    return Pick(pick, shown, max_time_h, max_dv_mps, min_payload_kg)
+
+
 def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pick) -> pd.Series:
     """The chosen row of the front; ``ValueError`` naming the pick when none fits."""
     from ovtraj.pipeline.loop import PipelineError
