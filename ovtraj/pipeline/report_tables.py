@@ -105,7 +105,8 @@ def manoeuvres_shown(plan: MissionPlan, scenario: Scenario) -> tuple[pd.DataFram
 
 
 class FlightResultError(ValueError):
-    """A flight result that is neither kind ``ovtraj fly --json`` prints."""
+    """A flight result that is neither kind ``ovtraj fly --json`` prints, or the flight of
+    another plan."""
 
 
 def _figure(data: Any, *keys: str) -> float | None:
@@ -116,7 +117,10 @@ def _figure(data: Any, *keys: str) -> float | None:
         data = data.get(key)
     if isinstance(data, bool) or not isinstance(data, int | float):
         return None
-    value = float(data)
+    try:
+        value = float(data)
+    except OverflowError:  # an integer beyond any float
+        return None
     return value if math.isfinite(value) else None
 
 
@@ -132,7 +136,7 @@ def _difference(flown: float | None, planned: float | None, scale: float = 1.0) 
 
 def flight_shown(flight: Mapping[str, Any], plan: MissionPlan) -> tuple[str, pd.DataFrame]:
     """A sentence naming the flight and its verdict, and its figures beside the plan's.
-    Raises :class:`FlightResultError` for a mapping of neither kind."""
+    Raises :class:`FlightResultError` for a mapping of neither kind or another plan's."""
     if not isinstance(flight, Mapping):
         raise FlightResultError(f"flight: expected a mapping, got {type(flight).__name__}")
     if flight.get("fidelity") == "high":
@@ -174,9 +178,10 @@ def _verdict(landed: Any) -> str:
 def _replay(flight: Mapping[str, Any], plan: MissionPlan) -> tuple[str, pd.DataFrame]:
     """The J2 replay from the drop (open loop) beside the plan."""
     burns = flight.get("burns")
-    burns = burns if isinstance(burns, list) else []
-    dv = [_figure(burn, "dv_mps") for burn in burns]
-    dv_total = sum(dv) if dv and None not in dv and len(dv) == len(plan.impulses()) else None
+    dv_total = None
+    if isinstance(burns, list) and len(burns) == len(plan.impulses()):  # every burn flown
+        dv = [_figure(burn, "dv_mps") for burn in burns]
+        dv_total = None if None in dv else sum(dv)
     terminal_t = _figure(flight, "terminal", "t_s")
     t_total = None if terminal_t is None else terminal_t - plan.launch.drop_t_s
     checks = flight.get("checks") if isinstance(flight.get("checks"), Mapping) else {}
