@@ -276,3 +276,31 @@ def test_worker_runs_a_deployment_triggered_by_hand(server):
     finally:
         _stop(worker, signal.SIGINT)  # as Ctrl-C in the worker's terminal
     assert worker.returncode is not None
+
+
+def test_a_quick_run_of_each_deployment_is_accepted_or_names_what_it_needs(server):
+    """A quick run from the UI: a flow run of the deployment with its own parameters. The
+    server (the flow's parameter schema enforced) accepts it when the deployment gives
+    every required parameter, else refuses it naming the one missing, which the
+    deployment's description asks for (``name=``): never a run that fails on a
+    placeholder. The runs made are deleted before any worker could take them."""
+    declared = {d["name"]: d for d in _declared()}
+    outcomes = {}
+    for name, deployment in _deployments(server).items():
+        assert deployment["enforce_parameter_schema"] is True, name
+        response = httpx.post(
+            f"{server.api}/deployments/{deployment['id']}/create_flow_run", json={}, timeout=30
+        )
+        required = deployment["parameter_openapi_schema"].get("required", [])
+        missing = [p for p in required if p not in deployment["parameters"]]
+        if missing:
+            assert response.status_code == 409, (name, response.text)
+            assert all(repr(p) in response.text for p in missing), (name, response.text)
+            assert all(f"{p}=" in declared[name]["description"] for p in missing), name
+        else:
+            assert response.status_code == 201, (name, response.text)
+            run = response.json()
+            assert run["parameters"] == deployment["parameters"], name
+            httpx.delete(f"{server.api}/flow_runs/{run['id']}", timeout=30).raise_for_status()
+        outcomes[name] = "refused" if missing else "accepted"
+    assert outcomes["plan-monte-carlo"] == "refused" and outcomes["mission-replan"] == "accepted"

@@ -38,6 +38,37 @@ def test_every_deployment_entrypoint_is_a_flow_taking_its_parameters():
                 assert (REPO / value).is_file(), value
 
 
+def test_every_deployments_defaults_are_a_run_its_flow_accepts():
+    """What a quick run from the UI sends: the deployment's parameters, checked as the
+    server checks a new flow run's (the flow's parameter schema, as `prefect deploy`
+    registers it) and as the flow binds them. A parameter the deployment leaves to the
+    caller is a required one its description names (``name=``), never a placeholder
+    value; a file a default names exists in the repository."""
+    import importlib
+
+    import yaml
+    from prefect.utilities.callables import parameter_schema
+    from prefect.utilities.schema_tools.validation import validate
+
+    from tests.conftest import REPO
+
+    spec = yaml.safe_load((REPO / "prefect.yaml").read_text(encoding="utf-8"))
+    for deployment in spec["deployments"]:
+        name, given = deployment["name"], deployment.get("parameters", {})
+        path, attribute = deployment["entrypoint"].split(":")
+        flow_object = getattr(importlib.import_module(path[:-3].replace("/", ".")), attribute)
+        schema = parameter_schema(flow_object).model_dump_for_openapi()
+        problems = validate(given, schema)
+        missing = {p for p in schema.get("required", []) if p not in given}
+        assert [e.message for e in problems if e.validator != "required"] == [], name
+        assert all(f"{p}=" in deployment["description"] for p in missing), (name, missing)
+        if not missing:
+            flow_object.validate_parameters(given)  # binds as a flow run does
+        for value in given.values():
+            if isinstance(value, str) and value.endswith((".yaml", ".yml", ".json")):
+                assert (REPO / value).is_file(), (name, value)
+
+
 # -- operability (issue 19): names and tags, one flow run per run, event loops, limits ----------
 def _doe_config(tmp_path, **doe) -> str:
     import copy
