@@ -1,4 +1,5 @@
-"""DoE runs of the mission chain and their Parquet run store (issue 6)."""
+"""DoE runs of the mission chain and their Parquet run store (issue 6); a plan's stored
+Monte Carlo, its one driver (:mod:`ovtraj.runs.plan_monte_carlo`)."""
 
 from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe
