@@ -65,7 +65,8 @@ def porkchop_figure(
                 label="evaluated design (its colour)",
             )
         else:
-            ax.text(0.5, 0.5, "nothing feasible", transform=ax.transAxes, ha="center")
+            empty = "nothing feasible" if chosen else "no day has a plan: nothing swept"
+            ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center")
         k, j = np.nonzero(infeasible)
         if len(j):
             ax.plot(
@@ -78,16 +79,17 @@ def porkchop_figure(
                 label="infeasible design",
             )
         planned = sorted(chosen)
-        ax.plot(
-            date2num([days[i] for i in planned]),
-            [chosen[i] for i in planned],
-            linestyle="none",
-            marker="o",
-            markerfacecolor="white",
-            markeredgecolor="k",
-            label="the day's plan",
-            gid="chosen",
-        )
+        if planned:
+            ax.plot(
+                date2num([days[i] for i in planned]),
+                [chosen[i] for i in planned],
+                linestyle="none",
+                marker="o",
+                markerfacecolor="white",
+                markeredgecolor="k",
+                label="the day's plan",
+                gid="chosen",
+            )
         if best is not None:
             ax.plot(
                 date2num([days[best]]),
