@@ -188,6 +188,7 @@ def prefect_record(folder: Path, key: str) -> Path:
 # order the two met, and one worker waited ~50 s on the other's build.
 LONG_MODULES = (
     "test_user_install.py",
+    "test_tutorial.py",  # ~5 min: the tutorial's three pipelines, a flow run and services
     "test_tracking.py",
     "test_install.py",
     "test_benchmarks.py",
