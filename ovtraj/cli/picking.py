@@ -5,13 +5,11 @@ two commands print them."""
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any
 
 import typer
 
 from ovtraj.cli.common import _print_json, renamed_options
-from ovtraj.config.io_limits import echoed
 
 PickIndexOpt = Annotated[
     int | None,
@@ -62,34 +60,32 @@ MinLoadOpt = Annotated[
 PickCommand = renamed_options({"--max-dv": "--max-dv-mps", "--min-payload": "--min-payload-kg"})
 
 
+# How a refused pick names its input: by the option, as the command was given it.
+PICK_OPTIONS = {
+    "pick": "--pick",
+    "weights": "--weights",
+    "max_time_h": "--max-time-h",
+    "max_dv_mps": "--max-dv-mps",
+    "min_payload_kg": "--min-payload-kg",
+}
+
+
 def _pick(
     index: int | None,
     weights: str | None,
     max_time_h: float | None,
     max_dv: float | None,
     min_payload: float | None,
-    default_weights: tuple[float, float, float] | None = None,
 ) -> Any:
-    """The pick of the options, checked before any work: one line naming the option, exit 2."""
-    from ovtraj.pipeline import Pick
-    from ovtraj.pipeline.pick import weights_problem
+    """The pick of the options, checked before any work as the flows check theirs
+    (:func:`ovtraj.pipeline.pick.checked_pick`): one line naming the option, exit 2."""
+    from ovtraj.pipeline.pick import checked_pick
 
-    parsed = default_weights
-    if weights is not None:
-        try:
-            parsed = tuple(float(w) for w in weights.split(","))
-            problem = weights_problem(parsed)
-        except ValueError:
-            problem = "must be three numbers separated by commas"
-        if problem is not None:
-            typer.echo(f"--weights {echoed(repr(weights))}: {problem}", err=True)
-            raise typer.Exit(code=2) from None
-    limits = {"--max-time-h": max_time_h, "--max-dv-mps": max_dv, "--min-payload-kg": min_payload}
-    for option, value in limits.items():
-        if value is not None and not math.isfinite(value):  # their min= lets inf (1e400) by
-            typer.echo(f"{option} {value}: must be a finite number", err=True)
-            raise typer.Exit(code=2)
-    return Pick(index, parsed, max_time_h, max_dv, min_payload)
+    try:
+        return checked_pick(index, weights, max_time_h, max_dv, min_payload, shown=PICK_OPTIONS)
+    except ValueError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
 
 
 def _print_plan(planned: dict[str, Any], as_json: bool, extra: dict[str, Any]) -> None:

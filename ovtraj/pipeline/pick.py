@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from ovtraj.config.io_limits import echoed
 from ovtraj.optimize import Normalisation
 
 
@@ -25,26 +26,49 @@ class Pick:
 
 def checked_pick(
     pick: int | None = None,
-    weights: Sequence[float] | None = None,
+    weights: Sequence[float] | str | None = None,
     max_time_h: float | None = None,
     max_dv_mps: float | None = None,
     min_payload_kg: float | None = None,
+    *,
+    shown: Mapping[str, str] | None = None,
 ) -> Pick:
     """The :class:`Pick` of ``ovtraj pipeline``'s pick options under their own names (the
-    flows' parameters), checked as the command checks them before any work: a
-    ``ValueError`` naming the first that is wrong (an index below 0, a limit that is not
-    a finite number >= 0, weights that cannot weigh)."""
+    flows' parameters), checked before any work: a ``ValueError`` naming the first that
+    is wrong (an index below 0, weights that cannot weigh, a limit that is not a finite
+    number >= 0). ``weights``: three numbers, or the text ``T,dV,M`` the command takes.
+
+    ``shown``: how a message names an input, by parameter name; the command maps each to
+    its option (``{"max_dv_mps": "--max-dv-mps"}``: ``--max-dv-mps inf: ...``, the text
+    of ``--weights`` as typed), a name it leaves out reads ``max_dv_mps = inf: ...``."""
+
+    def wrong(name: str, value: object, problem: str) -> ValueError:
+        label = (shown or {}).get(name)
+        return ValueError(
+            f"{name} = {value}: {problem}" if label is None else f"{label} {value}: {problem}"
+        )
+
     if pick is not None and pick < 0:
-        raise ValueError(f"pick = {pick}: must be a front index >= 0")
+        raise wrong("pick", pick, "must be a front index >= 0")
+    parsed = None
+    if weights is not None:
+        text = isinstance(weights, str)
+        typed = echoed(repr(weights)) if text else list(weights)
+        try:
+            parsed = tuple(float(w) for w in (weights.split(",") if text else weights))
+        except (TypeError, ValueError):
+            wanted = "must be three numbers" + (" separated by commas" if text else "")
+            raise wrong("weights", typed, wanted) from None
+    problem = weights_problem(parsed)
+    if problem is not None:
+        raise wrong("weights", typed, problem)
     limits = {"max_time_h": max_time_h, "max_dv_mps": max_dv_mps, "min_payload_kg": min_payload_kg}
     for name, value in limits.items():
-        if value is not None and not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} = {value}: must be a finite number >= 0")
-    problem = weights_problem(weights)
-    if problem is not None:
-        raise ValueError(f"weights = {list(weights)}: {problem}")
-    shown = None if weights is None else tuple(float(w) for w in weights)
-    return Pick(pick, shown, max_time_h, max_dv_mps, min_payload_kg)
+        if value is not None and not np.isfinite(value):
+            raise wrong(name, value, "must be a finite number")
+        if value is not None and value < 0:
+            raise wrong(name, value, "must be a finite number >= 0")
+    return Pick(pick, parsed, max_time_h, max_dv_mps, min_payload_kg)
 
 
 def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pick) -> pd.Series:
