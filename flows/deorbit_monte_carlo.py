@@ -54,7 +54,7 @@ def deorbit_monte_carlo_flow(
     runs: int | None = None,
     strategies: list[int] | None = None,
     seed: int | None = None,
-    store_root: str | None = None,
+    store: str | None = None,
     batch_size: int | None = None,
     workers: int | None = None,
     runner: str | None = None,
@@ -62,8 +62,11 @@ def deorbit_monte_carlo_flow(
 ) -> dict[str, Any]:
     """Monte Carlo of the deorbit burn; returns the run's summary (id, statistics, figures).
 
-    Arguments left ``None`` take the config's ``monte_carlo`` values (``runner``: its
-    ``task_runner``; ``serial | threads | processes | dask``). Raises ``RuntimeError``
+    The parameters are named as ``ovtraj deorbit-burn CONFIG --monte-carlo RUNS``'s
+    options and ``ovtraj run``'s (``store``, ``runner``, ...; tests/test_flows.py).
+    Arguments left ``None`` take the config's ``monte_carlo`` values (``store``: its
+    ``store``, else the workspace's; ``runner``: its ``task_runner``;
+    ``serial | threads | processes | dask``). Raises ``RuntimeError``
     naming the failed batches if a task fails (after its retries); the stored batches
     are kept and a re-run simulates only the missing runs.
     """
@@ -82,7 +85,7 @@ def deorbit_monte_carlo_flow(
         raise ValueError(f"runs and batch_size must be >= 1; got runs {n}, batch_size {size}")
     resolved = problem.resolved()
     run = MonteCarloRun.create(
-        store_root_of(settings.store, Path(config).resolve().parent, store_root),
+        store_root_of(settings.store, Path(config).resolve().parent, store),
         resolved=resolved,
         runs=n,
         strategies=chosen,

@@ -244,16 +244,19 @@ async def doe_flow(
     config: str | None = None,
     samples: int | None = None,
     seed: int | None = None,
-    append_to: str | None = None,
-    store_root: str | None = None,
+    append: str | None = None,
+    store: str | None = None,
     target: str | None = None,
     runner: str | None = None,
     dask_address: str | None = None,
 ) -> dict[str, Any]:
     """DoE of the mission chain; returns the run's summary (run id, counts, ranges).
 
-    ``config``: the scenario file (default: the shipped one). ``target``: a TLE/OMM file
-    or URL that replaces the scenario's target. ``runner``
+    The parameters are ``ovtraj run``'s options by the same names (tests/test_flows.py).
+    ``config``: the scenario file (default: the shipped one). ``append``: a stored run
+    this one extends with new samples. ``store``: the run store (else
+    ``mission.doe.store``, else the workspace's). ``target``: a TLE/OMM file or URL that
+    replaces the scenario's target. ``runner``
     (``serial | threads | processes | dask``) overrides ``mission.doe.task_runner``;
     ``dask_address``: the scheduler of the ``dask`` runner (else ``OVTRAJ_DASK_ADDRESS``,
     else a local cluster).
@@ -270,7 +273,7 @@ async def doe_flow(
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.doe_s
     summary = await asyncio.to_thread(
-        _doe, config, samples, seed, append_to, store_root, target, runner, dask_address, deadline
+        _doe, config, samples, seed, append, store, target, runner, dask_address, deadline
     )
     await acreate_table_artifact(
         key="doe-run",
@@ -308,8 +311,8 @@ def _doe(
     config: str | None,
     samples: int | None,
     seed: int | None,
-    append_to: str | None,
-    store_root: str | None,
+    append: str | None,
+    store: str | None,
     target: str | None,
     runner: str | None,
     dask_address: str | None,
@@ -326,14 +329,14 @@ def _doe(
     settings = scenario.mission.doe
     choice = choose_runner(settings, runner, dask_address)
     fit = ensure_launch_fit(config, scenario, target)
-    store = RunStore.for_scenario(scenario, config, store_root)
-    parent = store.run(append_to) if append_to else None
+    run_store = RunStore.for_scenario(scenario, config, store)
+    parent = run_store.run(append) if append else None
     run = prepare_run(
         scenario,
         samples=samples or settings.samples,
         seed=settings.seed if seed is None else seed,
         code=code_version(),
-        store=store,
+        store=run_store,
         parent=parent,
     )
     labels = run_tags("doe", scenario.name, run.id)

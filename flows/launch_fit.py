@@ -44,15 +44,18 @@ CHAINS = 2
 )
 def launch_fit_flow(
     config: str | None = None,
-    output_dir: str | None = None,
+    out: str | None = None,
     target: str | None = None,
     runner: str = "processes",
     dask_address: str | None = None,
 ) -> dict[str, Any]:
     """Solve the altitude grid, fit payload, insertion time and u; save and summarise.
 
-    ``config``: the scenario file (default: the shipped one). ``target``: a TLE/OMM file
-    or URL that replaces the scenario's target (its plane).
+    The parameters are ``ovtraj launch-fit``'s options by the same names
+    (tests/test_flows.py), and where the points run. ``config``: the scenario file
+    (default: the shipped one). ``out``: the fit's folder (default: the fit store's, by
+    the fit's key). ``target``: a TLE/OMM file or URL that replaces the scenario's target
+    (its plane).
     ``runner``/``dask_address``: where the points run (two workers: one per chain).
     """
     logger = get_run_logger()
@@ -98,7 +101,7 @@ def launch_fit_flow(
             row["wall_time_s"],
         )
     fit = fit_rows(on_grid, settings.fit, settings.launcher.name, key=key)
-    directory = Path(output_dir) if output_dir else fit_roots()[0] / key
+    directory = Path(out) if out else fit_roots()[0] / key
     fit.save(directory)
     summary = {
         "points": len(on_grid),

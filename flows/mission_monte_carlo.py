@@ -66,7 +66,7 @@ def plan_monte_carlo_flow(
     dispersions: str | None = None,
     runs: int | None = None,
     seed: int | None = None,
-    store_root: str | None = None,
+    store: str | None = None,
     batch_size: int | None = None,
     workers: int | None = None,
     runner: str | None = None,
@@ -76,7 +76,11 @@ def plan_monte_carlo_flow(
 ) -> dict[str, Any]:
     """Monte Carlo of a plan file; returns the run's summary (id, both loops' statistics).
 
-    Arguments left ``None`` take the dispersions file's ``execution`` values. ``fidelity``
+    The parameters are ``ovtraj fly PLAN --monte-carlo RUNS``'s by the same names
+    (``--dispersions`` is ``dispersions``, ``--force-model`` ``force_model``; what the
+    command does not take is listed with why in tests/test_flows.py). Arguments left
+    ``None`` take the dispersions file's ``execution`` values (``store``: the run store,
+    else its ``execution.store``, else the workspace's). ``fidelity``
     ``high`` flies the closed loop under the high-fidelity force model (``force_model``,
     by default the shipped ``configs/force_model.yaml``; ``ovtraj fly --monte-carlo N
     --fidelity high`` in the CLI); the open loop stays the J2 replay. Raises
@@ -101,7 +105,7 @@ def plan_monte_carlo_flow(
         dispersions=config,
         runs=n,
         seed=seed,
-        root=store_of(config, config_file, store_root),
+        root=store_of(config, config_file, store),
         code=code_version(),
         batch_size=size,
         force_model=sky,

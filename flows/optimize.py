@@ -60,11 +60,11 @@ def surrogate_front(
     log_prints=True,
 )
 def optimize_flow(
-    run_id: str, config: str | None = None, store_root: str | None = None
+    run_id: str, config: str | None = None, store: str | None = None
 ) -> dict[str, Any]:
     """Surrogate front of a stored run (no simulation); returns its summary."""
     prune_expired_results()
-    run = RunStore(store_root).run(run_id)
+    run = RunStore(store).run(run_id)
     scenario = run_scenario(run, config)
     labels = run_tags("optimize", scenario.name, run.id)
     label_flow_run(f"optimize {scenario.name} {run.id}", labels)

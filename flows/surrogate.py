@@ -91,11 +91,11 @@ def publish_validation(summary: dict[str, Any], run: Run) -> None:
     log_prints=True,
 )
 def surrogate_flow(
-    run_id: str, config: str | None = None, store_root: str | None = None
+    run_id: str, config: str | None = None, store: str | None = None
 ) -> dict[str, Any]:
     """Fit and validate the surrogates of a stored run; returns the fit's summary."""
     prune_expired_results()
-    run = RunStore(store_root).run(run_id)
+    run = RunStore(store).run(run_id)
     scenario = run_scenario(run, config)
     labels = run_tags("surrogate", scenario.name, run.id)
     label_flow_run(f"surrogate {scenario.name} {run.id}", labels)

@@ -116,10 +116,10 @@ def test_launch_fit_flow_recomputes_after_a_code_change_only(prefect_server, tmp
     shorten_launch_fit(data)
     config = _write(tmp_path, data)
     _set_code(monkeypatch, CODE_A)
-    first = launch_fit_flow(config, output_dir=str(tmp_path / "a"), runner="threads")
-    again = launch_fit_flow(config, output_dir=str(tmp_path / "a2"), runner="threads")
+    first = launch_fit_flow(config, out=str(tmp_path / "a"), runner="threads")
+    again = launch_fit_flow(config, out=str(tmp_path / "a2"), runner="threads")
     _set_code(monkeypatch, CODE_B)
-    changed = launch_fit_flow(config, output_dir=str(tmp_path / "b"), runner="threads")
+    changed = launch_fit_flow(config, out=str(tmp_path / "b"), runner="threads")
     assert first["cached_points"] == 0
     assert again["cached_points"] == again["solved_points"] == first["solved_points"]
     assert again["payload_kg"] == first["payload_kg"]

@@ -75,10 +75,10 @@ class PlanMonteCarloRequest:
 def store_of(
     dispersions: DispersionsConfig, dispersions_file: Path | None, override: str | None = None
 ) -> Path:
-    """The run store of a plan Monte Carlo: ``override`` (the flow's ``store_root``), else
-    the dispersions file's ``execution.store`` (relative to that file's folder; the
-    shipped ``configs/dispersions.yaml`` when ``dispersions_file`` is None), else the
-    workspace's ``runs/``, which ``ovtraj runs`` and ``ovtraj history`` read."""
+    """The run store of a plan Monte Carlo: ``override`` (the flow's ``store``), else the
+    dispersions file's ``execution.store`` (relative to that file's folder; the shipped
+    ``configs/dispersions.yaml`` when ``dispersions_file`` is None), else the workspace's
+    ``runs/``, which ``ovtraj runs`` and ``ovtraj history`` read."""
     read = config_path("dispersions.yaml") if dispersions_file is None else dispersions_file
     return store_root(dispersions.execution.store, Path(read).resolve().parent, override)
 
