@@ -31,8 +31,7 @@ from prefect.futures import as_completed
 from flows.common import embedded_plots, label_flow_run, run_name, run_tags
 from flows.runners import task_runner
 from flows.verdict import run_from_command_line, verdict_state
-from ovtraj.pipeline import Pick
-from ovtraj.pipeline.pick import weights_problem
+from ovtraj.pipeline.pick import checked_pick
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import RunnerChoice, choose_runner
 from ovtraj.store.paths import scenario_file
@@ -78,9 +77,9 @@ def window_flow(
     seed: int | None = None,
     weights: list[float] | None = None,
     max_time_h: float | None = None,
-    max_dv: float | None = None,
-    min_payload: float | None = None,
-    store_root: str | None = None,
+    max_dv_mps: float | None = None,
+    min_payload_kg: float | None = None,
+    store: str | None = None,
     target: str | None = None,
     runner: str | None = None,
     workers: int | None = None,
@@ -92,33 +91,37 @@ def window_flow(
     the front points within the limits, and the best day. Returns the window's paths and
     the days' rows.
 
-    ``config``: the scenario file (default: the shipped scenario). ``target``: a TLE/OMM
-    file or URL replacing the scenario's target. ``runner``/``workers``/``dask_address``:
-    where the days run (default: ``mission.doe``'s runner and workers; ``dask_address``
-    else ``OVTRAJ_DASK_ADDRESS``, else a local cluster). ``require_converged``: a day
-    whose verification loop did not converge ends the flow run Failed, the days named in
-    its message (False: Completed, named "Not converged"); a window with no planned day
-    ends Failed either way. The window is stored and published first.
+    The parameters are ``ovtraj window``'s options by the same names (``--max-dv-mps`` is
+    ``max_dv_mps``, ``--store`` ``store``, ...; tests/test_flows.py). ``config``: the
+    scenario file (default: the shipped scenario). ``max_time_h`` [h], ``max_dv_mps``
+    [m/s], ``min_payload_kg`` [kg]: each day's plan among the front points within them.
+    ``store``: the run store (else ``mission.doe.store``, else the workspace's).
+    ``target``: a TLE/OMM file or URL replacing the scenario's target.
+    ``runner``/``workers``/``dask_address``: where the days run (default:
+    ``mission.doe``'s runner and workers; ``dask_address`` else ``OVTRAJ_DASK_ADDRESS``,
+    else a local cluster). ``require_converged`` (the command's ``--allow-unconverged``
+    turned around): a day whose verification loop did not converge ends the flow run
+    Failed, the days named in its message (False: Completed, named "Not converged"); a
+    window with no planned day ends Failed either way. The window is stored and published first.
     """
     logger = get_run_logger()
     path = scenario_file(config)
     scenario = load_scenario_with_target(path, target)
     if scenario.mission is None:
         raise ValueError(f"{path}: the scenario has no mission section")
-    problem = weights_problem(weights)
-    if problem is not None:
-        raise ValueError(f"weights {weights}: {problem}")
-    pick = Pick(None, None if weights is None else tuple(weights), max_time_h, max_dv, min_payload)
+    pick = checked_pick(None, weights, max_time_h, max_dv_mps, min_payload_kg)
     choice = choose_runner(scenario.mission.doe, runner, dask_address)
     if workers is not None:
         choice = RunnerChoice(choice.runner, workers, choice.dask_address)
-    store = RunStore.for_scenario(scenario, config, store_root)
+    run_store = RunStore.for_scenario(scenario, config, store)
     request = WindowRequest(days=days, samples=samples, seed=seed, pick=pick)
     code = code_version()
     identity = window_id(scenario, request, code)
     label_flow_run(f"window {scenario.name} {identity}", run_tags("window", scenario.name))
     logger.info("window %s: %d days, runner %s", identity, days, choice.runner)
-    outcome = scan_window(scenario, request, store, code, TaskDays(choice), progress=logger.info)
+    outcome = scan_window(
+        scenario, request, run_store, code, TaskDays(choice), progress=logger.info
+    )
     rows = [
         row | {"verdict": record["verdict"]}  # the day's pipeline's, as `ovtraj window --json`
         for row, record in zip(

@@ -456,7 +456,7 @@ def test_the_flow_and_the_command_give_the_same_days(scanned, prefect_server):
     arguments = {
         "config": str(scanned["config"]),
         "days": 2,
-        "store_root": str(store),
+        "store": str(store),
         "runner": "processes",
         "workers": 1,
     }
