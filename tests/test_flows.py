@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from tests.conftest import DEFAULT_SCENARIO
+from tests.conftest import DEFAULT_SCENARIO, REPO
 
 
 def test_rendezvous_flow_end_to_end(prefect_server):
@@ -67,6 +67,75 @@ def test_every_deployments_defaults_are_a_run_its_flow_accepts():
         for value in given.values():
             if isinstance(value, str) and value.endswith((".yaml", ".yml", ".json")):
                 assert (REPO / value).is_file(), (name, value)
+
+
+# -- one vocabulary: a flow's parameters are its command's options -------------------------------
+# Each flow with a command and the names it takes that the command has not, each with why.
+# Every other parameter is one of the command's options in snake case (``--max-dv-mps``:
+# ``max_dv_mps``) or its argument (``config``, ``run_id``).
+_EXECUTION = "where the flow's tasks run (ovtraj run's options); the command works in its process"
+_MONTE_CARLO = {
+    "runs": "the count --monte-carlo N gives: the flow is the Monte Carlo only",
+    "store": "--store of the other commands; the command stores in the config's store",
+    "batch_size": "runs per task; the command flies the config's batches in its process",
+    "workers": _EXECUTION,
+    "runner": _EXECUTION,
+    "dask_address": _EXECUTION,
+}
+FLOW_COMMANDS = {
+    ("flows.rendezvous", "rendezvous_flow"): ("rendezvous", {}),
+    ("flows.launch_fit", "launch_fit_flow"): (
+        "launch-fit",
+        {"runner": _EXECUTION, "dask_address": _EXECUTION},
+    ),
+    ("flows.doe", "doe_flow"): ("run", {}),
+    ("flows.surrogate", "surrogate_flow"): ("optimize", {}),  # its fit, without NSGA-II
+    ("flows.optimize", "optimize_flow"): ("optimize", {}),
+    ("flows.pipeline", "mission_flow"): (
+        "pipeline",
+        {"require_converged": "--allow-unconverged turned around (a flow run's state)"},
+    ),
+    ("flows.window", "window_flow"): (
+        "window",
+        {"require_converged": "--allow-unconverged turned around (a flow run's state)"},
+    ),
+    ("flows.mission_monte_carlo", "plan_monte_carlo_flow"): (
+        "fly",
+        {"plan": "fly's PLAN_FILE argument (a required parameter, named by the deployment)"}
+        | _MONTE_CARLO,
+    ),
+    ("flows.deorbit_monte_carlo", "deorbit_monte_carlo_flow"): (
+        "deorbit-burn",
+        {
+            "strategies": "--strategy's values, several flown side by side",
+            "seed": "the config's monte_carlo.seed, which the command always takes",
+        }
+        | _MONTE_CARLO,
+    ),
+}
+
+
+def test_every_flows_parameters_are_its_commands_options_by_name():
+    """A flow's parameter is its command's option of the same name in snake case, else
+    one of the few the command has not, listed with why: exactly those (a listed name the
+    flow no longer takes, or one the command has, fails too)."""
+    import importlib
+    import inspect
+
+    import typer
+
+    from ovtraj.cli import app
+
+    commands = typer.main.get_command(app).commands
+    modules = {p.stem for p in (REPO / "flows").glob("*.py")}
+    covered = {module.split(".")[1] for module, _ in FLOW_COMMANDS}
+    # every module defining a flow is listed (the helpers have none)
+    assert modules - covered == {"__init__", "common", "runners", "verdict"}
+    for (module, name), (command, extra) in FLOW_COMMANDS.items():
+        flow_object = getattr(importlib.import_module(module), name)
+        accepted = set(inspect.signature(flow_object.fn).parameters)
+        options = {p.opts[0].lstrip("-").replace("-", "_") for p in commands[command].params}
+        assert accepted - options == set(extra), (name, command, accepted - options)
 
 
 # -- operability (issue 19): names and tags, one flow run per run, event loops, limits ----------
