@@ -44,6 +44,7 @@ from ovtraj.cli.picking import (
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config import ConfigError, Scenario
 from ovtraj.formatting import number
+from ovtraj.store.backends import location
 
 if TYPE_CHECKING:  # the driver and the runners load the numerics: imported when run
     from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest
@@ -138,10 +139,12 @@ def pipeline(
     outcome = _drive(scenario, fit, _store(store_root, scenario, config), choice, request, as_json)
     doe_run, result, planned = outcome.doe_run, outcome.result, outcome.planned
     verdict, converged = outcome.verdict, outcome.converged
-    front_plot = Path(result.directory / "front.png").resolve()
+    front_plot = location(result.directory / "front.png").resolve()
     # The last round's views, drawn with the result: parity plots and the surrogate front.
     views = sorted(
-        path.resolve() for path in Path(result.directory).glob("*.png") if path.name != "front.png"
+        path.resolve()
+        for path in location(result.directory).glob("*.png")
+        if path.name != "front.png"
     )
     if as_json:
         _print_plan(
@@ -157,7 +160,7 @@ def pipeline(
                 "real_evaluations": result.summary["real_evaluations"],
                 "hypervolume": result.summary["hypervolume"],
                 "front_points": len(result.front),
-                "front": str(Path(result.front_path).resolve()),
+                "front": str(location(result.front_path).resolve()),
                 "front_plot": str(front_plot),
                 "views": [str(p) for p in views],
             },
@@ -169,7 +172,7 @@ def pipeline(
         )
         _print_front(result.front)
         typer.echo(verdict)
-        typer.echo(f"front: {Path(result.front_path).resolve()}")
+        typer.echo(f"front: {location(result.front_path).resolve()}")
         typer.echo(f"plot: {front_plot}")
         for path in views:
             typer.echo(f"plot: {path}")
@@ -358,7 +361,7 @@ def front(
                 "final_run": result.final_run,
                 "converged": converged,
                 "hypervolume": summary.get("hypervolume"),
-                "front": str(Path(result.front_path).resolve()),
+                "front": str(location(result.front_path).resolve()),
                 "points": result.front.to_dict(orient="records"),
             }
         )
@@ -370,7 +373,7 @@ def front(
         + ("converged" if converged else "not converged")
     )
     _print_front(result.front)
-    typer.echo(f"front: {Path(result.front_path).resolve()}")
+    typer.echo(f"front: {location(result.front_path).resolve()}")
 
 
 @app.command(cls=PickCommand)
