@@ -255,7 +255,7 @@ def _timed_run(config: Path, store: Path, cluster: Cluster, workers: int, via: s
         if via == "flow":
             summary = run_doe_flow(
                 config=str(config),
-                store_root=str(store),
+                store=str(store),
                 runner="dask",
                 dask_address=cluster.address,
             )
@@ -367,7 +367,7 @@ def main() -> None:
             run_doe_flow(
                 config=str(config),
                 samples=8,
-                store_root=str(workdir / "warm-up"),
+                store=str(workdir / "warm-up"),
                 runner="dask",
                 dask_address=cluster.address,
             )
