@@ -417,9 +417,10 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     )
     flown = runner.invoke(app, ["fly", plan_json, "--json"])
     assert flown.exit_code == 0, flown.output
-    report = json.loads(flown.output)
+    report = json.loads(flown.stdout)
     assert report["landed_within_stated_miss"] is True
-    # Every file of the plan is listed with its digest; the paths printed are absolute.
+    # Every file of the plan is listed with its digest, the flight fly stored beside it
+    # too; the paths printed are absolute.
     plan_path = Path(plan_json)
     assert plan_path.is_absolute()
     marker = json.loads(plan_path.with_name(f"{plan_path.stem}.files.json").read_text())
@@ -428,7 +429,15 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
         for line in done.output.splitlines()
         if line.startswith(("plan: ", "plot: ", "report: "))
     }
-    assert set(marker["files"]) == written and len(written) >= 5
+    stored = flown.stderr.splitlines()[0].split(": ", 1)[1]
+    assert stored == str(plan_path.with_name(f"{plan_path.stem}-flight-j2.json"))
+    assert set(marker["files"]) == written | {Path(stored).name} and len(written) >= 5
+    # Planning the point again writes the same report, the stored flight in it.
+    flown_report = plan_path.with_name(f"{plan_path.stem}-report.html").read_bytes()
+    again = runner.invoke(app, ["plan", doe, "--pick", "0", "--store", root])
+    assert again.exit_code == 0, again.output
+    assert plan_path.with_name(f"{plan_path.stem}-report.html").read_bytes() == flown_report
+    assert json.loads(plan_path.with_name(f"{plan_path.stem}.files.json").read_text()) == marker
     assert done.output.startswith("picked front point 0 (") and "--pick 0" in done.output
     checked = small["doe"].verify()
     assert checked.clean and not checked.uncovered, (checked.problems, checked.uncovered)

@@ -314,14 +314,15 @@ def _flown_section(path: Path) -> str:
 def test_the_report_says_no_flight_is_stored_and_shows_one_passed_in(
     plan, report, report_inputs, tmp_path
 ):
-    """``ovtraj fly`` stores nothing: the pipeline's report says so. A replay passed in as
-    ``ovtraj fly PLAN --json`` prints it is shown beside the plan's own figures."""
+    """No flight is stored with a new plan: the pipeline's report says so and how to store
+    one. A replay passed in as ``ovtraj fly PLAN --json`` prints it is shown beside the
+    plan's own figures."""
     from ovtraj.mission.fly import fly_plan
     from ovtraj.pipeline.report import write_report
     from ovtraj.pipeline.report_tables import flight_shown
     from ovtraj.store.records import json_text
 
-    assert "No flight of this plan is part of this report" in _flown_section(report)
+    assert "No flight of this plan is stored" in _flown_section(report)
     replay = fly_plan(plan)
     flown = json.loads(json_text(replay.to_dict(), indent=None))  # as the command prints it
     sentence, frame = flight_shown(flown, plan)
@@ -341,7 +342,7 @@ def test_the_report_says_no_flight_is_stored_and_shows_one_passed_in(
     assert float(rows.loc["entry peak heat rate", "flown (J2 replay)"]) == pytest.approx(
         heat, rel=1e-5
     )
-    path = write_report(tmp_path / "flown.html", **report_inputs, flight=flown)
+    path = write_report(tmp_path / "flown.html", **report_inputs, flights=[flown])
     section = _flown_section(path)
     assert "replayed open-loop from the drop" in section and "flown (J2 replay)" in section
 
@@ -361,7 +362,7 @@ def test_a_hostile_or_foreign_flight_is_shown_as_text_or_refused(plan, report_in
         "miss_distance_m": "far",
         "rendezvous_arrival_miss_m": 10**400,  # beyond any float
     }
-    path = write_report(tmp_path / "hostile.html", **report_inputs, flight=hostile)
+    path = write_report(tmp_path / "hostile.html", **report_inputs, flights=[hostile])
     section = _flown_section(path)
     assert "<script>" not in section and "&lt;script&gt;" in section
     assert len(section) < len(hostile["reason"])  # the reason cut to a line
@@ -374,7 +375,7 @@ def test_a_hostile_or_foreign_flight_is_shown_as_text_or_refused(plan, report_in
     for flight, words in ((other, "not a flight of this plan"), ({"ok": True}, "neither")):
         target = tmp_path / "refused.html"
         with pytest.raises(FlightResultError, match=words):
-            write_report(target, **report_inputs, flight=flight)
+            write_report(target, **report_inputs, flights=[flight])
         assert not target.exists()
 
 

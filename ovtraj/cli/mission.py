@@ -79,7 +79,10 @@ def fly(
     and constraint maxima; with --monte-carlo, the dispersed closed- and open-loop flights
     (a progress bar on stderr); with --fidelity high, the closed loop under the
     high-fidelity force model: each manoeuvre's dV against the plan's, the arrival and
-    landing misses, the path-limit margins.
+    landing misses, the path-limit margins. Without --monte-carlo, the flight of a plan of
+    a run store is stored beside it (<plan>-flight-j2.json, <plan>-flight-high.json; never
+    overwritten: another flight already there is refused, exit 2) and the plan's report
+    is written again with it (both paths printed).
 
     Example: `ovtraj fly plan-sample-30.json --monte-carlo 20 --seed 1`"""
     from ovtraj.mission.fly import fly_plan, format_flight_report
@@ -119,8 +122,42 @@ def fly(
         if monte_carlo:
             typer.echo(_format_monte_carlo(row["monte_carlo"]))
             typer.echo(_format_stored(row["monte_carlo"]))
+    if not monte_carlo:  # the Monte Carlo's runs are stored by its own driver
+        _store_flight(plan_file, plan, row, as_json)
     if not landed:
         raise typer.Exit(code=1)
+
+
+def _store_flight(plan_file: Path, plan: Any, row: dict, as_json: bool) -> None:
+    """The flight stored beside a plan of a run store, its report written again
+    (:func:`ovtraj.pipeline.plan_flights.store_flight`); the paths said on stdout (stderr
+    with --json). A plan elsewhere: nothing stored, said on stderr. A flight of other
+    content already stored, or a plan's file that is not its marker's: one line, exit 2."""
+    from ovtraj.pipeline.plan_flights import store_flight
+    from ovtraj.store.files import StoreError
+
+    try:
+        stored = store_flight(plan_file, plan, row)
+    except StoreError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    if stored is None:
+        typer.echo(
+            f"{plan_file}: not a plan of a run store (<store>/<run>/pipeline/<id>/plans/): "
+            "this flight is not stored",
+            err=True,
+        )
+        return
+    said = "flight stored" if stored.new else "flight already stored"
+    typer.echo(f"{said}: {stored.path}", err=as_json)
+    if stored.report is not None:
+        typer.echo(f"report: {stored.report}", err=as_json)
+    else:
+        typer.echo(
+            f"{stored.path.parent}: the plan's report has no section of flights (written "
+            "before flights were stored): `ovtraj plan RUN --pick N` writes it again",
+            err=True,
+        )
 
 
 def _high_fidelity(plan: Any, dispersions: Any, force_model: Any, source: str) -> tuple[dict, bool]:

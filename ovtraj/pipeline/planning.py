@@ -13,6 +13,7 @@ from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.catalog import pipeline_summaries
 from ovtraj.pipeline.loop import PipelineError, PipelineResult, load_pipeline
 from ovtraj.pipeline.pick import Pick, pick_front_point
+from ovtraj.pipeline.plan_flights import REPORT_SUFFIX, stored_flights
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.runs import Run, RunStore, StoreError
 from ovtraj.runs.store import checked_id, within_store
@@ -72,8 +73,10 @@ def write_mission_plan(
     """Build the plan of the picked front point, write it (JSON, YAML) and its plots.
 
     The plots show the chain evaluated again for the plan, at the stages' own sampling
-    (the store keeps its trajectories coarser). ``<name>.files.json``, written last,
-    lists the size and SHA-256 of every file of the plan (``ovtraj verify``).
+    (the store keeps its trajectories coarser). The report shows the flights ``ovtraj fly``
+    stored beside the plan (:mod:`ovtraj.pipeline.plan_flights`). ``<name>.files.json``,
+    written last, lists the size and SHA-256 of every file of the plan, its stored flights
+    too (``ovtraj verify``).
     """
     from ovtraj.mission.plan import check_front_point, plan_and_record, write_plan
     from ovtraj.plots.mission import mission_plots
@@ -126,8 +129,9 @@ def write_mission_plan(
         )
     )
     since = _since_previous_plan(store, plan.to_dict())
+    flights = stored_flights(location(directory), name, plan)  # ovtraj fly stored them
     report = write_report(
-        directory / f"{name}-report.html",
+        directory / f"{name}{REPORT_SUFFIX}",
         scenario_name=scenario.name,
         normalisation=normalisation,
         summary=result.summary,
@@ -140,9 +144,11 @@ def write_mission_plan(
         since_previous=since,
         ascent_plot=ascent,
         entry_plot=entry,
+        flights=[flight for _, flight in flights],
     )
     plots += [p for p in (ascent, entry) if p is not None]
     paths = [json_path, yaml_path, *(location(p) for p in plots), report]
+    paths += [path for path, _ in flights]
     files = {path.name: file_digest(path) for path in paths}
     write_sealed(
         directory / f"{name}{PLAN_MARKER_SUFFIX}",

@@ -4,15 +4,17 @@
 :func:`pick_explanation` why the planned point was chosen; :func:`write_report` writes
 ``<plan>-report.html`` next to the plan: the verdict, the rounds, the surrogates'
 validation, the verified front, the plan's key figures, its path peaks against their
-limits, its manoeuvres, the ascent from the drop, the entry's time histories, a flight of
-the plan when one is passed in (:mod:`.report_tables`) and every plot, embedded
-(``data:`` URIs), so the file can be mailed or opened on another machine. The report holds
-only stored results (no wall clock, no host): the same plan gives the same bytes.
+limits, its manoeuvres, the ascent from the drop, the entry's time histories, the flights
+of the plan stored beside it (:mod:`.report_tables`, :mod:`.plan_flights`) and every plot,
+embedded (``data:`` URIs), so the file can be mailed or opened on another machine. The
+report holds only stored results (no wall clock, no host): the same plan and flights give
+the same bytes.
 """
 
 from __future__ import annotations
 
 import html
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +30,14 @@ from ovtraj.pipeline.report_tables import flight_shown, manoeuvres_shown, margin
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.store.files import write_bytes
 
-__all__ = ["pick_explanation", "stop_explanation", "write_report"]
+__all__ = [
+    "FLOWN_END",
+    "FLOWN_START",
+    "flown_section",
+    "pick_explanation",
+    "stop_explanation",
+    "write_report",
+]
 
 # Outputs the surrogates model without a regressor, and how (ovtraj/pipeline/features.py).
 _UNREGRESSED = {
@@ -321,16 +330,20 @@ def _figure(path: Path, alt: str, caption: str) -> str:
     )
 
 
+# The bounds of the report's section of the plan's flights (:func:`flown_section`).
+FLOWN_START = "<section id='flown'>"
+FLOWN_END = "</section>"
+
 # Alt text of the plan's own figures (the test of the rendered report finds them by it).
 ASCENT_ALT = "ascent profile from the drop"
 ENTRY_ALT = "entry time histories against their limits"
 
 
 def _plan_sections(
-    plan: Any, ascent_plot: Path | None, entry_plot: Path | None, flight: Any
+    plan: Any, ascent_plot: Path | None, entry_plot: Path | None, flights: Sequence[Any]
 ) -> list[str]:
     """Path peaks against their limits, the manoeuvres, the ascent, the entry's time
-    histories and the flight of the plan (or where to get one)."""
+    histories and the flights of the plan (or where to get one)."""
     scenario = scenario_from_dict(plan.scenario, "the plan's scenario")
     manoeuvres, note = manoeuvres_shown(plan, scenario)
     parts = [
@@ -367,17 +380,29 @@ def _plan_sections(
                 "entry interface (the reentry stage's trajectory table), each limit dashed",
             )
         )
-    parts.append("<h2>Flown</h2>")
-    if flight is None:
+    parts.append(flown_section(flights, plan))
+    return parts
+
+
+def flown_section(flights: Sequence[Any], plan: Any) -> str:
+    """The report's section of the plan's flights (each as ``ovtraj fly PLAN --json`` prints
+    it, in the order given), or where to get one; between :data:`FLOWN_START` and
+    :data:`FLOWN_END`, so that the section alone can be written again when a flight is
+    stored (:mod:`ovtraj.pipeline.plan_flights`). Refuses another plan's flight
+    (:class:`~ovtraj.pipeline.report_tables.FlightResultError`)."""
+    parts = [FLOWN_START, "<h2>Flown</h2>"]
+    if not flights:
         parts.append(
-            "<p>No flight of this plan is part of this report: <code>ovtraj fly PLAN</code> "
-            "(J2 replay) and <code>ovtraj fly PLAN --fidelity high</code> print their results "
-            "(<code>--json</code>) and store none.</p>"
+            "<p>No flight of this plan is stored: <code>ovtraj fly PLAN</code> (J2 replay) and "
+            "<code>ovtraj fly PLAN --fidelity high</code> store theirs beside a plan of a run "
+            "store (<code>&lt;plan&gt;-flight-j2.json</code>, "
+            "<code>&lt;plan&gt;-flight-high.json</code>) and show them here.</p>"
         )
-    else:
+    for flight in flights:
         sentence, frame = flight_shown(flight, plan)
         parts += [f"<p>{html.escape(sentence)}.</p>", _table(frame)]
-    return parts
+    parts.append(FLOWN_END)
+    return "\n".join(parts)
 
 
 def write_report(
@@ -395,21 +420,22 @@ def write_report(
     since_previous: tuple[Any, list[Any]] | None = None,
     ascent_plot: Path | None = None,
     entry_plot: Path | None = None,
-    flight: Any = None,
+    flights: Sequence[Any] = (),
 ) -> Path:
     """The HTML report of a planned pipeline result at ``path`` (rewritten with the plan:
     it is a view of stored results); returns ``path``. ``since_previous``: the previous
     plan of this target (its history row) and the changes since
     (:mod:`ovtraj.tracking.diff`), a section of their own. ``ascent_plot`` and
     ``entry_plot``: the PNGs of the plan's ascent (:mod:`ovtraj.plots.ascent`) and entry
-    time histories (:mod:`ovtraj.plots.entry`), each in its own section. ``flight``: a
-    flight of this plan as ``ovtraj fly PLAN --json`` prints it (the J2 replay, or the
-    ``--fidelity high`` result), shown beside the plan; a mapping of neither kind, or the
-    flight of another plan, raises
+    time histories (:mod:`ovtraj.plots.entry`), each in its own section. ``flights``: the
+    flights of this plan as ``ovtraj fly PLAN --json`` prints them (the J2 replay, the
+    ``--fidelity high`` result: those stored beside the plan,
+    :func:`ovtraj.pipeline.plan_flights.stored_flights`), each shown beside the plan; a
+    mapping of neither kind, or the flight of another plan, raises
     :class:`~ovtraj.pipeline.report_tables.FlightResultError` before anything is written."""
     converged = bool(summary.get("converged"))
     evaluations = summary["real_evaluations"]
-    plan_parts = _plan_sections(plan, ascent_plot, entry_plot, flight)
+    plan_parts = _plan_sections(plan, ascent_plot, entry_plot, flights)
     title = f"ovtraj mission report: {scenario_name}"
     parts = [
         f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
