@@ -132,12 +132,17 @@ def _store_flight(plan_file: Path, plan: Any, row: dict, as_json: bool) -> None:
     """The flight stored beside a plan of a run store, its report written again
     (:func:`ovtraj.pipeline.plan_flights.store_flight`); the paths said on stdout (stderr
     with --json). A plan elsewhere: nothing stored, said on stderr. A flight of other
-    content already stored, or a plan's file that is not its marker's: one line, exit 2."""
-    from ovtraj.pipeline.plan_flights import store_flight
+    content already stored (another code version): kept, this one not stored, said on
+    stderr, the exit code the flight's own. A plan's file that is not its marker's: one
+    line, exit 2."""
+    from ovtraj.pipeline.plan_flights import OtherFlightStored, store_flight
     from ovtraj.store.files import StoreError
 
     try:
         stored = store_flight(plan_file, plan, row)
+    except OtherFlightStored as err:
+        typer.echo(str(err), err=True)
+        return
     except StoreError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None

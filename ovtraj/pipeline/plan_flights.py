@@ -125,6 +125,11 @@ def stored_flights(folder: Any, plan_name: str, plan: Any) -> list[tuple[Any, di
     return flights
 
 
+class OtherFlightStored(StoreError):
+    """A flight of the same plan and fidelity with other content (another code version)
+    is stored: kept as it is, the new one not stored. Not a fault of the flight."""
+
+
 @dataclass(frozen=True)
 class StoredFlight:
     """Where ``ovtraj fly`` stored a flight: ``path``; ``new``: False when the same flight
@@ -197,7 +202,7 @@ def _same_flight(path: Path, document: Mapping[str, Any], expected: Digest | Non
     if isinstance(stored, Mapping) and "replay_code_version" in document:
         before = echoed(json_text(stored.get("replay_code_version"), indent=None))
         versions = f" (stored by code {before}, flown now by {document['replay_code_version']})"
-    raise StoreError(
+    raise OtherFlightStored(
         f"{path}: another flight of this plan is stored there{versions}; not overwritten "
         "(the flight above is printed only)"
     )
