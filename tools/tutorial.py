@@ -184,16 +184,17 @@ def _stop(process: subprocess.Popen) -> None:
 
 
 def _shown(output: str, step: Step, replacements: list[tuple[str, str]]) -> str:
+    """The output as the page shows it: the temporary folders as ``~``, lines without
+    trailing blanks, and with ``head``/``tail`` only the first/last lines around ``...``."""
     for old, new in replacements:
         output = output.replace(old, new)
-    lines = output.rstrip("\n").splitlines()
-    head = step.head if step.head is not None else len(lines)
-    tail = step.tail if step.tail is not None else len(lines)
-    if (step.head is None and step.tail is None) or head + tail >= len(lines):
-        kept = lines
-    else:
-        kept = [*lines[:head], "...", *(lines[len(lines) - tail :] if tail else [])]
-    return "\n".join(kept)
+    lines = [line.rstrip() for line in output.rstrip("\n").splitlines()]
+    if step.head is None and step.tail is None:
+        return "\n".join(lines)
+    head, tail = step.head or 0, step.tail or 0
+    if head + tail >= len(lines):
+        return "\n".join(lines)
+    return "\n".join([*lines[:head], "...", *(lines[len(lines) - tail :] if tail else [])])
 
 
 @contextmanager
@@ -220,7 +221,8 @@ def run_steps(
     settings: a loop of one round; the front and plan are stored all the same)."""
     values: dict[str, Any] = dict(ports)
     home = checkout.parent
-    replacements = [(str(checkout), "~/ovtraj"), (str(home), "~")]
+    # the copy, its home, and this checkout (an editable install's shipped configs)
+    replacements = [(str(checkout), "~/ovtraj"), (str(home), "~"), (str(REPO), "~/ovtraj")]
     results = []
     with services() as started:
         for step in all_steps:
