@@ -30,6 +30,9 @@ from ovtraj.store.paths import config_path
 from ovtraj.tracking.catalog import plan_id
 from tests.conftest import replan_nights
 
+# minutes: the session's re-plan nights (shared), then flights
+pytestmark = pytest.mark.slow
+
 RUNS, SEED, BATCH = 3, 2, 2  # two batches: runs 0-1 and 2
 runner = CliRunner()
 

@@ -32,6 +32,9 @@ from ovtraj.store.files import file_digest, read_json
 from ovtraj.store.seals import STORE_KEY_ENV, seal_problem, write_sealed
 from tests.conftest import replan_nights
 
+# minutes: the session's re-plan nights (shared), then flights
+pytestmark = pytest.mark.slow
+
 KEY = secrets.token_hex(32)
 runner = CliRunner()
 

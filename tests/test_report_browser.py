@@ -41,6 +41,9 @@ from ovtraj.pipeline.report import ASCENT_ALT, ENTRY_ALT
 from tests.conftest import REPO, replan_nights
 from tests.test_deployments import _stop
 
+# minutes: the session's re-plan nights (shared), then flights
+pytestmark = pytest.mark.slow
+
 CHROMIUM = shutil.which("chromium")
 needs_chromium = pytest.mark.skipif(
     CHROMIUM is None, reason="no chromium on PATH (.ci/run installs it: apt-get install chromium)"
