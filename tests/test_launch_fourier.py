@@ -8,9 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from ovtraj.launch.fourier import (
-    FourierRangeError,
-    FourierSeries,
+from ovtraj.launch.fourier import FourierRangeError, FourierSeries
+from ovtraj.launch.fourier_fit import (
     aliasing_frequency_limit,
     fit_errors_relative_to_range,
     fit_fourier_series,
@@ -113,27 +112,20 @@ def test_stored_coefficients_follow_the_patent_formula(exact_fit, realistic_fit_
 
 def test_absolute_coefficients_reproduce_the_normalised_fit(exact_data, realistic_data):
     """The shift back to absolute h is exact (1e-9 relative to the y range)."""
-    from ovtraj.launch.fourier import (
-        _fit_normalised,
-        _frequency_bounds,
-        _predict_normalised,
-        _samples,
-        _to_absolute,
+    from ovtraj.launch.fourier_fit import fit_samples, resolved_frequency_bounds
+    from ovtraj.launch.fourier_solve import (
+        SolverSettings,
+        fit_normalised,
+        predict_normalised,
+        to_absolute,
     )
 
     for h, y in (exact_data, realistic_data[:2]):
-        data = _samples(h, y, order=ORDER, compute_loo=False)
-        w_norm, coef = _fit_normalised(
-            data.s,
-            data.yn,
-            order=ORDER,
-            ridge=0.0,
-            frequency_starts=(0.3 * np.pi, 0.7 * np.pi),
-            frequency_bounds=_frequency_bounds(data.s, ORDER, None),
-            solver_tolerance=1e-12,
-            max_refine_evaluations=100,
-        )
-        w, a, b = _to_absolute(
+        data = fit_samples(h, y, order=ORDER, compute_loo=False)
+        bounds = resolved_frequency_bounds(data.s, ORDER, None)
+        settings = SolverSettings(ORDER, 0.0, bounds, 1e-12, 100)
+        w_norm, coef = fit_normalised(data.s, data.yn, settings, (0.3 * np.pi, 0.7 * np.pi))
+        w, a, b = to_absolute(
             w_norm,
             coef,
             h_min_m=data.h_min_m,
@@ -143,7 +135,7 @@ def test_absolute_coefficients_reproduce_the_normalised_fit(exact_data, realisti
         )
         assert w == pytest.approx(w_norm / SPAN_M, rel=1e-15)
         h_fine = np.linspace(h[0], h[-1], 301)
-        internal = data.y_offset + data.y_scale * _predict_normalised(
+        internal = data.y_offset + data.y_scale * predict_normalised(
             (h_fine - data.h_min_m) / data.span_m, w_norm, coef
         )
         plain = patent_formula(h_fine, w, a, b)

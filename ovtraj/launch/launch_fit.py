@@ -18,7 +18,7 @@ chains are independent and run in parallel in the Prefect flow.
 The argument of latitude is unwrapped along the grid before fitting and wrapped
 into ``[0, 360)`` deg on evaluation.
 
-**One grid, many launch days** (issue 48). The ascent relative to the Earth does not
+**One grid, many launch days**. The ascent relative to the Earth does not
 depend on the day or on the target's node: an ascent depends on the launcher, the drop,
 the settings and the inclination of the plane it aims at; the day and the node only time
 the drop (:func:`ovtraj.launch.stage.insertion_time_s`). So the expensive grid is solved
@@ -50,13 +50,14 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario
 from ovtraj.config.launch import DESIGN_VARIABLES, FitGridConfig
 from ovtraj.launch.ascent_optimization import OptimisationOutcome
-from ovtraj.launch.fourier import FourierSeries, fit_fourier_series
+from ovtraj.launch.fourier import FourierSeries
+from ovtraj.launch.fourier_fit import fit_fourier_series
 from ovtraj.launch.inputs import LaunchInput, launch_input, target_plane_at
 from ovtraj.launch.result import ROW_SCHEMA, LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem, solve_launch
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
+from ovtraj.paths import reference_dir, workspace
 from ovtraj.store.files import Digest, StoreError, read_json
-from ovtraj.store.paths import reference_dir, workspace
 from ovtraj.store.products import Product
 from ovtraj.store.records import plain, table_from_rows
 
@@ -383,7 +384,7 @@ def launch_fit_key(scenario: Scenario) -> str:
     """
     resolved = scenario.resolved()
     content = {k: resolved[k] for k in ("launch", "target", "epoch_utc", "earth")}
-    # The target's body (its drag and radiation figures, issue 47) moves no plane.
+    # The target's body (its drag and radiation figures) moves no plane.
     content["target"] = {k: v for k, v in content["target"].items() if k != "body"}
     text = json.dumps(_without_time_limits(content), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
