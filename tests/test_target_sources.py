@@ -1,4 +1,4 @@
-"""Targets from real element sets (issue 18, point 3): TLE / OMM / URL, TEME, the J2 fit.
+"""Targets from real element sets: TLE / OMM / URL, TEME, the J2 fit.
 
 The element sets are published ones (``tests/data/targets/README.md``): the ISS TLE
 of the ``sgp4`` package's README, four sets of Vallado et al.'s (2006) SGP4
@@ -18,6 +18,7 @@ import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
+import erfa
 import numpy as np
 import pytest
 import yaml
@@ -148,7 +149,7 @@ def test_fitted_mean_elements_follow_sgp4_over_a_day(
 
 
 def test_tle_elements_typed_as_mean_elements_are_another_orbit(settings):
-    """Why the fit exists (issue 18): the ISS TLE's elements typed as the project's mean
+    """Why the fit exists: the ISS TLE's elements typed as the project's mean
     elements (a from the Kozai mean motion) start 5.9 km from SGP4 and are 83 km off
     after a day; the fitted mean elements stay within 0.49 km."""
     elements = _element_set(ISS_TLE)
@@ -251,7 +252,6 @@ def test_earth_fixed_frame_of_sgp4_states_matches_astropy(path, number):
     12 um/s). With it, they differ by the polar motion alone: |p| |r| with |p| the
     IERS pole offset of the day (0.29-0.47 arcsec here: 10-15 m in LEO, 40 m at GPS).
     """
-    erfa = pytest.importorskip("erfa")
     from astropy import units as u
     from astropy.coordinates import ITRS, TEME, CartesianDifferential, CartesianRepresentation
     from astropy.time import Time
@@ -391,8 +391,8 @@ def _scenario_file(folder: Path, **target) -> Path:
 def test_hand_typed_target_dumps_as_before(shipped):
     """Run ids and launch-fit keys of hand-typed targets do not change with the sources:
     the resolved target is still ``name`` and ``orbit`` (and the ``body`` the shipped
-    scenario gives it for the high-fidelity flight, issue 47: the launch fit's key leaves
-    it out), no empty source key."""
+    scenario gives it for the high-fidelity flight; the launch fit's key leaves it out),
+    no empty source key."""
     assert set(shipped.resolved()["target"]) == {"name", "orbit", "body"}
     without_body = shipped.resolved()
     without_body["target"].pop("body")
@@ -404,8 +404,8 @@ def test_hand_typed_target_dumps_as_before(shipped):
 def test_scenario_with_a_tle_file_beside_it(tmp_path, monkeypatch):
     """``tle_file`` relative to the scenario's folder (not the current directory) is read
     by the loader and inlined; the stages get the fitted state; the resolved scenario
-    replays with the file gone. Validation alone reads no file (issue 45): it refuses a
-    ``tle_file`` it was given, naming the loader."""
+    replays with the file gone. Validation alone reads no file (the loader does): it
+    refuses a ``tle_file`` it was given, naming the loader."""
     (tmp_path / "targets").mkdir()
     (tmp_path / "targets" / "iss.tle").write_text(ISS_TLE.read_text(), encoding="utf-8")
     path = _scenario_file(tmp_path, tle_file="targets/iss.tle")
@@ -519,8 +519,8 @@ def test_url_is_fetched_once_then_read_from_the_cache(server, settings, tmp_path
 
 
 def _workspace(monkeypatch, folder: Path) -> None:
-    """The workspace (URL cache) in ``folder``: OVTRAJ_HOME, and OVTRAJ_DATA_DIR that it
-    replaces (issue 18, point 2)."""
+    """The workspace (URL cache) in ``folder``: OVTRAJ_HOME, and OVTRAJ_DATA_DIR, the
+    variable it replaced."""
     monkeypatch.setenv("OVTRAJ_HOME", str(folder))
     monkeypatch.setenv("OVTRAJ_DATA_DIR", str(folder))
 
@@ -569,7 +569,7 @@ def test_silent_server_times_out_within_the_configured_time(settings, tmp_path):
 
 
 # --------------------------------------------------------------------------- #
-# URLs: one deadline, checked redirects, the cache keyed by the URL served (issue 44)
+# URLs: one deadline, checked redirects, the cache keyed by the URL served
 # --------------------------------------------------------------------------- #
 class _Routes:
     """A local server answering ``routes[path]() -> (status, headers, body)``, recording
@@ -778,7 +778,7 @@ def test_a_redirect_loop_and_an_empty_allow_list_in_the_resolved_scenario(
     url = f"http://127.0.0.1:{server.port}/a"
     with pytest.raises(ConfigError, match=r"a redirect loop back to http://127\.0\.0\.1:\d+/a$"):
         read_source(url, settings=settings, cache_dir=tmp_path)
-    # the setting added by issue 44 is left out while empty: run ids are unchanged
+    # the redirect-hosts setting is left out while empty: run ids without it are unchanged
     assert "url_redirect_hosts" not in settings.model_dump()
     data = {**settings.model_dump(), "url_redirect_hosts": ["https://x"]}
     with pytest.raises(ConfigError, match=r"url_redirect_hosts = \['https://x'\]: 'https://x' is"):
@@ -851,7 +851,7 @@ def test_cli_target_unconverged_exits_1(tmp_path):
 
 def test_a_tle_target_is_fitted_with_drag_under_the_high_fidelity_model(tmp_path):
     """The high-fidelity sky flies a TLE target from its element set fitted under that
-    sky (issue 47): the state matched to SGP4 (ISS 2019-12-09, the bundled space weather
+    sky: the state matched to SGP4 (ISS 2019-12-09, the bundled space weather
     of that day, 3 h), flown with the drag of its B* (C_D A / m = 2 B* / rho_0).
     Measured: rms 0.113 km, max 0.182 km (10 evaluations) against the J2 fit's rms
     0.025 km, max 0.038 km over the same span (6 h: 0.22 / 0.40 km against 0.045 /

@@ -1,6 +1,8 @@
-"""Settings of the high-fidelity force model (``configs/force_model.yaml``, issue 47).
+"""Settings of the high-fidelity force model (``configs/force_model.yaml``).
 
 Validation only: the terms the orbit is flown under, their data sources and constants.
+One section per term of :data:`ovtraj.astro.forces.terms.FORCE_TERMS`, named after it;
+a switchable term's section carries ``enabled``.
 The spacecraft's own figures (areas, coefficients, mass) are the scenario's
 ``vehicle.body`` and ``target.body`` (:class:`ovtraj.config.scenario.BodyConfig`).
 """
@@ -12,6 +14,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from ovtraj.astro.forces.terms import SWITCHABLE, check_term_names
 from ovtraj.config.base import StrictModel, bounded, load_model
 
 # heyoka 7.13 ships EGM2008 to degree and order 150 (``heyoka.model.egm2008_acc``).
@@ -143,19 +146,18 @@ class ForceModelSettings(StrictModel):
     integration: IntegrationSettings
 
     def only(self, *terms: str) -> ForceModelSettings:
-        """A copy with only ``terms`` switched on (``drag``, ``sun``, ``moon``,
-        ``solar_radiation_pressure``); gravity is always on."""
-        unknown = set(terms) - set(SWITCHABLE)
-        if unknown:
-            raise ValueError(f"unknown force terms {sorted(unknown)}; known: {SWITCHABLE}")
+        """A copy with only ``terms`` switched on (of
+        :data:`ovtraj.astro.forces.terms.SWITCHABLE`); gravity is always on."""
+        check_term_names(terms)
         update = {
             name: getattr(self, name).model_copy(update={"enabled": name in terms})
             for name in SWITCHABLE
         }
         return self.model_copy(update=update)
 
-
-SWITCHABLE = ("drag", "sun", "moon", "solar_radiation_pressure")
+    def switched_on(self) -> tuple[str, ...]:
+        """The switchable terms whose section says ``enabled``."""
+        return tuple(name for name in SWITCHABLE if getattr(self, name).enabled)
 
 
 @lru_cache(maxsize=1)

@@ -1,4 +1,4 @@
-"""The plan's orbits flown under the high-fidelity force model (issue 47).
+"""The plan's orbits flown under the high-fidelity force model.
 
 :func:`force_terms` turns ``configs/force_model.yaml`` and the scenario's Earth into the
 terms of :mod:`ovtraj.astro.forces`; :func:`check_span` refuses, in one line naming the
@@ -23,6 +23,7 @@ from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
 from ovtraj.astro.forces.dynamics import ForceTerms
 from ovtraj.astro.forces.earth_data import earth_orientation_span, space_weather_span
 from ovtraj.astro.forces.propagator import HighFidelityPropagator
+from ovtraj.astro.forces.terms import needed
 from ovtraj.astro.forces.time_scales import day_of_year, tt_centuries
 from ovtraj.config import Scenario
 from ovtraj.config.body import BodyConfig
@@ -53,7 +54,7 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
     weather, sun, moon = settings.space_weather, settings.sun, settings.moon
     srp = settings.solar_radiation_pressure
     jb = weather.jb08
-    return ForceTerms(
+    every = ForceTerms(
         gravity=settings.gravity.model,
         degree=settings.gravity.degree,
         order=settings.gravity.order,
@@ -61,7 +62,7 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
         radius=earth.radius,
         j2=earth.j2,
         omega=earth.omega,
-        drag_model=settings.drag.model if settings.drag.enabled else None,
+        drag_model=settings.drag.model,
         weather=weather.source,
         f107=weather.f107_sfu,
         f107a=weather.f107a_sfu,
@@ -75,20 +76,16 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
             jb.y107a_sfu,
             jb.ddst_dt_nt_h,
         ),
-        sun_mu=sun.mu_m3_s2 if sun.enabled else None,
+        sun_mu=sun.mu_m3_s2,
         vsop_threshold=sun.vsop2013_threshold,
-        moon_mu=moon.mu_m3_s2 if moon.enabled else None,
+        moon_mu=moon.mu_m3_s2,
         elp_threshold=moon.elp2000_threshold,
         radiation=(
-            (
-                srp.pressure_n_m2,
-                srp.astronomical_unit_m,
-                srp.sun_radius_m,
-                srp.shadow_sharpness,
-                srp.shadow_step_edge,
-            )
-            if srp.enabled
-            else None
+            srp.pressure_n_m2,
+            srp.astronomical_unit_m,
+            srp.sun_radius_m,
+            srp.shadow_sharpness,
+            srp.shadow_step_edge,
         ),
         astronomical_unit_m=srp.astronomical_unit_m,
         precession_threshold=settings.precession_nutation_threshold,
@@ -96,6 +93,7 @@ def force_terms(settings: ForceModelSettings, scenario: Scenario) -> ForceTerms:
         ellipsoid_radius_m=settings.ellipsoid.equatorial_radius_m,
         ellipsoid_ecc2=settings.ellipsoid.eccentricity_squared,
     )
+    return every.only(*settings.switched_on())
 
 
 def check_span(
@@ -103,7 +101,7 @@ def check_span(
 ) -> None:
     """:class:`ConfigError` naming the setting when [start, end] lies outside the data the
     model reads (the Earth orientation always; the space weather with ``source: bundled``
-    and drag on)."""
+    and a term on that reads it, :data:`ovtraj.astro.forces.terms.FORCE_TERMS`)."""
     first, last = earth_orientation_span(settings.earth_orientation.max_extrapolation_days)
     if start.jd < first or end.jd > last:
         raise ConfigError(
@@ -114,7 +112,9 @@ def check_span(
             ],
             source,
         )
-    if settings.drag.enabled and settings.space_weather.source == "bundled":
+    if settings.space_weather.source == "bundled" and needed(
+        "space_weather", settings.switched_on()
+    ):
         first, last = space_weather_span()
         # The 81-day mean is centred: the table ends 40 days after its last usable mean,
         # but heyoka's table already holds the centred mean per day, so its span is the

@@ -9,7 +9,8 @@ of the floor event (:mod:`.propagator`). Everything else is compiled in, so a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import heyoka as hy
@@ -27,13 +28,14 @@ from ovtraj.astro.forces.radiation_pressure import (
     radiation_pressure_acceleration,
     shadow_argument,
 )
+from ovtraj.astro.forces.terms import FORCE_TERMS, check_term_names, needed
 from ovtraj.astro.forces.third_body import moon_position, sun_position, third_body_acceleration
 from ovtraj.astro.forces.time_scales import tt_centuries_expression
 from ovtraj.astro.propagation.gravity import two_body_j2_acceleration
 
 __all__ = [
+    "KERNELS",
     "PARAMETERS",
-    "TERMS",
     "ForceTerms",
     "Symbols",
     "accelerations",
@@ -43,7 +45,6 @@ __all__ = [
 ]
 
 PARAMETERS = ("tt0", "doy0", "ballistic_m2_kg", "radiation_m2_kg", "floor_radius_m")
-TERMS = ("gravity", "drag", "sun", "moon", "solar_radiation_pressure")
 _STATE = ("x", "y", "z", "vx", "vy", "vz")
 SECONDS_PER_DAY = 86400.0
 
@@ -86,15 +87,24 @@ class ForceTerms:
     ellipsoid_ecc2: float
 
     def only(self, *terms: str) -> ForceTerms:
-        """A copy with the switchable terms not named here switched off."""
-        from dataclasses import replace
-
+        """A copy with the switchable terms not named here switched off (``ValueError``
+        for a name that is not a switchable term of :data:`.terms.FORCE_TERMS`)."""
+        check_term_names(terms)
         return replace(
             self,
-            drag_model=self.drag_model if "drag" in terms else None,
-            sun_mu=self.sun_mu if "sun" in terms else None,
-            moon_mu=self.moon_mu if "moon" in terms else None,
-            radiation=self.radiation if "solar_radiation_pressure" in terms else None,
+            **{
+                term.switch: getattr(self, term.switch) if term.name in terms else None
+                for term in FORCE_TERMS
+                if term.switch is not None
+            },
+        )
+
+    def switched_on(self) -> tuple[str, ...]:
+        """The names of the terms on, in the order of :data:`.terms.FORCE_TERMS`."""
+        return tuple(
+            term.name
+            for term in FORCE_TERMS
+            if term.switch is None or getattr(self, term.switch) is not None
         )
 
 
@@ -164,53 +174,80 @@ def step_boundaries(terms: ForceTerms, s: Symbols) -> list[Any]:
     return [argument - edge, argument + edge]
 
 
-def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
-    """Each switched-on term's acceleration [m/s^2] in TEME, by name (:data:`TERMS`)."""
-    r, v = list(s.state[:3]), list(s.state[3:])
-    eop = earth_orientation_data(terms.eop_extrapolation_days)
-    out: dict[str, list[Any]] = {}
+@dataclass
+class _Place:
+    """What the kernels share at one state: its position and velocity [m, m/s], the Earth
+    orientation data, and the Sun's position, built once when a term on needs it."""
+
+    r: list[Any]
+    v: list[Any]
+    eop: Any
+    sun: list[Any] | None
+
+
+Kernel = Callable[[ForceTerms, Symbols, _Place], list[Any]]
+
+
+def _gravity(terms: ForceTerms, s: Symbols, at: _Place) -> list[Any]:
     if terms.gravity == "egm2008":
-        out["gravity"] = egm2008_acceleration(
-            r, s.tt, degree=terms.degree, order=terms.order, eop=eop
-        )
-    else:
-        out["gravity"] = list(
-            two_body_j2_acceleration(
-                *r, mu=terms.mu, radius=terms.radius, j2=terms.j2, sqrt=hy.sqrt
-            )
-        )
-    if terms.drag_model is not None:
-        where = geodetic(
-            teme_to_itrs(r, s.tt, eop),
-            equatorial_radius_m=terms.ellipsoid_radius_m,
-            eccentricity_squared=terms.ellipsoid_ecc2,
-        )
-        density = thermosphere_density(
-            where, s.day_of_year, _weather(terms, s.tt), terms.drag_model
-        )
-        out["drag"] = drag_acceleration(r, v, density, s.par["ballistic_m2_kg"], terms.omega)
-    sun = None
-    if terms.sun_mu is not None or terms.radiation is not None:
-        sun = _sun(terms, s, eop)
-    if terms.sun_mu is not None:
-        out["sun"] = third_body_acceleration(r, sun, terms.sun_mu)
-    if terms.moon_mu is not None:
-        moon = moon_position(
-            s.tt,
-            threshold=terms.elp_threshold,
-            eop=eop,
-            precession_threshold=terms.precession_threshold,
-        )
-        out["moon"] = third_body_acceleration(r, moon, terms.moon_mu)
-    if terms.radiation is not None:
-        pressure, au, sun_radius, sharpness, _ = terms.radiation
-        lit = lit_fraction(
-            r, sun, earth_radius_m=terms.radius, sun_radius_m=sun_radius, sharpness=sharpness
-        )
-        out["solar_radiation_pressure"] = radiation_pressure_acceleration(
-            r, sun, s.par["radiation_m2_kg"], lit, pressure_n_m2=pressure, astronomical_unit_m=au
-        )
-    return out
+        return egm2008_acceleration(at.r, s.tt, degree=terms.degree, order=terms.order, eop=at.eop)
+    return list(
+        two_body_j2_acceleration(*at.r, mu=terms.mu, radius=terms.radius, j2=terms.j2, sqrt=hy.sqrt)
+    )
+
+
+def _drag(terms: ForceTerms, s: Symbols, at: _Place) -> list[Any]:
+    where = geodetic(
+        teme_to_itrs(at.r, s.tt, at.eop),
+        equatorial_radius_m=terms.ellipsoid_radius_m,
+        eccentricity_squared=terms.ellipsoid_ecc2,
+    )
+    density = thermosphere_density(where, s.day_of_year, _weather(terms, s.tt), terms.drag_model)
+    return drag_acceleration(at.r, at.v, density, s.par["ballistic_m2_kg"], terms.omega)
+
+
+def _sun_attraction(terms: ForceTerms, s: Symbols, at: _Place) -> list[Any]:
+    return third_body_acceleration(at.r, at.sun, terms.sun_mu)
+
+
+def _moon_attraction(terms: ForceTerms, s: Symbols, at: _Place) -> list[Any]:
+    moon = moon_position(
+        s.tt,
+        threshold=terms.elp_threshold,
+        eop=at.eop,
+        precession_threshold=terms.precession_threshold,
+    )
+    return third_body_acceleration(at.r, moon, terms.moon_mu)
+
+
+def _radiation_pressure(terms: ForceTerms, s: Symbols, at: _Place) -> list[Any]:
+    pressure, au, sun_radius, sharpness, _ = terms.radiation
+    lit = lit_fraction(
+        at.r, at.sun, earth_radius_m=terms.radius, sun_radius_m=sun_radius, sharpness=sharpness
+    )
+    return radiation_pressure_acceleration(
+        at.r, at.sun, s.par["radiation_m2_kg"], lit, pressure_n_m2=pressure, astronomical_unit_m=au
+    )
+
+
+KERNELS: dict[str, Kernel] = {
+    "gravity": _gravity,
+    "drag": _drag,
+    "sun": _sun_attraction,
+    "moon": _moon_attraction,
+    "solar_radiation_pressure": _radiation_pressure,
+}
+"""Each term's acceleration [m/s^2] in TEME, by the name of :data:`.terms.FORCE_TERMS`."""
+
+
+def accelerations(terms: ForceTerms, s: Symbols) -> dict[str, list[Any]]:
+    """Each switched-on term's acceleration [m/s^2] in TEME, by name, in the order of
+    :data:`.terms.FORCE_TERMS`."""
+    on = terms.switched_on()
+    eop = earth_orientation_data(terms.eop_extrapolation_days)
+    sun = _sun(terms, s, eop) if needed("sun_position", on) else None
+    at = _Place(list(s.state[:3]), list(s.state[3:]), eop, sun)
+    return {name: KERNELS[name](terms, s, at) for name in on}
 
 
 def equations(terms: ForceTerms, s: Symbols) -> list[tuple[Any, Any]]:

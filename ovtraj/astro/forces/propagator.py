@@ -22,7 +22,6 @@ import numpy as np
 
 from ovtraj.astro.forces.dynamics import (
     PARAMETERS,
-    TERMS,
     ForceTerms,
     accelerations,
     equations,
@@ -202,7 +201,7 @@ class AccelerationFunction:
         if cached is None:
             s = symbols()
             parts = accelerations(terms, s)
-            names = [name for name in TERMS if name in parts]
+            names = list(parts)  # the order of ovtraj.astro.forces.terms.FORCE_TERMS
             outputs = [c for name in names for c in parts[name]]
             cf = hy.cfunc(outputs, list(s.state), compact_mode=True)
             cached = (names, cf)
