@@ -20,7 +20,7 @@ import typer.main
 from typer.testing import CliRunner
 
 from ovtraj.cli import app, run_command
-from ovtraj.cli.doe import _runner_choice
+from ovtraj.cli.doe import runner_choice
 from ovtraj.config.export import FORMATS
 from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO
@@ -159,9 +159,9 @@ def test_workers_size_the_pool_of_run_and_pipeline_as_of_window():
         (workers,) = [p for p in COMMANDS[name].params if "--workers" in p.opts]
         assert (workers.min, workers.max) == (1, 1024), name
     settings = load_scenario(DEFAULT_SCENARIO).mission.doe
-    assert _runner_choice(settings, "processes", None, 3).workers == 3
-    assert _runner_choice(settings, "processes", None).workers == settings.workers
-    assert _runner_choice(settings, None, None).runner == settings.task_runner
+    assert runner_choice(settings, "processes", None, 3).workers == 3
+    assert runner_choice(settings, "processes", None).workers == settings.workers
+    assert runner_choice(settings, None, None).runner == settings.task_runner
 
 
 def test_workers_out_of_range_is_one_line_naming_it(tmp_path, capsys):

@@ -161,7 +161,7 @@ def main(
     configure_logging(quiet=quiet, verbose=verbose)
 
 
-def _load(config: Path | None, target: str | None = None) -> Scenario:
+def loaded_scenario(config: Path | None, target: str | None = None) -> Scenario:
     """The scenario (the shipped one when ``config`` is None), its target replaced by the
     TLE/OMM file or URL ``target`` when given."""
     # Here, not at the top: the target sources load the SGP4 fit (scipy, heyoka, numba,
@@ -176,7 +176,7 @@ def _load(config: Path | None, target: str | None = None) -> Scenario:
         raise typer.Exit(code=2) from None
 
 
-def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
+def print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
     """A title and aligned ``label  value`` lines (a value not yet text through
     :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits). The title
     and the values may hold text from a file (a scenario's name): escaped and cut
@@ -195,7 +195,7 @@ def _print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
 RowSpec = list[tuple[Any, ...]]
 
 
-def _rows(row: dict[str, Any], spec: RowSpec) -> list[tuple[str, str]]:
+def spec_rows(row: dict[str, Any], spec: RowSpec) -> list[tuple[str, str]]:
     """``(label, text)`` of every row of ``spec`` the result has a value for."""
     shown = []
     for label, how, unit, *digits in spec:
@@ -205,7 +205,7 @@ def _rows(row: dict[str, Any], spec: RowSpec) -> list[tuple[str, str]]:
     return shown
 
 
-def _keyed_rows(row: dict[str, Any], digits: int = 4) -> list[tuple[str, str]]:
+def keyed_rows(row: dict[str, Any], digits: int = 4) -> list[tuple[str, str]]:
     """Every field of a flat row, labelled by its key without the unit suffix and shown
     in that unit with ``digits`` significant digits (``min_t_total_s`` -> ``min t total
     142.003 h``)."""
@@ -216,7 +216,7 @@ def _keyed_rows(row: dict[str, Any], digits: int = 4) -> list[tuple[str, str]]:
     return shown
 
 
-def _joined(
+def joined_fields(
     row: dict[str, Any],
     pattern: str,
     names: tuple[str, ...],
@@ -232,27 +232,29 @@ def _joined(
     return joined(values, unit, sep=sep, decimals=decimals)
 
 
-def _print_json(value: Any) -> None:
+def print_json(value: Any) -> None:
     """One JSON object, on one line of stdout."""
     typer.echo(json_text(value, indent=None))
 
 
-def _report(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
+def report_stage(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
     """Print a stage result (JSON or a table: feasible, the reason if any, ``rows``);
     exit 1 when it is infeasible."""
     row = plain(result.to_row())
     if as_json:
-        _print_json(row)
+        print_json(row)
     else:
         shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
         if row.get("reason"):
             shown.append(("reason", row["reason"]))
-        _print_rows(title, shown + _rows(row, rows))
+        print_rows(title, shown + spec_rows(row, rows))
     if not result.feasible:
         raise typer.Exit(code=1)
 
 
-def _store(root: str | None, scenario: Scenario | None = None, config: Path | None = None) -> Any:
+def run_store(
+    root: str | None, scenario: Scenario | None = None, config: Path | None = None
+) -> Any:
     """``--store``, else the scenario's store (relative to its file ``config``), else the
     workspace's (ovtraj.store.paths)."""
     from ovtraj.runs import RunStore
@@ -262,7 +264,7 @@ def _store(root: str | None, scenario: Scenario | None = None, config: Path | No
     return RunStore(root)
 
 
-def _store_root(root: str | None) -> Any:
+def store_location(root: str | None) -> Any:
     """``--store``, else the workspace's run store: its root folder or S3 prefix, without
     loading the run store's code (the catalog's commands read the layout only)."""
     from ovtraj.store.paths import store_root
@@ -282,7 +284,7 @@ StoreOpt = Annotated[
 ]
 
 
-def _limits(model: Any, name: str) -> dict[str, Any]:
+def option_limits(model: Any, name: str) -> dict[str, Any]:
     """A config field's bounds as typer's ``min``/``max``: the command refuses what the
     config would (one definition of each range, in ``ovtraj.config``)."""
     limits: dict[str, Any] = {}

@@ -1,6 +1,6 @@
 """The ``run`` command (a DoE of the whole mission into the run store) and what the
 ``pipeline`` and ``window`` commands share with it: the runner options and their choice
-(:func:`_runner_choice`), the sample options, the launch fit a run needs."""
+(:func:`runner_choice`), the sample options, the launch fit a run needs."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
     TargetOpt,
-    _keyed_rows,
-    _limits,
-    _load,
-    _print_json,
-    _print_rows,
-    _store,
     app,
+    keyed_rows,
+    loaded_scenario,
+    option_limits,
+    print_json,
+    print_rows,
+    run_store,
 )
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config import Scenario
@@ -51,7 +51,7 @@ WorkersOpt = Annotated[
     int | None,
     typer.Option(
         "--workers",
-        **_limits(DoeSettings, "workers"),
+        **option_limits(DoeSettings, "workers"),
         help="batches at once on --runner threads, processes or a local Dask cluster "
         "(default: the config's mission.doe.workers; the batches and their results are the "
         "same for any number)",
@@ -64,7 +64,7 @@ SamplesOpt = Annotated[
     int | None,
     typer.Option(
         "--samples",
-        **_limits(DoeSettings, "samples"),
+        **option_limits(DoeSettings, "samples"),
         help="DoE samples (default: the config's mission.doe.samples)",
         show_default=False,
     ),
@@ -73,7 +73,7 @@ SeedOpt = Annotated[
     int | None,
     typer.Option(
         "--seed",
-        **_limits(DoeSettings, "seed"),
+        **option_limits(DoeSettings, "seed"),
         help="Latin hypercube seed (default: the config's mission.doe.seed)",
         show_default=False,
     ),
@@ -111,20 +111,20 @@ def run(
 
     Example: `ovtraj run --samples 24 --runner processes --workers 2`
     """
-    scenario = _load(config, target)
+    scenario = loaded_scenario(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
     settings = scenario.mission.doe
-    choice = _runner_choice(settings, runner, dask_address, workers)
+    choice = runner_choice(settings, runner, dask_address, workers)
     from ovtraj.config.orchestration import load_orchestration
     from ovtraj.runs import StoreError, prepare_run, run_doe
     from ovtraj.runs.execute import BatchesFailed
     from ovtraj.runs.runners import ClusterError
     from ovtraj.version import code_version
 
-    fit = _launch_fit_or_exit(scenario, target)
-    store = _store(store_root, scenario, config)
+    fit = launch_fit_or_exit(scenario, target)
+    store = run_store(store_root, scenario, config)
     try:
         parent = store.run(append) if append else None
         stored = prepare_run(
@@ -157,13 +157,13 @@ def run(
         raise typer.Exit(code=2) from None
     summary = stored.summary()
     if as_json:
-        _print_json(summary | {"stored_in": str(stored.url)})
+        print_json(summary | {"stored_in": str(stored.url)})
         return
-    _print_rows(f"run {stored.id}", _keyed_rows(summary))
+    print_rows(f"run {stored.id}", keyed_rows(summary))
     typer.echo(f"stored in {stored.url}")
 
 
-def _runner_choice(
+def runner_choice(
     settings: DoeSettings,
     runner: str | None,
     dask_address: str | None,
@@ -188,7 +188,7 @@ def _runner_choice(
     return choice if workers is None else replace(choice, workers=workers)
 
 
-def _launch_fit_or_exit(scenario: Scenario, target: str | None = None) -> Any:
+def launch_fit_or_exit(scenario: Scenario, target: str | None = None) -> Any:
     from ovtraj.launch.launch_fit import find_launch_fit
 
     fit = find_launch_fit(scenario)

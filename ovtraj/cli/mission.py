@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ovtraj.cli.common import JsonOpt, _limits, _print_json, app
+from ovtraj.cli.common import JsonOpt, app, option_limits, print_json
 from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
@@ -33,7 +33,7 @@ def fly(
         typer.Option(
             "--monte-carlo",
             min=0,
-            max=_limits(MonteCarloExecution, "runs")["max"],
+            max=option_limits(MonteCarloExecution, "runs")["max"],
             help="also fly this many dispersed runs, closed loop and open loop, stored with "
             "their pictures as the Monte Carlo flow stores them (the path is printed; 0: none)",
         ),
@@ -116,7 +116,7 @@ def fly(
             plan, dispersions, monte_carlo, seed, as_json, force_model, dispersions_file
         )
     if as_json:
-        _print_json(row)
+        print_json(row)
     else:
         typer.echo(text)
         if monte_carlo:
@@ -387,6 +387,6 @@ def export(
         row = {"format": fmt, "path": str(written), "frame": settings.ref_frame}
         if report is not None:
             row["replay_miss_distance_m"] = report.miss_distance_m
-        _print_json(row)
+        print_json(row)
     else:
         typer.echo(f"{fmt}: {written}")

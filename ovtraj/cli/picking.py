@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ovtraj.cli.common import _print_json, renamed_options
+from ovtraj.cli.common import print_json, renamed_options
 
 PickIndexOpt = Annotated[
     int | None,
@@ -70,7 +70,7 @@ PICK_OPTIONS = {
 }
 
 
-def _pick(
+def pick_from_options(
     index: int | None,
     weights: str | None,
     max_time_h: float | None,
@@ -88,7 +88,7 @@ def _pick(
         raise typer.Exit(code=2) from None
 
 
-def _print_plan(planned: dict[str, Any], as_json: bool, extra: dict[str, Any]) -> None:
+def print_plan(planned: dict[str, Any], as_json: bool, extra: dict[str, Any]) -> None:
     """The written plan's paths (absolute) and why its point was picked."""
     paths = {
         "plan_json": str(planned["json"].resolve()),
@@ -97,7 +97,7 @@ def _print_plan(planned: dict[str, Any], as_json: bool, extra: dict[str, Any]) -
         "plots": [str(p.resolve()) for p in planned["plots"]],
     }
     if as_json:
-        _print_json(extra | {"pick": planned["pick"]} | paths)
+        print_json(extra | {"pick": planned["pick"]} | paths)
         return
     typer.echo(f"picked {planned['pick']}")
     typer.echo(f"plan: {paths['plan_json']}")

@@ -15,12 +15,12 @@ from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
     TargetOpt,
-    _load,
-    _print_json,
-    _print_rows,
-    _store,
     app,
+    loaded_scenario,
+    print_json,
+    print_rows,
     renamed_options,
+    run_store,
 )
 from ovtraj.cli.doe import (
     DaskAddressOpt,
@@ -28,8 +28,8 @@ from ovtraj.cli.doe import (
     SamplesOpt,
     SeedOpt,
     WorkersOpt,
-    _launch_fit_or_exit,
-    _runner_choice,
+    launch_fit_or_exit,
+    runner_choice,
 )
 from ovtraj.cli.picking import (
     MaxDvOpt,
@@ -38,8 +38,8 @@ from ovtraj.cli.picking import (
     PickCommand,
     PickIndexOpt,
     WeightsOpt,
-    _pick,
-    _print_plan,
+    pick_from_options,
+    print_plan,
 )
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config import ConfigError, Scenario
@@ -128,15 +128,18 @@ def pipeline(
     Example: `ovtraj pipeline --samples 24 --weights 1,1,2 --max-dv-mps 250`"""
     from ovtraj.pipeline.drive import PipelineRequest
 
-    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
-    scenario = _load(config, target)
+    # refused before any work
+    chosen = pick_from_options(pick, weights, max_time_h, max_dv, min_payload)
+    scenario = loaded_scenario(config, target)
     if scenario.mission is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    fit = _launch_fit_or_exit(scenario, target)
-    choice = _runner_choice(scenario.mission.doe, runner, dask_address, workers)
+    fit = launch_fit_or_exit(scenario, target)
+    choice = runner_choice(scenario.mission.doe, runner, dask_address, workers)
     request = PipelineRequest(samples, seed, from_run, config, refit, chosen)
-    outcome = _drive(scenario, fit, _store(store_root, scenario, config), choice, request, as_json)
+    outcome = _drive(
+        scenario, fit, run_store(store_root, scenario, config), choice, request, as_json
+    )
     doe_run, result, planned = outcome.doe_run, outcome.result, outcome.planned
     verdict, converged = outcome.verdict, outcome.converged
     front_plot = location(result.directory / "front.png").resolve()
@@ -147,7 +150,7 @@ def pipeline(
         if path.name != "front.png"
     )
     if as_json:
-        _print_plan(
+        print_plan(
             planned,
             True,
             {
@@ -176,7 +179,7 @@ def pipeline(
         typer.echo(f"plot: {front_plot}")
         for path in views:
             typer.echo(f"plot: {path}")
-        _print_plan(planned, False, {})
+        print_plan(planned, False, {})
     if not converged and not allow_unconverged:
         raise typer.Exit(code=1)
 
@@ -270,7 +273,7 @@ def optimize(
     from ovtraj.version import code_version
 
     try:
-        stored = _store(store_root).run(run_id)
+        stored = run_store(store_root).run(run_id)
         scenario = _run_scenario(stored, config)
         code = code_version()
         data = training_data(stored)
@@ -286,7 +289,7 @@ def optimize(
     validation = fitted.surrogates.validation
     chosen = validation[validation["selected"].astype(bool)]
     if as_json:
-        _print_json(
+        print_json(
             {
                 "run_id": stored.id,
                 "surrogates": str(fitted.directory.resolve()),
@@ -323,7 +326,7 @@ def optimize(
     ]
     if front.matches_stored is not None:
         rows.append(("identical to the stored front", front.matches_stored))
-    _print_rows(f"surrogate front of run {stored.id}", rows)
+    print_rows(f"surrogate front of run {stored.id}", rows)
     if front.matches_stored is False:
         raise typer.Exit(code=1)
 
@@ -346,7 +349,7 @@ def front(
     from ovtraj.runs import StoreError
 
     try:
-        stored = family_root(_store(store_root), run_id)
+        stored = family_root(run_store(store_root), run_id)
         result = find_pipeline(stored, pipeline_id)
     except (StoreError, PipelineError, ValueError) as err:
         typer.echo(str(err), err=True)
@@ -354,7 +357,7 @@ def front(
     summary = result.summary
     converged = bool(summary.get("converged"))
     if as_json:
-        _print_json(
+        print_json(
             {
                 "doe_run": stored.id,
                 "pipeline_id": result.pipeline_id,
@@ -398,17 +401,18 @@ def plan(
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
     from ovtraj.runs import StoreError
 
-    chosen = _pick(pick, weights, max_time_h, max_dv, min_payload)  # refused before any work
+    # refused before any work
+    chosen = pick_from_options(pick, weights, max_time_h, max_dv, min_payload)
     try:
-        store = _store(store_root)
+        store = run_store(store_root)
         stored = family_root(store, run_id)
         scenario = _run_scenario(stored, None)
         result = find_pipeline(stored, pipeline_id)
-        planned = write_mission_plan(scenario, _launch_fit_or_exit(scenario), store, result, chosen)
+        planned = write_mission_plan(scenario, launch_fit_or_exit(scenario), store, result, chosen)
     except PlanMismatch as err:  # the plan does not fly its front point: an unmet result
         typer.echo(str(err), err=True)
         raise typer.Exit(code=1) from None
     except (StoreError, PipelineError, PlanError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    _print_plan(planned, as_json, {"doe_run": stored.id, "pipeline_id": result.pipeline_id})
+    print_plan(planned, as_json, {"doe_run": stored.id, "pipeline_id": result.pipeline_id})

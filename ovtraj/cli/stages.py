@@ -13,14 +13,14 @@ from ovtraj.cli.common import (
     JsonOpt,
     RowSpec,
     TargetOpt,
-    _joined,
-    _load,
-    _print_json,
-    _print_rows,
-    _report,
-    _rows,
     app,
+    joined_fields,
+    loaded_scenario,
+    print_json,
+    print_rows,
     renamed_options,
+    report_stage,
+    spec_rows,
 )
 from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError, Scenario
@@ -35,13 +35,13 @@ _RENDEZVOUS_ROWS: RowSpec = [
     ("burn 1 epoch", "burn1_epoch_utc", "utc"),
     ("burn 2 epoch", "burn2_epoch_utc", "utc"),
     ("dv1", "dv1_mps", "m/s"),
-    ("dv1 radial/along/cross", lambda row: _joined(row, "dv1_{}_mps", _RSW, "m/s"), ""),
+    ("dv1 radial/along/cross", lambda row: joined_fields(row, "dv1_{}_mps", _RSW, "m/s"), ""),
     ("dv2", "dv2_mps", "m/s"),
-    ("dv2 radial/along/cross", lambda row: _joined(row, "dv2_{}_mps", _RSW, "m/s"), ""),
+    ("dv2 radial/along/cross", lambda row: joined_fields(row, "dv2_{}_mps", _RSW, "m/s"), ""),
     ("dv total", "dv_total_mps", "m/s"),
     (
         "two-body dv1 + dv2",
-        lambda row: _joined(row, "dv{}_two_body_mps", ("1", "2"), "m/s", sep=" + "),
+        lambda row: joined_fields(row, "dv{}_two_body_mps", ("1", "2"), "m/s", sep=" + "),
         "",
     ),
     ("transfer time", "transfer_time_s", "s"),
@@ -62,10 +62,10 @@ def rendezvous(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     Example: `ovtraj rendezvous configs/scenario.yaml --json`"""
     from ovtraj.rendezvous import rendezvous_input, solve_rendezvous
 
-    scenario = _load(config)
+    scenario = loaded_scenario(config)
     result = solve_rendezvous(rendezvous_input(scenario))
     title = f"rendezvous: {scenario.name} ({scenario.target.name})"
-    _report(title, result, _RENDEZVOUS_ROWS, as_json)
+    report_stage(title, result, _RENDEZVOUS_ROWS, as_json)
 
 
 _LOSSES = ("gravity", "aero", "steering", "back_pressure")
@@ -96,7 +96,7 @@ _LAUNCH_ROWS: RowSpec = [
     ("ideal dv, rocket equation", "ideal_dv_rocket_equation_mps", "m/s"),
     (
         "losses: gravity/aero/steering/back-pressure",
-        lambda row: _joined(row, "{}_loss_mps", _LOSSES, "m/s", 1),
+        lambda row: joined_fields(row, "{}_loss_mps", _LOSSES, "m/s", 1),
         "",
     ),
     ("trajectories integrated", "trajectories", ""),
@@ -123,7 +123,7 @@ def launch(
     Example: `ovtraj launch --altitude-km 300`"""
     from ovtraj.launch import launch_input, solve_launch
 
-    scenario = _load(config)
+    scenario = loaded_scenario(config)
     try:
         inp = launch_input(scenario, altitude_km=altitude_km)
     except (ConfigError, ValueError) as err:
@@ -133,12 +133,12 @@ def launch(
         result = solve_launch(inp, on_progress=update)
     row = plain(result.to_row())
     if as_json:
-        _print_json(row)
+        print_json(row)
         raise typer.Exit(code=0 if result.feasible else 1)
     shown: list[tuple[str, Any]] = [("feasible", row["feasible"])]
     if row.get("reason"):
         shown.append(("reason", row["reason"]))
-    shown += _rows(row, _LAUNCH_ROWS)
+    shown += spec_rows(row, _LAUNCH_ROWS)
     for phase in result.phases:
         shown.append(
             (
@@ -149,7 +149,7 @@ def launch(
                 f"{'' if phase.accepted else ' (not kept)'}",
             )
         )
-    _print_rows(f"launch: {scenario.name} ({inp.launcher.name})", shown)
+    print_rows(f"launch: {scenario.name} ({inp.launcher.name})", shown)
     if not result.feasible:
         raise typer.Exit(code=1)
 
@@ -177,7 +177,7 @@ def launch_fit_command(
     from ovtraj.launch import launch_input
     from ovtraj.launch.launch_fit import fit_roots, launch_fit, launch_fit_key
 
-    scenario = _load(config, target)
+    scenario = loaded_scenario(config, target)
     try:
         inp = launch_input(scenario)
     except (ConfigError, ValueError) as err:
@@ -203,7 +203,7 @@ def launch_fit_command(
         for name, s in fit.series.items()
     }
     if as_json:
-        _print_json(
+        print_json(
             {
                 "key": key,
                 "launcher": inp.launcher.name,
@@ -227,7 +227,7 @@ def launch_fit_command(
                 f"({number(100 * s['loo_relative_error'], '%', 3)} of range)",
             )
         )
-    _print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
+    print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
 
 
 def _stage_input(build: Any, scenario: Scenario) -> Any:
@@ -242,7 +242,7 @@ _DEORBIT_ROWS: RowSpec = [
     ("burn epoch", "burn_epoch_utc", "utc"),
     ("wait on the preparation orbit", "wait_time_s", "s"),
     ("impulse", "dv_mps", "m/s"),
-    ("impulse radial/along/cross", lambda row: _joined(row, "dv_{}_mps", _RSW, "m/s"), ""),
+    ("impulse radial/along/cross", lambda row: joined_fields(row, "dv_{}_mps", _RSW, "m/s"), ""),
     ("two-body estimate", "estimate_dv_mps", "m/s"),
     ("burn to entry", "descent_time_s", "s"),
     ("entry epoch", "entry_epoch_utc", "utc"),
@@ -267,9 +267,9 @@ def deorbit(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     Example: `ovtraj deorbit configs/scenario.yaml`"""
     from ovtraj.deorbit import deorbit_input, solve_deorbit
 
-    scenario = _load(config)
+    scenario = loaded_scenario(config)
     inp = _stage_input(deorbit_input, scenario)
-    _report(f"deorbit: {scenario.name}", solve_deorbit(inp), _DEORBIT_ROWS, as_json)
+    report_stage(f"deorbit: {scenario.name}", solve_deorbit(inp), _DEORBIT_ROWS, as_json)
 
 
 _REENTRY_ROWS: RowSpec = [
@@ -286,8 +286,12 @@ _REENTRY_ROWS: RowSpec = [
     ("max load", "max_load_g", "g"),
     ("max dynamic pressure", "max_dynamic_pressure_kpa", "kPa"),
     ("max |bank|", "max_bank_deg", "deg"),
-    ("margins heat/load/q/bank", lambda row: _joined(row, "{}_margin", _MARGINS, ""), ""),
-    ("bank sigma_0 / sigma_1", lambda row: _joined(row, "sigma{}_deg", ("0", "1"), "deg", 2), ""),
+    ("margins heat/load/q/bank", lambda row: joined_fields(row, "{}_margin", _MARGINS, ""), ""),
+    (
+        "bank sigma_0 / sigma_1",
+        lambda row: joined_fields(row, "sigma{}_deg", ("0", "1"), "deg", 2),
+        "",
+    ),
     ("bank reversals", "reversals", ""),
     ("golden-section evaluations", "golden_evaluations", ""),
     ("trajectories integrated", "trajectories", ""),
@@ -302,7 +306,7 @@ def reentry(config: ConfigArg = None, as_json: JsonOpt = False) -> None:
     Example: `ovtraj reentry --json`"""
     from ovtraj.reentry import reentry_input, solve_reentry
 
-    scenario = _load(config)
+    scenario = loaded_scenario(config)
     inp = _stage_input(reentry_input, scenario)
     title = f"reentry: {scenario.name} (to {inp.settings.landing_site.name})"
-    _report(title, solve_reentry(inp), _REENTRY_ROWS, as_json)
+    report_stage(title, solve_reentry(inp), _REENTRY_ROWS, as_json)

@@ -12,7 +12,15 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ovtraj.cli.common import JsonOpt, StoreOpt, _print_json, _print_rows, _store, _store_root, app
+from ovtraj.cli.common import (
+    JsonOpt,
+    StoreOpt,
+    app,
+    print_json,
+    print_rows,
+    run_store,
+    store_location,
+)
 from ovtraj.config.io_limits import echoed, shown_text
 from ovtraj.formatting import byte_size, number, printable, quantity, utc
 
@@ -162,7 +170,7 @@ def runs(
     from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import catalog_settings, query, refresh
 
-    root = _store_root(store_root)
+    root = store_location(store_root)
     try:
         found = refresh(root)
         selected = query(found.frame, where) if where else None
@@ -178,7 +186,7 @@ def runs(
     if selected is not None:
         if as_json:
             rows = plain(selected.to_dict(orient="records"))
-            _print_json({"store": str(root.resolve()), "where": where, "rows": rows})
+            print_json({"store": str(root.resolve()), "where": where, "rows": rows})
             return
         part = selected.iloc[-shown:] if shown else selected
         console.print(_where_table(part, f"catalog rows where {shown_text(where)}"))
@@ -202,7 +210,7 @@ def runs(
     for entry in dispersed:
         entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
     if as_json:
-        _print_json({"store": str(root.resolve()), "runs": entries, "monte_carlo": monte_carlo})
+        print_json({"store": str(root.resolve()), "runs": entries, "monte_carlo": monte_carlo})
         return
     if not entries and not monte_carlo:
         typer.echo(f"no runs in {root.resolve()}")
@@ -271,14 +279,14 @@ def show(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> 
     from ovtraj.runs import StoreError
 
     try:
-        stored = _store(store_root).run(run_id)
+        stored = run_store(store_root).run(run_id)
         manifest, summary = stored.manifest, stored.summary()
     except StoreError as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
     document = {"manifest": manifest, "summary": summary}
     if as_json:
-        _print_json(document)
+        print_json(document)
         return
     typer.echo(json.dumps(document, indent=2, default=str))
 
@@ -321,7 +329,7 @@ def prune(
         shown = ", ".join(echoed(repr(kind)) for kind in unknown)
         typer.echo(f"--only: {shown} is not one of {', '.join(KINDS)}", err=True)
         raise typer.Exit(code=2)
-    store = _store(store_root)
+    store = run_store(store_root)
     results = load_orchestration().results.location()
     try:
         items = prunable(
@@ -336,7 +344,7 @@ def prune(
         raise typer.Exit(code=2) from None
     freed = sum(item.size_bytes for item in removed)
     if as_json:
-        _print_json(
+        print_json(
             {
                 "store": str(store.root.resolve()),
                 "deleted": yes,
@@ -396,7 +404,7 @@ def verify(
     """
     from ovtraj.runs import StoreError
 
-    store = _store(store_root)
+    store = run_store(store_root)
     try:
         kind, label, stored, report = _verified(store, item_id)
     except StoreError as err:
@@ -411,7 +419,7 @@ def verify(
         document = {"kind": kind, **report.to_json()}
         if kind == "run":
             document = {"run_id": report.item_id, **document}
-        _print_json({**document, "recompute": None if again is None else again.to_json()})
+        print_json({**document, "recompute": None if again is None else again.to_json()})
         raise typer.Exit(code=1 if failed else 0)
     for problem in report.tampered:
         typer.echo(f"tampered: {printable(problem)}")
@@ -562,7 +570,7 @@ def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
     from ovtraj.runs import replay as replay_run
 
     try:
-        stored = _store(store_root).run(run_id)
+        stored = run_store(store_root).run(run_id)
         derived = replay_run(stored)
         totals = stored.totals()
     except StoreError as err:
@@ -576,7 +584,7 @@ def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
         differences[column] = float(np.max(np.abs(a[both] - b[both]))) if both.any() else 0.0
     worst = max(differences.values())
     if as_json:
-        _print_json(
+        print_json(
             {
                 "run_id": stored.id,
                 "samples": len(derived),
@@ -591,4 +599,4 @@ def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
         ("feasible", int(derived["feasible"].sum())),
         ("largest difference from the stored totals", worst),
     ]
-    _print_rows(f"replay of {stored.id} (no simulation)", rows)
+    print_rows(f"replay of {stored.id} (no simulation)", rows)

@@ -8,7 +8,15 @@ from typing import Annotated, Any
 
 import typer
 
-from ovtraj.cli.common import JsonOpt, RowSpec, _limits, _print_json, _print_rows, _rows, app
+from ovtraj.cli.common import (
+    JsonOpt,
+    RowSpec,
+    app,
+    option_limits,
+    print_json,
+    print_rows,
+    spec_rows,
+)
 from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError
 from ovtraj.config.deorbit_burn import MonteCarloConfig
@@ -110,12 +118,12 @@ def optimal_entry(
     paths = write_histories(result, root, content_named=True)
     row = {k: v for k, v in plain(result.to_row()).items() if v is not None}
     if as_json:
-        _print_json(row | {k: str(v) for k, v in paths.items()})
+        print_json(row | {k: str(v) for k, v in paths.items()})
     else:
         shown: list[tuple[str, Any]] = [("converged", row["converged"])]
-        shown += _rows(row, _OPTIMAL_ENTRY_ROWS)
+        shown += spec_rows(row, _OPTIMAL_ENTRY_ROWS)
         shown += [(f"{name} file", str(path)) for name, path in paths.items()]
-        _print_rows(f"optimal entry: {result.name}", shown)
+        print_rows(f"optimal entry: {result.name}", shown)
     if not result.converged:
         raise typer.Exit(code=1)
 
@@ -155,11 +163,11 @@ def maneuver(
         raise typer.Exit(code=2) from None
     result = solve_maneuver(problem)
     if as_json:
-        _print_json(result.to_json())
+        print_json(result.to_json())
     else:
         doc = plain(result.to_json())
         shown: list[tuple[str, Any]] = [("converged", doc["converged"])]
-        shown += _rows(doc, _MANEUVER_ROWS)
+        shown += spec_rows(doc, _MANEUVER_ROWS)
         for k, burn in enumerate(doc["burns"], start=1):
             shown.append(
                 (
@@ -170,7 +178,7 @@ def maneuver(
                     f"{number(burn['mass_after_kg'], 'kg', 6)}",
                 )
             )
-        _print_rows(f"manoeuvre: {config.stem}", shown)
+        print_rows(f"manoeuvre: {config.stem}", shown)
         comparison = comparison_rows(problem, result)
         if comparison:
             typer.echo("published vs ours")
@@ -189,7 +197,7 @@ def deorbit_burn(
         int | None,
         typer.Option(
             "--monte-carlo",
-            **_limits(MonteCarloConfig, "runs"),
+            **option_limits(MonteCarloConfig, "runs"),
             help="also fly this many dispersed runs (default: none; a progress bar on stderr)",
             show_default=False,
         ),
@@ -222,7 +230,7 @@ def deorbit_burn(
     if as_json:
         # The solve's fields at the top level, the history and statistics alongside.
         flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
-        _print_json(flat)
+        print_json(flat)
     else:
         typer.echo(format_report(report))
     if not report["result"]["converged"]:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ovtraj.cli.common import JsonOpt, _keyed_rows, _print_json, _print_rows, app
+from ovtraj.cli.common import JsonOpt, app, keyed_rows, print_json, print_rows
 from ovtraj.config import ConfigError
 from ovtraj.store.records import plain
 
@@ -57,8 +57,8 @@ def target(
         typer.echo(f"warning: {warning.message}", err=True)
     row = plain(fit.to_row())
     if as_json:
-        _print_json(row)
+        print_json(row)
     else:
-        _print_rows(f"target: {fit.source.label()}", _keyed_rows(row, digits=6))
+        print_rows(f"target: {fit.source.label()}", keyed_rows(row, digits=6))
     if not fit.converged:
         raise typer.Exit(code=1)

@@ -16,11 +16,11 @@ from rich.table import Table
 from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
-    _print_json,
-    _store,
-    _store_root,
     app,
+    print_json,
     renamed_options,
+    run_store,
+    store_location,
 )
 from ovtraj.config.io_limits import echoed, shown_text
 from ovtraj.formatting import quantity, utc
@@ -169,7 +169,7 @@ def diff(
     from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.diff import changes, markdown_table, text_rows
 
-    store = _store(store_root)
+    store = run_store(store_root)
     try:
         catalog = refresh(store.root)
         left, right = _resolve(store, catalog, a), _resolve(store, catalog, b)
@@ -178,7 +178,7 @@ def diff(
     found = changes(left.figures, right.figures, everything=everything)
     changed = sum(c.changed for c in found)
     if as_json:
-        _print_json(
+        print_json(
             {
                 "a": left.label,
                 "b": right.label,
@@ -251,7 +251,7 @@ def history(
     from ovtraj.tracking.history import history as history_rows
     from ovtraj.tracking.keys import history_key
 
-    root = _store_root(store_root)
+    root = store_location(store_root)
     try:
         tags = _pairs(tag, "--tag")
         if deployment is not None:
@@ -268,7 +268,7 @@ def history(
     path = plot or Path(str(root / CATALOG_DIR / "history" / f"{history_key(name)}.png"))
     written = Path(str(history_plot(rows, path, f"re-plans of {name}"))).resolve()
     if as_json:
-        _print_json(
+        print_json(
             {
                 "target": name,
                 "rows": plain(rows.to_dict(orient="records")),
@@ -325,7 +325,7 @@ def catalog(
     Example: `ovtraj catalog --rebuild`"""
     from ovtraj.tracking.catalog import refresh
 
-    root = _store_root(store_root)
+    root = store_location(store_root)
     try:
         found = refresh(root, rebuild=rebuild)
     except _errors() as err:
@@ -333,7 +333,7 @@ def catalog(
     counts = found.frame["kind"].value_counts().to_dict()
     path = Path(str(found.path)).resolve() if "://" not in str(found.path) else found.path
     if as_json:
-        _print_json(
+        print_json(
             {
                 "catalog": str(path),
                 "rows": len(found.frame),
@@ -363,7 +363,7 @@ def tag(
     Example: `ovtraj tag 3b8ebf38684e45f1 campaign=december --remove draft`"""
     from ovtraj.tracking.catalog import read_tags, refresh, set_tags
 
-    root = _store_root(store_root)
+    root = store_location(store_root)
     try:
         wanted = _pairs(pairs, "tag")
         if wanted or remove:
@@ -374,7 +374,7 @@ def tag(
     except _errors() as err:
         _fail(err)
     if as_json:
-        _print_json({"id": item_id, "tags": tags})
+        print_json({"id": item_id, "tags": tags})
         return
     pairs_shown = ", ".join(f"{shown_text(k)}={shown_text(v)}" for k, v in sorted(tags.items()))
     typer.echo(f"{shown_text(item_id)}: " + (pairs_shown or "no tags"))
@@ -394,7 +394,7 @@ def lineage(
     from ovtraj.tracking.catalog import refresh
     from ovtraj.tracking.lineage import lineage as plan_lineage
 
-    store = _store(store_root)
+    store = run_store(store_root)
     try:
         found = refresh(store.root)
         path = Path(plan_ref)
@@ -413,7 +413,7 @@ def lineage(
         _fail(err)
     broken = [link for link in links if link.state != "ok"]
     if as_json:
-        _print_json(
+        print_json(
             {
                 "plan": str(path.resolve()),
                 "clean": not broken,
@@ -446,8 +446,8 @@ def lineage(
 
 def _exported_plan(path: Path) -> str:
     """The plan id an exported CCSDS file names (``COMMENT ovtraj plan <id>``)."""
+    from ovtraj.bounded_reads import read_text_file
     from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.store.paths import read_text_file
 
     largest = int(load_orchestration().reads.unrecorded_file_max_mib * 2**20)
     text = read_text_file(path, max_bytes=largest, limit="reads.unrecorded_file_max_mib")

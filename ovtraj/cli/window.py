@@ -13,14 +13,21 @@ from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
     TargetOpt,
-    _limits,
-    _load,
-    _print_json,
-    _store,
     app,
+    loaded_scenario,
+    option_limits,
+    print_json,
+    run_store,
 )
-from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, _runner_choice
-from ovtraj.cli.picking import MaxDvOpt, MaxTimeOpt, MinLoadOpt, PickCommand, WeightsOpt, _pick
+from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, runner_choice
+from ovtraj.cli.picking import (
+    MaxDvOpt,
+    MaxTimeOpt,
+    MinLoadOpt,
+    PickCommand,
+    WeightsOpt,
+    pick_from_options,
+)
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config.io_limits import shown_text
 from ovtraj.config.mission import DoeSettings
@@ -49,7 +56,7 @@ WorkersOpt = Annotated[
     int | None,
     typer.Option(
         "--workers",
-        **_limits(DoeSettings, "workers"),
+        **option_limits(DoeSettings, "workers"),
         help="days at once on --runner processes or a local Dask cluster (default: the "
         "config's mission.doe.workers)",
         show_default=False,
@@ -94,24 +101,25 @@ def window(
     from ovtraj.window.records import window_verdict
     from ovtraj.window.settings import load_window_settings
 
-    chosen = _pick(None, weights, max_time_h, max_dv, min_payload)  # refused before any work
+    # refused before any work
+    chosen = pick_from_options(None, weights, max_time_h, max_dv, min_payload)
     limit = load_window_settings().max_days
     if not 1 <= days <= limit:
         shown = f"must lie in 1..{limit} (configs/window.yaml max_days)"
         typer.echo(f"--days {days}: {shown}", err=True)
         raise typer.Exit(code=2)
-    scenario = _load(config, target)
+    scenario = loaded_scenario(config, target)
     if scenario.mission is None or scenario.launch is None:
         typer.echo(f"{config}: the scenario has no mission section", err=True)
         raise typer.Exit(code=2)
-    choice = _runner_choice(scenario.mission.doe, runner, dask_address, workers)
-    store = _store(store_root, scenario, config)
+    choice = runner_choice(scenario.mission.doe, runner, dask_address, workers)
+    store = run_store(store_root, scenario, config)
     outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
     files = {name: path.resolve() for name, path in outcome.files.items()}
     best = outcome.best_day
     converged, verdict = window_verdict(outcome.records)
     if as_json:
-        _print_json(
+        print_json(
             {
                 "window_id": outcome.window_id,
                 "reused": outcome.reused,

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from ovtraj.cli.common import JsonOpt, _print_json, _print_rows, app
+from ovtraj import paths as where
+from ovtraj.cli.common import JsonOpt, app, print_json, print_rows
 from ovtraj.config.orchestration import load_orchestration
-from ovtraj.store import paths as where
+from ovtraj.store.paths import store_root
 
 
 @app.command()
@@ -17,15 +18,15 @@ def paths(as_json: JsonOpt = False) -> None:
         "reference": str(where.reference_dir()),
         "default_scenario": str(where.config_dir() / "scenario.yaml"),
         "workspace": str(where.workspace()),
-        "run_store": str(where.store_root(None, None, None)),
+        "run_store": str(store_root(None, None, None)),
         "launch_fits": str(where.workspace() / "launch_fit"),
         "optimal_entry": str(where.workspace() / "optimal_entry"),  # `optimal-entry`'s default
         "prefect_results": load_orchestration().results.location(),
         "source_checkout": where.source_checkout(),
     }
     if as_json:
-        _print_json(found)
+        print_json(found)
     else:
         labels = {"workspace": "workspace (OVTRAJ_HOME)"}
         rows = [(labels.get(k, k.replace("_", " ")), v) for k, v in found.items()]
-        _print_rows("ovtraj paths", rows)
+        print_rows("ovtraj paths", rows)
