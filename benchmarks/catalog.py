@@ -57,7 +57,9 @@ from pathlib import Path
 
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, reference
-from ovtraj.mission.plan import MissionPlan, PlanError, plan_and_record, plan_json
+from ovtraj.mission.plan import MissionPlan, PlanError
+from ovtraj.mission.plan_build import plan_and_record
+from ovtraj.mission.plan_store import plan_json
 from ovtraj.runs import RunStore, execute, latin_hypercube
 from ovtraj.runs.store import results_hash
 from ovtraj.store.files import Digest
@@ -280,7 +282,7 @@ class Builder:
             sample_id=sample_id,
         )
         name = f"plan-sample-{sample_id}"
-        # Validated as a plan, written as ovtraj.mission.plan.write_plan writes its JSON.
+        # Validated as a plan, written as ovtraj.mission.plan_store.write_plan writes its JSON.
         payload = plan_json(MissionPlan.model_validate(plan))
         digest = _put(directory / f"{name}.json", payload)
         marker = directory / f"{name}{PLAN_MARKER_SUFFIX}"

@@ -30,7 +30,7 @@ def main() -> None:
     from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
     from ovtraj.mission.montecarlo import monte_carlo, outcome_summaries
-    from ovtraj.mission.plan import build_plan
+    from ovtraj.mission.plan_build import build_plan
     from ovtraj.store.paths import config_path
     from ovtraj.target_sources import load_scenario
 

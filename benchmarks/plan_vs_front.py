@@ -6,10 +6,10 @@ launch fit:
 
 1. **front -> plan**: the default pipeline (the scenario's DoE size, surrogates, NSGA-II,
    verification and infill, serial) for each DoE seed; then the plan of *every* point of
-   its verified front (:func:`ovtraj.mission.plan.plan_and_record`, the launch solved to
+   its verified front (:func:`ovtraj.mission.plan_build.plan_and_record`, the launch solved to
    the chain's insertion and cached, exactly what ``ovtraj plan RUN --pick i`` flies),
    its totals against the front's: the largest |dV_total|, |T_total| and |M_load|
-   differences, and how many points :func:`~ovtraj.mission.plan.check_front_point` (the
+   differences, and how many points :func:`~ovtraj.mission.plan_check.check_front_point` (the
    command's check, ``mission.plan.front_tolerance``) refuses.
 2. **smoothness**: ``--designs`` designs of a seeded Latin hypercube over the design
    bounds, each evaluated again with H_P0 raised by 50 m: the fraction whose dV_total
@@ -82,7 +82,9 @@ def front_vs_plans(scenario, fit, seed: int, folder: Path, plans: int | None = N
     """The default pipeline of ``seed``, then the plan of each verified front point (of
     the first ``plans`` only, if given)."""
     from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign
-    from ovtraj.mission.plan import PlanError, PlanMismatch, check_front_point, plan_and_record
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan_build import plan_and_record
+    from ovtraj.mission.plan_check import PlanMismatch, check_front_point
     from ovtraj.pipeline import PipelineSteps, run_pipeline
     from ovtraj.pipeline.planning import stored_stage_rows
     from ovtraj.runs import RunStore, prepare_run, run_doe

@@ -42,7 +42,7 @@ from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.high_fidelity import high_fidelity_settings
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
-from ovtraj.mission.plan import read_plan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.runs.plan_monte_carlo import (
     PlanMonteCarloRequest,
     drive_plan_monte_carlo,

@@ -31,7 +31,8 @@ from ovtraj.config.export import CcsdsExportSettings
 from ovtraj.config.io_limits import io_limits
 from ovtraj.config.physical import load_earth
 from ovtraj.config.target import default_source_settings
-from ovtraj.mission.plan import PlanError, read_plan
+from ovtraj.mission.plan import PlanError
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline import Pick, PipelineError, pick_front_point
 from ovtraj.runs import RunStore

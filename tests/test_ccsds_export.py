@@ -25,7 +25,9 @@ from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.ccsds import export_plan, oem_text, opm_text
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import replay_ephemeris
-from ovtraj.mission.plan import MissionPlan, PlanError, build_plan, write_plan
+from ovtraj.mission.plan import MissionPlan, PlanError
+from ovtraj.mission.plan_build import build_plan
+from ovtraj.mission.plan_store import write_plan
 from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
 

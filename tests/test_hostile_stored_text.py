@@ -31,7 +31,8 @@ from ovtraj.cli import run_command
 from ovtraj.config.io_limits import io_limits
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
-from ovtraj.mission.plan import build_plan, write_plan
+from ovtraj.mission.plan_build import build_plan
+from ovtraj.mission.plan_store import write_plan
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline import Pick, pick_front_point
 from ovtraj.pipeline.pick import weight_fractions

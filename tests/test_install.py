@@ -182,7 +182,8 @@ def test_the_installed_command_exports_and_flies_a_plan_with_the_shipped_setting
 ):
     from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission.chain import MissionContext, MissionDesign
-    from ovtraj.mission.plan import build_plan, write_plan
+    from ovtraj.mission.plan_build import build_plan
+    from ovtraj.mission.plan_store import write_plan
     from ovtraj.store.paths import config_path
     from ovtraj.target_sources import load_scenario
 

@@ -31,7 +31,8 @@ from ovtraj.mission.montecarlo import (
     planned_dv,
     summarise,
 )
-from ovtraj.mission.plan import build_plan, read_plan, write_plan
+from ovtraj.mission.plan_build import build_plan
+from ovtraj.mission.plan_store import read_plan, write_plan
 from ovtraj.mission.sky_flight import format_fidelity_report
 from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario

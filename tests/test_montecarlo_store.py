@@ -22,7 +22,7 @@ from typer.testing import CliRunner
 from ovtraj.cli import app
 from ovtraj.mission.montecarlo import MANOEUVRES, planned_dv
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
-from ovtraj.mission.plan import read_plan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.plots.render import png_bytes
 from ovtraj.runs.plan_monte_carlo import PICTURES, monte_carlo_figures
 from ovtraj.store.environment_block import unstamped

@@ -1183,7 +1183,7 @@ def test_warm_started_fronts_hold_the_previous_front_and_replay(small, tmp_path)
 def test_every_front_point_is_planned_as_promised(small, tmp_path):
     """Issue 43: the plan of each verified front point (its launch solved to the chain's
     insertion) flies its front values within ``mission.plan.front_tolerance``."""
-    from ovtraj.mission.plan import plan_and_record
+    from ovtraj.mission.plan_build import plan_and_record
 
     scenario = small["scenario"]
     context = MissionContext(scenario, small["fit"])

@@ -22,7 +22,7 @@ import yaml
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
 from ovtraj.mission.fly import fly_plan
-from ovtraj.mission.plan import read_plan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.runs import RunStore, execute
 from ovtraj.store.files import read_parquet
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario

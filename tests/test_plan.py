@@ -21,15 +21,9 @@ from ovtraj.mission.chain import (
     evaluate,
 )
 from ovtraj.mission.fly import fly_plan, format_flight_report
-from ovtraj.mission.plan import (
-    MissionPlan,
-    PlanError,
-    build_plan,
-    plan_and_record,
-    plan_json,
-    read_plan,
-    write_plan,
-)
+from ovtraj.mission.plan import MissionPlan, PlanError
+from ovtraj.mission.plan_build import build_plan, plan_and_record
+from ovtraj.mission.plan_store import plan_json, read_plan, write_plan
 from ovtraj.plots.mission import mission_plots
 from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
@@ -431,7 +425,7 @@ def test_the_plan_launch_inserts_where_the_front_evaluation_starts(context, reco
 def test_a_plan_off_its_front_point_is_refused_saying_by_how_much_and_why(record):
     """check_front_point (what `ovtraj plan` and the pipeline run before writing)."""
     from ovtraj.config.mission import FrontTolerance
-    from ovtraj.mission.plan import PlanMismatch, check_front_point
+    from ovtraj.mission.plan_check import PlanMismatch, check_front_point
 
     tolerance = FrontTolerance(dv_total_mps=1.0, t_total_s=60.0, m_load_kg=0.1)
     front = {"dv_total_mps": record.dv_total_mps, "t_total_s": record.t_total_s}

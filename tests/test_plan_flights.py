@@ -25,7 +25,7 @@ import pytest
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from ovtraj.mission.plan import read_plan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.pipeline.plan_flights import flight_document
 from ovtraj.pipeline.report import FLOWN_END, FLOWN_START, flown_section
 from ovtraj.store.files import file_digest, read_json

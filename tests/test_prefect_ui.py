@@ -100,7 +100,7 @@ from pathlib import Path
 from prefect import flow
 
 from flows.pipeline import _publish_history
-from ovtraj.mission.plan import read_plan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.runs import RunStore
 
 store = RunStore(Path(sys.argv[1]))
@@ -333,7 +333,7 @@ def test_the_history_artifacts_hold_every_replan_and_link_the_previous_plan(
 ):
     """The history is the nights' plans, oldest element set first, with their own
     figures; the artifacts show it and link the previous plan."""
-    from ovtraj.mission.plan import read_plan
+    from ovtraj.mission.plan_store import read_plan
     from ovtraj.tracking.catalog import plan_id
 
     rows, table = history_published.rows, history_published.table

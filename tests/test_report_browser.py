@@ -36,7 +36,8 @@ import yaml
 from ovtraj.config import scenario_from_dict
 from ovtraj.mission.manoeuvres import manoeuvre_table, propellant_budget
 from ovtraj.mission.margins import limit_margins, margins_frame
-from ovtraj.mission.plan import MissionPlan, read_plan
+from ovtraj.mission.plan import MissionPlan
+from ovtraj.mission.plan_store import read_plan
 from ovtraj.pipeline.report import ASCENT_ALT, ENTRY_ALT
 from tests.conftest import REPO, replan_nights
 from tests.test_deployments import _stop

@@ -24,7 +24,9 @@ import pytest
 from ovtraj.cli import run_command
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
-from ovtraj.mission.plan import PlanError, build_plan, write_plan
+from ovtraj.mission.plan import PlanError
+from ovtraj.mission.plan_build import build_plan
+from ovtraj.mission.plan_store import write_plan
 from ovtraj.store import locks
 from ovtraj.store.files import StoreError, write_bytes
 from ovtraj.store.paths import config_path

@@ -87,7 +87,8 @@ def fly(
     Example: `ovtraj fly plan-sample-30.json --monte-carlo 20 --seed 1`"""
     from ovtraj.mission.fly import fly_plan, format_flight_report
     from ovtraj.mission.high_fidelity import high_fidelity_settings
-    from ovtraj.mission.plan import PlanError, read_plan
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan_store import read_plan
 
     try:
         plan = read_plan(plan_file)
@@ -358,7 +359,8 @@ def export(
     Example: `ovtraj export plan-sample-30.json --format oem --out chosen.oem`"""
     from ovtraj.config.export import CcsdsExportSettings, default_export_settings
     from ovtraj.mission.ccsds import UnflownPlan, export_plan
-    from ovtraj.mission.plan import PlanError, read_plan
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan_store import read_plan
     from ovtraj.tracking.catalog import plan_id
     from ovtraj.tracking.lineage import record_export
 

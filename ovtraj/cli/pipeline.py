@@ -197,7 +197,7 @@ def _drive(
     failure is one line on stderr, exit 1 (the optimiser stopped, a plan that does not fly
     its front point) or 2."""
     from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.mission.plan import PlanMismatch
+    from ovtraj.mission.plan_check import PlanMismatch
     from ovtraj.pipeline import OptimiserStopped, PipelineError
     from ovtraj.pipeline.drive import drive_pipeline
     from ovtraj.runs import StoreError
@@ -395,7 +395,8 @@ def plan(
     of the verified front of a run's pipeline result.
 
     Example: `ovtraj plan 1fe6042587a62a93 --max-time-h 150 --min-payload-kg 400`"""
-    from ovtraj.mission.plan import PlanError, PlanMismatch
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan_check import PlanMismatch
     from ovtraj.pipeline import PipelineError
     from ovtraj.pipeline.catalog import family_root
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan

@@ -82,7 +82,7 @@ def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label
 
 
 def _read_plan(path: Path) -> dict[str, Any]:
-    from ovtraj.mission.plan import read_plan
+    from ovtraj.mission.plan_store import read_plan
 
     return read_plan(path).to_dict()
 

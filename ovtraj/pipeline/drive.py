@@ -120,7 +120,7 @@ def drive_pipeline(
     """DoE -> surrogates -> NSGA-II -> verification and infill -> pick -> plan (the module
     notes). Raises :class:`PipelineError` (bad input, no front), the executor's errors for
     batches, :class:`~ovtraj.pipeline.steps.OptimiserStopped` and
-    :class:`~ovtraj.mission.plan.PlanMismatch` (a plan that does not fly its front point)."""
+    :class:`~ovtraj.mission.plan_check.PlanMismatch` (a plan that does not fly its front point)."""
     if scenario.mission is None:
         raise PipelineError("the scenario has no mission section")
     request = request or PipelineRequest()

@@ -14,7 +14,7 @@ listed by its marker ``<plan>.files.json``) as ``<plan>-flight-j2.json`` and
   refused, naming the file and the code versions. One flight per plan and fidelity keeps
   the name meaning one thing and the report showing which flight it holds (names by content
   would pile up flights with no order but a clock, which the store does not keep); the plan
-  itself is refused the same way (:func:`ovtraj.mission.plan.write_plan`).
+  itself is refused the same way (:func:`ovtraj.mission.plan_store.write_plan`).
 - *Covered*: each stored flight is listed in the plan's marker, so ``ovtraj verify`` checks
   it. The report, a view of stored results, is written again with its section of flights
   (:func:`ovtraj.pipeline.report.flown_section`; the rest of it is the plan's, checked

@@ -48,7 +48,7 @@ def find_pipeline(run: Run, pipeline: str | None = None) -> PipelineResult:
 def _since_previous_plan(store: RunStore, plan: dict[str, Any]) -> Any:
     """The previous plan of this target in the store (:func:`previous_plan`) and what
     changed since (:func:`ovtraj.tracking.diff.changes`), or None for the first plan."""
-    from ovtraj.mission.plan import read_plan
+    from ovtraj.mission.plan_store import read_plan
     from ovtraj.tracking.diff import changes
     from ovtraj.tracking.figures import plan_figures
     from ovtraj.tracking.history import previous_plan
@@ -78,7 +78,9 @@ def write_mission_plan(
     written last, lists the size and SHA-256 of every file of the plan, its stored flights
     too (``ovtraj verify``).
     """
-    from ovtraj.mission.plan import check_front_point, plan_and_record, write_plan
+    from ovtraj.mission.plan_build import plan_and_record
+    from ovtraj.mission.plan_check import check_front_point
+    from ovtraj.mission.plan_store import write_plan
     from ovtraj.plots.mission import mission_plots
 
     normalisation = Normalisation.mission(scenario.mission.optimize)

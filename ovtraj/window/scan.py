@@ -140,7 +140,7 @@ def run_day(job: DayJob) -> dict[str, Any]:
     pipeline cannot plan (no front, a pick no point meets, the
     optimiser stopped, a plan off its front point, a launch the shared grid cannot fly)
     is a record ``no plan`` with the reason. Other faults raise."""
-    from ovtraj.mission.plan import PlanMismatch
+    from ovtraj.mission.plan_check import PlanMismatch
     from ovtraj.pipeline import OptimiserStopped, PipelineError
     from ovtraj.pipeline.drive import PipelineRequest, drive_pipeline
     from ovtraj.runs.execute import PoolBatches
