@@ -1,8 +1,10 @@
 """The compiled propagator against independent references.
 
 Closed forms (Kepler, conic geometry, uniform circular motion), conservation
-laws, the analytic J2 secular rates, a second integrator (DOP853), and
-brute-force scans for the events (the scans live here, not in the library).
+laws, the analytic J2 secular rates, a second integrator (DOP853) on a J2 field written
+apart (the potential's gradient in spherical coordinates, checked here against the
+Cartesian formula the propagator flies), and brute-force scans for the events (the scans
+live here, not in the library).
 """
 
 from __future__ import annotations
@@ -28,11 +30,15 @@ from ovtraj.astro.propagation import (
     LongitudeCrossing,
     OrbitPropagator,
 )
-from ovtraj.astro.propagation.reference import propagate_dop853
+from ovtraj.astro.propagation.gravity import two_body_j2_acceleration
+from ovtraj.astro.propagation.reference import propagate_dop853, zonal_j2_acceleration
 from ovtraj.astro.propagation.taylor import _event_integrator
 
 DAY = 86400.0
 TOL = 1e-12  # the default scenario's integrator tolerance
+# The two J2 formulas differ by rounding alone: a few ulp (2.2e-16 each) of the size of
+# their terms; measured 7.5e-16 (Earth's J2) and 7.7e-16 (J2 = 0.5), poles included.
+ACCELERATION_AGREEMENT = 1.5e-15
 
 
 def _state(earth, a, e, i_deg, raan_deg=40.0, argp_deg=30.0, nu_deg=10.0):
@@ -79,6 +85,46 @@ def test_two_body_matches_kepler_closed_form(earth, two_body):
     final = two_body.propagate(s0, 0.0, t).state
     # ~140 revolutions at tolerance 1e-12: 9 cm measured, 7e-8 of the radius allowed.
     assert np.linalg.norm(final[:3] - expected[:3]) < 0.5
+
+
+def _random_positions(rng, n: int, earth) -> np.ndarray:
+    """Positions [m] from 100 km altitude to beyond GEO, in every direction, a tenth of
+    them within 1e-3..1e-12 rad of a pole (where the latitude is ill conditioned)."""
+    directions = rng.normal(size=(n, 3))
+    polar = rng.random(n) < 0.1
+    tilt = 10.0 ** rng.uniform(-12.0, -3.0, size=(polar.sum(), 1))
+    directions[polar, :2] = tilt * rng.normal(size=(polar.sum(), 2))
+    directions[polar, 2] = rng.choice([-1.0, 1.0], size=polar.sum())
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return directions * rng.uniform(earth.radius + 100e3, 50_000e3, size=(n, 1))
+
+
+@pytest.mark.parametrize("j2_value", ["earth", 0.5])
+def test_reference_j2_field_is_the_propagators_to_rounding(earth, j2_value):
+    """The DOP853 reference's acceleration (the potential's gradient in spherical
+    coordinates) equals the propagator's Cartesian formula (Vallado eq. 8-30) to rounding,
+    relative to the size of the terms. With J2 = 0.5 the zonal term is as large as the
+    central one near the surface, so the zonal term too is held to rounding (with the
+    Earth's J2 it is 1e-3 of the total)."""
+    rng = np.random.default_rng(84)
+    j2_coefficient = earth.j2 if j2_value == "earth" else j2_value
+    worst = 0.0
+    for position in _random_positions(rng, 2000, earth):
+        ours = np.array(two_body_j2_acceleration(*position, earth.mu, earth.radius, j2_coefficient))
+        ref = zonal_j2_acceleration(position, mu=earth.mu, radius=earth.radius, j2=j2_coefficient)
+        r = float(np.linalg.norm(position))
+        # The size of the terms: with a large J2 the two can cancel in the sum.
+        scale = earth.mu / r**2 * (1.0 + 3.0 * j2_coefficient * (earth.radius / r) ** 2)
+        worst = max(worst, float(np.linalg.norm(ref - ours)) / scale)
+    print(f"J2 {j2_coefficient:g}: worst relative difference {worst:.2e}")
+    assert worst < ACCELERATION_AGREEMENT
+    # The check has power: J2 off by one part in 1e9 is seen.
+    position = np.array([earth.radius + 400e3, 0.0, 3000e3])
+    ours = np.array(two_body_j2_acceleration(*position, earth.mu, earth.radius, earth.j2))
+    off = zonal_j2_acceleration(
+        position, mu=earth.mu, radius=earth.radius, j2=earth.j2 * 1.000000001
+    )
+    assert np.linalg.norm(off - ours) / np.linalg.norm(ours) > 100 * ACCELERATION_AGREEMENT
 
 
 def test_j2_agrees_with_dop853_over_a_day(earth, j2):
