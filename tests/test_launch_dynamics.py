@@ -1,6 +1,6 @@
 """Physics of the air-launch ascent (patent step 101): frame, dynamics, integration.
 
-Every check has a reference that does not come from the code under test:
+The physics, each against a reference that does not come from the code under test:
 
 * the launch frame against the local north/east/up triad and plain linear algebra;
 * the equations of motion in the rotating launch frame against two integrals of the
@@ -8,13 +8,18 @@ Every check has a reference that does not come from the code under test:
   ``v^2/2 - U - |w x R|^2/2`` (checks the centrifugal and J2 terms) and the polar
   component of the inertial angular momentum (checks the Coriolis term);
 * a coast in the launch frame against the heyoka propagator in ECI (second method);
-* the fixed-step RK4 of the powered ascent against scipy's DOP853 with tight
-  tolerances, phase by phase, with the angle-of-attack corners and the fairing
-  altitude as exact break points;
 * the integrated speed budget against the rocket equation (written out here) and
   against the speed actually gained;
 * the atmosphere table against the US76 model it samples, the aerodynamic tables
-  against the launcher file and against the force the dynamics apply;
+  against the launcher file and against the force the dynamics apply.
+
+The numerics, against the code itself by a second route (these check the integration,
+not the equations, which the checks above hold):
+
+* the fixed-step RK4 of the powered ascent against scipy's DOP853 with tight tolerances
+  on the ascent's own right-hand side (``ascent._Dynamics``), phase by phase, with the
+  angle-of-attack corners and the fairing altitude as exact break points;
+* the path maxima at the configured step against a 40x finer step;
 * crash rows and batch composition against single-row runs, bit for bit.
 """
 
@@ -381,13 +386,14 @@ def test_coast_in_launch_frame_matches_eci_propagator(problem, air, max_dr, max_
     assert worst_v < max_dv
 
 
-# -- 4. fixed-step RK4 against DOP853 on the powered ascent ------------------------------
+# -- 4. the integration: fixed-step RK4 against DOP853 on the same right-hand side --------
 
 
-def dop853_ascent(model, design: np.ndarray) -> dict[str, object]:
-    """The ascent of one design re-flown with DOP853 (rtol 1e-10) on the same right-hand
-    side, phase by phase: angle-of-attack corners as break points, the fairing dropped at
-    the exact altitude crossing (a terminal event)."""
+def dop853_on_the_same_rhs(model, design: np.ndarray) -> dict[str, object]:
+    """The ascent of one design re-flown with DOP853 (rtol 1e-10) on the ascent's own
+    right-hand side (a check of the integration, not of the equations), phase by phase:
+    angle-of-attack corners as break points, the fairing dropped at the exact altitude
+    crossing (a terminal event)."""
     launcher = model.launcher
     stages = launcher.stages
     design = np.atleast_2d(design)
@@ -496,13 +502,15 @@ def dop853_ascent(model, design: np.ndarray) -> dict[str, object]:
 
 
 @pytest.fixture(scope="module")
-def reference(problem, good):
-    return dop853_ascent(problem.model, good)
+def second_integrator(problem, good):
+    return dop853_on_the_same_rhs(problem.model, good)
 
 
-def test_fixed_step_rk4_matches_dop853_at_stage1_burnout(configured, fine, reference):
+def test_rk4_integration_matches_dop853_on_the_same_rhs_at_stage1_burnout(
+    configured, fine, second_integrator
+):
     """Stage 1 (aero, wing, angle-of-attack programme with its corners) is the hardest arc."""
-    ref = reference["stage1_burnout"]
+    ref = second_integrator["stage1_burnout"]
     for outcome, max_dr, max_dv in ((configured, 5.0, 0.1), (fine, 0.05, 2e-3)):
         y = stage1_burnout(outcome)
         dr = float(np.linalg.norm(y[0:3] - ref[0:3]))
@@ -513,12 +521,14 @@ def test_fixed_step_rk4_matches_dop853_at_stage1_burnout(configured, fine, refer
         assert abs(y[MASS] - ref[MASS]) < 1e-6 * ref[MASS]
 
 
-def test_fixed_step_rk4_matches_dop853_at_insertion(problem, configured, fine, reference):
+def test_rk4_integration_matches_dop853_on_the_same_rhs_at_insertion(
+    problem, configured, fine, second_integrator
+):
     earth = problem.model.earth
     tolerances = problem.target
-    ref = reference["insertion"]
+    ref = second_integrator["insertion"]
     assert not configured.crashed[0]
-    assert configured.fairing_stage[0] == reference["stage"] == 1  # during the stage-2 burn
+    assert configured.fairing_stage[0] == second_integrator["stage"] == 1  # during the stage-2 burn
 
     def insertion_figures(y):
         big_r = y[0:3] + np.array([0.0, earth.radius, 0.0])
@@ -536,7 +546,7 @@ def test_fixed_step_rk4_matches_dop853_at_insertion(problem, configured, fine, r
         dv = float(np.linalg.norm(y[3:6] - ref[3:6]))
         radius, speed = insertion_figures(y)
         budget = np.abs(y[IDEAL : BACK_PRESSURE + 1] - ref[IDEAL : BACK_PRESSURE + 1])
-        dt = abs(float(outcome.fairing_burn_time_s[0]) - reference["burn_time_s"])
+        dt = abs(float(outcome.fairing_burn_time_s[0]) - second_integrator["burn_time_s"])
         print(
             f"{name} step vs DOP853 at insertion: {dr:.3e} m, {dv:.3e} m/s; altitude "
             f"{radius - radius_ref:.3e} m, speed {speed - speed_ref:.3e} m/s; budget "
