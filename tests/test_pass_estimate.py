@@ -1,8 +1,9 @@
-"""The closed-form pass estimate and the pass model of T_total (issue 21, point 2).
+"""The closed-form pass estimate and the pass model of T_total.
 
 References: the deorbit stage's own forecast, which integrates the orbit under J2 and finds
 the latitude crossings by events (a second method), and the mission chain's T_total on the
-reference designs (stored in ``data/reference/mission_chain/``).
+reference designs (stored in ``data/reference/mission_chain/``), each predicted by the model
+calibrated on the other designs (held out from its own calibration).
 """
 
 from __future__ import annotations
@@ -112,27 +113,43 @@ def test_the_pass_model_gives_the_chains_t_total_on_the_reference_designs(scenar
     model = PassModel.of(scenario, fit.series["insertion_time_s"], fit.series["flight_time_s"])
     shift = scenario.mission.surrogate.pass_forecast.longitude_shift_deg
     assert model.longitude_shift_rad == pytest.approx(math.radians(shift))  # the scenario's
-    model = model.calibrated(table, np.array(waits, float), totals)
+    waits = np.array(waits, float)
     # The offset is the descent and entry after the pass: about half an hour.
-    assert 0.3 * 3600 <= model.offset_s <= 0.7 * 3600
-    predicted = model.t_total_s(table, np.array(waits, float))
+    assert 0.3 * 3600 <= model.calibrated(table, waits, totals).offset_s <= 0.7 * 3600
+    predicted = _held_out_t_total_s(model, table, waits, totals)
     feasible = np.isfinite(totals)
     error_h = np.abs(predicted - totals)[feasible] / 3600.0
     # T_total steps by whole days; a regressor of the design missed it by 12-29 h (median,
     # docs/optimize.md). The pass model places the step: within 0.1 h on every feasible
     # design (the hypercube's 17 and the two where the deorbit passes over a dear pass),
-    # and on fewer without the longitude shift.
+    # each held out from the calibration that predicts it.
     assert int(feasible.sum()) == int(stored["feasible"].sum()) == 19
+    print(f"held out: worst {error_h.max():.3f} h")  # measured 0.020 h
     assert (error_h <= 0.1).all(), error_h
-    unshifted = replace(model, longitude_shift_rad=0.0, offset_s=0.0)
-    unshifted = unshifted.calibrated(table, np.array(waits, float), totals)
-    error_h = np.abs(unshifted.t_total_s(table, np.array(waits, float)) - totals)[feasible]
-    # Before issue 43, 16 of 18 without the shift; with the aimed plane all 17 here (the
-    # shift still decides passes at the box's edge elsewhere: docs/optimize.md).
+    unshifted = replace(model, longitude_shift_rad=0.0)
+    error_h = np.abs(_held_out_t_total_s(unshifted, table, waits, totals) - totals)[feasible]
+    print(f"held out, without the longitude shift: worst {error_h.max() / 3600.0:.3f} h")
+    # Without the shift all 19 are placed here too (measured worst 0.02 h); it still decides
+    # passes at the entry box's edge elsewhere (docs/optimize.md), so fewer are required.
     assert int((error_h / 3600.0 <= 0.1).sum()) >= 14, error_h / 3600.0
-    waited = np.isfinite(np.array(waits, float))  # a design infeasible before its wait has none
+    # Every design, the infeasible ones too (none is held out: their T_total is unknown).
+    everywhere = model.calibrated(table, waits, totals).t_total_s(table, waits)
+    waited = np.isfinite(waits)  # a design infeasible before its wait has none
     assert waited.sum() >= 19
-    assert (predicted[waited] >= 3600.0 * (scenario.mission.stay_h + table[waited, 2])).all()
+    assert (everywhere[waited] >= 3600.0 * (scenario.mission.stay_h + table[waited, 2])).all()
+
+
+def _held_out_t_total_s(
+    model: PassModel, table: np.ndarray, waits: np.ndarray, totals: np.ndarray
+) -> np.ndarray:
+    """Each design's T_total [s] by the model calibrated on the other designs' totals
+    alone (its own left out: NaN, which calibration skips)."""
+    predicted = np.full(len(totals), np.nan)
+    for k in range(len(totals)):
+        others = totals.copy()
+        others[k] = np.nan
+        predicted[k] = model.calibrated(table, waits, others).t_total_s(table, waits)[k]
+    return predicted
 
 
 def test_a_design_with_no_pass_in_the_horizon_is_given_the_horizons_end(scenario):
