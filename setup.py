@@ -3,7 +3,7 @@
 The configuration files (``configs/``) and the small reference data
 (``data/reference/``) stay top-level folders of the repository and are shipped
 inside the package as ``ovtraj/configs`` and ``ovtraj/reference``, so that an
-installed ``ovtraj`` finds them (``ovtraj.store.paths``). The Prefect ``flows/`` and
+installed ``ovtraj`` finds them (``ovtraj.paths``). The Prefect ``flows/`` and
 ``tasks/`` folders are entrypoints of a repository checkout, not installed
 packages.
 """

@@ -62,7 +62,7 @@ from ovtraj.astro.forces.time_scales import day_of_year, tt_centuries
 from ovtraj.astro.propagation.reference import propagate_dop853
 from ovtraj.config.force_model import default_force_model
 from ovtraj.mission.high_fidelity import force_terms, spacecraft_factors
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 ORIGIN = "2026-12-01T00:00:00Z"  # inside the held EOP; the shipped space weather is constant

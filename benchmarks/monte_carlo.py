@@ -31,7 +31,7 @@ def main() -> None:
     from ovtraj.mission.chain import MissionContext, MissionDesign
     from ovtraj.mission.montecarlo import monte_carlo, outcome_summaries
     from ovtraj.mission.plan_build import build_plan
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
     from ovtraj.target_sources import load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -39,11 +39,11 @@ from flows.common import (
 from flows.runners import task_runner
 from ovtraj.config import Scenario
 from ovtraj.launch.launch_fit import LaunchFit, find_launch_fit
+from ovtraj.paths import scenario_file
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
 from ovtraj.runs.runners import RunnerChoice, choose_runner
 from ovtraj.runs.store import Run
-from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import TIMEOUTS, code_version
 from tasks.doe import mission_batch_task

@@ -29,7 +29,7 @@ from flows.common import (
 )
 from flows.runners import task_runner
 from ovtraj.launch.launch_fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
-from ovtraj.store.paths import scenario_file
+from ovtraj.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.launch import launch_point_task
 

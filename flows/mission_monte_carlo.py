@@ -43,12 +43,12 @@ from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.high_fidelity import high_fidelity_settings
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan_store import read_plan
+from ovtraj.paths import config_path
 from ovtraj.runs.plan_monte_carlo import (
     PlanMonteCarloRequest,
     drive_plan_monte_carlo,
     store_of,
 )
-from ovtraj.store.paths import config_path
 from tasks.common import TIMEOUTS, code_version
 from tasks.mission_monte_carlo import plan_mc_batch_task
 

@@ -41,13 +41,13 @@ from flows.doe import TaskBatches, ensure_launch_fit
 from flows.optimize import front_table
 from flows.surrogate import publish_validation
 from flows.verdict import run_from_command_line, verdict_state
+from ovtraj.paths import scenario_file
 from ovtraj.pipeline import PipelineResult
 from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
 from ovtraj.pipeline.pick import checked_pick
 from ovtraj.pipeline.planning import last_surrogates
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import choose_runner
-from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.common import code_version
 

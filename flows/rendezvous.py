@@ -12,7 +12,7 @@ from flows.common import (
     run_name,
     run_tags,
 )
-from ovtraj.store.paths import scenario_file
+from ovtraj.paths import scenario_file
 from ovtraj.target_sources import load_scenario
 from tasks.rendezvous import rendezvous_task
 

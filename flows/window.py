@@ -31,10 +31,10 @@ from prefect.futures import as_completed
 from flows.common import embedded_plots, label_flow_run, run_name, run_tags
 from flows.runners import task_runner
 from flows.verdict import run_from_command_line, verdict_state
+from ovtraj.paths import scenario_file
 from ovtraj.pipeline.pick import checked_pick
 from ovtraj.runs import RunStore
 from ovtraj.runs.runners import RunnerChoice, choose_runner
-from ovtraj.store.paths import scenario_file
 from ovtraj.target_sources import load_scenario_with_target
 from ovtraj.window.records import window_verdict
 from ovtraj.window.report import window_rows

@@ -16,7 +16,7 @@ import yaml
 
 from ovtraj.astro.atmosphere import Atmosphere, ExponentialAtmosphere, US76Atmosphere
 from ovtraj.config.physical import default_atmosphere, us76_atmosphere
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 
 KM = 1000.0
 # US76 constants, used only to place the references (Table 4 bases are geopotential).

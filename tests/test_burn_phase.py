@@ -19,13 +19,13 @@ import pytest
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import MissionContext, MissionDesign, reference
 from ovtraj.mission.chain import _launch_leg, rendezvous_settings
+from ovtraj.paths import config_path
 from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import target_mean_motion
 from ovtraj.rendezvous import stage
 from ovtraj.rendezvous.hohmann import hohmann
 from ovtraj.rendezvous.inputs import RendezvousInput
 from ovtraj.rendezvous.phasing import first_wait
-from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 # The stage refines the wait on the osculating phase angle, whose J2 short-period terms

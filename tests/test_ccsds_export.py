@@ -28,7 +28,7 @@ from ovtraj.mission.fly import replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import write_plan
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)

@@ -35,7 +35,7 @@ from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import write_plan
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO, REPO
 

@@ -184,7 +184,7 @@ def test_the_installed_command_exports_and_flies_a_plan_with_the_shipped_setting
     from ovtraj.mission.chain import MissionContext, MissionDesign
     from ovtraj.mission.plan_build import build_plan
     from ovtraj.mission.plan_store import write_plan
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
     from ovtraj.target_sources import load_scenario
 
     scenario = load_scenario(config_path("scenario.yaml"))

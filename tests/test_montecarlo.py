@@ -34,7 +34,7 @@ from ovtraj.mission.montecarlo import (
 from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import read_plan, write_plan
 from ovtraj.mission.sky_flight import format_fidelity_report
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)

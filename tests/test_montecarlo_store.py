@@ -23,10 +23,10 @@ from ovtraj.cli import app
 from ovtraj.mission.montecarlo import MANOEUVRES, planned_dv
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan_store import read_plan
+from ovtraj.paths import config_path
 from ovtraj.plots.render import png_bytes
 from ovtraj.runs.plan_monte_carlo import PICTURES, monte_carlo_figures
 from ovtraj.store.environment_block import unstamped
-from ovtraj.store.paths import config_path
 from ovtraj.tracking.catalog import plan_id
 from tests.conftest import replan_nights
 

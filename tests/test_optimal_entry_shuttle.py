@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 from ovtraj.studies.optimal_entry import load_optimal_entry, solve_optimal_entry
 from ovtraj.studies.optimal_entry.flight import fly
 from ovtraj.studies.optimal_entry.mesh import refined_edges

@@ -20,8 +20,8 @@ from ovtraj.deorbit.pass_estimate import first_pass_s
 from ovtraj.deorbit.stage import burn_estimate, first_burn_time_s, forecast_of
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import evaluate, reference
+from ovtraj.paths import config_path
 from ovtraj.pipeline.pass_model import PassModel
-from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
 from ovtraj.target_state import circular_orbit_state
 

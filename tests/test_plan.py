@@ -24,8 +24,8 @@ from ovtraj.mission.fly import fly_plan, format_flight_report
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.mission.plan_build import build_plan, plan_and_record
 from ovtraj.mission.plan_store import plan_json, read_plan, write_plan
+from ovtraj.paths import config_path
 from ovtraj.plots.mission import mission_plots
-from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)

@@ -12,6 +12,7 @@ import pytest
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import MissionContext, MissionDesign, evaluate
 from ovtraj.optimize.objectives import Normalisation
+from ovtraj.paths import reference_dir
 from ovtraj.plots.coastlines import (
     COASTLINE_FILE,
     load_coastlines,
@@ -22,7 +23,6 @@ from ovtraj.plots.front import front_figure, front_plot
 from ovtraj.plots.mission import mission_figures, mission_plots
 from ovtraj.plots.render import png_bytes
 from ovtraj.plots.surrogate import display_unit, parity_figure
-from ovtraj.store.paths import reference_dir
 from tests.conftest import build_scenario
 
 PNG = b"\x89PNG\r\n\x1a\n"

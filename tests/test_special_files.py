@@ -27,9 +27,9 @@ from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.plan import PlanError
 from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import write_plan
+from ovtraj.paths import config_path
 from ovtraj.store import locks
 from ovtraj.store.files import StoreError, write_bytes
-from ovtraj.store.paths import config_path
 from ovtraj.target_sources import load_scenario
 
 FEASIBLE = MissionDesign(285.06, 326.96, 0.79)  # tests/test_ccsds_export.py's design

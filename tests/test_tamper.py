@@ -24,9 +24,9 @@ import pytest
 
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionDesign, MissionRecord, reference
+from ovtraj.paths import reference_dir
 from ovtraj.runs import RunStore, execute, latin_hypercube
 from ovtraj.store.files import Digest, StoreError
-from ovtraj.store.paths import reference_dir
 from ovtraj.store.products import Product
 from ovtraj.store.seals import STORE_KEY_ENV, TamperedError
 from ovtraj.studies.deorbit_burn.store import MonteCarloRun

@@ -15,7 +15,7 @@ from types import ModuleType
 import pytest
 import yaml
 
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 
 TOOL = Path(__file__).resolve().parents[1] / "tools" / "us76_upper_atmosphere.py"
 CONFIG = config_path("atmosphere_us76.yaml")

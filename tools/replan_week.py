@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 from ovtraj.config.target import default_source_settings
-from ovtraj.store.paths import config_dir
+from ovtraj.paths import config_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent

@@ -15,7 +15,7 @@ import typer.core
 from ovtraj.cli.progress import configure_logging
 from ovtraj.config import ConfigError, Scenario
 from ovtraj.formatting import joined, quantity, split_unit
-from ovtraj.store.paths import scenario_file
+from ovtraj.paths import scenario_file
 from ovtraj.store.records import json_text, plain
 
 app = typer.Typer(
@@ -256,7 +256,7 @@ def run_store(
     root: str | None, scenario: Scenario | None = None, config: Path | None = None
 ) -> Any:
     """``--store``, else the scenario's store (relative to its file ``config``), else the
-    workspace's (ovtraj.store.paths)."""
+    workspace's (ovtraj.store.paths.store_root)."""
     from ovtraj.runs import RunStore
 
     if scenario is not None:

@@ -103,7 +103,7 @@ def fly(
     if monte_carlo:  # the estimate said (stderr) before the work; refused beyond the limit
         typer.echo(_monte_carlo_estimate(monte_carlo, fidelity.value, allow_long_run), err=True)
     if force_model is not None:
-        from ovtraj.store.paths import config_path
+        from ovtraj.paths import config_path
 
         read = config_path("force_model.yaml") if force_model_file is None else force_model_file
         row, landed = _high_fidelity(plan, dispersions, force_model, str(Path(read).resolve()))

@@ -21,7 +21,7 @@ from ovtraj.cli.progress import progress_bar
 from ovtraj.config import ConfigError
 from ovtraj.config.deorbit_burn import MonteCarloConfig
 from ovtraj.formatting import duration, number
-from ovtraj.store.paths import workspace
+from ovtraj.paths import workspace
 from ovtraj.store.records import plain
 
 _OPTIMAL_ENTRY_ROWS: RowSpec = [

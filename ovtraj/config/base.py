@@ -30,8 +30,8 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
+from ovtraj.bounded_reads import read_yaml
 from ovtraj.errors import ConfigError
-from ovtraj.store.paths import read_yaml
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -318,7 +318,7 @@ def load_model(model: type[ModelT], path: str | Path) -> ModelT:
 
     The file is read only if it is a regular file within ``config_file_max_kib``
     (``configs/io_limits.yaml``), and YAML anchors and aliases are refused
-    (:func:`ovtraj.store.paths.read_yaml`).
+    (:func:`ovtraj.bounded_reads.read_yaml`).
     """
     path = Path(path)
     return model_from_dict(model, yaml_data(path), str(path), source_dir=path.resolve().parent)

@@ -143,6 +143,6 @@ class DispersionsConfig(StrictModel):
 @lru_cache(maxsize=1)
 def default_dispersions() -> DispersionsConfig:
     """The shipped ``configs/dispersions.yaml``."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(DispersionsConfig, config_path("dispersions.yaml"))

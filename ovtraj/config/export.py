@@ -85,6 +85,6 @@ class CcsdsExportSettings(StrictModel):
 @lru_cache(maxsize=1)
 def default_export_settings() -> CcsdsExportSettings:
     """The shipped ``configs/ccsds_export.yaml``."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(CcsdsExportSettings, config_path("ccsds_export.yaml"))

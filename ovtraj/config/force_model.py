@@ -163,6 +163,6 @@ class ForceModelSettings(StrictModel):
 @lru_cache(maxsize=1)
 def default_force_model() -> ForceModelSettings:
     """The shipped ``configs/force_model.yaml``."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(ForceModelSettings, config_path("force_model.yaml"))

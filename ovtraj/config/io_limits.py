@@ -3,7 +3,7 @@
 * the size of a config, scenario, launcher, dispersions, export-settings or plan file
   (:func:`read_config_file`; element sets have ``url_max_mib`` of
   ``configs/target_sources.yaml``), read only if it is a regular file
-  (:func:`ovtraj.store.paths.read_text_file`);
+  (:func:`ovtraj.bounded_reads.read_text_file`);
 * the characters of a value or a name echoed in an error line (:func:`echoed`), and of
   a stored text (a name, a tag, an id) a command's plain output shows (:func:`shown_text`);
 * the disk a DoE sample takes, for the estimate checked against the free disk before a
@@ -84,7 +84,8 @@ class IoLimits(StrictModel):
 @lru_cache(maxsize=1)
 def io_limits() -> IoLimits:
     """The shipped ``configs/io_limits.yaml`` (``OVTRAJ_CONFIG_DIR`` moves it)."""
-    from ovtraj.store.paths import config_path, read_text_file
+    from ovtraj.bounded_reads import read_text_file
+    from ovtraj.paths import config_path
 
     try:
         path = config_path(FILE)
@@ -104,7 +105,7 @@ def io_limits() -> IoLimits:
 def read_config_file(path: str | Path) -> str:
     """The text of a config, scenario or plan file: a regular UTF-8 file of at most
     ``config_file_max_kib``; :class:`ConfigError` naming the file otherwise."""
-    from ovtraj.store.paths import read_text_file
+    from ovtraj.bounded_reads import read_text_file
 
     limits = io_limits()
     return read_text_file(

@@ -19,7 +19,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from ovtraj.config.base import ConfigError, StrictModel, bounded, parse_yaml
 from ovtraj.config.physical import default_earth
-from ovtraj.store.paths import config_dir
+from ovtraj.paths import config_dir
 
 # The ten design variables of patent step 101, in the order of the design vector.
 DESIGN_VARIABLES: tuple[str, ...] = (

@@ -43,6 +43,6 @@ class MonteCarloPlotSettings(StrictModel):
 @lru_cache(maxsize=1)
 def default_montecarlo_plots() -> MonteCarloPlotSettings:
     """The shipped ``configs/montecarlo_plots.yaml``."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(MonteCarloPlotSettings, config_path("montecarlo_plots.yaml"))

@@ -1,4 +1,4 @@
-"""How the Prefect flows run: timeouts, Dask checks, task results, concurrency (issue 19).
+"""How the Prefect flows run: timeouts, Dask checks, task results, concurrency.
 
 ``configs/orchestration.yaml`` (shipped; ``OVTRAJ_CONFIG_DIR`` moves it). These settings
 belong to no scenario: they never change a result or a run id, and a stored run's
@@ -15,7 +15,7 @@ from pathlib import Path
 from pydantic import Field
 
 from ovtraj.config.base import StrictModel, bounded, load_model
-from ovtraj.store.paths import config_path, workspace
+from ovtraj.paths import config_path, workspace
 
 FILE = "orchestration.yaml"
 # Overrides results.storage (a folder or an fsspec URL): the tests' own result storage.

@@ -2,7 +2,7 @@
 US76 atmosphere (``atmosphere_us76.yaml``), each a regular file within
 ``config_file_max_kib`` without YAML anchors (:func:`.io_limits.read_config_file`),
 validated into :mod:`ovtraj.astro`'s types. Here, not in ``astro``: the numeric kernels
-read no file (issue 45, the layer contracts in pyproject.toml)."""
+read no file (the layers contract in pyproject.toml)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,9 @@ from pathlib import Path
 
 from ovtraj.astro.atmosphere import US76Atmosphere, US76Table
 from ovtraj.astro.constants import EarthModel
+from ovtraj.bounded_reads import read_yaml
 from ovtraj.config.io_limits import read_config_file
-from ovtraj.store.paths import config_path, read_yaml
+from ovtraj.paths import config_path
 
 __all__ = [
     "default_atmosphere",

@@ -15,7 +15,7 @@ from pydantic import Field
 
 from ovtraj.config.base import StrictModel, bounded, load_model
 from ovtraj.formatting import split_unit
-from ovtraj.store.paths import config_path
+from ovtraj.paths import config_path
 
 FILE = "reproducibility.yaml"
 # A tolerance: a finite difference, at least 0, in the column's unit.

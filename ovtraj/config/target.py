@@ -149,7 +149,7 @@ class TargetSourceSettings(StrictModel):
 @lru_cache(maxsize=1)
 def default_source_settings() -> TargetSourceSettings:
     """The shipped ``configs/target_sources.yaml``."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(TargetSourceSettings, config_path("target_sources.yaml"))
 

@@ -46,8 +46,8 @@ from ovtraj.launch.insertion import MATCH_PHASE, InsertionPoint, solve_launch_to
 from ovtraj.launch.launch_fit import LaunchFit, design_of, launch_fit_key, predicted_design
 from ovtraj.launch.result import PHASES, LaunchResult
 from ovtraj.launch.stage import ascent_model, solve_launch
+from ovtraj.paths import workspace
 from ovtraj.store.files import StoreError
-from ovtraj.store.paths import workspace
 from ovtraj.store.products import Product
 from ovtraj.version import code_version
 

@@ -22,7 +22,7 @@ from pydantic import Field
 from ovtraj.config import Scenario
 from ovtraj.config.base import StrictModel, bounded, load_model
 from ovtraj.mission.chain import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
-from ovtraj.store.paths import config_path, reference_dir
+from ovtraj.paths import config_path, reference_dir
 from ovtraj.store.products import Product
 from ovtraj.store.records import table_from_rows
 from ovtraj.target_sources import load_scenario

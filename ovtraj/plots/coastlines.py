@@ -3,7 +3,7 @@
 The coastlines are Natural Earth's 1:110m land boundaries (Natural Earth 4.1.0, public
 domain, https://www.naturalearthdata.com/), as redistributed in TopoJSON by the npm
 package ``world-atlas`` 2.0.2 (``land-110m.json``; packaging ISC, M. Bostock). They ship
-with ovtraj as ``coastlines_110m.json`` in the reference data (``ovtraj.store.paths.reference_dir``;
+with ovtraj as ``coastlines_110m.json`` in the reference data (``ovtraj.paths.reference_dir``;
 ``data/reference/`` in a checkout, ``ovtraj/reference/`` in the wheel), converted once by
 ``tools/make_coastlines.py``: nothing is downloaded at run time.
 
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ovtraj.store.paths import reference_dir
+from ovtraj.paths import reference_dir
 
 __all__ = [
     "COASTLINE_FILE",

@@ -31,10 +31,11 @@ from ovtraj.config.montecarlo_plots import MonteCarloPlotSettings, default_monte
 from ovtraj.mission.montecarlo import MANOEUVRES, planned_dv
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, fly_batch
 from ovtraj.mission.plan import MissionPlan
+from ovtraj.paths import config_path
 from ovtraj.plots.montecarlo import LOOPS, LandingPoints, Site, dv_figure, footprint_figure
 from ovtraj.plots.render import png_bytes
 from ovtraj.store.batched import consecutive_batches
-from ovtraj.store.paths import config_path, store_root
+from ovtraj.store.paths import store_root
 
 __all__ = [
     "PICTURES",

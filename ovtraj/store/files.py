@@ -57,8 +57,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ovtraj.bounded_reads import file_kind
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
-from ovtraj.store.paths import file_kind
 from ovtraj.store.records import json_text
 
 __all__ = [

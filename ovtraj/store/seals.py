@@ -22,7 +22,7 @@ authenticates its data files too.
   naming the file): it was changed without the key, sealed with another key, or written
   while no key was configured (such a store cannot be authenticated). Without a key the
   seal is not checked. Readers get the document without its seal.
-- *Shipped reference data* (:func:`ovtraj.store.paths.reference_dir`, e.g. the launch fit and
+- *Shipped reference data* (:func:`ovtraj.paths.reference_dir`, e.g. the launch fit and
   the mission chain's reference) is part of the code, trusted as the code is: it is
   neither sealed nor checked, so it reads under any key and keeps its bytes.
 """
@@ -38,10 +38,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from ovtraj.paths import reference_dir
 from ovtraj.store.backends import S3Path
 from ovtraj.store.environment_block import environment_problem
 from ovtraj.store.files import Digest, StoreError, read_json, write_json
-from ovtraj.store.paths import reference_dir
 from ovtraj.store.records import plain
 
 __all__ = [

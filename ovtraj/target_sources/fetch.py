@@ -75,7 +75,7 @@ def is_url(source: str) -> bool:
 
 def default_cache_dir() -> Path:
     """``<workspace>/target_sources``: beside the run store (``<workspace>/runs``)."""
-    from ovtraj.store import paths
+    from ovtraj import paths
 
     return paths.workspace() / "target_sources"
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
+from ovtraj.bounded_reads import read_text_file
 from ovtraj.config.base import ConfigError, model_from_dict
 from ovtraj.config.io_limits import echoed
 from ovtraj.config.target import (
@@ -36,7 +37,6 @@ from ovtraj.config.target import (
 from ovtraj.element_sets.elements import SourceElements, select_element_set
 from ovtraj.element_sets.omm import looks_like_omm, omm_element_sets
 from ovtraj.element_sets.tle import tle_element_sets
-from ovtraj.store.paths import read_text_file
 from ovtraj.target_sources.fetch import fetch_text, is_url
 
 if TYPE_CHECKING:
@@ -296,7 +296,7 @@ def fit_source(
     ``epoch_utc`` (ISO 8601) and ``span_h`` [h] override. Every bad input is a
     :class:`ConfigError`.
     """
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
     from ovtraj.target_sources.mean_elements_fit import fit_target
 
     is_scenario = not is_url(source) and Path(source).suffix.lower() in _SCENARIO_SUFFIXES

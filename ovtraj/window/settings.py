@@ -34,6 +34,6 @@ class WindowSettings(StrictModel):
 
 def load_window_settings(path: str | Path | None = None) -> WindowSettings:
     """``configs/window.yaml`` (or ``path``); a ConfigError names the file and the field."""
-    from ovtraj.store.paths import config_path
+    from ovtraj.paths import config_path
 
     return load_model(WindowSettings, path or config_path(FILE))
