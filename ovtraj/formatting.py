@@ -233,3 +233,11 @@ def clipped(text: str, max_chars: int) -> str:
     keep = max(max_chars - len(_ELLIPSIS), 0)
     head = (keep + 1) // 2
     return text[:head] + _ELLIPSIS + text[len(text) - (keep - head) :]
+
+
+def one_line(text: str, max_chars: int) -> str:
+    """``text`` as one printable line of at most ``max_chars`` characters: every
+    non-printable character escaped (:func:`printable`), a longer text cut in the middle
+    (:func:`clipped`). A value or a name echoed in an error line is shown so."""
+    # cut before escaping too: escaping a long text costs its length in time
+    return clipped(printable(clipped(text, max_chars)), max_chars)

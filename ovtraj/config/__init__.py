@@ -13,6 +13,12 @@ from ovtraj.config.scenario import (
     VehicleConfig,
     scenario_from_dict,
 )
+from ovtraj.config.store_settings import store_settings
+from ovtraj.store.settings import use_settings
+
+# The store, below this layer, reads no configuration file: it gets its settings from here,
+# read at its first need (ovtraj/config/store_settings.py).
+use_settings(store_settings)
 
 __all__ = [
     "ConfigError",

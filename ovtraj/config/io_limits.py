@@ -1,4 +1,5 @@
-"""What ovtraj reads and writes at most (``configs/io_limits.yaml``; issue 44).
+"""What ovtraj reads and writes at most, and how long it waits on an object store
+(``configs/io_limits.yaml``).
 
 * the size of a config, scenario, launcher, dispersions, export-settings or plan file
   (:func:`read_config_file`; element sets have ``url_max_mib`` of
@@ -11,7 +12,9 @@
 * the nesting depth and the number length of a JSON file read
   (:func:`ovtraj.store.files.json_data`);
 * the runs ``ovtraj fly --monte-carlo`` flies without ``--allow-long-run``, and the
-  seconds a run takes for the estimate it prints first.
+  seconds a run takes for the estimate it prints first;
+* the waits of an object-store request, for its connection and for each read of its
+  answer (:mod:`ovtraj.store.backends`).
 
 Like ``configs/orchestration.yaml`` these belong to no scenario: they never change a
 result or a run id.
@@ -22,8 +25,10 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
+from ovtraj.bounded_reads import read_text_file
 from ovtraj.config.base import ConfigError, StrictModel, bounded, model_from_dict, parse_yaml
-from ovtraj.formatting import clipped, printable
+from ovtraj.formatting import one_line
+from ovtraj.paths import config_path
 
 FILE = "io_limits.yaml"
 _BYTES_PER_KIB = 1024
@@ -69,6 +74,12 @@ class IoLimits(StrictModel):
     fly_monte_carlo_high_s_per_run: float = bounded(
         unit="s", gt=0, le=1e6, description="a dispersed flight under --fidelity high takes"
     )
+    s3_connect_timeout_s: float = bounded(
+        unit="s", gt=0, le=3600, description="an object-store request waits for its connection"
+    )
+    s3_read_timeout_s: float = bounded(
+        unit="s", gt=0, le=3600, description="an object-store request waits for each read"
+    )
 
     @property
     def config_file_max_bytes(self) -> int:
@@ -84,9 +95,6 @@ class IoLimits(StrictModel):
 @lru_cache(maxsize=1)
 def io_limits() -> IoLimits:
     """The shipped ``configs/io_limits.yaml`` (``OVTRAJ_CONFIG_DIR`` moves it)."""
-    from ovtraj.bounded_reads import read_text_file
-    from ovtraj.paths import config_path
-
     try:
         path = config_path(FILE)
     except FileNotFoundError as err:
@@ -105,8 +113,6 @@ def io_limits() -> IoLimits:
 def read_config_file(path: str | Path) -> str:
     """The text of a config, scenario or plan file: a regular UTF-8 file of at most
     ``config_file_max_kib``; :class:`ConfigError` naming the file otherwise."""
-    from ovtraj.bounded_reads import read_text_file
-
     limits = io_limits()
     return read_text_file(
         path,
@@ -117,12 +123,10 @@ def read_config_file(path: str | Path) -> str:
 
 def echoed(text: str, max_chars: int | None = None) -> str:
     """``text`` as one printable line of at most ``max_chars`` characters (default:
-    ``echo_max_chars``): every non-printable character escaped
-    (:func:`ovtraj.formatting.printable`), a longer text cut in the middle
-    (:func:`ovtraj.formatting.clipped`). For a value, echo ``repr(value)``."""
+    ``echo_max_chars``): every non-printable character escaped, a longer text cut in the
+    middle (:func:`ovtraj.formatting.one_line`). For a value, echo ``repr(value)``."""
     limit = io_limits().echo_max_chars if max_chars is None else max_chars
-    # cut before escaping too: escaping a long text costs its length in time
-    return clipped(printable(clipped(text, limit)), limit)
+    return one_line(text, limit)
 
 
 def shown_text(value: object) -> str:

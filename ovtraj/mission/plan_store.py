@@ -29,7 +29,7 @@ def plan_json(plan: MissionPlan) -> bytes:
 
 class _WrittenOut(yaml.SafeDumper):
     """Every value written where it is: :func:`read_plan` refuses anchors and aliases
-    (:func:`ovtraj.store.paths.read_yaml`), which PyYAML writes for an object met twice."""
+    (:func:`ovtraj.bounded_reads.read_yaml`), which PyYAML writes for an object met twice."""
 
     def ignore_aliases(self, data: Any) -> bool:
         return True

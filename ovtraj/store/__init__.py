@@ -9,5 +9,6 @@ the pipeline.
 - :mod:`.batched`: a run stored batch by batch (the generic store of the Monte Carlo
   studies; the mission DoE's run store is :mod:`ovtraj.runs.store`);
 - :mod:`.result_records`: Prefect's task result records, read as data only;
-- :mod:`.paths`: where a run store is (``--store``, the config's, the workspace's).
+- :mod:`.paths`: where a run store is (``--store``, the config's, the workspace's);
+- :mod:`.settings`: the store's limits and waits, given by the configuration layer.
 """

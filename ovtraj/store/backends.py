@@ -25,6 +25,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from ovtraj.errors import ConfigError
+from ovtraj.store.settings import given_settings
 
 __all__ = ["PreconditionFailed", "S3Path", "StorageError", "location"]
 
@@ -51,11 +52,14 @@ def _client() -> Any:
     from botocore.config import Config
 
     # Bounded: a request never hangs (every figure of the retry and time-out policy
-    # is boto3's standard mode, plus these two limits).
-    return boto3.client(
-        "s3",
-        config=Config(retries={"mode": "standard"}, connect_timeout=10, read_timeout=60),
+    # is boto3's standard mode, plus the two waits of configs/io_limits.yaml).
+    settings = given_settings()
+    config = Config(
+        retries={"mode": "standard"},
+        connect_timeout=settings.s3_connect_timeout_s,
+        read_timeout=settings.s3_read_timeout_s,
     )
+    return boto3.client("s3", config=config)
 
 
 def _code(err: Exception) -> str | None:

@@ -33,7 +33,8 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ovtraj.environment import environment
 from ovtraj.store.backends import S3Path
-from ovtraj.store.files import StoreError, read_settings
+from ovtraj.store.files import StoreError
+from ovtraj.store.settings import given_settings
 
 __all__ = ["ENVIRONMENT_KEY", "EnvironmentBlock", "environment_problem", "stamped", "unstamped"]
 
@@ -116,7 +117,7 @@ class EnvironmentBlock(_Declared):
 
 def _problem(block: Any) -> str | None:
     """Why ``block`` is not a declared environment block, in a few words; None if it is."""
-    largest = int(read_settings().environment_block_max_kib * _BYTES_PER_KIB)
+    largest = int(given_settings().environment_block_max_kib * _BYTES_PER_KIB)
     try:
         size = len(json.dumps(block, separators=(",", ":"), allow_nan=False))
     except (TypeError, ValueError, RecursionError):

@@ -58,8 +58,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ovtraj.bounded_reads import file_kind
+from ovtraj.formatting import one_line
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
 from ovtraj.store.records import json_text
+from ovtraj.store.settings import given_settings
 
 __all__ = [
     "DecodedTables",
@@ -127,7 +129,7 @@ class Digest:
         if not isinstance(data, dict):
             raise ValueError(f"not a file digest (a JSON {type(data).__name__}, not an object)")
         size, sha256 = data.get("bytes"), data.get("sha256")
-        largest = int(read_settings().stored_file_max_mib * _BYTES_PER_MIB)
+        largest = int(given_settings().stored_file_max_mib * _BYTES_PER_MIB)
         if type(size) is not int or not 0 <= size <= largest:
             found = "a whole number outside it" if type(size) is int else f"a {type(size).__name__}"
             raise ValueError(
@@ -168,15 +170,6 @@ def file_digest(path: Path) -> Digest:
     return Digest(size, sha256)
 
 
-@functools.cache
-def read_settings() -> Any:
-    """``reads`` of ``configs/orchestration.yaml`` (:class:`~ovtraj.config.orchestration.
-    ReadSettings`), read once per process at its first read of a store file."""
-    from ovtraj.config.orchestration import load_orchestration
-
-    return load_orchestration().reads
-
-
 def _open_stored(path: Path) -> tuple[int, os.stat_result]:
     """A descriptor of the regular file at the local ``path`` and its status; StoreError
     naming it for anything else (missing, a symbolic link, a FIFO, a device...)."""
@@ -206,7 +199,7 @@ def _read_local(path: Path, expected: Digest | None) -> bytes:
                 f"{expected.size} recorded)"
             )
         if expected is None:
-            largest = int(read_settings().unrecorded_file_max_mib * _BYTES_PER_MIB)
+            largest = int(given_settings().unrecorded_file_max_mib * _BYTES_PER_MIB)
             if info.st_size > largest:
                 raise StoreError(
                     f"{path}: {info.st_size} bytes, more than a file read without a recorded "
@@ -233,8 +226,7 @@ def marker_files(marker: Path, content: Any) -> dict[str, Digest]:
     each checked: a name that stays inside the folder (no absolute path, ``..`` or control
     character) and a usable digest (:meth:`Digest.from_json`). StoreError naming the
     marker otherwise."""
-    from ovtraj.config.io_limits import echoed
-
+    longest = given_settings().echo_max_chars
     listed = content.get("files") if isinstance(content, dict) else None
     if not isinstance(listed, dict):
         raise StoreError(f"{marker}: lists no file digests")
@@ -248,14 +240,15 @@ def marker_files(marker: Path, content: Any) -> dict[str, Digest]:
             or not name.isprintable()
             or "\\" in name
         ):
+            shown = one_line(repr(name), longest)
             raise StoreError(
-                f"{marker}: lists {echoed(repr(name))}, a file name that leaves its folder "
+                f"{marker}: lists {shown}, a file name that leaves its folder "
                 "or holds a control character (an absolute path, '..', a backslash); not read"
             )
         try:
             digests[name] = Digest.from_json(record)
         except ValueError as err:
-            raise StoreError(f"{marker}: {echoed(name)}: {err}") from None
+            raise StoreError(f"{marker}: {one_line(name, longest)}: {err}") from None
     return digests
 
 
@@ -480,9 +473,7 @@ def json_data(text: str | bytes) -> Any:
     (``1e999``), ``NaN`` or ``Infinity`` (not JSON: :func:`json_text` never writes them),
     or arrays and objects nested deeper than ``json_max_depth`` (``configs/io_limits.yaml``;
     Python's parser would end in a RecursionError near 1000 levels)."""
-    from ovtraj.config.io_limits import io_limits
-
-    limits = io_limits()
+    limits = given_settings()
     longest = limits.json_number_max_chars
     where = "json_number_max_chars of configs/io_limits.yaml"
 
@@ -587,8 +578,8 @@ class DecodedTables:
 @functools.cache
 def decoded_tables() -> DecodedTables:
     """This process's :class:`DecodedTables`, bounded by ``reads.decoded_tables_mib`` of
-    ``configs/orchestration.yaml`` (:func:`read_settings`)."""
-    return DecodedTables(int(read_settings().decoded_tables_mib * _BYTES_PER_MIB))
+    ``configs/orchestration.yaml`` (:mod:`ovtraj.store.settings`)."""
+    return DecodedTables(int(given_settings().decoded_tables_mib * _BYTES_PER_MIB))
 
 
 def read_table(

@@ -29,7 +29,6 @@ authenticates its data files too.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import hmac
 import json
@@ -43,6 +42,7 @@ from ovtraj.store.backends import S3Path
 from ovtraj.store.environment_block import environment_problem
 from ovtraj.store.files import Digest, StoreError, read_json, write_json
 from ovtraj.store.records import plain
+from ovtraj.store.settings import given_settings
 
 __all__ = [
     "SEAL_FIELD",
@@ -65,14 +65,6 @@ class TamperedError(StoreError):
     """A manifest or marker whose seal is missing or wrong under the configured key (named)."""
 
 
-@functools.cache
-def _min_key_bytes() -> int:
-    # Read once per process, and only when a key is configured.
-    from ovtraj.config.orchestration import load_orchestration
-
-    return load_orchestration().store_key.min_bytes
-
-
 def store_key() -> bytes | None:
     """The configured key (``OVTRAJ_STORE_KEY`` as UTF-8 bytes), or None when it is unset.
 
@@ -85,7 +77,7 @@ def store_key() -> bytes | None:
     from ovtraj.errors import ConfigError
 
     key = text.encode("utf-8", "surrogateescape")
-    least = _min_key_bytes()
+    least = given_settings().store_key_min_bytes
     if len(key) < least:
         # The key's length only, never its text.
         raise ConfigError(
