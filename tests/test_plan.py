@@ -20,7 +20,8 @@ from ovtraj.mission.chain import (
     entry_state,
     evaluate,
 )
-from ovtraj.mission.fly import fly_plan, format_flight_report
+from ovtraj.mission.flight_report import format_flight_report
+from ovtraj.mission.fly import fly_plan
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.mission.plan_build import build_plan, plan_and_record
 from ovtraj.mission.plan_store import plan_json, read_plan, write_plan

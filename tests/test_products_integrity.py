@@ -64,7 +64,7 @@ def _all_nan(cls, **given):
 
 
 def test_result_rows_give_null_for_nan():
-    from ovtraj.mission.fly import FlightReport
+    from ovtraj.mission.flight_report import FlightReport
     from ovtraj.studies.deorbit_burn.result import DeorbitBurnResult
     from ovtraj.studies.maneuver.result import ManeuverResult
     from ovtraj.studies.optimal_entry.result import OptimalEntryResult

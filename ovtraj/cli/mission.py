@@ -85,7 +85,8 @@ def fly(
     is written again with it (both paths printed).
 
     Example: `ovtraj fly plan-sample-30.json --monte-carlo 20 --seed 1`"""
-    from ovtraj.mission.fly import fly_plan, format_flight_report
+    from ovtraj.mission.flight_report import format_flight_report
+    from ovtraj.mission.fly import fly_plan
     from ovtraj.mission.high_fidelity import high_fidelity_settings
     from ovtraj.mission.plan import PlanError
     from ovtraj.mission.plan_store import read_plan

@@ -44,7 +44,9 @@ from ovtraj.astro.rocket import burn_durations
 from ovtraj.config import scenario_from_dict
 from ovtraj.config.export import FORMATS, CcsdsExportSettings, kvn_value_problem
 from ovtraj.config.io_limits import echoed
-from ovtraj.mission.fly import EphemerisSegment, FlightReport, replay_ephemeris
+from ovtraj.mission.ephemeris import EphemerisSegment
+from ovtraj.mission.flight_report import FlightReport
+from ovtraj.mission.fly import replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.store.files import StoreError, holds_other, writable_target, write_bytes
 

@@ -4,7 +4,7 @@
 terms of :mod:`ovtraj.astro.forces`; :func:`check_span` refuses, in one line naming the
 setting, a flight outside the Earth-orientation or space-weather data; and
 :class:`HighFidelityOrbit` flies one spacecraft's arcs with the interface of the J2
-replay's :class:`ovtraj.mission.fly.ReplayOrbit`, so the closed loop of
+replay's :class:`ovtraj.mission.replay_orbit.ReplayOrbit`, so the closed loop of
 :mod:`ovtraj.mission.montecarlo` flies the same corrections under either model
 (:class:`Truth`). The on-board solvers (rendezvous, transfer, deorbit, entry guidance)
 keep the chain's J2 model: the high-fidelity model is the sky, not the planner.
@@ -29,7 +29,7 @@ from ovtraj.config import Scenario
 from ovtraj.config.body import BodyConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.errors import ConfigError
-from ovtraj.mission.fly import ReplayFailed
+from ovtraj.mission.flight_report import ReplayFailed
 
 __all__ = [
     "FIDELITIES",
@@ -199,7 +199,7 @@ def spacecraft_factors(scenario: Scenario, which: str) -> SpacecraftFactors:
 
 class HighFidelityOrbit:
     """Arcs of one spacecraft under the high-fidelity model, t in s from ``origin``; the
-    interface of :class:`ovtraj.mission.fly.ReplayOrbit` (``arc``)."""
+    interface of :class:`ovtraj.mission.replay_orbit.ReplayOrbit` (``arc``)."""
 
     def __init__(
         self,
@@ -223,7 +223,7 @@ class HighFidelityOrbit:
         self, state: np.ndarray, t0: float, t1: float, *, floor_m: float | None = None, **_: Any
     ) -> tuple[np.ndarray, float, bool, float]:
         """(state at the end, end time, stopped at ``floor_m``, lowest altitude at the
-        integrator's steps), as :meth:`ovtraj.mission.fly.ReplayOrbit.arc`."""
+        integrator's steps), as :meth:`ovtraj.mission.replay_orbit.ReplayOrbit.arc`."""
         if t1 < t0:
             raise ReplayFailed(f"the plan's epochs run backwards ({t0:.3f} -> {t1:.3f} s)")
         floor_radius = 0.0 if floor_m is None else self.earth.radius + floor_m

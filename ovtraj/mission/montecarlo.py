@@ -81,15 +81,8 @@ from ovtraj.deorbit import deorbit_input, solve_deorbit
 from ovtraj.environment import require_pinned_kernel
 from ovtraj.launch.inputs import LaunchInput
 from ovtraj.mission.chain import rendezvous_settings
-from ovtraj.mission.fly import (
-    FlightReport,
-    Perturbation,
-    ReplayFailed,
-    ReplayOrbit,
-    fly_ascent,
-    fly_plan,
-    relative_entry,
-)
+from ovtraj.mission.flight_report import FlightReport, ReplayFailed
+from ovtraj.mission.fly import fly_plan
 from ovtraj.mission.high_fidelity import (
     HighFidelityOrbit,
     TargetTrack,
@@ -97,7 +90,11 @@ from ovtraj.mission.high_fidelity import (
     spacecraft_factors,
     target_sky,
 )
+from ovtraj.mission.perturbation import Perturbation
 from ovtraj.mission.plan import MissionPlan
+from ovtraj.mission.replay_ascent import fly_ascent
+from ovtraj.mission.replay_entry import relative_entry
+from ovtraj.mission.replay_orbit import ReplayOrbit
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry import dynamics as dyn

@@ -172,10 +172,11 @@ def plan_detail_plots(
     plan: Any, trajectories: dict[str, Any], scenario: Scenario, directory: Any, name: str
 ) -> tuple[Path | None, Path | None]:
     """The plan's ascent from the drop (its programme flown by the launch stage's model,
-    :func:`ovtraj.mission.fly.ascent_trajectory`) and its entry's time histories (the
+    :func:`ovtraj.mission.replay_ascent.ascent_trajectory`) and its entry's time histories (the
     reentry's trajectory table), drawn as ``<name>_ascent.png`` and
     ``<name>_entry_histories.png`` in ``directory``; None for a figure without its data."""
-    from ovtraj.mission.fly import ReplayFailed, ascent_trajectory
+    from ovtraj.mission.flight_report import ReplayFailed
+    from ovtraj.mission.replay_ascent import ascent_trajectory
     from ovtraj.plots.ascent import ascent_plot
     from ovtraj.plots.entry import entry_histories_plot
 

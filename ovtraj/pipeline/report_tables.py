@@ -4,8 +4,9 @@
 * :func:`manoeuvres_shown`: every burn, its RTN components, duration and propellant
   (:mod:`ovtraj.mission.manoeuvres`), with the sentence that says how they are computed;
 * :func:`flight_shown`: a flight of the plan beside the plan, from the result
-  ``ovtraj fly PLAN --json`` prints (the J2 replay's :class:`~ovtraj.mission.fly.FlightReport`
-  or ``--fidelity high``'s :func:`~ovtraj.mission.sky_flight.fidelity_report`).
+  ``ovtraj fly PLAN --json`` prints (the J2 replay's
+  :class:`~ovtraj.mission.flight_report.FlightReport` or ``--fidelity high``'s
+  :func:`~ovtraj.mission.sky_flight.fidelity_report`).
 
 A flight result is data from outside (a file the user saved): each figure is read only when
 it is a finite number, text is shown as text (the report escapes it), and a result of
