@@ -316,7 +316,7 @@ def test_the_pipeline_fits_and_draws_on_the_cluster_the_files_of_a_serial_run(cl
     assert any(name.startswith("parity-") for name in names)
     assert stored["dask"] == stored["serial"]
     # The fits and the plots ran there (the DoE batches import neither), and no file did.
-    assert any(_loaded_on_workers(cluster.address, "ovtraj.surrogate.surrogate_set"))
+    assert any(_loaded_on_workers(cluster.address, "ovtraj.surrogate.regressor_selection"))
     assert any(_loaded_on_workers(cluster.address, "ovtraj.plots.front"))
     for name, folder in cluster.folders.items():
         if name != "scheduler":

@@ -1,4 +1,4 @@
-"""The fitted surrogate models stored as data and rebuilt (issue 44, ovtraj.surrogate.model_data).
+"""The fitted surrogate models stored as data and rebuilt (ovtraj.surrogate.model_data).
 
 Every candidate, rebuilt from its data alone (through the stored table), predicts what the
 fitted model predicts, to the bit, at points it was not fitted on; a stored model whose
@@ -13,7 +13,7 @@ import pytest
 from scipy.stats import qmc
 
 from ovtraj.surrogate import SurrogateError
-from ovtraj.surrogate.candidates import fit_classifier, fit_regressor
+from ovtraj.surrogate.fitted_models import fit_classifier, fit_regressor
 from ovtraj.surrogate.model_data import (
     arrays_table,
     classifier_data,

@@ -7,8 +7,14 @@ import pytest
 from smt.surrogate_models import KPLS, KRG
 from smt.surrogate_models.krg_based import distances
 
-import ovtraj.surrogate.candidates  # noqa: F401  (installs it, as in the pipeline)
 from ovtraj.surrogate import smt_differences
+from ovtraj.surrogate.estimators import install_smt_speedups
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _installed():
+    """As in the pipeline: installed by the first Kriging model built."""
+    install_smt_speedups()
 
 
 def test_the_differences_equal_smts_and_other_inputs_go_to_smt():

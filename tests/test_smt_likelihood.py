@@ -10,7 +10,7 @@ import pytest
 from smt.surrogate_models import KPLS, KRG
 from smt.surrogate_models.krg_based.likelihood_eval import LikelihoodEvaluator
 
-from ovtraj.surrogate.candidates import _KPLS, _KRG
+from ovtraj.surrogate.estimators import KPLSModel, KRGModel
 from ovtraj.surrogate.smt_likelihood import RememberedLikelihood
 
 
@@ -23,7 +23,7 @@ def _fitted(model_class, u, y, **options):
 
 @pytest.mark.parametrize(
     ("ours", "stock", "options", "dim"),
-    [(_KRG, KRG, {}, 3), (_KPLS, KPLS, {"n_comp": 2}, 3), (_KRG, KRG, {}, 1)],
+    [(KRGModel, KRG, {}, 3), (KPLSModel, KPLS, {"n_comp": 2}, 3), (KRGModel, KRG, {}, 1)],
 )
 def test_fits_equal_stock_smt_with_half_the_evaluations(monkeypatch, ours, stock, options, dim):
     rng = np.random.default_rng(21)
@@ -61,7 +61,7 @@ def test_a_trained_model_keeps_no_memory_and_pickles():
     rng = np.random.default_rng(3)
     u = rng.random((15, 2))
     y = u[:, 0] - 2.0 * u[:, 1] ** 2
-    model = _fitted(_KRG, u, y)
+    model = _fitted(KRGModel, u, y)
     assert model._likelihood_evaluator._last is None
     restored = pickle.loads(pickle.dumps(model))
     grid = rng.random((50, 2))
@@ -71,7 +71,7 @@ def test_a_trained_model_keeps_no_memory_and_pickles():
 def test_another_theta_or_other_training_data_is_computed():
     rng = np.random.default_rng(4)
     u = rng.random((10, 2))
-    model = _fitted(_KRG, u, u[:, 0] + u[:, 1])
+    model = _fitted(KRGModel, u, u[:, 0] + u[:, 1])
     evaluator = RememberedLikelihood(model)
     theta = np.array([0.3, 0.7])
     first, _ = evaluator.evaluate(theta)
@@ -85,7 +85,7 @@ def test_another_theta_or_other_training_data_is_computed():
     assert evaluator.evaluations == 3
 
 
-@pytest.mark.parametrize(("ours", "options"), [(_KRG, {}), (_KPLS, {"n_comp": 3})])
+@pytest.mark.parametrize(("ours", "options"), [(KRGModel, {}), (KPLSModel, {"n_comp": 3})])
 def test_the_gradient_from_one_correlation_evaluation_equals_smts(ours, options):
     rng = np.random.default_rng(6)
     u = rng.random((18, 5))
@@ -101,10 +101,12 @@ def test_the_gradient_from_one_correlation_evaluation_equals_smts(ours, options)
     assert model.corr is kernel  # the kernel back after each gradient
 
 
-@pytest.mark.parametrize(("ours", "options", "dim"), [(_KRG, {}, 3), (_KPLS, {"n_comp": 2}, 4)])
+@pytest.mark.parametrize(
+    ("ours", "options", "dim"), [(KRGModel, {}, 3), (KPLSModel, {"n_comp": 2}, 4)]
+)
 def test_the_ordinary_path_evaluates_as_stock_smt(ours, options, dim):
     """The evaluation and the gradient through LAPACK directly: stock SMT's value, gradient
-    and every parameter, to the bit, over hyperparameters from tiny to large (issue 20)."""
+    and every parameter, to the bit, over hyperparameters from tiny to large."""
     rng = np.random.default_rng(11)
     u = rng.random((25, dim))
     model = _fitted(ours, u, np.cos(2.0 * u[:, 0]) * u[:, -1], **options)
@@ -133,7 +135,7 @@ def test_a_correlation_matrix_that_is_not_positive_definite_has_no_likelihood():
     returns (without its printout)."""
     rng = np.random.default_rng(2)
     u = rng.random((8, 2))
-    model = _fitted(_KRG, u, u[:, 0])
+    model = _fitted(KRGModel, u, u[:, 0])
     evaluator = model._likelihood_evaluator
     model.options["nugget"] = 0.0
     model.D[0] = 0.0  # the first pair's inputs made equal: their correlation is 1

@@ -7,8 +7,14 @@ import pytest
 import scipy.linalg
 from smt.surrogate_models import KPLS, KRG
 
-import ovtraj.surrogate.candidates  # noqa: F401  (installs the namespace, as in the pipeline)
 from ovtraj.surrogate import smt_linalg
+from ovtraj.surrogate.estimators import install_smt_speedups
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _installed():
+    """As in the pipeline: installed by the first Kriging model built."""
+    install_smt_speedups()
 
 
 def _fitted(model_class, u: np.ndarray, y: np.ndarray, **options):
@@ -38,7 +44,7 @@ def test_fits_equal_those_of_stock_smt(model_class, options):
 def test_the_namespace_is_scipy_linalg_but_the_four_unchecked_functions():
     from importlib import import_module
 
-    smt_linalg.install()  # idempotent: already installed by the candidates module
+    smt_linalg.install()  # idempotent: already installed
     for module_name in smt_linalg.SMT_MODULES:
         namespace = import_module(module_name).linalg
         assert namespace.unchecked
@@ -50,7 +56,7 @@ def test_the_namespace_is_scipy_linalg_but_the_four_unchecked_functions():
 
 
 def test_economic_qr_and_singular_values_equal_scipy_and_defer_the_rest():
-    """The LAPACK paths of ``qr(mode="economic")`` and ``svd(compute_uv=False)`` (issue 20):
+    """The LAPACK paths of ``qr(mode="economic")`` and ``svd(compute_uv=False)``:
     scipy's numbers to the bit on tall, square and one-column matrices, C- or
     Fortran-ordered; other modes, ``compute_uv`` and wide matrices are scipy's own."""
     rng = np.random.default_rng(8)
@@ -102,3 +108,45 @@ def test_direct_lapack_calls_equal_scipy_and_raise_as_scipy():
     singular[1, 1] = 0.0
     with pytest.raises(scipy.linalg.LinAlgError, match="singular matrix"):
         smt_linalg.solve_triangular(singular, np.ones(3))
+
+
+def test_importing_ovtraj_changes_nothing_in_smt_until_a_kriging_model_is_built(tmp_path):
+    """No side effect at import: SMT is stock after importing the library (the pipeline
+    too); unpickling a fitted Kriging candidate installs both speed-ups (a pool's parent
+    receives a fold's model without building one), and so does building one."""
+    import pickle
+    import subprocess
+    import sys
+
+    from smt.surrogate_models.krg_based import distances, krg_based, likelihood_eval
+
+    from ovtraj.surrogate import smt_differences
+    from ovtraj.surrogate.estimators import KRGModel
+
+    u = np.random.default_rng(3).random((8, 2))
+    fitted = KRGModel(print_global=False, n_start=1, seed=7)
+    fitted.set_training_values(u, u[:, 0] + u[:, 1] ** 2)
+    fitted.train()
+    stored = tmp_path / "krg.pickle"
+    stored.write_bytes(pickle.dumps(fitted))
+    script = (
+        "import pickle, scipy.linalg\n"
+        "from smt.surrogate_models.krg_based import distances, krg_based, likelihood_eval\n"
+        "def stock():\n"
+        "    return (krg_based.linalg is scipy.linalg and likelihood_eval.linalg is scipy.linalg\n"
+        "            and krg_based.differences is distances.differences)\n"
+        "import ovtraj.surrogate, ovtraj.pipeline.features, ovtraj.pipeline.steps\n"
+        "assert stock(), 'changed at import'\n"
+        f"pickle.loads(open({str(stored)!r}, 'rb').read())\n"
+        "assert not stock(), 'not installed by an unpickled model'\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    # Built: installed again after an uninstall (idempotent otherwise).
+    smt_linalg.uninstall()
+    smt_differences.uninstall()
+    KRGModel(print_global=False)
+    assert krg_based.linalg is likelihood_eval.linalg
+    assert krg_based.linalg is not scipy.linalg and krg_based.linalg.unchecked
+    assert krg_based.differences is smt_differences.differences
+    assert krg_based.differences is not distances.differences

@@ -17,6 +17,7 @@ from scipy.stats import qmc
 from sklearn.metrics import r2_score
 from sklearn.model_selection import KFold
 from smt.surrogate_models import QP, RBF
+from smt.surrogate_models.krg_based.hyperparam_optim import TNCOptimizer
 
 from ovtraj.plots.surrogate import parity_plots
 from ovtraj.store.files import StoreError
@@ -29,7 +30,8 @@ from ovtraj.surrogate import (
 )
 from ovtraj.surrogate import candidates as candidates_module
 from ovtraj.surrogate import validation as validation_module
-from ovtraj.surrogate.surrogate_set import PREDICTIONS_SCHEMA, STORED_VALIDATION_SCHEMA
+from ovtraj.surrogate.fitted_models import fit_regressor
+from ovtraj.surrogate.tables import PREDICTIONS_SCHEMA, STORED_VALIDATION_SCHEMA
 from ovtraj.surrogate.validation import holdout_mask
 
 NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
@@ -384,7 +386,7 @@ class _Payload:
 
 
 def test_a_pickle_in_a_stored_set_never_runs(fitted, tmp_path):
-    """Issue 44: a models.pkl whose loading runs a command, listed with its right digests
+    """A models.pkl whose loading runs a command, listed with its right digests
     in a marker of the old format (the pickle one) or beside the data of the current one,
     is never unpickled: the load is refused, or rebuilt from the data alone."""
     fit, _ = fitted
@@ -599,6 +601,40 @@ def test_nan_at_infeasible_samples_is_accepted(settings):
     assert np.isfinite(fit.predict(x)["t_h"]).all()
 
 
+def test_the_registry_declares_each_configurable_candidate_once(settings, scenario_data):
+    """The config accepts the registry's candidates and no other, naming the field; every
+    one builds from the settings, and a name outside the registry is refused by it."""
+    from ovtraj.config import scenario_from_dict
+    from ovtraj.config.mission import LargeSampleSettings
+    from ovtraj.config.surrogate_candidates import CLASSIFIER_NAMES, REGRESSOR_NAMES
+    from ovtraj.surrogate.candidates import (
+        CLASSIFIERS,
+        REGRESSORS,
+        CandidateError,
+        classifier,
+        regressor,
+    )
+
+    assert tuple(REGRESSORS) == REGRESSOR_NAMES and tuple(CLASSIFIERS) == CLASSIFIER_NAMES
+    assert {c.kind for c in REGRESSORS.values()} == {"regressor"}
+    assert {c.kind for c in CLASSIFIERS.values()} == {"classifier"}
+    sizes = {"exact_max_samples": 10, "cv_max_samples": 10, "gbt_iterations": 5}
+    trees = {"gbt_learning_rate": 0.1, "gbt_leaf_nodes": 4, "gbt_min_samples_leaf": 2}
+    large = settings.model_copy(update={"large_samples": LargeSampleSettings(**sizes, **trees)})
+    for name in REGRESSOR_NAMES:
+        assert hasattr(regressor(name).build(3, large, None), "predict_values")
+    flags = np.array([True, False] * 4)
+    for name in CLASSIFIER_NAMES:
+        assert hasattr(classifier(name).build(flags, settings, None), "fit")
+    with pytest.raises(CandidateError, match=r"unknown regressor 'SVR' \(allowed: KRG, KPLS"):
+        regressor("SVR")
+    with pytest.raises(CandidateError, match=r"unknown classifier 'KRG' \(allowed: svc, gpc"):
+        classifier("KRG")
+    scenario_data["mission"]["surrogate"]["regressors"] = ["KRG", "SVR"]
+    with pytest.raises(ValueError, match=r"surrogate\.regressors\.1"):
+        scenario_from_dict(scenario_data, "test")
+
+
 class BrokenRBF(RBF):
     def _train(self):
         raise np.linalg.LinAlgError("singular matrix (test)")
@@ -662,7 +698,7 @@ def test_kept_candidates_are_refitted_alone_and_fall_back_when_they_fail(
 def test_a_shortlist_compares_the_first_fits_best_candidates_only(fitted, settings):
     """``selection: shortlist``: each output's two lowest-CV-RMSE candidates of a fit, and
     its classifier; a fit given them compares only those, with the same figures."""
-    from ovtraj.surrogate.surrogate_set import shortlist
+    from ovtraj.surrogate.compared_candidates import shortlist
 
     fit = fitted[0]
     kept = shortlist(fit.validation, 2)
@@ -726,7 +762,7 @@ def test_parity_plots_one_png_per_output(fitted, tmp_path):
 def _recorded_kriging_starts(monkeypatch) -> list[np.ndarray]:
     """Every start of SMT's TNC likelihood maximisation from now on (log10 theta)."""
     seen: list[np.ndarray] = []
-    tnc = candidates_module.TNCOptimizer
+    tnc = TNCOptimizer
     original = tnc._minimize
 
     def recording(self, objective, x0, *args):
@@ -745,7 +781,7 @@ def test_kriging_random_start_setting(settings, monkeypatch, random_start, start
     u, _ = lhs(20, 3)
     y = np.sin(3.0 * u[:, 0]) + u[:, 1] ** 2
     chosen = settings.model_copy(update={"kriging_random_start": random_start})
-    candidates_module.fit_regressor("KRG", u, y, chosen)
+    fit_regressor("KRG", u, y, chosen)
     assert len(seen) == starts
     np.testing.assert_array_equal(seen[0], np.full(u.shape[1], -2.0))
 
@@ -769,7 +805,7 @@ def test_cv_warm_start_keeps_the_models_and_starts_the_folds_from_them(settings,
     cold_values, warm_values = cold.predict(grid), warm.predict(grid)
     for name in outputs:
         np.testing.assert_array_equal(warm_values[name], cold_values[name])
-        theta = np.log10(warm._regressors[name].model.optimal_theta)
+        theta = np.log10(warm.regressor(name).model.optimal_theta)
         from_whole = [s for s in starts if np.allclose(s, theta, rtol=0, atol=1e-12)]
         assert len(from_whole) == settings.folds
     # Two starts for each whole fit, one for each fold.

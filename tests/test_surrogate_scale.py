@@ -1,4 +1,4 @@
-"""Surrogates on large training sets (issue 48): subsampled cubic-cost candidates,
+"""Surrogates on large training sets: subsampled cubic-cost candidates,
 bounded cross-validation, gradient-boosted trees, and no change below the limits."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from scipy.stats import qmc
 from sklearn.metrics import r2_score
 
 from ovtraj.surrogate import SurrogateSet, fit_surrogates
-from ovtraj.surrogate.candidates import fit_classifier, fit_regressor, seeded_subsample
+from ovtraj.surrogate.fitted_models import fit_classifier, fit_regressor, seeded_subsample
 
 NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
 LOWER = np.array([250.0, 300.0, 0.0])
@@ -99,7 +99,7 @@ def test_large_fit_bounds_cv_adds_gbt_and_predicts_well(settings, tmp_path):
 
 def test_below_the_limits_the_fit_is_unchanged(settings):
     """A training set under exact_max_samples and cv_max_samples: the same selections,
-    figures and predictions as with large_samples null (before issue 48)."""
+    figures and predictions as with large_samples null (every candidate on every sample)."""
     x, y, feasible = _data(120, seed=5)
     y = np.where(feasible, y, np.nan)
     before = settings.model_copy(update={"large_samples": None})

@@ -9,6 +9,7 @@ from pydantic_core import PydanticCustomError
 
 from ovtraj.config.base import StrictModel, bounded
 from ovtraj.config.launch import Bound
+from ovtraj.config.surrogate_candidates import ClassifierName, RegressorName
 
 # How a DoE's batches run: the one definition behind `ovtraj run --runner`, the config's
 # `mission.doe.task_runner` and the flows' `runner` parameter (docs/mission.md, issue 19).
@@ -124,8 +125,6 @@ class StoreSettings(StrictModel):
     )
 
 
-RegressorName = Literal["KRG", "KPLS", "RBF", "QP", "ET", "GBT"]
-ClassifierName = Literal["svc", "gpc", "logistic"]
 DvPart = Literal["dv_rendezvous_mps", "dv_transfer_mps", "dv_deorbit_mps"]
 # The phase-input model's inputs: the design, then the phase's sine and cosine (the burn's
 # with burn_phase, the wait's without).
@@ -166,7 +165,7 @@ class PassForecastSettings(StrictModel):
 
 
 class LargeSampleSettings(StrictModel):
-    """How the surrogates are fitted on many samples (issue 48): the candidates whose cost
+    """How the surrogates are fitted on many samples: the candidates whose cost
     grows as n^2-n^3 (Kriging, RBF, the SVC and GP classifiers) on a seeded subsample, the
     cross-validation on a seeded subsample, and candidates that grow ~linearly besides."""
 
@@ -194,7 +193,7 @@ class LargeSampleSettings(StrictModel):
 
 
 class SurrogateSettings(StrictModel):
-    """Surrogate candidates and how they are selected and validated (issue 7)."""
+    """Surrogate candidates and how they are selected and validated."""
 
     regressors: list[RegressorName] = Field(min_length=1, description="candidates per output")
     classifiers: list[ClassifierName] = Field(

@@ -85,7 +85,7 @@ from ovtraj.store.files import file_digest
 from ovtraj.store.layout import PIPELINE_MARKER
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_frame
-from ovtraj.surrogate.surrogate_set import shortlist
+from ovtraj.surrogate.compared_candidates import shortlist
 
 logger = logging.getLogger(__name__)
 

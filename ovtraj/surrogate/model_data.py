@@ -1,4 +1,4 @@
-"""The fitted surrogate models as data, and rebuilt from it (issue 44).
+"""The fitted surrogate models as data, and rebuilt from it.
 
 A surrogate set is stored without any executable format (a pickle runs code when it is
 read, and run stores are shared between analysts, workers and CI): each fitted model is
@@ -9,7 +9,9 @@ kept as what rebuilds it,
 * its **arrays**: float64 arrays in one Parquet table of declared schema
   (:data:`MODEL_ARRAYS_SCHEMA`, a row per array: its model, name, shape and values),
 
-and rebuilt on load with the same library calls the fit made:
+and rebuilt on load with the same library calls the fit made (each candidate's fitted
+state and hyperparameters are declared in its registry entry,
+:mod:`ovtraj.surrogate.candidates`):
 
 =================  ======================================================================
 candidate          arrays (besides the training inputs ``u``, values ``y``, ``check``)
@@ -47,13 +49,18 @@ from ovtraj.config.mission import SurrogateSettings
 from ovtraj.store.records import FLOAT, INT, TEXT, record_schema
 from ovtraj.surrogate.candidates import (
     ALL_FEASIBLE,
-    KRIGING,
+    CLASSIFIERS,
+    KRIGING_PAR,
+    REGRESSORS,
+    Candidate,
     CandidateError,
+    regressor,
+)
+from ovtraj.surrogate.fitted_models import (
     FeasibilityClassifier,
     Regressor,
     fit_classifier,
     fit_regressor,
-    new_regressor,
 )
 from ovtraj.surrogate.scaling import SurrogateError
 
@@ -79,24 +86,11 @@ MODEL_ARRAYS_SCHEMA = record_schema(
 )
 """``models.parquet``: one row per (model, array); ``values`` in C order of ``shape``."""
 
-# SMT's fitted Kriging state that its predictions read (SMT 2.15, krg_based.py
-# ``_predict_values``; KPLS's ``_componentwise_distance`` reads ``coeff_pls``).
-_KRIGING_STATE = ("X_offset", "X_scale", "y_mean", "y_std", "optimal_theta")
-_KRIGING_PAR = ("beta", "gamma")
+# Every model's arrays: its training data, its predictions there, then its candidate's
+# fitted state (the registry's ``state``: Kriging's).
 _COMMON = ("u", "y", "check")
-_ARRAYS = {
-    "KRG": (*_COMMON, *_KRIGING_STATE, *_KRIGING_PAR),
-    "KPLS": (*_COMMON, *_KRIGING_STATE, *_KRIGING_PAR, "coeff_pls"),
-    "RBF": _COMMON,
-    "QP": _COMMON,
-    "ET": _COMMON,
-    "GBT": _COMMON,
-    "svc": _COMMON,
-    "logistic": _COMMON,
-    "gpc": _COMMON,
-}
-_CLASSIFIERS = ("svc", "logistic", "gpc")
-_HYPER = {"gpc": ("constant_value", "length_scale")}
+_CANDIDATES: dict[str, Candidate] = REGRESSORS | CLASSIFIERS
+_ARRAYS = {name: (*_COMMON, *c.state) for name, c in _CANDIDATES.items()}
 _MAX_DIMENSIONS = 2
 
 
@@ -122,19 +116,16 @@ class ModelData:
         }
 
 
-def regressor_data(regressor: Regressor) -> ModelData:
+def regressor_data(fitted: Regressor) -> ModelData:
     """What rebuilds a fitted regressor (the module's table)."""
-    u, y = regressor.training()
-    model = regressor.model
-    arrays = {"u": u, "y": y, "check": regressor.predict_fitted(u)}
-    if regressor.name in KRIGING:
-        arrays |= {name: getattr(model, name) for name in _KRIGING_STATE}
-        arrays |= {name: model.optimal_par[name] for name in _KRIGING_PAR}
-        if regressor.name == "KPLS":
-            arrays["coeff_pls"] = model.coeff_pls
+    u, y = fitted.training()
+    model = fitted.model
+    arrays = {"u": u, "y": y, "check": fitted.predict_fitted(u)}
+    for name in regressor(fitted.name).state:
+        arrays[name] = model.optimal_par[name] if name in KRIGING_PAR else getattr(model, name)
     return ModelData(
-        regressor.name,
-        regressor.columns,
+        fitted.name,
+        fitted.columns,
         arrays={k: np.array(v, dtype=float) for k, v in arrays.items()},
     )
 
@@ -144,13 +135,7 @@ def classifier_data(classifier: FeasibilityClassifier) -> ModelData:
     if classifier.estimator is None:
         return ModelData(classifier.name, constant=float(classifier.constant))
     u, flags = classifier.training
-    hyper: dict[str, float | list[float]] = {}
-    if classifier.name == "gpc":
-        kernel = classifier.estimator.kernel_
-        hyper = {
-            "constant_value": float(kernel.k1.constant_value),
-            "length_scale": np.asarray(kernel.k2.length_scale, dtype=float).tolist(),
-        }
+    hyper = classifier.hyper()
     arrays = {"u": u, "y": np.asarray(flags, dtype=float), "check": classifier.proba(u)}
     return ModelData(
         classifier.name, hyper=hyper, arrays={k: np.array(v, float) for k, v in arrays.items()}
@@ -162,28 +147,35 @@ def rebuilt_regressor(data: ModelData, settings: SurrogateSettings) -> Regressor
     reproduce its fitted predictions to the bit."""
     u, y = data.arrays["u"], data.arrays["y"]
     try:
-        if data.candidate in KRIGING:
-            model = new_regressor(data.candidate, u.shape[1], settings)
-            model.set_training_values(np.ascontiguousarray(u), y)
-            for name in _KRIGING_STATE:
-                setattr(model, name, data.arrays[name])
-            model.optimal_par = {name: data.arrays[name] for name in _KRIGING_PAR}
-            if data.candidate == "KPLS":
-                model.coeff_pls = data.arrays["coeff_pls"]
-            # As SMT's training leaves them: the standardised inputs, the sample count and
-            # the kernel's hyperparameters (its ``theta``; the correlation reads it).
-            model.X_norma = (u - model.X_offset) / model.X_scale
-            model.nt = u.shape[0]
-            model.corr.theta = model.optimal_theta
-            regressor = Regressor(data.candidate, model, data.columns)
+        candidate = regressor(data.candidate)
+        if candidate.kriging:
+            model = _kriging_with_state(candidate, data, settings)
         else:
-            regressor = fit_regressor(data.candidate, u, y, settings)
-            regressor = Regressor(data.candidate, regressor.model, data.columns)
-        predicted = regressor.predict_fitted(u)
+            model = fit_regressor(data.candidate, u, y, settings).model
+        rebuilt = Regressor(data.candidate, model, data.columns)
+        predicted = rebuilt.predict_fitted(u)
     except (CandidateError, AttributeError, ValueError, np.linalg.LinAlgError) as err:
         raise SurrogateError(f"{data.candidate}: cannot be rebuilt ({err})") from None
     _same(predicted, data.arrays["check"], data.candidate)
-    return regressor
+    return rebuilt
+
+
+def _kriging_with_state(candidate: Candidate, data: ModelData, settings: SurrogateSettings) -> Any:
+    """A fresh SMT Kriging model given its training data and fitted state (the likelihood
+    is not maximised again)."""
+    u, y = data.arrays["u"], data.arrays["y"]
+    model = candidate.build(u.shape[1], settings, None)
+    model.set_training_values(np.ascontiguousarray(u), y)
+    for name in candidate.state:
+        if name not in KRIGING_PAR:
+            setattr(model, name, data.arrays[name])
+    model.optimal_par = {name: data.arrays[name] for name in KRIGING_PAR}
+    # As SMT's training leaves them: the standardised inputs, the sample count and the
+    # kernel's hyperparameters (its ``theta``; the correlation reads it).
+    model.X_norma = (u - model.X_offset) / model.X_scale
+    model.nt = u.shape[0]
+    model.corr.theta = model.optimal_theta
+    return model
 
 
 def rebuilt_classifier(data: ModelData, settings: SurrogateSettings) -> FeasibilityClassifier:
@@ -192,11 +184,8 @@ def rebuilt_classifier(data: ModelData, settings: SurrogateSettings) -> Feasibil
     if data.constant is not None:
         return FeasibilityClassifier(data.candidate, None, data.constant)
     u, flags = data.arrays["u"], data.arrays["y"].astype(bool)
-    kernel = None
-    if data.candidate == "gpc":
-        kernel = (data.hyper["constant_value"], data.hyper["length_scale"])
     try:
-        classifier = fit_classifier(data.candidate, u, flags, settings, fitted_kernel=kernel)
+        classifier = fit_classifier(data.candidate, u, flags, settings, data.hyper or None)
     except CandidateError as err:
         raise SurrogateError(f"{data.candidate}: cannot be rebuilt ({err})") from None
     _same(classifier.proba(u), data.arrays["check"], data.candidate)
@@ -286,7 +275,7 @@ def _described(model: str, description: Any, arrays: dict, bad: Any) -> ModelDat
     if constant is not None:
         if type(constant) is not float or constant not in (0.0, 1.0) or arrays or hyper:
             raise bad(f"{model}: a constant classifier is 0.0 or 1.0 and nothing else")
-        if candidate not in (*_CLASSIFIERS, ALL_FEASIBLE) or columns is not None:
+        if candidate not in (*CLASSIFIERS, ALL_FEASIBLE) or columns is not None:
             raise bad(f"{model}: unknown constant classifier {candidate!r}")
         return ModelData(candidate, constant=constant)
     if candidate not in _ARRAYS:
@@ -298,7 +287,7 @@ def _described(model: str, description: Any, arrays: dict, bad: Any) -> ModelDat
     expected = set(_ARRAYS[candidate])
     if set(arrays) != expected:
         raise bad(f"{model}: arrays {sorted(arrays)}, expected {sorted(expected)}")
-    if not isinstance(hyper, Mapping) or set(hyper) != set(_HYPER.get(candidate, ())):
+    if not isinstance(hyper, Mapping) or set(hyper) != set(_CANDIDATES[candidate].hyper):
         raise bad(f"{model}: hyperparameters {hyper!r}")
     for name, value in hyper.items():
         numbers = value if isinstance(value, list) else [value]

@@ -11,8 +11,9 @@ values when both inputs are finite float64 matrices with the same columns (what
 else goes to SMT's own function, which validates and raises as before. The predictions
 are the same to the bit (``tests/test_smt_differences.py``).
 
-:func:`install` puts it in SMT's Kriging module (idempotent; the candidates module calls
-it on import, in the pipeline's worker processes too); :func:`uninstall` restores SMT's.
+:func:`install` puts it in SMT's Kriging module (idempotent; the Kriging models call it
+when one is built or unpickled, :mod:`ovtraj.surrogate.estimators`, never an import);
+:func:`uninstall` restores SMT's.
 """
 
 from __future__ import annotations

@@ -34,9 +34,10 @@ its generic code around them (the path's checks on every call, the kernel called
 for the gradient, the correlation matrices filled by 2-D fancy indexing) and with
 :mod:`ovtraj.surrogate.smt_linalg`'s LAPACK calls (the economic QR and the singular
 values straight to LAPACK too): a benchmark pipeline's fits 1.12 -> 0.80-0.98 s on its two
-processes (issue 20 made the direct method faster, so issue 21's wall ratio needed the
-fits faster). The same operations give the same bits (``tests/test_smt_likelihood.py``:
-every value and parameter of both, and whole fits, equal to stock SMT's).
+processes (the direct method had become faster, so the surrogate pipeline's wall-time
+ratio against it needed faster fits). The same operations give the same bits
+(``tests/test_smt_likelihood.py``: every value and parameter of both, and whole fits,
+equal to stock SMT's).
 """
 
 from __future__ import annotations

@@ -11,23 +11,22 @@ the inputs; the LAPACK calls are scipy's own, with its arguments):
 * a KRG fit on 40 samples in 3-D, interleaved in one process: 141.5 -> 92.5 ms median;
 * the three fit steps of a benchmark pipeline (``benchmarks/surrogate_vs_direct.py``,
   seed 2027), serial: 9.53 -> 6.20 s; on the pipeline's 2 worker processes, fits
-  4.5-5.2 -> 3.4-4.2 s per pipeline, the hypervolumes unchanged (issue 21,
-  docs/optimize.md).
+  4.5-5.2 -> 3.4-4.2 s per pipeline, the hypervolumes unchanged (docs/optimize.md).
 
-The scan cannot find anything here: :func:`ovtraj.surrogate.surrogate_set.fit_surrogates` refuses
+The scan cannot find anything here: :func:`ovtraj.surrogate.fitting.fit_surrogates` refuses
 non-finite inputs and feasible outputs before any fit, the correlations are
 ``exp(-sum theta d^2)`` in [0, 1] with ``theta`` inside SMT's bounds, and a fit whose
 predictions at its own samples are not finite is refused
-(:func:`ovtraj.surrogate.candidates.fit_regressor`).
+(:func:`ovtraj.surrogate.fitted_models.fit_regressor`).
 
 :func:`install` gives SMT's two Kriging modules a ``linalg`` namespace equal to
 ``scipy.linalg`` except for those four functions, straight to the LAPACK routines scipy
 calls, with its arguments: ``solve_triangular`` and ``cholesky`` (``dtrtrs``, ``dpotrf``),
 the economic ``qr`` (``dgeqrf``, ``dorgqr``) and the singular values of ``svd``
 (``dgesdd``); float64 matrices of those shapes, anything else to scipy's functions
-without the scan (the last two added for issue 20: ~5-10 us each a call). It changes
-nothing else and runs once per process (the candidates module calls it on import, in the
-pipeline's worker processes too).
+without the scan (the last two save ~5-10 us a call each). It changes nothing else; the
+Kriging models call it when one is built or unpickled (:mod:`ovtraj.surrogate.estimators`,
+in the pipeline's worker processes too), never an import.
 """
 
 from __future__ import annotations

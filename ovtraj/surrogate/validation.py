@@ -45,8 +45,8 @@ from sklearn.metrics import accuracy_score, balanced_accuracy_score, log_loss
 from sklearn.model_selection import KFold, StratifiedKFold
 
 from ovtraj.config.mission import SurrogateSettings
-from ovtraj.surrogate.candidates import (
-    CandidateError,
+from ovtraj.surrogate.candidates import CandidateError
+from ovtraj.surrogate.fitted_models import (
     FeasibilityClassifier,
     Regressor,
     fit_classifier,
@@ -62,6 +62,7 @@ __all__ = [
     "cross_validated_rows",
     "evaluate_classifier",
     "evaluate_regressor",
+    "failures",
     "holdout_mask",
     "q2",
     "r2",
@@ -223,7 +224,7 @@ def regressor_fit(
 
     The pieces of :func:`evaluate_regressor` (each fold, then the whole training part):
     independent, so a process pool may run them in any order with the same result.
-    ``theta0``: a Kriging start (:func:`~ovtraj.surrogate.candidates.fit_regressor`).
+    ``theta0``: a Kriging start (:func:`~ovtraj.surrogate.fitted_models.fit_regressor`).
     """
     start = time.perf_counter()
     try:
@@ -400,3 +401,8 @@ def select_classifier(scores: Sequence[ClassifierScore]) -> ClassifierScore | No
         ):
             best = s
     return best
+
+
+def failures(scores: Sequence[RegressorScore] | Sequence[ClassifierScore]) -> str:
+    """Each candidate's name and error, for the line that says none could be fitted."""
+    return "; ".join(f"{s.name}: {s.error}" for s in scores)
