@@ -434,6 +434,22 @@ def test_entry_above_the_preparation_orbit_is_refused(scenario_data):
     assert "deorbit.preparation_orbit.altitude_km" in message
 
 
+def test_the_impulse_bound_factor_moves_the_resolved_scenario_only_off_its_default(
+    scenario_data,
+):
+    """Left out of the resolved scenario at the bound every stored scenario was solved with
+    (their run ids and the reference front's key unchanged); kept when set otherwise, and
+    refused below 1 (a box smaller than the |dv| limit would decide solutions)."""
+    shipped = build_scenario(scenario_data)
+    assert "impulse_bound_factor" not in shipped.resolved()["deorbit"]["solver"]
+    scenario_data["deorbit"]["solver"]["impulse_bound_factor"] = 3.0
+    wider = build_scenario(scenario_data)
+    assert wider.resolved()["deorbit"]["solver"]["impulse_bound_factor"] == 3.0
+    scenario_data["deorbit"]["solver"]["impulse_bound_factor"] = 0.9
+    with pytest.raises(ConfigError, match=r"deorbit.solver.impulse_bound_factor"):
+        build_scenario(scenario_data)
+
+
 # --- 6. trajectory table -----------------------------------------------------------------------
 
 

@@ -206,7 +206,7 @@ def correct_burn(
     ts, vs = settings.time_scale_s, settings.dv_scale_mps
     lo_t = max(-settings.burn_window_s, t_min_s - burn_t0_s) / ts
     hi_t = min(settings.burn_window_s, t_max_s - burn_t0_s) / ts
-    bound_v = 1.5 * dv_max_mps / vs
+    bound_v = settings.impulse_bound_factor * dv_max_mps / vs
     bounds = [(lo_t, hi_t)] + [(-bound_v, bound_v)] * 3
     radius = model.entry_radius_m
     cache: dict[bytes, NDArray] = {}
