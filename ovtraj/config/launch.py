@@ -35,6 +35,14 @@ DESIGN_VARIABLES: tuple[str, ...] = (
     "payload_kg",
 )
 
+# The target altitudes a launch may aim at [km]. Below ~150 km drag brings a circular orbit
+# down within about a day (US76: 2.1e-9 kg/m^3 at 150 km), so it is no orbit to aim at;
+# 2000 km is the upper edge of low Earth orbit (the IADC Space Debris Mitigation
+# Guidelines' LEO region), far beyond what this class of air-launched rocket lifts a
+# payload to. The scenario's target and fit-grid altitudes and launch_input's override.
+TARGET_ALTITUDE_MIN_KM = 150.0
+TARGET_ALTITUDE_MAX_KM = 2000.0
+
 
 class SolidStageConfig(StrictModel):
     """One solid-rocket stage: masses, vacuum performance, nozzle and separation."""
@@ -354,8 +362,8 @@ class LocalConfig(StrictModel):
 class FitGridConfig(StrictModel):
     """Target altitudes of the launch fit (patent 5.1) and the series' settings."""
 
-    altitude_min_km: float = bounded(unit="km", ge=150)
-    altitude_max_km: float = bounded(unit="km", le=2000)
+    altitude_min_km: float = bounded(unit="km", ge=TARGET_ALTITUDE_MIN_KM)
+    altitude_max_km: float = bounded(unit="km", le=TARGET_ALTITUDE_MAX_KM)
     points: int = bounded(ge=3, le=1000)
     order: int = bounded(ge=1, le=20)
     ridge_candidates: tuple[float, ...] = Field(
@@ -393,7 +401,9 @@ class LaunchSettings(StrictModel):
     drop: DropConfig
     launch_date_utc: str = Field(description="the launch day; times are counted from its 0 h")
     opportunity: Opportunity
-    target_altitude_km: float = bounded(unit="km", ge=150, le=2000)
+    target_altitude_km: float = bounded(
+        unit="km", ge=TARGET_ALTITUDE_MIN_KM, le=TARGET_ALTITUDE_MAX_KM
+    )
     design_bounds: DesignBoundsConfig
     insertion_tolerances: InsertionTolerancesConfig
     integration: IntegrationConfig
@@ -427,11 +437,9 @@ class LaunchSettings(StrictModel):
 
     @model_validator(mode="after")
     def _feasible_figures(self) -> LaunchSettings:
-        problems = []
-        if self.fit.altitude_min_km < 150 or self.target_altitude_km < 150:
-            problems.append("target altitudes below 150 km are not orbits a launch can aim at")
+        # Target altitudes below TARGET_ALTITUDE_MIN_KM are refused by the fields' bounds.
         lightest = self.design_bounds.payload_kg.lower
-        problems += self.launcher.check_thrust_to_weight(lightest, _standard_gravity())
+        problems = self.launcher.check_thrust_to_weight(lightest, _standard_gravity())
         if problems:
             raise ValueError("; ".join(problems))
         return self

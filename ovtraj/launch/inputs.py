@@ -12,6 +12,8 @@ from ovtraj.astro.j2_elements import secular_rates, state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config.base import ConfigError
 from ovtraj.config.launch import (
+    TARGET_ALTITUDE_MAX_KM,
+    TARGET_ALTITUDE_MIN_KM,
     DesignBoundsConfig,
     DropConfig,
     GeneticConfig,
@@ -89,9 +91,11 @@ def launch_input(scenario: Scenario, *, altitude_km: float | None = None) -> Lau
     settings = scenario.launch
     if settings is None:
         raise ConfigError(["launch: the scenario has no launch section"], scenario.name)
-    if altitude_km is not None and not 150.0 <= altitude_km <= 2000.0:
+    low, high = TARGET_ALTITUDE_MIN_KM, TARGET_ALTITUDE_MAX_KM
+    if altitude_km is not None and not low <= altitude_km <= high:
         raise ValueError(
-            f"altitude_km must lie in [150, 2000] km (a launch target orbit); got {altitude_km!r}"
+            f"altitude_km must lie in [{low:g}, {high:g}] km (a launch target orbit); "
+            f"got {altitude_km!r}"
         )
     day = Epoch.from_iso(settings.launch_date_utc)
     return LaunchInput(
