@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,7 +12,7 @@ import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
 from ovtraj.deorbit.correction import CONSTRAINT_NAMES
-from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, Column, RowColumns, record_schema
 
 
 def _deg(x: float | None) -> float | None:
@@ -74,99 +75,196 @@ class DeorbitResult:
         return self.entry_t_s - self.burn_t_s
 
     def to_row(self) -> dict[str, Any]:
-        """Flat, JSON- and Parquet-friendly record; units named in the keys."""
-        row: dict[str, Any] = {
-            "feasible": self.feasible,
-            "reason": self.reason,
-            "epoch_utc": self.epoch.iso(),
-            "burn_epoch_utc": _epoch(self.epoch, self.burn_t_s),
-            "burn_time_s": self.burn_t_s,
-            "wait_time_s": self.wait_time_s,
-            "dv_mps": self.dv_mps,
-            "descent_time_s": self.descent_time_s,
-            "entry_epoch_utc": _epoch(self.epoch, self.entry_t_s),
-            "entry_time_s": self.entry_t_s,
-            "entry_lat_deg": _deg(self.entry_latitude_rad),
-            "entry_lon_deg": _deg(self.entry_longitude_rad),
-            "entry_altitude_km": _km(self.entry_altitude_m),
-            "entry_speed_mps": self.entry_speed_mps,
-            "entry_fpa_deg": _deg(self.entry_fpa_rad),
-            "entry_relative_speed_mps": self.entry_relative_speed_mps,
-            "entry_relative_fpa_deg": _deg(self.entry_relative_fpa_rad),
-            "entry_heading_deg": _deg(self.entry_heading_rad),
-            "entry_error_km": _km(self.entry_error_m),
-            "virtual_entry_epoch_utc": _epoch(self.epoch, self.virtual_entry_t_s),
-            "virtual_entry_lat_deg": _deg(self.virtual_entry_latitude_rad),
-            "virtual_entry_lon_deg": _deg(self.virtual_entry_longitude_rad),
-            "estimate_dv_mps": self.estimate_dv_mps,
-            "estimate_central_angle_deg": _deg(self.estimate_central_angle_rad),
-            "estimate_time_of_flight_s": self.estimate_time_of_flight_s,
-            "iterations": self.iterations,
-            "solver_message": self.solver_message,
-            "passes_in_region": self.passes_in_region,
-            "passes_tried": self.passes_tried,
-            "propagations": self.propagations,
-            "wall_time_s": self.wall_time_s,
-        }
-        for axis, k in zip("xyz", range(3), strict=True):
-            dv = self.dv_eci_mps
-            row[f"dv_eci_{axis}_mps"] = float(dv[k]) if dv is not None else None
-            r, v = self.entry_r_eci_m, self.entry_v_eci_mps
-            row[f"entry_r_eci_{axis}_m"] = float(r[k]) if r is not None else None
-            row[f"entry_v_eci_{axis}_mps"] = float(v[k]) if v is not None else None
-        for name, k in (("radial", 0), ("along_track", 1), ("cross_track", 2)):
-            dv = self.dv_rsw_mps
-            row[f"dv_{name}_mps"] = float(dv[k]) if dv is not None else None
-        for name in CONSTRAINT_NAMES:
-            row[f"constraint_{name}"] = self.constraints.get(name)
-        return {k: plain(v) for k, v in row.items()}
+        """Flat, JSON- and Parquet-friendly record of :data:`ROW`; units named in the keys."""
+        return ROW.row(self)
 
 
 _RSW = ("radial", "along_track", "cross_track")
 
-ROW_SCHEMA = record_schema(
+
+def _component(vector: str, k: int) -> Callable[[DeorbitResult], float | None]:
+    """Component ``k`` of the array field ``vector`` (None without it)."""
+
+    def get(r: DeorbitResult) -> float | None:
+        value = getattr(r, vector)
+        return float(value[k]) if value is not None else None
+
+    return get
+
+
+def _constraint(name: str) -> Callable[[DeorbitResult], float | None]:
+    return lambda r: r.constraints.get(name)
+
+
+_VECTORS = (
+    ("dv_eci", "_mps", "dv_eci_mps", "m/s: the impulse, ECI"),
+    ("entry_r_eci", "_m", "entry_r_eci_m", "m: the position at the entry interface, ECI"),
+    ("entry_v_eci", "_mps", "entry_v_eci_mps", "m/s: the velocity at the entry interface, ECI"),
+)
+
+ROW = RowColumns(
     [
-        ("feasible", BOOL),
-        ("reason", TEXT),
-        ("epoch_utc", TEXT),
-        ("burn_epoch_utc", TEXT),
-        ("burn_time_s", FLOAT),
-        ("wait_time_s", FLOAT),
-        ("dv_mps", FLOAT),
-        ("descent_time_s", FLOAT),
-        ("entry_epoch_utc", TEXT),
-        ("entry_time_s", FLOAT),
-        ("entry_lat_deg", FLOAT),
-        ("entry_lon_deg", FLOAT),
-        ("entry_altitude_km", FLOAT),
-        ("entry_speed_mps", FLOAT),
-        ("entry_fpa_deg", FLOAT),
-        ("entry_relative_speed_mps", FLOAT),
-        ("entry_relative_fpa_deg", FLOAT),
-        ("entry_heading_deg", FLOAT),
-        ("entry_error_km", FLOAT),
-        ("virtual_entry_epoch_utc", TEXT),
-        ("virtual_entry_lat_deg", FLOAT),
-        ("virtual_entry_lon_deg", FLOAT),
-        ("estimate_dv_mps", FLOAT),
-        ("estimate_central_angle_deg", FLOAT),
-        ("estimate_time_of_flight_s", FLOAT),
-        ("iterations", INT),
-        ("solver_message", TEXT),
-        ("passes_in_region", INT),
-        ("passes_tried", INT),
-        ("propagations", INT),
-        ("wall_time_s", FLOAT),
+        Column("feasible", BOOL, "the stage met every limit", lambda r: r.feasible),
+        Column("reason", TEXT, "why it is infeasible", lambda r: r.reason),
+        Column(
+            "epoch_utc",
+            TEXT,
+            "ISO UTC: the stage's start, the times' origin",
+            lambda r: r.epoch.iso(),
+        ),
+        Column(
+            "burn_epoch_utc", TEXT, "ISO UTC of the burn", lambda r: _epoch(r.epoch, r.burn_t_s)
+        ),
+        Column("burn_time_s", FLOAT, "s from epoch_utc: the burn", lambda r: r.burn_t_s),
+        Column("wait_time_s", FLOAT, "s: the start to the burn", lambda r: r.wait_time_s),
+        Column("dv_mps", FLOAT, "m/s: the impulse", lambda r: r.dv_mps),
+        Column(
+            "descent_time_s",
+            FLOAT,
+            "s: the burn to the entry interface",
+            lambda r: r.descent_time_s,
+        ),
+        Column(
+            "entry_epoch_utc",
+            TEXT,
+            "ISO UTC at the entry interface",
+            lambda r: _epoch(r.epoch, r.entry_t_s),
+        ),
+        Column(
+            "entry_time_s", FLOAT, "s from epoch_utc: the entry interface", lambda r: r.entry_t_s
+        ),
+        Column(
+            "entry_lat_deg",
+            FLOAT,
+            "deg: the entry point's latitude",
+            lambda r: _deg(r.entry_latitude_rad),
+        ),
+        Column(
+            "entry_lon_deg",
+            FLOAT,
+            "deg: the entry point's longitude",
+            lambda r: _deg(r.entry_longitude_rad),
+        ),
+        Column(
+            "entry_altitude_km",
+            FLOAT,
+            "km: the entry interface's altitude",
+            lambda r: _km(r.entry_altitude_m),
+        ),
+        Column(
+            "entry_speed_mps", FLOAT, "m/s: inertial speed at entry", lambda r: r.entry_speed_mps
+        ),
+        Column(
+            "entry_fpa_deg",
+            FLOAT,
+            "deg: inertial flight-path angle at entry",
+            lambda r: _deg(r.entry_fpa_rad),
+        ),
+        Column(
+            "entry_relative_speed_mps",
+            FLOAT,
+            "m/s: Earth-relative speed at entry",
+            lambda r: r.entry_relative_speed_mps,
+        ),
+        Column(
+            "entry_relative_fpa_deg",
+            FLOAT,
+            "deg: Earth-relative flight-path angle at entry",
+            lambda r: _deg(r.entry_relative_fpa_rad),
+        ),
+        Column(
+            "entry_heading_deg",
+            FLOAT,
+            "deg from north: the Earth-relative velocity's heading at entry",
+            lambda r: _deg(r.entry_heading_rad),
+        ),
+        Column(
+            "entry_error_km",
+            FLOAT,
+            "km: great-circle distance from the configured entry point",
+            lambda r: _km(r.entry_error_m),
+        ),
+        Column(
+            "virtual_entry_epoch_utc",
+            TEXT,
+            "ISO UTC of the pass the burn aims at (the virtual entry)",
+            lambda r: _epoch(r.epoch, r.virtual_entry_t_s),
+        ),
+        Column(
+            "virtual_entry_lat_deg",
+            FLOAT,
+            "deg: the virtual entry's latitude",
+            lambda r: _deg(r.virtual_entry_latitude_rad),
+        ),
+        Column(
+            "virtual_entry_lon_deg",
+            FLOAT,
+            "deg: the virtual entry's longitude",
+            lambda r: _deg(r.virtual_entry_longitude_rad),
+        ),
+        Column(
+            "estimate_dv_mps",
+            FLOAT,
+            "m/s: the two-body tangential impulse estimate",
+            lambda r: r.estimate_dv_mps,
+        ),
+        Column(
+            "estimate_central_angle_deg",
+            FLOAT,
+            "deg: the estimate's central angle from the burn to entry",
+            lambda r: _deg(r.estimate_central_angle_rad),
+        ),
+        Column(
+            "estimate_time_of_flight_s",
+            FLOAT,
+            "s: the estimate's burn to entry",
+            lambda r: r.estimate_time_of_flight_s,
+        ),
+        Column("iterations", INT, "the correction's iterations", lambda r: r.iterations),
+        Column("solver_message", TEXT, "the correction's last word", lambda r: r.solver_message),
+        Column(
+            "passes_in_region",
+            INT,
+            "passes over the entry region within the horizon",
+            lambda r: r.passes_in_region,
+        ),
+        Column("passes_tried", INT, "passes the correction was run on", lambda r: r.passes_tried),
+        Column("propagations", INT, "orbit propagations of the stage", lambda r: r.propagations),
+        Column(
+            "wall_time_s",
+            FLOAT,
+            "s: the stage's wall time (timing, not a result)",
+            lambda r: r.wall_time_s,
+        ),
         *[
-            (f"{vector}_{axis}{unit}", FLOAT)
-            for axis in "xyz"
-            for vector, unit in (("dv_eci", "_mps"), ("entry_r_eci", "_m"), ("entry_v_eci", "_mps"))
+            Column(f"{vector}_{axis}{unit}", FLOAT, f"{doc} {axis}", _component(field_name, k))
+            for k, axis in enumerate("xyz")
+            for vector, unit, field_name, doc in _VECTORS
         ],
-        *[(f"dv_{axis}_mps", FLOAT) for axis in _RSW],
-        *[(f"constraint_{name}", FLOAT) for name in CONSTRAINT_NAMES],
+        *[
+            Column(
+                f"dv_{axis}_mps",
+                FLOAT,
+                f"m/s: the impulse, {axis.replace('_', '-')} (RSW)",
+                _component("dv_rsw_mps", k),
+            )
+            for k, axis in enumerate(_RSW)
+        ],
+        *[
+            Column(
+                f"constraint_{name}",
+                FLOAT,
+                "the correction's final constraint value (>= 0 met; degrees or scaled speed)",
+                _constraint(name),
+            )
+            for name in CONSTRAINT_NAMES
+        ],
     ],
     required=("feasible",),
 )
+"""The deorbit stage's row (:meth:`DeorbitResult.to_row`)."""
+
+ROW_SCHEMA = ROW.schema
 """The columns of :meth:`DeorbitResult.to_row` (``wall_time_s`` is timing, not a result)."""
 
 TRAJECTORY_SCHEMA = record_schema(

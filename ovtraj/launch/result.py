@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,88 +18,12 @@ from ovtraj.astro.frames import ecef_to_geocentric
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.launch.ascent_optimization import PhaseRecord
 from ovtraj.launch.frame import launch_to_ecef
-from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, Column, RowColumns, plain
 
 # The optimisation phases a result may record (ovtraj.launch.ascent_optimization.optimise_launch),
-# each with the columns of PHASE_COLUMNS in the row (prefix: the name, "-" as "_").
+# each with the columns of _PHASE_COLUMNS in the row (prefix: the name, "-" as "_").
 PHASES = ("genetic", "seed", "slsqp", "trust-constr")
-PHASE_COLUMNS = (
-    ("payload_kg", FLOAT),
-    ("violation", FLOAT),
-    ("residual", FLOAT),
-    ("accepted", BOOL),
-    ("iterations", INT),
-    ("trajectories", INT),
-    ("time_s", FLOAT),
-)
 LOSSES = ("gravity", "aero", "steering", "back_pressure")
-
-ROW_SCHEMA = record_schema(
-    [
-        ("feasible", BOOL),
-        ("reason", TEXT),
-        ("target_altitude_km", FLOAT),
-        ("opportunity", TEXT),
-        ("launch_date_utc", TEXT),
-        *[
-            (name, FLOAT)
-            for name in (
-                "payload_kg",
-                "azimuth_deg",
-                "drop_time_s",
-                "insertion_time_s",
-                "flight_time_s",
-            )
-        ],
-        ("drop_epoch_utc", TEXT),
-        ("insertion_epoch_utc", TEXT),
-        *[
-            (name, FLOAT)
-            for name in (
-                "insertion_u_deg",
-                "insertion_mean_u_deg",
-                "insertion_latitude_deg",
-                "insertion_longitude_deg",
-                "insertion_altitude_error_m",
-                "insertion_speed_error_mps",
-                "insertion_fpa_error_deg",
-                "inclination_error_deg",
-                "raan_error_deg",
-                "semi_major_axis_km",
-                "eccentricity",
-                "inclination_deg",
-                "raan_deg",
-                "mean_inclination_deg",
-                "mean_raan_deg",
-                "max_dynamic_pressure_pa",
-                "max_dynamic_pressure_time_s",
-                "max_axial_load_g",
-                "max_axial_load_time_s",
-                "fairing_jettison_time_s",
-                "ideal_dv_rocket_equation_mps",
-                "ideal_dv_integrated_mps",
-                "speed_gain_mps",
-                "total_loss_mps",
-            )
-        ],
-        ("trajectories", INT),
-        ("wall_time_s", FLOAT),
-        *[(f"{name}_loss_mps", FLOAT) for name in LOSSES],
-        *[(f"design_{name}", FLOAT) for name in DESIGN_VARIABLES],
-        *[
-            (f"insertion_{kind}_eci_{axis}_{unit}", FLOAT)
-            for axis in "xyz"
-            for kind, unit in (("r", "m"), ("v", "mps"))
-        ],
-        *[
-            (f"{phase.replace('-', '_')}_{column}", kind)
-            for phase in PHASES
-            for column, kind in PHASE_COLUMNS
-        ],
-    ],
-    required=("feasible", "target_altitude_km"),
-)
-"""The columns of :meth:`LaunchResult.to_row` (a phase the solve did not run is null)."""
 
 
 def _deg(x: float | None) -> float | None:
@@ -173,70 +98,297 @@ class LaunchResult:
         return sum(self.losses_mps.values()) if self.losses_mps else None
 
     def to_row(self) -> dict[str, Any]:
-        """Flat, JSON- and Parquet-friendly record; units named in the keys."""
-        osc = self.osculating
-        row: dict[str, Any] = {
-            "feasible": self.feasible,
-            "reason": self.reason,
-            "target_altitude_km": self.target_altitude_m / 1e3,
-            "opportunity": self.opportunity,
-            "launch_date_utc": self.launch_day.iso()[:10],
-            "payload_kg": self.payload_kg,
-            "azimuth_deg": _deg(self.azimuth_rad),
-            "drop_time_s": self.drop_time_s,
-            "insertion_time_s": self.insertion_time_s,
-            "flight_time_s": self.flight_time_s,
-            "drop_epoch_utc": _epoch(self.launch_day, self.drop_time_s),
-            "insertion_epoch_utc": _epoch(self.launch_day, self.insertion_time_s),
-            "insertion_u_deg": _deg(self.insertion_u_rad),
-            "insertion_mean_u_deg": _deg(self.mean_u_rad),
-            "insertion_latitude_deg": _deg(self.insertion_latitude_rad),
-            "insertion_longitude_deg": _deg(self.insertion_longitude_rad),
-            "insertion_altitude_error_m": self.altitude_error_m,
-            "insertion_speed_error_mps": self.speed_error_mps,
-            "insertion_fpa_error_deg": _deg(self.flight_path_angle_error_rad),
-            "inclination_error_deg": _deg(self.inclination_error_rad),
-            "raan_error_deg": _deg(self.raan_error_rad),
-            "semi_major_axis_km": osc.a / 1e3 if osc else None,
-            "eccentricity": osc.e if osc else None,
-            "inclination_deg": _deg(osc.i) if osc else None,
-            "raan_deg": _deg(osc.raan % TWO_PI) if osc else None,
-            "mean_inclination_deg": _deg(self.mean_inclination_rad),
-            "mean_raan_deg": _deg(self.mean_raan_rad),
-            "max_dynamic_pressure_pa": self.max_dynamic_pressure_pa,
-            "max_dynamic_pressure_time_s": self.max_dynamic_pressure_time_s,
-            "max_axial_load_g": self.max_axial_load_g,
-            "max_axial_load_time_s": self.max_axial_load_time_s,
-            "fairing_jettison_time_s": self.fairing_jettison_time_s,
-            "ideal_dv_rocket_equation_mps": self.ideal_delta_v_rocket_equation_mps,
-            "ideal_dv_integrated_mps": self.ideal_delta_v_integrated_mps,
-            "speed_gain_mps": self.speed_gain_mps,
-            "total_loss_mps": self.total_loss_mps,
-            "trajectories": self.trajectories,
-            "wall_time_s": self.wall_time_s,
-        }
-        for name in LOSSES:
-            row[f"{name}_loss_mps"] = self.losses_mps.get(name)
-        for name, value in self.design.items():
-            row[f"design_{name}"] = value
-        for axis, k in zip("xyz", range(3), strict=True):
-            r, v = self.insertion_r_eci_m, self.insertion_v_eci_mps
-            row[f"insertion_r_eci_{axis}_m"] = float(r[k]) if r is not None else None
-            row[f"insertion_v_eci_{axis}_mps"] = float(v[k]) if v is not None else None
+        """Flat, JSON- and Parquet-friendly record of :data:`ROW`; units named in the keys.
+        A phase outside :data:`PHASES` (a solve to an insertion point's ``match``) adds
+        its columns after them: that row is a cached solve's, not a grid table's."""
+        row = ROW.row(self)
         for phase in self.phases:
-            key = phase.name.replace("-", "_")
-            row[f"{key}_payload_kg"] = phase.payload_kg
-            row[f"{key}_violation"] = phase.max_violation
-            row[f"{key}_residual"] = phase.max_residual
-            row[f"{key}_accepted"] = phase.accepted
-            row[f"{key}_iterations"] = phase.iterations
-            row[f"{key}_trajectories"] = phase.trajectories
-            row[f"{key}_time_s"] = phase.wall_time_s
-        return plain(row)
+            if phase.name not in PHASES:
+                row.update({c.name: plain(c.get(self)) for c in _phase_columns(phase.name)})
+        return row
 
 
 def _epoch(day: Epoch, t: float | None) -> str | None:
     return None if t is None else day.plus_seconds(t).iso()
+
+
+def _osculating(read: Callable[[ClassicalElements], float]) -> Callable[[LaunchResult], Any]:
+    return lambda r: read(r.osculating) if r.osculating else None
+
+
+def _component(vector: str, k: int) -> Callable[[LaunchResult], float | None]:
+    """Component ``k`` of the array field ``vector`` (None without it)."""
+
+    def get(r: LaunchResult) -> float | None:
+        value = getattr(r, vector)
+        return float(value[k]) if value is not None else None
+
+    return get
+
+
+def _phase(name: str) -> Callable[[LaunchResult], PhaseRecord | None]:
+    """The record of the phase ``name`` (the last of that name), None if it did not run."""
+    return lambda r: next((p for p in reversed(r.phases) if p.name == name), None)
+
+
+_PHASE_COLUMNS = (
+    ("payload_kg", FLOAT, "kg: the payload at the phase's end point", "payload_kg"),
+    (
+        "violation",
+        FLOAT,
+        "the largest scaled violation there (0: within tolerance)",
+        "max_violation",
+    ),
+    ("residual", FLOAT, "the largest scaled |constraint| there (1: one tolerance)", "max_residual"),
+    ("accepted", BOOL, "the phase's design replaced the incumbent", "accepted"),
+    ("iterations", INT, "the optimiser's iterations", "iterations"),
+    ("trajectories", INT, "ascents the phase flew", "trajectories"),
+    ("time_s", FLOAT, "s: the phase's wall time (timing)", "wall_time_s"),
+)
+
+
+def _phase_columns(name: str) -> list[Column]:
+    """The columns of the optimisation phase ``name`` (null when it did not run)."""
+    phase = _phase(name)
+
+    def value(attribute: str) -> Callable[[LaunchResult], Any]:
+        return lambda r: getattr(phase(r), attribute) if phase(r) is not None else None
+
+    key = name.replace("-", "_")
+    return [
+        Column(f"{key}_{suffix}", kind, f"{name} phase: {doc}", value(attribute))
+        for suffix, kind, doc, attribute in _PHASE_COLUMNS
+    ]
+
+
+def _loss(name: str) -> Callable[[LaunchResult], float | None]:
+    return lambda r: r.losses_mps.get(name)
+
+
+def _design(name: str) -> Callable[[LaunchResult], float | None]:
+    return lambda r: r.design.get(name)
+
+
+ROW = RowColumns(
+    [
+        Column("feasible", BOOL, "the ascent met every limit", lambda r: r.feasible),
+        Column("reason", TEXT, "why it is infeasible", lambda r: r.reason),
+        Column(
+            "target_altitude_km",
+            FLOAT,
+            "km: the circular orbit aimed at",
+            lambda r: r.target_altitude_m / 1e3,
+        ),
+        Column(
+            "opportunity",
+            TEXT,
+            "ascending or descending pass of the plane",
+            lambda r: r.opportunity,
+        ),
+        Column(
+            "launch_date_utc", TEXT, "YYYY-MM-DD: the launch day", lambda r: r.launch_day.iso()[:10]
+        ),
+        Column("payload_kg", FLOAT, "kg: the payload to orbit", lambda r: r.payload_kg),
+        Column(
+            "azimuth_deg",
+            FLOAT,
+            "deg from north: the launch azimuth",
+            lambda r: _deg(r.azimuth_rad),
+        ),
+        Column(
+            "drop_time_s",
+            FLOAT,
+            "s from the launch day's 0 h UTC: the drop",
+            lambda r: r.drop_time_s,
+        ),
+        Column(
+            "insertion_time_s",
+            FLOAT,
+            "s from the launch day's 0 h UTC: the insertion",
+            lambda r: r.insertion_time_s,
+        ),
+        Column("flight_time_s", FLOAT, "s: the drop to the insertion", lambda r: r.flight_time_s),
+        Column(
+            "drop_epoch_utc",
+            TEXT,
+            "ISO UTC of the drop",
+            lambda r: _epoch(r.launch_day, r.drop_time_s),
+        ),
+        Column(
+            "insertion_epoch_utc",
+            TEXT,
+            "ISO UTC of the insertion",
+            lambda r: _epoch(r.launch_day, r.insertion_time_s),
+        ),
+        Column(
+            "insertion_u_deg",
+            FLOAT,
+            "deg: osculating argument of latitude at insertion, [0, 360)",
+            lambda r: _deg(r.insertion_u_rad),
+        ),
+        Column(
+            "insertion_mean_u_deg",
+            FLOAT,
+            "deg: J2 mean argument of latitude at insertion",
+            lambda r: _deg(r.mean_u_rad),
+        ),
+        Column(
+            "insertion_latitude_deg",
+            FLOAT,
+            "deg: geocentric latitude at insertion",
+            lambda r: _deg(r.insertion_latitude_rad),
+        ),
+        Column(
+            "insertion_longitude_deg",
+            FLOAT,
+            "deg: longitude at insertion",
+            lambda r: _deg(r.insertion_longitude_rad),
+        ),
+        Column(
+            "insertion_altitude_error_m",
+            FLOAT,
+            "m: radius at insertion minus the target orbit's",
+            lambda r: r.altitude_error_m,
+        ),
+        Column(
+            "insertion_speed_error_mps",
+            FLOAT,
+            "m/s: speed at insertion minus the circular speed",
+            lambda r: r.speed_error_mps,
+        ),
+        Column(
+            "insertion_fpa_error_deg",
+            FLOAT,
+            "deg: inertial flight-path angle at insertion (0 aimed at)",
+            lambda r: _deg(r.flight_path_angle_error_rad),
+        ),
+        Column(
+            "inclination_error_deg",
+            FLOAT,
+            "deg: mean inclination minus the target plane's",
+            lambda r: _deg(r.inclination_error_rad),
+        ),
+        Column(
+            "raan_error_deg",
+            FLOAT,
+            "deg: node from the target plane's",
+            lambda r: _deg(r.raan_error_rad),
+        ),
+        Column(
+            "semi_major_axis_km",
+            FLOAT,
+            "km: osculating semi-major axis at insertion",
+            _osculating(lambda osc: osc.a / 1e3),
+        ),
+        Column(
+            "eccentricity",
+            FLOAT,
+            "osculating eccentricity at insertion",
+            _osculating(lambda osc: osc.e),
+        ),
+        Column(
+            "inclination_deg",
+            FLOAT,
+            "deg: osculating inclination at insertion",
+            _osculating(lambda osc: _deg(osc.i)),
+        ),
+        Column(
+            "raan_deg",
+            FLOAT,
+            "deg: osculating node at insertion, [0, 360)",
+            _osculating(lambda osc: _deg(osc.raan % TWO_PI)),
+        ),
+        Column(
+            "mean_inclination_deg",
+            FLOAT,
+            "deg: J2 mean inclination at insertion",
+            lambda r: _deg(r.mean_inclination_rad),
+        ),
+        Column(
+            "mean_raan_deg",
+            FLOAT,
+            "deg: J2 mean node at insertion",
+            lambda r: _deg(r.mean_raan_rad),
+        ),
+        Column(
+            "max_dynamic_pressure_pa",
+            FLOAT,
+            "Pa: the peak dynamic pressure",
+            lambda r: r.max_dynamic_pressure_pa,
+        ),
+        Column(
+            "max_dynamic_pressure_time_s",
+            FLOAT,
+            "s from the drop: at the peak",
+            lambda r: r.max_dynamic_pressure_time_s,
+        ),
+        Column("max_axial_load_g", FLOAT, "g: the peak axial load", lambda r: r.max_axial_load_g),
+        Column(
+            "max_axial_load_time_s",
+            FLOAT,
+            "s from the drop: at the peak",
+            lambda r: r.max_axial_load_time_s,
+        ),
+        Column(
+            "fairing_jettison_time_s",
+            FLOAT,
+            "s from the drop: the fairing dropped",
+            lambda r: r.fairing_jettison_time_s,
+        ),
+        Column(
+            "ideal_dv_rocket_equation_mps",
+            FLOAT,
+            "m/s: the stages' ideal speed by the rocket equation",
+            lambda r: r.ideal_delta_v_rocket_equation_mps,
+        ),
+        Column(
+            "ideal_dv_integrated_mps",
+            FLOAT,
+            "m/s: the same, integrated along the ascent",
+            lambda r: r.ideal_delta_v_integrated_mps,
+        ),
+        Column(
+            "speed_gain_mps",
+            FLOAT,
+            "m/s: inertial speed at insertion minus at the drop",
+            lambda r: r.speed_gain_mps,
+        ),
+        Column("total_loss_mps", FLOAT, "m/s: the sum of the losses", lambda r: r.total_loss_mps),
+        Column("trajectories", INT, "ascents flown by the solve", lambda r: r.trajectories),
+        Column("wall_time_s", FLOAT, "s: the solve's wall time (timing)", lambda r: r.wall_time_s),
+        *[
+            Column(
+                f"{name}_loss_mps", FLOAT, f"m/s: the {name.replace('_', ' ')} loss", _loss(name)
+            )
+            for name in LOSSES
+        ],
+        *[
+            Column(
+                f"design_{name}", FLOAT, "the design variable (configuration units)", _design(name)
+            )
+            for name in DESIGN_VARIABLES
+        ],
+        *[
+            Column(
+                f"insertion_{kind}_eci_{axis}_{unit}",
+                FLOAT,
+                f"{symbol}: the insertion {what}, ECI {axis}",
+                _component(f"insertion_{kind}_eci_{unit}", k),
+            )
+            for k, axis in enumerate("xyz")
+            for kind, unit, symbol, what in (
+                ("r", "m", "m", "position"),
+                ("v", "mps", "m/s", "velocity"),
+            )
+        ],
+        *[column for phase in PHASES for column in _phase_columns(phase)],
+    ],
+    required=("feasible", "target_altitude_km"),
+)
+"""The launch stage's row (:meth:`LaunchResult.to_row`)."""
+
+ROW_SCHEMA = ROW.schema
+"""The columns of :meth:`LaunchResult.to_row` (a phase the solve did not run is null)."""
 
 
 def trajectory_table(

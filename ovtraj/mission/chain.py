@@ -38,6 +38,7 @@ import pandas as pd
 
 from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.elements import NonsingularElements, orbital_period, rv_to_coe
+from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.config import Scenario
@@ -53,45 +54,111 @@ from ovtraj.reentry import EntryState, reentry_input, solve_reentry
 from ovtraj.reentry.result import ReentryResult
 from ovtraj.rendezvous.result import RendezvousInput, RendezvousResult, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
-from ovtraj.store.records import BOOL, FLOAT, TEXT, record_schema
+from ovtraj.store.records import BOOL, FLOAT, TEXT, Column, RowColumns
 from ovtraj.target_state import target_state
 
 _DAY_S = 86400.0
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
 DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
 
-LAUNCH_ROW_SCHEMA = record_schema(
+
+@dataclass(frozen=True)
+class LaunchOnDay:
+    """A design's launch leg on the launch day: what the chain's launch row is read from."""
+
+    leg: LaunchLeg
+    design: MissionDesign
+    day: Epoch
+
+
+LAUNCH_ROW = RowColumns(
     [
-        ("source", TEXT),
-        ("launcher", TEXT),
-        ("parking_altitude_km", FLOAT),
-        ("payload_kg", FLOAT),
-        ("drop_time_s", FLOAT),
-        ("insertion_time_s", FLOAT),
-        ("insertion_u_deg", FLOAT),
-        ("raan_offset_deg", FLOAT),
-        ("drop_epoch_utc", TEXT),
-        ("insertion_epoch_utc", TEXT),
-        ("feasible", BOOL),
-        ("reason", TEXT),
+        Column("source", TEXT, "launch fit or solved launch", lambda x: x.leg.source),
+        Column("launcher", TEXT, "the launcher's name", lambda x: x.leg.launcher),
+        Column(
+            "parking_altitude_km",
+            FLOAT,
+            "km: the design's parking altitude (H_P0)",
+            lambda x: x.design.parking_altitude_km,
+        ),
+        Column(
+            "payload_kg", FLOAT, "kg: the payload to the parking orbit", lambda x: x.leg.payload_kg
+        ),
+        Column(
+            "drop_time_s",
+            FLOAT,
+            "s from the launch day's 0 h UTC: the drop",
+            lambda x: x.leg.drop_time_s,
+        ),
+        Column(
+            "insertion_time_s",
+            FLOAT,
+            "s from the launch day's 0 h UTC: the insertion",
+            lambda x: x.leg.insertion_time_s,
+        ),
+        Column(
+            "insertion_u_deg",
+            FLOAT,
+            "deg: argument of latitude at insertion, [0, 360)",
+            lambda x: x.leg.insertion_u_deg,
+        ),
+        Column(
+            "raan_offset_deg",
+            FLOAT,
+            "deg: the parking orbit's mean node east of the target's at insertion",
+            lambda x: x.leg.raan_offset_deg,
+        ),
+        Column(
+            "drop_epoch_utc",
+            TEXT,
+            "ISO UTC of the drop",
+            lambda x: x.day.plus_seconds(x.leg.drop_time_s).iso(),
+        ),
+        Column(
+            "insertion_epoch_utc",
+            TEXT,
+            "ISO UTC of the insertion",
+            lambda x: x.day.plus_seconds(x.leg.insertion_time_s).iso(),
+        ),
+        Column(
+            "feasible", BOOL, "true: a launch the chain cannot fly leaves no row", lambda x: True
+        ),
+        Column("reason", TEXT, "null, as feasible is true", lambda x: None),
     ],
     required=("feasible",),
 )
-"""The chain's launch row (from the launch fit, not :class:`ovtraj.launch.LaunchResult`)."""
+"""The chain's launch row (from the launch fit or a solved launch's row, not
+:class:`ovtraj.launch.LaunchResult`)."""
 
-TOTALS_SCHEMA = record_schema(
+LAUNCH_ROW_SCHEMA = LAUNCH_ROW.schema
+"""The columns of the chain's launch row, as stored."""
+
+
+def _design_value(name: str) -> Any:
+    return lambda record: float(getattr(record.design, name))
+
+
+TOTALS = RowColumns(
     [
-        *[(name, FLOAT) for name in DESIGN_NAMES],
-        ("feasible", BOOL),
-        ("failed_stage", TEXT),
-        ("reason", TEXT),
-        ("t_total_s", FLOAT),
-        ("dv_total_mps", FLOAT),
-        ("m_load_kg", FLOAT),
+        *[Column(name, FLOAT, "the design variable", _design_value(name)) for name in DESIGN_NAMES],
+        Column("feasible", BOOL, "every stage feasible", lambda r: r.feasible),
+        Column("failed_stage", TEXT, "the stage that ended the chain", lambda r: r.failed_stage),
+        Column("reason", TEXT, "why that stage failed", lambda r: r.reason),
+        Column(
+            "t_total_s",
+            FLOAT,
+            "s: the drop to the terminal interface (T_total)",
+            lambda r: r.t_total_s,
+        ),
+        Column("dv_total_mps", FLOAT, "m/s: every OV impulse (dV_total)", lambda r: r.dv_total_mps),
+        Column("m_load_kg", FLOAT, "kg: the payload (M_load)", lambda r: r.m_load_kg),
     ],
     required=(*DESIGN_NAMES, "feasible"),
 )
-"""The columns of :meth:`MissionRecord.totals` (results only: no timing)."""
+"""The mission totals (:meth:`MissionRecord.totals`; results only: no timing)."""
+
+TOTALS_SCHEMA = TOTALS.schema
+"""The columns of :meth:`MissionRecord.totals`, as stored."""
 
 
 @dataclass(frozen=True)
@@ -195,15 +262,8 @@ class MissionRecord:
     results: StageResults = field(default_factory=StageResults)
 
     def totals(self) -> dict[str, Any]:
-        return {
-            **self.design.as_dict(),
-            "feasible": self.feasible,
-            "failed_stage": self.failed_stage,
-            "reason": self.reason,
-            "t_total_s": self.t_total_s,
-            "dv_total_mps": self.dv_total_mps,
-            "m_load_kg": self.m_load_kg,
-        }
+        """The row of :data:`TOTALS`."""
+        return TOTALS.row(self)
 
 
 class _StageFailed(Exception):
@@ -219,8 +279,6 @@ class MissionContext:
     def __init__(self, scenario: Scenario, launch_fit: LaunchFit) -> None:
         if scenario.mission is None or scenario.launch is None:
             raise ValueError("the scenario needs mission and launch sections")
-        from ovtraj.astro.epoch import Epoch
-
         self.scenario = scenario
         self.fit = launch_fit
         self.day = Epoch.from_iso(scenario.launch.launch_date_utc)
@@ -379,20 +437,7 @@ def _run(
     leg = _launch_leg(ctx, design, solved)
     t_ins, t_drop, parked = leg.insertion_time_s, leg.drop_time_s, leg.insertion_state
     record.results.launch = leg
-    record.stages["launch"] = {
-        "source": leg.source,
-        "launcher": leg.launcher,
-        "parking_altitude_km": design.parking_altitude_km,
-        "payload_kg": leg.payload_kg,
-        "drop_time_s": t_drop,
-        "insertion_time_s": t_ins,
-        "insertion_u_deg": leg.insertion_u_deg,
-        "raan_offset_deg": leg.raan_offset_deg,
-        "drop_epoch_utc": ctx.day.plus_seconds(t_drop).iso(),
-        "insertion_epoch_utc": ctx.day.plus_seconds(t_ins).iso(),
-        "feasible": True,
-        "reason": None,
-    }
+    record.stages["launch"] = LAUNCH_ROW.row(LaunchOnDay(leg, design, ctx.day))
     _lap(record, "launch")
     # 3. rendezvous
     common = rendezvous_settings(scenario)

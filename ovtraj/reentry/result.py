@@ -9,7 +9,7 @@ from typing import Any
 import pandas as pd
 
 from ovtraj.astro.epoch import Epoch
-from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, Column, RowColumns, record_schema
 
 
 def _deg(x: float | None) -> float | None:
@@ -57,82 +57,155 @@ class ReentryResult:
     trajectory: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def to_row(self) -> dict[str, Any]:
-        row: dict[str, Any] = {
-            "feasible": self.feasible,
-            "reason": self.reason,
-            "flags": ";".join(self.flags),
-            "entry_epoch_utc": self.epoch.iso(),
-            "miss_distance_km": _scaled(self.miss_distance_m, 1e-3),
-            "flight_time_s": self.flight_time_s,
-            "terminal_epoch_utc": None
-            if self.flight_time_s is None
-            else self.epoch.plus_seconds(self.flight_time_s).iso(),
-            "terminal_altitude_km": _scaled(self.terminal_altitude_m, 1e-3),
-            "terminal_speed_mps": self.terminal_speed_mps,
-            "terminal_lat_deg": _deg(self.terminal_latitude_rad),
-            "terminal_lon_deg": _deg(self.terminal_longitude_rad),
-            "terminal_fpa_deg": _deg(self.terminal_fpa_rad),
-            "terminal_heading_deg": _deg(self.terminal_heading_rad),
-            "max_heat_rate_kw_m2": _scaled(self.max_heat_rate_w_m2, 1e-3),
-            "max_heat_rate_time_s": self.max_heat_rate_time_s,
-            "max_load_g": self.max_load_g,
-            "max_load_time_s": self.max_load_time_s,
-            "max_dynamic_pressure_kpa": _scaled(self.max_dynamic_pressure_pa, 1e-3),
-            "max_dynamic_pressure_time_s": self.max_dynamic_pressure_time_s,
-            "max_bank_deg": _deg(self.max_bank_rad),
-            "heat_rate_margin": self.heat_rate_margin,
-            "load_margin": self.load_margin,
-            "dynamic_pressure_margin": self.dynamic_pressure_margin,
-            "bank_margin": self.bank_margin,
-            "sigma0_deg": _deg(self.sigma0_rad),
-            "sigma1_deg": _deg(self.sigma1_rad),
-            "reversals": self.reversals,
-            "newton_iterations": self.newton_iterations,
-            "golden_evaluations": self.golden_evaluations,
-            "trajectories": self.trajectories,
-            "wall_time_s": self.wall_time_s,
-        }
-        return {k: plain(v) for k, v in row.items()}
+        """Flat, JSON- and Parquet-friendly record of :data:`ROW`; units named in the keys."""
+        return ROW.row(self)
 
 
-ROW_SCHEMA = record_schema(
+def _terminal_epoch(r: ReentryResult) -> str | None:
+    return None if r.flight_time_s is None else r.epoch.plus_seconds(r.flight_time_s).iso()
+
+
+ROW = RowColumns(
     [
-        ("feasible", BOOL),
-        ("reason", TEXT),
-        ("flags", TEXT),
-        ("entry_epoch_utc", TEXT),
-        ("miss_distance_km", FLOAT),
-        ("flight_time_s", FLOAT),
-        ("terminal_epoch_utc", TEXT),
-        *[
-            (f"terminal_{name}", FLOAT)
-            for name in (
-                "altitude_km",
-                "speed_mps",
-                "lat_deg",
-                "lon_deg",
-                "fpa_deg",
-                "heading_deg",
-            )
-        ],
-        ("max_heat_rate_kw_m2", FLOAT),
-        ("max_heat_rate_time_s", FLOAT),
-        ("max_load_g", FLOAT),
-        ("max_load_time_s", FLOAT),
-        ("max_dynamic_pressure_kpa", FLOAT),
-        ("max_dynamic_pressure_time_s", FLOAT),
-        ("max_bank_deg", FLOAT),
-        *[(f"{name}_margin", FLOAT) for name in ("heat_rate", "load", "dynamic_pressure", "bank")],
-        ("sigma0_deg", FLOAT),
-        ("sigma1_deg", FLOAT),
-        ("reversals", INT),
-        ("newton_iterations", INT),
-        ("golden_evaluations", INT),
-        ("trajectories", INT),
-        ("wall_time_s", FLOAT),
+        Column("feasible", BOOL, "the entry met every limit", lambda r: r.feasible),
+        Column("reason", TEXT, "why it is infeasible", lambda r: r.reason),
+        Column(
+            "flags",
+            TEXT,
+            "what stopped the guidance short (time_limit, iteration_limit...), ';'-separated",
+            lambda r: ";".join(r.flags),
+        ),
+        Column(
+            "entry_epoch_utc",
+            TEXT,
+            "ISO UTC at the entry interface, the times' origin",
+            lambda r: r.epoch.iso(),
+        ),
+        Column(
+            "miss_distance_km",
+            FLOAT,
+            "km: the terminal point from the landing site",
+            lambda r: _scaled(r.miss_distance_m, 1e-3),
+        ),
+        Column(
+            "flight_time_s", FLOAT, "s: entry to the terminal interface", lambda r: r.flight_time_s
+        ),
+        Column("terminal_epoch_utc", TEXT, "ISO UTC at the terminal interface", _terminal_epoch),
+        Column(
+            "terminal_altitude_km",
+            FLOAT,
+            "km: altitude at the terminal interface",
+            lambda r: _scaled(r.terminal_altitude_m, 1e-3),
+        ),
+        Column(
+            "terminal_speed_mps",
+            FLOAT,
+            "m/s: Earth-relative speed there",
+            lambda r: r.terminal_speed_mps,
+        ),
+        Column(
+            "terminal_lat_deg",
+            FLOAT,
+            "deg: latitude there",
+            lambda r: _deg(r.terminal_latitude_rad),
+        ),
+        Column(
+            "terminal_lon_deg",
+            FLOAT,
+            "deg: longitude there",
+            lambda r: _deg(r.terminal_longitude_rad),
+        ),
+        Column(
+            "terminal_fpa_deg",
+            FLOAT,
+            "deg: flight-path angle there",
+            lambda r: _deg(r.terminal_fpa_rad),
+        ),
+        Column(
+            "terminal_heading_deg",
+            FLOAT,
+            "deg from north: heading there",
+            lambda r: _deg(r.terminal_heading_rad),
+        ),
+        Column(
+            "max_heat_rate_kw_m2",
+            FLOAT,
+            "kW/m^2: the peak stagnation heat rate",
+            lambda r: _scaled(r.max_heat_rate_w_m2, 1e-3),
+        ),
+        Column(
+            "max_heat_rate_time_s",
+            FLOAT,
+            "s from entry: at the peak",
+            lambda r: r.max_heat_rate_time_s,
+        ),
+        Column("max_load_g", FLOAT, "g: the peak load factor", lambda r: r.max_load_g),
+        Column("max_load_time_s", FLOAT, "s from entry: at the peak", lambda r: r.max_load_time_s),
+        Column(
+            "max_dynamic_pressure_kpa",
+            FLOAT,
+            "kPa: the peak dynamic pressure",
+            lambda r: _scaled(r.max_dynamic_pressure_pa, 1e-3),
+        ),
+        Column(
+            "max_dynamic_pressure_time_s",
+            FLOAT,
+            "s from entry: at the peak",
+            lambda r: r.max_dynamic_pressure_time_s,
+        ),
+        Column(
+            "max_bank_deg",
+            FLOAT,
+            "deg: the largest bank angle flown",
+            lambda r: _deg(r.max_bank_rad),
+        ),
+        Column("heat_rate_margin", FLOAT, "1 - peak / limit", lambda r: r.heat_rate_margin),
+        Column("load_margin", FLOAT, "1 - peak / limit", lambda r: r.load_margin),
+        Column(
+            "dynamic_pressure_margin",
+            FLOAT,
+            "1 - peak / limit",
+            lambda r: r.dynamic_pressure_margin,
+        ),
+        Column("bank_margin", FLOAT, "1 - largest / limit", lambda r: r.bank_margin),
+        Column(
+            "sigma0_deg",
+            FLOAT,
+            "deg: the bank profile's magnitude at entry",
+            lambda r: _deg(r.sigma0_rad),
+        ),
+        Column(
+            "sigma1_deg",
+            FLOAT,
+            "deg: the bank profile's magnitude at the terminal speed",
+            lambda r: _deg(r.sigma1_rad),
+        ),
+        Column("reversals", INT, "bank reversals flown", lambda r: r.reversals),
+        Column(
+            "newton_iterations",
+            INT,
+            "Newton steps on sigma0 (range)",
+            lambda r: r.newton_iterations,
+        ),
+        Column(
+            "golden_evaluations",
+            INT,
+            "golden-section evaluations on sigma1 (miss)",
+            lambda r: r.golden_evaluations,
+        ),
+        Column("trajectories", INT, "entries flown by the guidance", lambda r: r.trajectories),
+        Column(
+            "wall_time_s",
+            FLOAT,
+            "s: the stage's wall time (timing, not a result)",
+            lambda r: r.wall_time_s,
+        ),
     ],
     required=("feasible",),
 )
+"""The reentry stage's row (:meth:`ReentryResult.to_row`)."""
+
+ROW_SCHEMA = ROW.schema
 """The columns of :meth:`ReentryResult.to_row` (``wall_time_s`` is timing, not a result)."""
 
 TRAJECTORY_SCHEMA = record_schema(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -13,7 +14,7 @@ from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.propagation import PropagationResult
 from ovtraj.config.scenario import RendezvousSettings
-from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, plain, record_schema
+from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, Column, RowColumns, record_schema
 
 TransferKind = Literal["rendezvous", "transfer"]
 
@@ -121,83 +122,156 @@ class RendezvousResult:
         return self.burn2.t_s if self.burn2 is not None else None
 
     def to_row(self) -> dict[str, Any]:
-        """Flat, JSON- and Parquet-friendly record; SI units named in the keys."""
-        row: dict[str, Any] = {
-            "kind": self.kind,
-            "feasible": self.feasible,
-            "reason": self.reason,
-            "epoch_utc": self.epoch.iso(),
-            "t0_s": self.t0_s,
-            "wait_time_s": self.wait_time_s,
-            "phasing_wait_s": self.phasing_wait_s,
-            "transfer_time_s": self.transfer_time_s,
-            "transfer_time_two_body_s": self.transfer_time_two_body_s,
-            "dv1_mps": _magnitude(self.burn1),
-            "dv2_mps": _magnitude(self.burn2),
-            "dv_total_mps": self.dv_total_mps,
-            "dv1_two_body_mps": self.dv1_two_body_mps,
-            "dv2_two_body_mps": self.dv2_two_body_mps,
-            "lead_angle_deg": _deg(self.lead_angle_rad),
-            "lead_angle_two_body_deg": _deg(self.lead_angle_two_body_rad),
-            "plane_difference_deg": _deg(self.plane_difference_rad),
-            "miss_distance_m": self.miss_distance_m,
-            "initial_miss_distance_m": self.initial_miss_distance_m,
-            "iterations": self.iterations,
-            "evaluations": self.evaluations,
-            "solver_message": self.solver_message,
-        }
-        for name, burn in (("burn1", self.burn1), ("burn2", self.burn2)):
-            row[f"{name}_t_s"] = burn.t_s if burn else None
-            row[f"{name}_epoch_utc"] = self.epoch.plus_seconds(burn.t_s).iso() if burn else None
-        for name, burn in (("dv1", self.burn1), ("dv2", self.burn2)):
-            for axis, k in zip("xyz", range(3), strict=True):
-                row[f"{name}_eci_{axis}_mps"] = float(burn.eci_mps[k]) if burn else None
-            for axis, k in zip(("radial", "along_track", "cross_track"), range(3), strict=True):
-                row[f"{name}_{axis}_mps"] = float(burn.rsw_mps[k]) if burn else None
-        return {k: plain(v) for k, v in row.items()}
+        """Flat, JSON- and Parquet-friendly record of :data:`ROW`; SI units named in the
+        keys."""
+        return ROW.row(self)
 
 
 _RSW = ("radial", "along_track", "cross_track")
 _STATE = ("x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")
 
-ROW_SCHEMA = record_schema(
+
+def _burn(which: str) -> Callable[[RendezvousResult], Impulse | None]:
+    return lambda r: getattr(r, which)
+
+
+def _burn_columns(which: str) -> list[Column]:
+    """The time and epoch of the impulse ``which`` (``burn1``: the first)."""
+    burn = _burn(which)
+    return [
+        Column(
+            f"{which}_t_s",
+            FLOAT,
+            "s from epoch_utc: the impulse",
+            lambda r: burn(r).t_s if burn(r) else None,
+        ),
+        Column(
+            f"{which}_epoch_utc",
+            TEXT,
+            "ISO UTC of the impulse",
+            lambda r: r.epoch.plus_seconds(burn(r).t_s).iso() if burn(r) else None,
+        ),
+    ]
+
+
+def _impulse_columns(name: str, which: str) -> list[Column]:
+    """The components [m/s] of the impulse ``which``: ECI x, y, z, then radial,
+    along-track, cross-track."""
+    burn = _burn(which)
+
+    def eci(k: int) -> Callable[[RendezvousResult], float | None]:
+        return lambda r: float(burn(r).eci_mps[k]) if burn(r) else None
+
+    def rsw(k: int) -> Callable[[RendezvousResult], float | None]:
+        return lambda r: float(burn(r).rsw_mps[k]) if burn(r) else None
+
+    return [
+        *[
+            Column(f"{name}_eci_{axis}_mps", FLOAT, f"m/s: ECI {axis}", eci(k))
+            for k, axis in enumerate("xyz")
+        ],
+        *[
+            Column(f"{name}_{axis}_mps", FLOAT, f"m/s: {axis.replace('_', '-')} (RSW)", rsw(k))
+            for k, axis in enumerate(_RSW)
+        ],
+    ]
+
+
+ROW = RowColumns(
     [
-        ("kind", TEXT),
-        ("feasible", BOOL),
-        ("reason", TEXT),
-        ("epoch_utc", TEXT),
-        ("t0_s", FLOAT),
-        ("wait_time_s", FLOAT),
-        ("phasing_wait_s", FLOAT),
-        ("transfer_time_s", FLOAT),
-        ("transfer_time_two_body_s", FLOAT),
-        ("dv1_mps", FLOAT),
-        ("dv2_mps", FLOAT),
-        ("dv_total_mps", FLOAT),
-        ("dv1_two_body_mps", FLOAT),
-        ("dv2_two_body_mps", FLOAT),
-        ("lead_angle_deg", FLOAT),
-        ("lead_angle_two_body_deg", FLOAT),
-        ("plane_difference_deg", FLOAT),
-        ("miss_distance_m", FLOAT),
-        ("initial_miss_distance_m", FLOAT),
-        ("iterations", INT),
-        ("evaluations", INT),
-        ("solver_message", TEXT),
-        *[
-            (f"{burn}_{what}", kind)
-            for burn in ("burn1", "burn2")
-            for what, kind in (("t_s", FLOAT), ("epoch_utc", TEXT))
-        ],
-        *[
-            (f"{dv}_{axis}_mps", FLOAT)
-            for dv in ("dv1", "dv2")
-            for axis in ("eci_x", "eci_y", "eci_z", *_RSW)
-        ],
+        Column(
+            "kind",
+            TEXT,
+            "rendezvous (with the target) or transfer (to a circular orbit)",
+            lambda r: r.kind,
+        ),
+        Column("feasible", BOOL, "the stage met every limit", lambda r: r.feasible),
+        Column("reason", TEXT, "why it is infeasible (empty when feasible)", lambda r: r.reason),
+        Column(
+            "epoch_utc", TEXT, "ISO UTC: the epoch the times count from", lambda r: r.epoch.iso()
+        ),
+        Column("t0_s", FLOAT, "s from epoch_utc: the stage's start", lambda r: r.t0_s),
+        Column("wait_time_s", FLOAT, "s: the start to the first impulse", lambda r: r.wait_time_s),
+        Column(
+            "phasing_wait_s",
+            FLOAT,
+            "s: the phasing wait checked against max_wait_time_s (before the J2 correction "
+            "moves the first impulse)",
+            lambda r: r.phasing_wait_s,
+        ),
+        Column(
+            "transfer_time_s",
+            FLOAT,
+            "s: the first impulse to the second",
+            lambda r: r.transfer_time_s,
+        ),
+        Column(
+            "transfer_time_two_body_s",
+            FLOAT,
+            "s: the two-body Hohmann transfer's",
+            lambda r: r.transfer_time_two_body_s,
+        ),
+        Column("dv1_mps", FLOAT, "m/s: the first impulse", lambda r: _magnitude(r.burn1)),
+        Column("dv2_mps", FLOAT, "m/s: the second impulse", lambda r: _magnitude(r.burn2)),
+        Column("dv_total_mps", FLOAT, "m/s: both impulses", lambda r: r.dv_total_mps),
+        Column(
+            "dv1_two_body_mps",
+            FLOAT,
+            "m/s: the Hohmann transfer's first",
+            lambda r: r.dv1_two_body_mps,
+        ),
+        Column(
+            "dv2_two_body_mps",
+            FLOAT,
+            "m/s: the Hohmann transfer's second",
+            lambda r: r.dv2_two_body_mps,
+        ),
+        Column(
+            "lead_angle_deg",
+            FLOAT,
+            "deg: the target's phase ahead of the chaser at the first impulse",
+            lambda r: _deg(r.lead_angle_rad),
+        ),
+        Column(
+            "lead_angle_two_body_deg",
+            FLOAT,
+            "deg: the two-body lead angle of the Hohmann transfer",
+            lambda r: _deg(r.lead_angle_two_body_rad),
+        ),
+        Column(
+            "plane_difference_deg",
+            FLOAT,
+            "deg: between the chaser's and the target's orbit planes",
+            lambda r: _deg(r.plane_difference_rad),
+        ),
+        Column(
+            "miss_distance_m",
+            FLOAT,
+            "m: at arrival, after the J2 correction",
+            lambda r: r.miss_distance_m,
+        ),
+        Column(
+            "initial_miss_distance_m",
+            FLOAT,
+            "m: at arrival, before the J2 correction",
+            lambda r: r.initial_miss_distance_m,
+        ),
+        Column("iterations", INT, "the J2 correction's iterations", lambda r: r.iterations),
+        Column(
+            "evaluations", INT, "the J2 correction's transfer evaluations", lambda r: r.evaluations
+        ),
+        Column("solver_message", TEXT, "the J2 correction's last word", lambda r: r.solver_message),
+        *_burn_columns("burn1"),
+        *_burn_columns("burn2"),
+        *_impulse_columns("dv1", "burn1"),
+        *_impulse_columns("dv2", "burn2"),
     ],
     required=("kind", "feasible"),
 )
-"""The columns of :meth:`RendezvousResult.to_row` (the rendezvous and transfer stages)."""
+"""The rendezvous and transfer stages' row (:meth:`RendezvousResult.to_row`)."""
+
+ROW_SCHEMA = ROW.schema
+"""The columns of :meth:`RendezvousResult.to_row`, as stored."""
 
 TRAJECTORY_SCHEMA = record_schema(
     [

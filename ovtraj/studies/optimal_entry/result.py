@@ -175,10 +175,16 @@ def write_histories(
     """
     stem = stem or f"{result.name}_{result.independent}_{result.method}"
     states = table_from_rows(
-        result.states.to_dict(orient="records"), STATES_SCHEMA, "optimal-entry states"
+        result.states.to_dict(orient="records"),
+        STATES_SCHEMA,
+        "optimal-entry states",
+        optional=("energy_normalised", "alpha_deg", "bank_deg"),
     )
     controls = table_from_rows(
-        result.controls.to_dict(orient="records"), CONTROLS_SCHEMA, "optimal-entry controls"
+        result.controls.to_dict(orient="records"),
+        CONTROLS_SCHEMA,
+        "optimal-entry controls",
+        optional=("energy_normalised", "alpha_rate_deg_s", "bank_rate_deg_s"),
     )
     directory = Path(directory)
     if content_named:
