@@ -276,20 +276,26 @@ class DragFit:
     reason: str | None
 
 
-def fit_with_drag(
+@dataclass(frozen=True)
+class _FitReference:
+    """What a drag fit matches: SGP4's positions [m] at ``times`` [s from the scenario's
+    epoch], the state it starts from, the unknowns' scales and the starting C_D A / m."""
+
+    times: np.ndarray
+    r_ref: np.ndarray
+    start: np.ndarray
+    r_scale: float
+    scale: np.ndarray
+    ballistic0: float
+
+
+def _fit_reference(
     orbit: HighFidelityOrbit, scenario: Scenario, settings: ForceModelSettings
-) -> DragFit:
-    """The scenario's element set fitted under the high-fidelity model: the state and
-    the ballistic coefficient that best match SGP4's positions over the source
-    settings' span (least squares, as the J2 fit of :mod:`ovtraj.target_sources`), flown
-    with the C_D A / m of the element set's B* (the body's when B* is not positive);
-    with ``target_fit.fit_ballistic`` its log a seventh unknown, within
-    ``ballistic_bounds``; within ``settings.target_fit``'s limits."""
+) -> _FitReference:
+    """SGP4's positions over the source settings' span, and the start of the fit: the
+    element set's state, and the C_D A / m of its B* (the body's when B* is not positive)."""
     import math
 
-    from scipy.optimize import least_squares
-
-    from ovtraj.deadline import Deadline
     from ovtraj.element_sets.ephemeris import sgp4_eci
 
     target = scenario.target
@@ -304,13 +310,44 @@ def fit_with_drag(
     start = np.r_[r_ref[0], v_ref[0]]
     r_scale = float(np.linalg.norm(r_ref[0]))
     scale = np.r_[np.full(3, r_scale), np.full(3, np.linalg.norm(v_ref[0]))]
-    propagator = orbit.propagator
     bstar = float(elements.satrec.bstar)
     ballistic0 = (
         2.0 * bstar / limits.sgp4_reference_density
         if bstar > 0.0
-        else float(propagator.parameters[2])
+        else float(orbit.propagator.parameters[2])
     )
+    return _FitReference(times, r_ref, start, r_scale, scale, ballistic0)
+
+
+def _fit_stopped(solution: Any, deadline: Any, max_evaluations: int) -> str | None:
+    """The limit that stopped the least-squares fit, in words; None when it converged."""
+    if deadline.reached:
+        return deadline.reason(int(solution.nfev), "evaluations")
+    if solution.status == 0:
+        return f"target_fit.max_evaluations = {max_evaluations} reached"
+    return None
+
+
+def fit_with_drag(
+    orbit: HighFidelityOrbit, scenario: Scenario, settings: ForceModelSettings
+) -> DragFit:
+    """The scenario's element set fitted under the high-fidelity model: the state and
+    the ballistic coefficient that best match SGP4's positions over the source
+    settings' span (least squares, as the J2 fit of :mod:`ovtraj.target_sources`), flown
+    with the C_D A / m of the element set's B* (the body's when B* is not positive);
+    with ``target_fit.fit_ballistic`` its log a seventh unknown, within
+    ``ballistic_bounds``; within ``settings.target_fit``'s limits."""
+    import math
+
+    from scipy.optimize import least_squares
+
+    from ovtraj.deadline import Deadline
+
+    ref = _fit_reference(orbit, scenario, settings)
+    limits = settings.target_fit
+    times, r_ref, start, r_scale, scale = ref.times, ref.r_ref, ref.start, ref.r_scale, ref.scale
+    ballistic0 = ref.ballistic0
+    propagator = orbit.propagator
     tol = propagator.tol
 
     def positions(z: np.ndarray) -> np.ndarray:
@@ -340,11 +377,7 @@ def fit_with_drag(
         callback=lambda intermediate_result: deadline.stop_if_expired(),
     )
     z = np.r_[solution.x, 0.0][:7]
-    reason = None
-    if deadline.reached:
-        reason = deadline.reason(int(solution.nfev), "evaluations")
-    elif solution.status == 0:
-        reason = f"target_fit.max_evaluations = {limits.max_evaluations} reached"
+    reason = _fit_stopped(solution, deadline, limits.max_evaluations)
     errors = np.linalg.norm(positions(z) - r_ref, axis=1)
     return DragFit(
         state=start + z[:6] * scale,
