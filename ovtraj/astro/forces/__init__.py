@@ -1,7 +1,8 @@
-"""The high-fidelity force model's terms as heyoka expressions (issue 47).
+"""The high-fidelity force model's terms as heyoka expressions.
 
-One module per term, each a public function of symbolic positions, velocities and time
-that returns expressions: the Earth's field to degree and order n (:mod:`.gravity_field`),
+The terms are declared once in :mod:`.terms` (name, switch, needs). One module per
+term, each a public function of symbolic positions, velocities and time that returns
+expressions: the Earth's field to degree and order n (:mod:`.gravity_field`),
 thermospheric drag (:mod:`.drag`), the Sun and the Moon as point masses
 (:mod:`.third_body`), cannonball radiation pressure with the Earth's shadow
 (:mod:`.radiation_pressure`); the time scales (:mod:`.time_scales`) and the Earth
