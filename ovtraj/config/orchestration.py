@@ -3,14 +3,16 @@
 ``configs/orchestration.yaml`` (shipped; ``OVTRAJ_CONFIG_DIR`` moves it). These settings
 belong to no scenario: they never change a result or a run id, and a stored run's
 ``config.json`` does not carry them. The flows (``flows/``) read them when imported; the
-library reads only ``reads`` (at its first read of a store file) and ``store_key`` (when
-``OVTRAJ_STORE_KEY`` is set, :mod:`ovtraj.store.seals`).
+library reads only ``reads`` (at its first read of a store file), ``store_key`` (when
+``OVTRAJ_STORE_KEY`` is set, :mod:`ovtraj.store.seals`) and ``preparation`` (when a DoE or a
+pipeline is prepared, :mod:`ovtraj.runs.preparation`).
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 
@@ -173,6 +175,17 @@ class StoreKeySettings(StrictModel):
     )
 
 
+class PreparationSettings(StrictModel):
+    """What a DoE or a pipeline does before its first batch, from the command line and the
+    flows alike (:mod:`ovtraj.runs.preparation`)."""
+
+    launch_fit: Literal["fit", "require"] = Field(
+        description="a scenario with no stored launch fit: `fit` solves and stores it first "
+        "(the command in its process, a flow as the launch-fit subflow); `require` refuses, "
+        "naming the command that fits it"
+    )
+
+
 class OrchestrationConfig(StrictModel):
     tasks: TaskTimeouts
     flows: FlowTimeouts
@@ -182,6 +195,7 @@ class OrchestrationConfig(StrictModel):
     reads: ReadSettings
     catalog: CatalogSettings
     store_key: StoreKeySettings
+    preparation: PreparationSettings
 
 
 def load_orchestration(path: str | Path | None = None) -> OrchestrationConfig:
