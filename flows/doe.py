@@ -1,7 +1,8 @@
 """Flow: a DoE of the whole mission into the run store (``flows/doe.py:doe_flow``).
 
-1. read the scenario and its DoE settings; make sure the launch fit exists (the
-   launch-fit flow runs as a subflow when it does not);
+1. read the scenario and its DoE settings; make sure the launch fit exists (when it does
+   not, the launch-fit flow runs as a subflow, or the flow run fails naming it, as
+   configs/orchestration.yaml ``preparation.launch_fit`` says);
 2. create (or reopen) the run: its id hashes the resolved config, seed, sample
    count, parent run and code version; the flow run is renamed ``doe <scenario>
    <run id>`` and tagged ``scenario:<name>``, ``run:<id>`` (its task runs too);
@@ -36,12 +37,14 @@ from flows.common import (
     run_tags,
     run_to_completion,
 )
+from flows.launch_fit import launch_fit_subflow
 from flows.runners import task_runner
 from ovtraj.config import Scenario
-from ovtraj.launch.launch_fit import LaunchFit, find_launch_fit
+from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.paths import scenario_file
 from ovtraj.runs import RunStore, prepare_run
 from ovtraj.runs.execute import finish
+from ovtraj.runs.preparation import required_launch_fit
 from ovtraj.runs.runners import RunnerChoice, choose_runner
 from ovtraj.runs.store import Run
 from ovtraj.target_sources import load_scenario_with_target
@@ -289,24 +292,6 @@ def run_doe_flow(**parameters: Any) -> dict[str, Any]:
     return run_to_completion(lambda: doe_flow(**parameters))
 
 
-def ensure_launch_fit(
-    config: str | None, scenario: Scenario, target: str | None = None
-) -> LaunchFit:
-    """The scenario's stored launch fit; the launch-fit flow runs first when there is none."""
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        from flows.launch_fit import launch_fit_flow
-
-        get_run_logger().info("no launch fit for this scenario yet: running the launch-fit flow")
-        launch_fit_flow(config, target=target)
-        fit = find_launch_fit(scenario)
-    if fit is None:
-        raise RuntimeError(
-            f"{scenario_file(config)}: the launch-fit flow stored no fit for this scenario"
-        )
-    return fit
-
-
 def _doe(
     config: str | None,
     samples: int | None,
@@ -328,7 +313,7 @@ def _doe(
         raise ValueError(f"{path}: the scenario has no mission section")
     settings = scenario.mission.doe
     choice = choose_runner(settings, runner, dask_address)
-    fit = ensure_launch_fit(config, scenario, target)
+    fit = required_launch_fit(scenario, launch_fit_subflow(config, target), target=target)
     run_store = RunStore.for_scenario(scenario, config, store)
     parent = run_store.run(append) if append else None
     run = prepare_run(

@@ -28,8 +28,16 @@ from flows.common import (
     run_tags,
 )
 from flows.runners import task_runner
-from ovtraj.launch.launch_fit import continuation_chains, fit_roots, fit_rows, launch_fit_key
+from ovtraj.config import Scenario
+from ovtraj.launch.launch_fit import (
+    LaunchFit,
+    continuation_chains,
+    fit_roots,
+    fit_rows,
+    launch_fit_key,
+)
 from ovtraj.paths import scenario_file
+from ovtraj.runs.preparation import LaunchFitter
 from ovtraj.target_sources import load_scenario_with_target
 from tasks.launch import launch_point_task
 
@@ -68,30 +76,8 @@ def launch_fit_flow(
     key = launch_fit_key(scenario)
     labels = run_tags("launch-fit", scenario.name, key)
     label_flow_run(f"launch-fit {scenario.name} {key}", labels)
-    resolved = scenario.resolved()
-    reference_km = settings.target_altitude_km
-    grid_km = settings.fit.altitudes_km()
-    point = prepared(launch_point_task)
-    with task_runner(runner, CHAINS, dask_address) as started:
-        reference = started.submit(
-            point, {"resolved_scenario": resolved, "altitude_km": reference_km}
-        )
-        futures = {reference_km: reference}
-        up, down = continuation_chains(grid_km, reference_km)
-        for chain in (up, down):
-            previous, seed = None, reference
-            for altitude_km in chain:
-                parameters = {
-                    "resolved_scenario": resolved,
-                    "altitude_km": altitude_km,
-                    "seed_row": seed,
-                    "previous_row": previous,
-                }
-                previous, seed = seed, started.submit(point, parameters)
-                futures[altitude_km] = seed
-        rows = {h: future.result() for h, future in futures.items()}
-    cached = sum(1 for future in futures.values() if future.state.name == "Cached")
-    on_grid = [rows[h] for h in grid_km if h in rows]
+    rows, cached = _solved_points(scenario, runner, dask_address)
+    on_grid = [rows[h] for h in settings.fit.altitudes_km() if h in rows]
     for row in on_grid:
         logger.info(
             "%.1f km: payload %.2f kg, feasible %s, %.1f s",
@@ -105,16 +91,55 @@ def launch_fit_flow(
     fit.save(directory)
     summary = {
         "points": len(on_grid),
-        "solved_points": len(futures),
+        "solved_points": len(rows),
         "cached_points": cached,
         "payload_kg": [row["payload_kg"] for row in on_grid],
         "altitude_range_km": list(fit.altitude_range_km),
         "directory": str(directory),
         "key": key,
     }
+    return summary | _fit_errors(fit)
+
+
+def _solved_points(
+    scenario: Scenario, runner: str, dask_address: str | None
+) -> tuple[dict[float, dict[str, Any]], int]:
+    """The reference point, then the grid's upward and downward chains side by side, each
+    point a task seeded by the chain's previous optima; returns the rows by altitude [km]
+    and how many of them were cached."""
+    resolved = scenario.resolved()
+    reference_km = scenario.launch.target_altitude_km
+    point = prepared(launch_point_task)
+    with task_runner(runner, CHAINS, dask_address) as started:
+        reference = started.submit(
+            point, {"resolved_scenario": resolved, "altitude_km": reference_km}
+        )
+        futures = {reference_km: reference}
+        up, down = continuation_chains(scenario.launch.fit.altitudes_km(), reference_km)
+        for chain in (up, down):
+            previous, seed = None, reference
+            for altitude_km in chain:
+                parameters = {
+                    "resolved_scenario": resolved,
+                    "altitude_km": altitude_km,
+                    "seed_row": seed,
+                    "previous_row": previous,
+                }
+                previous, seed = seed, started.submit(point, parameters)
+                futures[altitude_km] = seed
+        rows = {h: future.result() for h, future in futures.items()}
+    cached = sum(1 for future in futures.values() if future.state.name == "Cached")
+    return rows, cached
+
+
+def _fit_errors(fit: LaunchFit) -> dict[str, float]:
+    """Each series' leave-one-out errors for the summary (absolute and relative to its
+    range), each logged with its residual."""
+    logger = get_run_logger()
+    errors = {}
     for name, series in fit.series.items():
-        summary[f"{name}_loo_max"] = series.loo_max_error
-        summary[f"{name}_loo_relative"] = fit.loo_relative_error(name)
+        errors[f"{name}_loo_max"] = series.loo_max_error
+        errors[f"{name}_loo_relative"] = fit.loo_relative_error(name)
         logger.info(
             "fit %s: rms %.3g %s, leave-one-out max %.3g %s (%.2f %% of range)",
             name,
@@ -124,7 +149,19 @@ def launch_fit_flow(
             series.unit,
             100 * fit.loo_relative_error(name),
         )
-    return summary
+    return errors
+
+
+def launch_fit_subflow(config: str | None, target: str | None = None) -> LaunchFitter:
+    """How a flow solves a scenario's missing launch fit (configs/orchestration.yaml
+    ``preparation.launch_fit: fit``, :func:`ovtraj.runs.preparation.required_launch_fit`):
+    this flow as a subflow on the same ``config`` and ``target``, stored under its key."""
+
+    def fit(scenario: Scenario) -> None:
+        get_run_logger().info("no launch fit for this scenario yet: running the launch-fit flow")
+        launch_fit_flow(config, target=target)
+
+    return fit
 
 
 if __name__ == "__main__":

@@ -1,8 +1,10 @@
 """Flow: the whole mission pipeline (``flows/pipeline.py:mission_flow``).
 
-The library's one driver (:func:`ovtraj.pipeline.drive.drive_pipeline`, as ``ovtraj
-pipeline``), with the batches as cached Prefect tasks on the flow's task runner
-(:class:`flows.doe.TaskBatches`):
+The library's one preparation (:func:`ovtraj.pipeline.prepare.prepare_pipeline`) and one
+driver (:func:`ovtraj.pipeline.drive.drive_pipeline`), as ``ovtraj pipeline``'s, with the
+batches as cached Prefect tasks on the flow's task runner (:class:`flows.doe.TaskBatches`)
+and a launch fit not stored yet solved by the launch-fit flow as a subflow (or refused:
+configs/orchestration.yaml ``preparation.launch_fit``):
 
 1. DoE: create (or reopen) the run and evaluate its batches as parallel tasks;
 2. the loop: surrogates, NSGA-II on them, verification of front points with the real
@@ -24,12 +26,11 @@ them); only the batches are tasks, cached on their inputs.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from prefect import flow, get_run_logger
 from prefect.artifacts import create_markdown_artifact, create_table_artifact
+from prefect.runtime import deployment
 
 from flows.common import (
     FLOW_TIMEOUTS,
@@ -37,18 +38,22 @@ from flows.common import (
     prune_expired_results,
     run_name,
 )
-from flows.doe import TaskBatches, ensure_launch_fit
+from flows.doe import TaskBatches
+from flows.launch_fit import launch_fit_subflow
 from flows.optimize import front_table
 from flows.surrogate import publish_validation
 from flows.verdict import run_from_command_line, verdict_state
-from ovtraj.paths import scenario_file
 from ovtraj.pipeline import PipelineResult
-from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest, drive_pipeline
+from ovtraj.pipeline.drive import PipelineOutcome, drive_pipeline
 from ovtraj.pipeline.pick import checked_pick
 from ovtraj.pipeline.planning import last_surrogates
+from ovtraj.pipeline.prepare import PipelineInputs, prepare_pipeline
+from ovtraj.plots.history import history_plot
 from ovtraj.runs import RunStore
-from ovtraj.runs.runners import choose_runner
-from ovtraj.target_sources import load_scenario_with_target
+from ovtraj.store.records import plain
+from ovtraj.tracking.catalog import plan_file, plan_id, plan_values, refresh, set_tags
+from ovtraj.tracking.history import history, previous_plan
+from ovtraj.tracking.keys import history_key
 from tasks.common import code_version
 
 LIMIT = "flows.mission_s of configs/orchestration.yaml"
@@ -103,42 +108,72 @@ def mission_flow(
     (``flows/verdict.py``).
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_s
-    logger = get_run_logger()
     prune_expired_results()
-    path = scenario_file(config)
-    scenario = load_scenario_with_target(path, target)
-    if scenario.mission is None:
-        raise ValueError(f"{path}: the scenario has no mission section")
     chosen = checked_pick(pick, weights, max_time_h, max_dv_mps, min_payload_kg)
-    choice = choose_runner(scenario.mission.doe, runner, dask_address)
-    if workers is not None:
-        if workers < 1:
-            raise ValueError(f"workers = {workers}: must be at least 1")
-        choice = replace(choice, workers=workers)
-    fit = ensure_launch_fit(config, scenario, target)
-    run_store = RunStore.for_scenario(scenario, config, store)
-    # As the command builds it (its scenario argument a path).
-    request = PipelineRequest(
+    inputs = prepare_pipeline(
+        config,
+        pick=chosen,
+        fit_missing=launch_fit_subflow(config, target),
         samples=samples,
         seed=seed,
         from_run=run,
-        config=None if config is None else Path(config),
         refit=refit,
-        pick=chosen,
+        store=store,
+        target=target,
+        runner=runner,
+        workers=workers,
+        dask_address=dask_address,
     )
-    logger.info("runner %s", choice.runner)
+    outcome = _drive(inputs, deadline)
+    _publish_outcome(inputs.store, outcome)
+    return verdict_state(
+        _summary(outcome),
+        outcome.verdict,
+        converged=outcome.converged,
+        require_converged=require_converged,
+    )
+
+
+def _drive(inputs: PipelineInputs, deadline: float) -> PipelineOutcome:
+    """The library's driver (as ``ovtraj pipeline``'s) with each batch a cached task on
+    the flow's task runner of ``inputs.choice``, stopped at ``deadline`` (monotonic)."""
+    logger = get_run_logger()
+    logger.info("runner %s", inputs.choice.runner)
     # The flow run is named and tagged after the DoE run, the first run it evaluates.
-    batches = TaskBatches(scenario, fit, choice, deadline=deadline, limit=LIMIT, kind="mission")
-    outcome = drive_pipeline(
-        scenario, fit, run_store, code_version(), batches, request, progress=logger.info
+    batches = TaskBatches(
+        inputs.scenario,
+        inputs.launch_fit,
+        inputs.choice,
+        deadline=deadline,
+        limit=LIMIT,
+        kind="mission",
     )
-    result, planned = outcome.result, outcome.planned
+    return drive_pipeline(
+        inputs.scenario,
+        inputs.launch_fit,
+        inputs.store,
+        code_version(),
+        batches,
+        inputs.request,
+        progress=logger.info,
+    )
+
+
+def _publish_outcome(store: RunStore, outcome: PipelineOutcome) -> None:
+    """The verdict and the pick in the log; the verified front, the plan, the last fit's
+    validation and the target's re-plan history as artifacts."""
+    logger = get_run_logger()
     logger.info(outcome.verdict)
-    logger.info("picked %s; report %s", planned.get("pick"), planned.get("report"))
-    _publish(result, planned, outcome.verdict)
-    _publish_last_fit(run_store, outcome)
-    _publish_history(run_store, planned)
-    summary = {
+    logger.info("picked %s; report %s", outcome.planned.get("pick"), outcome.planned.get("report"))
+    _publish(outcome.result, outcome.planned, outcome.verdict)
+    _publish_last_fit(store, outcome)
+    _publish_history(store, outcome.planned)
+
+
+def _summary(outcome: PipelineOutcome) -> dict[str, Any]:
+    """What the flow returns: the runs, the verified front, the plan and the verdict."""
+    result, planned = outcome.result, outcome.planned
+    return {
         "doe_run": result.doe_run,
         "final_run": result.final_run,
         "pipeline_id": result.pipeline_id,
@@ -154,12 +189,6 @@ def mission_flow(
         "converged": outcome.converged,
         "verdict": outcome.verdict,
     }
-    return verdict_state(
-        summary,
-        outcome.verdict,
-        converged=outcome.converged,
-        require_converged=require_converged,
-    )
 
 
 def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
@@ -168,14 +197,6 @@ def _publish_history(store: RunStore, planned: dict[str, Any]) -> None:
     ``history-<target>-plot``): the UI lists every re-plan's version of them, and each
     version names this plan and the previous one. A run from a deployment tags its
     pipeline result ``deployment=<name>`` (``ovtraj history --deployment``)."""
-    from prefect.runtime import deployment
-
-    from ovtraj.plots.history import history_plot
-    from ovtraj.store.records import plain
-    from ovtraj.tracking.catalog import plan_file, plan_id, plan_values, refresh, set_tags
-    from ovtraj.tracking.history import history, previous_plan
-    from ovtraj.tracking.keys import history_key
-
     plan = planned["plan"].to_dict()
     values = plan_values(plan)
     if deployment.name:

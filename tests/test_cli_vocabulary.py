@@ -20,8 +20,8 @@ import typer.main
 from typer.testing import CliRunner
 
 from ovtraj.cli import app, run_command
-from ovtraj.cli.doe import runner_choice
 from ovtraj.config.export import FORMATS
+from ovtraj.runs.preparation import runner_choice
 from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO
 
@@ -162,6 +162,8 @@ def test_workers_size_the_pool_of_run_and_pipeline_as_of_window():
     assert runner_choice(settings, "processes", None, 3).workers == 3
     assert runner_choice(settings, "processes", None).workers == settings.workers
     assert runner_choice(settings, None, None).runner == settings.task_runner
+    with pytest.raises(ValueError, match="workers = 0: must be at least 1"):
+        runner_choice(settings, "processes", None, 0)  # a flow's parameter, as the option's min
 
 
 def test_workers_out_of_range_is_one_line_naming_it(tmp_path, capsys):

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
+import yaml
 
 from ovtraj.launch.launch_fit import find_launch_fit, launch_fit_key
 from ovtraj.runs import RunStore, execute, prepare_run, run_doe
@@ -71,13 +73,24 @@ def test_a_larger_doe_extends_the_stored_one_instead_of_drawing_another(tmp_path
 
 
 def test_a_target_without_a_launch_fit_is_one_line_naming_what_to_run(tmp_path):
+    """With configs/orchestration.yaml ``preparation.launch_fit: require`` (the shipped
+    ``fit`` solves it first: tests/test_flows_preparation.py)."""
+    configs = tmp_path / "configs"
+    shutil.copytree(REPO / "configs", configs)
+    settings = yaml.safe_load((configs / "orchestration.yaml").read_text(encoding="utf-8"))
+    settings["preparation"]["launch_fit"] = "require"
+    (configs / "orchestration.yaml").write_text(yaml.safe_dump(settings), encoding="utf-8")
     done = subprocess.run(
         [OVTRAJ, "run", "--target", str(EXAMPLE_TLE), "--samples", "2", "--store", str(tmp_path)],
         capture_output=True,
         text=True,
         timeout=300,
         check=False,
-        env={"OVTRAJ_HOME": str(tmp_path / "home"), "PATH": "/usr/bin:/bin"},
+        env={
+            "OVTRAJ_HOME": str(tmp_path / "home"),
+            "OVTRAJ_CONFIG_DIR": str(configs),
+            "PATH": "/usr/bin:/bin",
+        },
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
     (line,) = done.stderr.strip().splitlines()

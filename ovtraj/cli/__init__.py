@@ -19,7 +19,10 @@ import typer
 
 from ovtraj.cli.common import app
 from ovtraj.config import ConfigError
+from ovtraj.environment import BlasKernelError
 from ovtraj.formatting import printable
+from ovtraj.interrupts import interrupt_of
+from ovtraj.store.files import StoreError
 
 __all__ = ["app", "entry_point", "run_command"]
 
@@ -63,9 +66,6 @@ def entry_point() -> None:
 def run_command(args: list[str] | None = None) -> int:
     """Run the command line ``args`` (default: the process's) as :func:`entry_point`
     does, and return its exit code instead of ending the process (the tests call it)."""
-    from ovtraj.environment import BlasKernelError
-    from ovtraj.interrupts import interrupt_of
-    from ovtraj.store.files import StoreError
 
     try:
         code = app(args=args, standalone_mode=False)

@@ -6,17 +6,23 @@ labelled rows, or one JSON object on one line)."""
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any, ClassVar
 
 import typer
 import typer.core
+from rich.console import Console
 
 from ovtraj.cli.progress import configure_logging
 from ovtraj.config import ConfigError, Scenario
+from ovtraj.config.io_limits import shown_text
 from ovtraj.formatting import joined, quantity, split_unit
 from ovtraj.paths import scenario_file
+from ovtraj.store.paths import store_root
 from ovtraj.store.records import json_text, plain
+from ovtraj.version import code_version
 
 app = typer.Typer(
     # `ovtraj --install-completion` adds tab completion of commands and options to the
@@ -134,8 +140,6 @@ def _version(value: bool) -> None:
     """The code version every stored run records (``0.1.0+g<commit>``, or ``+s<source
     digest>`` for an installed package): what ``history`` and ``runs`` show."""
     if value:
-        from ovtraj.version import code_version
-
         typer.echo(f"ovtraj {code_version()}")
         raise typer.Exit()
 
@@ -181,7 +185,6 @@ def print_rows(title: str, rows: list[tuple[str, Any]]) -> None:
     :func:`ovtraj.formatting.quantity`: ``-`` for None, 4 significant digits). The title
     and the values may hold text from a file (a scenario's name): escaped and cut
     (:func:`ovtraj.config.io_limits.shown_text`)."""
-    from ovtraj.config.io_limits import shown_text
 
     typer.echo(shown_text(title))
     width = max(len(k) for k, _ in rows)
@@ -232,9 +235,32 @@ def joined_fields(
     return joined(values, unit, sep=sep, decimals=decimals)
 
 
+def table_console() -> Console:
+    """Where a command's tables go, stdout: no rich markup (a stored name holding ``[bold]``
+    or ``[/]`` is text, not a style or a markup error; every stored text in a table goes
+    through :func:`ovtraj.config.io_limits.shown_text`, escaped and cut), and every row
+    whole when stdout is not a terminal (a pipe or a file)."""
+    console = Console(highlight=False, markup=False)
+    return console if console.is_terminal else Console(highlight=False, markup=False, width=10_000)
+
+
 def print_json(value: Any) -> None:
     """One JSON object, on one line of stdout."""
     typer.echo(json_text(value, indent=None))
+
+
+@contextlib.contextmanager
+def exits_on(*kinds: type[BaseException], code: int = 2) -> Iterator[None]:
+    """Run the block; an error of ``kinds`` is its message as one line on stderr and exit
+    ``code`` (2: bad input or a fault; 1: an unmet result). An exit already decided
+    (``typer.Exit``, a ``RuntimeError`` as some of ``kinds`` are) passes through."""
+    try:
+        yield
+    except typer.Exit:
+        raise
+    except kinds as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=code) from None
 
 
 def report_stage(title: str, result: Any, rows: RowSpec, as_json: bool) -> None:
@@ -267,7 +293,6 @@ def run_store(
 def store_location(root: str | None) -> Any:
     """``--store``, else the workspace's run store: its root folder or S3 prefix, without
     loading the run store's code (the catalog's commands read the layout only)."""
-    from ovtraj.store.paths import store_root
 
     return store_root(None, None, root)
 

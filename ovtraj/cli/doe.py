@@ -1,10 +1,12 @@
 """The ``run`` command (a DoE of the whole mission into the run store) and what the
-``pipeline`` and ``window`` commands share with it: the runner options and their choice
-(:func:`runner_choice`), the sample options, the launch fit a run needs."""
+``pipeline`` and ``window`` commands share with it: the runner and sample options, and
+the launch fit a run needs (:func:`launch_fit_or_exit`, solved here by
+:func:`solve_here` when configs/orchestration.yaml says so)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Any
+from functools import partial
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -14,8 +16,8 @@ from ovtraj.cli.common import (
     StoreOpt,
     TargetOpt,
     app,
+    exits_on,
     keyed_rows,
-    loaded_scenario,
     option_limits,
     print_json,
     print_rows,
@@ -24,8 +26,13 @@ from ovtraj.cli.common import (
 from ovtraj.cli.progress import echo, progress_bar
 from ovtraj.config import Scenario
 from ovtraj.config.mission import DoeSettings
+from ovtraj.config.orchestration import load_orchestration
+from ovtraj.store.files import StoreError
+from ovtraj.version import code_version
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the run store and the launch fit load the numerics: imported when run
+    from ovtraj.launch.launch_fit import LaunchFit
+    from ovtraj.runs import Run, RunStore
     from ovtraj.runs.runners import RunnerChoice
 
 RunnerOpt = Annotated[
@@ -111,21 +118,41 @@ def run(
 
     Example: `ovtraj run --samples 24 --runner processes --workers 2`
     """
-    scenario = loaded_scenario(config, target)
-    if scenario.mission is None:
-        typer.echo(f"{config}: the scenario has no mission section", err=True)
-        raise typer.Exit(code=2)
-    settings = scenario.mission.doe
-    choice = runner_choice(settings, runner, dask_address, workers)
-    from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.runs import StoreError, prepare_run, run_doe
+    from ovtraj.runs.preparation import mission_scenario, runner_choice
+
+    with exits_on(ValueError):
+        scenario = mission_scenario(config, target)
+        choice = runner_choice(scenario.mission.doe, runner, dask_address, workers, as_options=True)
+    fit = launch_fit_or_exit(scenario, target, as_json)
+    store = run_store(store_root, scenario, config)
+    stored = _evaluated_run(scenario, fit, store, choice, samples, seed, append, as_json)
+    summary = stored.summary()
+    if as_json:
+        print_json(summary | {"stored_in": str(stored.url)})
+        return
+    print_rows(f"run {stored.id}", keyed_rows(summary))
+    typer.echo(f"stored in {stored.url}")
+
+
+def _evaluated_run(
+    scenario: Scenario,
+    fit: LaunchFit,
+    store: RunStore,
+    choice: RunnerChoice,
+    samples: int | None,
+    seed: int | None,
+    append: str | None,
+    as_json: bool,
+) -> Run:
+    """The DoE run of the options (``--append``: a child of that run), its batches
+    evaluated on the library's pool of ``choice`` (a line per batch on stdout, on stderr
+    with --json); a fault is one line on stderr, exit 2."""
+    from ovtraj.runs import prepare_run, run_doe
     from ovtraj.runs.execute import BatchesFailed
     from ovtraj.runs.runners import ClusterError
-    from ovtraj.version import code_version
 
-    fit = launch_fit_or_exit(scenario, target)
-    store = run_store(store_root, scenario, config)
-    try:
+    settings = scenario.mission.doe
+    with exits_on(StoreError, ValueError, ClusterError, BatchesFailed):
         parent = store.run(append) if append else None
         stored = prepare_run(
             scenario,
@@ -152,52 +179,27 @@ def run(
                 progress=say,
                 on_progress=update,
             )
-    except (StoreError, ValueError, ClusterError, BatchesFailed) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    summary = stored.summary()
-    if as_json:
-        print_json(summary | {"stored_in": str(stored.url)})
-        return
-    print_rows(f"run {stored.id}", keyed_rows(summary))
-    typer.echo(f"stored in {stored.url}")
+    return stored
 
 
-def runner_choice(
-    settings: DoeSettings,
-    runner: str | None,
-    dask_address: str | None,
-    workers: int | None = None,
-) -> RunnerChoice:
-    """The runner chosen (:func:`ovtraj.runs.runners.choose_runner`: the options, else the
-    config's ``mission.doe``), its pool of ``workers`` (``--workers``) when given; a bad
-    choice is one line naming the option, exit 2.
+def solve_here(scenario: Scenario, *, as_json: bool = False) -> None:
+    """A missing launch fit solved in this process, as ``ovtraj launch-fit`` solves it
+    (configs/orchestration.yaml ``preparation.launch_fit: fit``; a progress bar on
+    stderr), stored where the run finds it."""
+    from ovtraj.runs.preparation import solve_launch_fit
 
-    ``--workers`` sizes the pool only: a run's batches are cut by the config's
-    ``mission.doe.workers`` (:meth:`ovtraj.config.mission.DoeSettings.batch_size_for`), so
-    the stored run is the same for any number of workers."""
-    from dataclasses import replace
-
-    from ovtraj.runs.runners import choose_runner
-
-    try:
-        choice = choose_runner(settings, runner, dask_address, as_options=True)
-    except ValueError as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    return choice if workers is None else replace(choice, workers=workers)
+    with progress_bar("launch fit", enabled=not as_json) as update:
+        solve_launch_fit(scenario, on_progress=update)
 
 
-def launch_fit_or_exit(scenario: Scenario, target: str | None = None) -> Any:
-    from ovtraj.launch.launch_fit import find_launch_fit
+def launch_fit_or_exit(
+    scenario: Scenario, target: str | None = None, as_json: bool = False
+) -> LaunchFit:
+    """The launch fit a run of ``scenario`` needs (``--target``: ``target``), solved here
+    first or refused in one line, exit 2, as configs/orchestration.yaml
+    ``preparation.launch_fit`` says (:func:`ovtraj.runs.preparation.required_launch_fit`)."""
+    from ovtraj.runs.preparation import required_launch_fit
 
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        also = f" --target {target}" if target else ""
-        typer.echo(
-            "no launch fit for this scenario (its target and launch settings): run "
-            f"`ovtraj launch-fit CONFIG{also}` (~4 min) or the launch-fit flow first",
-            err=True,
-        )
-        raise typer.Exit(code=2)
+    with exits_on(ValueError):
+        fit = required_launch_fit(scenario, partial(solve_here, as_json=as_json), target=target)
     return fit

@@ -4,6 +4,7 @@ run, the mission plan of a front point (pipeline, optimize, plan)."""
 from __future__ import annotations
 
 import logging
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -16,7 +17,7 @@ from ovtraj.cli.common import (
     StoreOpt,
     TargetOpt,
     app,
-    loaded_scenario,
+    exits_on,
     print_json,
     print_rows,
     renamed_options,
@@ -29,7 +30,7 @@ from ovtraj.cli.doe import (
     SeedOpt,
     WorkersOpt,
     launch_fit_or_exit,
-    runner_choice,
+    solve_here,
 )
 from ovtraj.cli.picking import (
     MaxDvOpt,
@@ -42,13 +43,18 @@ from ovtraj.cli.picking import (
     print_plan,
 )
 from ovtraj.cli.progress import echo, progress_bar
-from ovtraj.config import ConfigError, Scenario
+from ovtraj.config import Scenario
+from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import number
 from ovtraj.store.backends import location
+from ovtraj.store.files import StoreError
+from ovtraj.version import code_version
 
-if TYPE_CHECKING:  # the driver and the runners load the numerics: imported when run
-    from ovtraj.pipeline.drive import PipelineOutcome, PipelineRequest
-    from ovtraj.runs.runners import RunnerChoice
+if TYPE_CHECKING:  # the driver, the store and the surrogates load the numerics: imported when run
+    from ovtraj.pipeline import FitOutcome, FrontOutcome
+    from ovtraj.pipeline.drive import PipelineOutcome
+    from ovtraj.pipeline.prepare import PipelineInputs
+    from ovtraj.runs import Run
 
 
 # A pipeline result named by any run of its family, as `front` and `plan` take it.
@@ -64,14 +70,14 @@ PipelineIdOpt = Annotated[
 ]
 
 
-def _run_scenario(stored: Any, config: Path | None) -> Scenario:
+def _run_scenario(stored: Run, config: Path | None) -> Scenario:
+    """The scenario a stored run holds (``config``: another file's settings on it); a bad
+    one is one line, exit 2."""
     from ovtraj.pipeline import run_scenario
 
-    try:
-        return run_scenario(stored, config)
-    except (ConfigError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+    with exits_on(ValueError):
+        scenario = run_scenario(stored, config)
+    return scenario
 
 
 def _print_front(front: Any) -> None:
@@ -126,112 +132,118 @@ def pipeline(
     converged").
 
     Example: `ovtraj pipeline --samples 24 --weights 1,1,2 --max-dv-mps 250`"""
-    from ovtraj.pipeline.drive import PipelineRequest
+    from ovtraj.pipeline.prepare import prepare_pipeline
 
     # refused before any work
     chosen = pick_from_options(pick, weights, max_time_h, max_dv, min_payload)
-    scenario = loaded_scenario(config, target)
-    if scenario.mission is None:
-        typer.echo(f"{config}: the scenario has no mission section", err=True)
-        raise typer.Exit(code=2)
-    fit = launch_fit_or_exit(scenario, target)
-    choice = runner_choice(scenario.mission.doe, runner, dask_address, workers)
-    request = PipelineRequest(samples, seed, from_run, config, refit, chosen)
-    outcome = _drive(
-        scenario, fit, run_store(store_root, scenario, config), choice, request, as_json
-    )
-    doe_run, result, planned = outcome.doe_run, outcome.result, outcome.planned
-    verdict, converged = outcome.verdict, outcome.converged
-    front_plot = location(result.directory / "front.png").resolve()
-    # The last round's views, drawn with the result: parity plots and the surrogate front.
-    views = sorted(
-        path.resolve()
-        for path in location(result.directory).glob("*.png")
-        if path.name != "front.png"
-    )
+    with exits_on(ValueError):
+        inputs = prepare_pipeline(
+            config,
+            pick=chosen,
+            fit_missing=partial(solve_here, as_json=as_json),
+            samples=samples,
+            seed=seed,
+            from_run=from_run,
+            refit=refit,
+            store=store_root,
+            target=target,
+            runner=runner,
+            workers=workers,
+            dask_address=dask_address,
+            as_options=True,
+        )
+    outcome = _drive(inputs, as_json)
     if as_json:
-        print_plan(
-            planned,
-            True,
-            {
-                "doe_run": doe_run.id,
-                "final_run": result.final_run,
-                "pipeline_id": result.pipeline_id,
-                "converged": converged,
-                "stop_reason": result.summary["stop_reason"],
-                "verdict": verdict,
-                "real_evaluations": result.summary["real_evaluations"],
-                "hypervolume": result.summary["hypervolume"],
-                "front_points": len(result.front),
-                "front": str(location(result.front_path).resolve()),
-                "front_plot": str(front_plot),
-                "views": [str(p) for p in views],
-            },
-        )
+        print_plan(outcome.planned, True, _outcome_json(outcome))
     else:
-        typer.echo(
-            f"verified front of DoE run {doe_run.id} (pipeline {result.pipeline_id}, final "
-            f"run {result.final_run}):"
-        )
-        _print_front(result.front)
-        typer.echo(verdict)
-        typer.echo(f"front: {location(result.front_path).resolve()}")
-        typer.echo(f"plot: {front_plot}")
-        for path in views:
-            typer.echo(f"plot: {path}")
-        print_plan(planned, False, {})
-    if not converged and not allow_unconverged:
+        _print_outcome(outcome)
+        print_plan(outcome.planned, False, {})
+    if not outcome.converged and not allow_unconverged:
         raise typer.Exit(code=1)
 
 
-def _drive(
-    scenario: Scenario,
-    fit: Any,
-    store: Any,
-    choice: RunnerChoice,
-    request: PipelineRequest,
-    as_json: bool,
-) -> PipelineOutcome:
+def _views(directory: Any) -> tuple[Path, list[Path]]:
+    """The verified front's plot and the last round's views drawn with the result (parity
+    plots and the surrogate front), absolute."""
+    front_plot = location(directory / "front.png").resolve()
+    views = sorted(
+        path.resolve() for path in location(directory).glob("*.png") if path.name != "front.png"
+    )
+    return front_plot, views
+
+
+def _outcome_json(outcome: PipelineOutcome) -> dict[str, Any]:
+    """``ovtraj pipeline --json``'s fields before the plan's."""
+    result = outcome.result
+    front_plot, views = _views(result.directory)
+    return {
+        "doe_run": outcome.doe_run.id,
+        "final_run": result.final_run,
+        "pipeline_id": result.pipeline_id,
+        "converged": outcome.converged,
+        "stop_reason": result.summary["stop_reason"],
+        "verdict": outcome.verdict,
+        "real_evaluations": result.summary["real_evaluations"],
+        "hypervolume": result.summary["hypervolume"],
+        "front_points": len(result.front),
+        "front": str(location(result.front_path).resolve()),
+        "front_plot": str(front_plot),
+        "views": [str(p) for p in views],
+    }
+
+
+def _print_outcome(outcome: PipelineOutcome) -> None:
+    """The verified front, the verdict and the paths of the front and its plots."""
+    result = outcome.result
+    front_plot, views = _views(result.directory)
+    typer.echo(
+        f"verified front of DoE run {outcome.doe_run.id} (pipeline {result.pipeline_id}, final "
+        f"run {result.final_run}):"
+    )
+    _print_front(result.front)
+    typer.echo(outcome.verdict)
+    typer.echo(f"front: {location(result.front_path).resolve()}")
+    typer.echo(f"plot: {front_plot}")
+    for path in views:
+        typer.echo(f"plot: {path}")
+
+
+def _drive(inputs: PipelineInputs, as_json: bool) -> PipelineOutcome:
     """The library's driver (:func:`ovtraj.pipeline.drive.drive_pipeline`, as the mission
-    flow) with the batches on the library's pool of ``choice``, a progress bar per run; a
-    failure is one line on stderr, exit 1 (the optimiser stopped, a plan that does not fly
-    its front point) or 2."""
-    from ovtraj.config.orchestration import load_orchestration
+    flow) with the batches on the library's pool of ``inputs.choice``, a progress bar per
+    run; a failure is one line on stderr, exit 1 (the optimiser stopped, a plan that does
+    not fly its front point) or 2."""
     from ovtraj.mission.plan_check import PlanMismatch
     from ovtraj.pipeline import OptimiserStopped, PipelineError
     from ovtraj.pipeline.drive import drive_pipeline
-    from ovtraj.runs import StoreError
     from ovtraj.runs.execute import BatchesFailed, PoolBatches
     from ovtraj.runs.runners import ClusterError
     from ovtraj.surrogate import SurrogateError
-    from ovtraj.version import code_version
 
     say = logging.getLogger("ovtraj.pipeline").info if as_json else echo
     orchestration = load_orchestration()
     batches = PoolBatches(
-        scenario,
-        fit,
-        choice,
+        inputs.scenario,
+        inputs.launch_fit,
+        inputs.choice,
         dask=orchestration.dask,
         time_limit_s=orchestration.flows.doe_s,
         progress=say,
         progress_bar=lambda label: progress_bar(label, enabled=not as_json),
     )
-    try:
-        return drive_pipeline(scenario, fit, store, code_version(), batches, request, progress=say)
-    except (OptimiserStopped, PlanMismatch) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=1) from None
-    except (
-        StoreError,
-        PipelineError,
-        SurrogateError,
-        ValueError,
-        ClusterError,
-        BatchesFailed,
-    ) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+    faults = (StoreError, PipelineError, SurrogateError, ValueError, ClusterError, BatchesFailed)
+    # The unmet results first: the optimiser's stop is a PipelineError too.
+    with exits_on(*faults), exits_on(OptimiserStopped, PlanMismatch, code=1):
+        outcome = drive_pipeline(
+            inputs.scenario,
+            inputs.launch_fit,
+            inputs.store,
+            code_version(),
+            batches,
+            inputs.request,
+            progress=say,
+        )
+    return outcome
 
 
 # The scenario was an option, `--config FILE`, before it was an argument as everywhere
@@ -259,6 +271,21 @@ def optimize(
     """Fit the surrogates on a stored run's samples and run NSGA-II on them (no simulation).
 
     Example: `ovtraj optimize 1fe6042587a62a93 --refit`"""
+    stored, fitted, front = _fitted_front(run_id, config, refit, store_root)
+    if as_json:
+        print_json(_optimized_json(stored, fitted, front))
+    else:
+        print_rows(f"surrogate front of run {stored.id}", _optimized_rows(fitted, front))
+    if front.matches_stored is False:
+        raise typer.Exit(code=1)
+
+
+def _fitted_front(
+    run_id: str, config: Path | None, refit: bool, store_root: str | None
+) -> tuple[Run, FitOutcome, FrontOutcome]:
+    """The stored run, its surrogates fitted and their NSGA-II front (each loaded from the
+    run when stored, unless ``refit``); a fault is one line, exit 2, the optimiser's stop
+    exit 1."""
     from ovtraj.pipeline import (
         OptimiserStopped,
         PipelineError,
@@ -266,13 +293,11 @@ def optimize(
         front_step,
         training_data,
     )
-    from ovtraj.pipeline.features import unregressed
     from ovtraj.pipeline.steps import fitting_pool
-    from ovtraj.runs import StoreError
     from ovtraj.surrogate import SurrogateError
-    from ovtraj.version import code_version
 
-    try:
+    faults = (StoreError, PipelineError, SurrogateError, ValueError)
+    with exits_on(*faults), exits_on(OptimiserStopped, code=1):
         stored = run_store(store_root).run(run_id)
         scenario = _run_scenario(stored, config)
         code = code_version()
@@ -280,45 +305,41 @@ def optimize(
         with fitting_pool(scenario, len(data)) as pool:
             fitted = fit_step(stored, data, scenario, code, refit=refit, executor=pool)
         front = front_step(stored, fitted, scenario, code, refit=refit)
-    except OptimiserStopped as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=1) from None
-    except (StoreError, PipelineError, SurrogateError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+    return stored, fitted, front
+
+
+def _models(fitted: FitOutcome) -> list[tuple[str, str]]:
+    """``(output, model)`` of each output: the candidate the validation selected, then
+    the outputs no regressor fits."""
+    from ovtraj.pipeline.features import unregressed
+
     validation = fitted.surrogates.validation
     chosen = validation[validation["selected"].astype(bool)]
-    if as_json:
-        print_json(
-            {
-                "run_id": stored.id,
-                "surrogates": str(fitted.directory.resolve()),
-                "loaded_from_store": fitted.reused,
-                "models": [
-                    *(
-                        {"model": row.model, "candidate": row.candidate}
-                        for row in chosen.itertuples(index=False)
-                    ),
-                    *(
-                        {"model": output, "candidate": model}
-                        for output, model in unregressed(fitted.surrogates).items()
-                    ),
-                ],
-                "front": str((front.directory / "front.parquet").resolve()),
-                "front_points": len(front.front),
-                "hypervolume": front.front.hypervolume,
-                "identical_to_stored_front": front.matches_stored,
-            }
-        )
-        raise typer.Exit(code=1 if front.matches_stored is False else 0)
-    rows = [
+    return [
+        *((row.model, row.candidate) for row in chosen.itertuples(index=False)),
+        *unregressed(fitted.surrogates).items(),
+    ]
+
+
+def _optimized_json(stored: Run, fitted: FitOutcome, front: FrontOutcome) -> dict[str, Any]:
+    return {
+        "run_id": stored.id,
+        "surrogates": str(fitted.directory.resolve()),
+        "loaded_from_store": fitted.reused,
+        "models": [{"model": output, "candidate": model} for output, model in _models(fitted)],
+        "front": str((front.directory / "front.parquet").resolve()),
+        "front_points": len(front.front),
+        "hypervolume": front.front.hypervolume,
+        "identical_to_stored_front": front.matches_stored,
+    }
+
+
+def _optimized_rows(fitted: FitOutcome, front: FrontOutcome) -> list[tuple[str, Any]]:
+    rows: list[tuple[str, Any]] = [
         ("surrogates", str(fitted.directory.resolve())),
         ("loaded from the store", fitted.reused),
     ]
-    for row in chosen.itertuples(index=False):
-        rows.append((f"{row.model} model", row.candidate))
-    for output, model in unregressed(fitted.surrogates).items():
-        rows.append((f"{output} model", model))
+    rows += [(f"{output} model", model) for output, model in _models(fitted)]
     rows += [
         ("front", str((front.directory / "front.parquet").resolve())),
         ("front points", len(front.front)),
@@ -326,9 +347,7 @@ def optimize(
     ]
     if front.matches_stored is not None:
         rows.append(("identical to the stored front", front.matches_stored))
-    print_rows(f"surrogate front of run {stored.id}", rows)
-    if front.matches_stored is False:
-        raise typer.Exit(code=1)
+    return rows
 
 
 @app.command()
@@ -346,14 +365,10 @@ def front(
     from ovtraj.pipeline import PipelineError
     from ovtraj.pipeline.catalog import family_root
     from ovtraj.pipeline.planning import find_pipeline
-    from ovtraj.runs import StoreError
 
-    try:
+    with exits_on(StoreError, PipelineError, ValueError):
         stored = family_root(run_store(store_root), run_id)
         result = find_pipeline(stored, pipeline_id)
-    except (StoreError, PipelineError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
     summary = result.summary
     converged = bool(summary.get("converged"))
     if as_json:
@@ -400,20 +415,15 @@ def plan(
     from ovtraj.pipeline import PipelineError
     from ovtraj.pipeline.catalog import family_root
     from ovtraj.pipeline.planning import find_pipeline, write_mission_plan
-    from ovtraj.runs import StoreError
 
     # refused before any work
     chosen = pick_from_options(pick, weights, max_time_h, max_dv, min_payload)
-    try:
+    # A plan that does not fly its front point is an unmet result (a PlanError too).
+    with exits_on(StoreError, PipelineError, PlanError, ValueError), exits_on(PlanMismatch, code=1):
         store = run_store(store_root)
         stored = family_root(store, run_id)
         scenario = _run_scenario(stored, None)
         result = find_pipeline(stored, pipeline_id)
-        planned = write_mission_plan(scenario, launch_fit_or_exit(scenario), store, result, chosen)
-    except PlanMismatch as err:  # the plan does not fly its front point: an unmet result
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=1) from None
-    except (StoreError, PipelineError, PlanError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+        fit = launch_fit_or_exit(scenario, as_json=as_json)
+        planned = write_mission_plan(scenario, fit, store, result, chosen)
     print_plan(planned, as_json, {"doe_run": stored.id, "pipeline_id": result.pipeline_id})

@@ -14,6 +14,7 @@ from ovtraj.cli.common import (
     RowSpec,
     TargetOpt,
     app,
+    exits_on,
     joined_fields,
     loaded_scenario,
     print_json,
@@ -175,24 +176,17 @@ def launch_fit_command(
 
     Example: `ovtraj launch-fit --target configs/targets/iss-like-2026-12-01.tle`"""
     from ovtraj.launch import launch_input
-    from ovtraj.launch.launch_fit import fit_roots, launch_fit, launch_fit_key
+    from ovtraj.runs.preparation import solve_launch_fit
 
     scenario = loaded_scenario(config, target)
-    try:
-        inp = launch_input(scenario)
-    except (ConfigError, ValueError) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    key = launch_fit_key(scenario)
+    with exits_on(ValueError):
+        launcher = launch_input(scenario).launcher.name
     try:
         with progress_bar("launch fit", enabled=not as_json) as update:
-            fit = launch_fit(inp, scenario.launch.fit, key=key, on_progress=update)
+            fit, directory = solve_launch_fit(scenario, output, on_progress=update)
     except ValueError as err:
         typer.echo(f"launch fit failed: {err}", err=True)
         raise typer.Exit(code=1) from None
-    directory = Path(output or fit_roots()[0] / key).resolve()
-    fit.save(directory)
-    lo, hi = fit.altitude_range_km
     series = {
         name: {
             "unit": s.unit,
@@ -205,15 +199,23 @@ def launch_fit_command(
     if as_json:
         print_json(
             {
-                "key": key,
-                "launcher": inp.launcher.name,
+                "key": fit.key,
+                "launcher": launcher,
                 "grid_points": len(fit.grid),
-                "altitude_range_km": [lo, hi],
+                "altitude_range_km": list(fit.altitude_range_km),
                 "saved_to": str(directory),
                 "series": series,
             }
         )
         return
+    print_rows(f"launch fit: {scenario.name} ({launcher})", _fit_rows(fit, directory, series))
+
+
+def _fit_rows(
+    fit: Any, directory: Path, series: dict[str, dict[str, Any]]
+) -> list[tuple[str, str]]:
+    """The launch fit's grid, folder and each series' residuals as labelled rows."""
+    lo, hi = fit.altitude_range_km
     rows = [
         ("grid", f"{len(fit.grid)} altitudes, {number(lo)}-{number(hi, 'km')}"),
         ("saved to", str(directory)),
@@ -227,7 +229,7 @@ def launch_fit_command(
                 f"({number(100 * s['loo_relative_error'], '%', 3)} of range)",
             )
         )
-    print_rows(f"launch fit: {scenario.name} ({inp.launcher.name})", rows)
+    return rows
 
 
 def _stage_input(build: Any, scenario: Scenario) -> Any:

@@ -20,9 +20,15 @@ from ovtraj.cli.common import (
     print_rows,
     run_store,
     store_location,
+    table_console,
 )
+from ovtraj.config import ConfigError
 from ovtraj.config.io_limits import echoed, shown_text
+from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import byte_size, number, printable, quantity, utc
+from ovtraj.store.files import StoreError, read_json, tree_bytes
+from ovtraj.store.records import plain
+from ovtraj.version import code_version
 
 
 def _families(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -166,8 +172,6 @@ def runs(
     their own.
 
     Example: `ovtraj runs --where "kind = 'plan' AND dv_total_mps > 220"`"""
-    from ovtraj.store.files import StoreError, tree_bytes
-    from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import catalog_settings, query, refresh
 
     root = store_location(store_root)
@@ -178,47 +182,62 @@ def runs(
         typer.echo(f"{root}: {err}", err=True)
         raise typer.Exit(code=2) from None
     shown = catalog_settings().rows_shown if limit is None else limit
-    # No rich markup: a stored name holding `[bold]` or `[/]` is text; every stored text
-    # in the tables goes through `shown_text` (escaped, cut).
-    console = Console(highlight=False, markup=False)
-    if not console.is_terminal:  # a pipe or a file: every row whole
-        console = Console(highlight=False, markup=False, width=10_000)
-    if selected is not None:
-        if as_json:
-            rows = plain(selected.to_dict(orient="records"))
-            print_json({"store": str(root.resolve()), "where": where, "rows": rows})
-            return
+    if selected is None:
+        _print_runs(root, found.rows, shown, as_json)
+    elif as_json:
+        rows = plain(selected.to_dict(orient="records"))
+        print_json({"store": str(root.resolve()), "where": where, "rows": rows})
+    else:
         part = selected.iloc[-shown:] if shown else selected
-        console.print(_where_table(part, f"catalog rows where {shown_text(where)}"))
+        table_console().print(_where_table(part, f"catalog rows where {shown_text(where)}"))
         cut = (
             f" (the newest {len(part)} shown; --limit 0 shows all)"
             if len(part) < len(selected)
             else ""
         )
         typer.echo(f"{len(selected)} of {len(found.frame)} rows match{cut}")
-        return
-    entries = _families(found.rows)
+
+
+def _print_runs(root: Any, rows: list[dict[str, Any]], shown: int, as_json: bool) -> None:
+    """The catalog's runs by family, then its plan Monte Carlo runs, each list cut to
+    ``shown`` rows (0: all; --json: all), with their sizes on disk."""
+    entries = _families(rows)
     listed = entries[:shown] if shown and not as_json else entries
-    monte_carlo = _monte_carlo_runs(found.rows)
+    monte_carlo = _monte_carlo_runs(rows)
     dispersed = monte_carlo[:shown] if shown and not as_json else monte_carlo
-    # Sizes are measured now, not catalogued (a run grows by its surrogates, fronts and
-    # pipeline results without its manifest changing); a file hard-linked into another
-    # listed run counts once.
-    seen: set[tuple[int, int]] = set()
-    for entry in listed:
-        entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
-    for entry in dispersed:
-        entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
+    _measure_sizes(root, [*listed, *dispersed])
     if as_json:
         print_json({"store": str(root.resolve()), "runs": entries, "monte_carlo": monte_carlo})
         return
     if not entries and not monte_carlo:
         typer.echo(f"no runs in {root.resolve()}")
         return
-    if not entries:
-        _print_monte_carlo(console, dispersed, monte_carlo, root)
-        return
-    table = Table(title=f"runs in {root.resolve()}", title_justify="left", box=None, pad_edge=False)
+    console = table_console()
+    if entries:
+        console.print(_runs_table(listed, f"runs in {root.resolve()}"))
+        families = sum(1 for e in entries if e["depth"] == 0)
+        total = sum(e["size_bytes"] or 0 for e in listed)
+        more = f" ({len(listed)} shown; --limit 0 shows all)" if len(listed) < len(entries) else ""
+        typer.echo(
+            f"{len(entries)} runs in {families} families{more}, {byte_size(total)} on disk "
+            f"{'for those shown ' if more else ''}(a file shared by hard link counted once); "
+            "`ovtraj prune` lists what can go"
+        )
+    _print_monte_carlo(console, dispersed, monte_carlo, root)
+
+
+def _measure_sizes(root: Any, entries: list[dict[str, Any]]) -> None:
+    """Each entry's ``size_bytes``, measured now, not catalogued (a run grows by its
+    surrogates, fronts and pipeline results without its manifest changing); a file
+    hard-linked into another listed run counts once."""
+    seen: set[tuple[int, int]] = set()
+    for entry in entries:
+        entry["size_bytes"] = tree_bytes(root / entry["run_id"], seen)
+
+
+def _runs_table(listed: list[dict[str, Any]], title: str) -> Table:
+    """The runs by family, each extending run indented under the run it extends."""
+    table = Table(title=title, title_justify="left", box=None, pad_edge=False)
     for column, justify in (
         ("run", "left"),
         ("created (UTC)", "left"),
@@ -248,16 +267,7 @@ def runs(
             ", ".join(shown_text(p) for p in e["pipelines"]) or "-",
             "-" if e["size_bytes"] is None else byte_size(e["size_bytes"]),
         )
-    console.print(table)
-    families = sum(1 for e in entries if e["depth"] == 0)
-    total = sum(e["size_bytes"] or 0 for e in listed)
-    more = f" ({len(listed)} shown; --limit 0 shows all)" if len(listed) < len(entries) else ""
-    typer.echo(
-        f"{len(entries)} runs in {families} families{more}, {byte_size(total)} on disk "
-        f"{'for those shown ' if more else ''}(a file shared by hard link counted once); "
-        "`ovtraj prune` lists what can go"
-    )
-    _print_monte_carlo(console, dispersed, monte_carlo, root)
+    return table
 
 
 def _print_monte_carlo(console: Console, shown: list, runs: list, root: Any) -> None:
@@ -276,7 +286,6 @@ def show(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -> 
     line, as every command's --json).
 
     Example: `ovtraj show 1fe6042587a62a93`"""
-    from ovtraj.runs import StoreError
 
     try:
         stored = run_store(store_root).run(run_id)
@@ -318,10 +327,7 @@ def prune(
     version, and Prefect's task results (a cache). See docs/mission.md.
 
     Example: `ovtraj prune --only children --yes`"""
-    from ovtraj.config.orchestration import load_orchestration
     from ovtraj.pipeline.prune import KINDS, prunable, remove
-    from ovtraj.runs import StoreError
-    from ovtraj.version import code_version
 
     kinds = tuple(only) if only else KINDS
     unknown = sorted(set(kinds) - set(KINDS))
@@ -402,7 +408,6 @@ def verify(
 
     Example: `ovtraj verify 1fe6042587a62a93 --recompute 3`
     """
-    from ovtraj.runs import StoreError
 
     store = run_store(store_root)
     try:
@@ -448,7 +453,7 @@ def verify(
 def _verified(store: Any, item_id: str) -> tuple[str, str, Any, Any]:
     """(kind, label, the run of samples or None, its VerifyReport) of what ``item_id``
     names in ``store``; StoreError naming it when the store holds nothing of that id."""
-    from ovtraj.runs.store import checked_id
+    from ovtraj.runs.ids import checked_id
     from ovtraj.tracking.catalog import verify_catalog
 
     if item_id == "catalog":
@@ -489,7 +494,6 @@ def _holder(store: Any, item_id: str) -> tuple[str, str] | None:
 def _batched_run(directory: Path) -> Any:
     """The Monte Carlo run in ``directory`` as its kind's class (StoreError otherwise)."""
     from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
-    from ovtraj.store.files import StoreError, read_json
     from ovtraj.studies.deorbit_burn.store import MonteCarloRun
 
     info = read_json(directory / "run.json")
@@ -503,8 +507,6 @@ def _batched_run(directory: Path) -> Any:
 def _recomputed(stored: Any, count: int) -> Any:
     """:func:`ovtraj.runs.recompute.recompute` of ``count`` samples; one line and exit 2
     when the run cannot be recomputed here."""
-    from ovtraj.config import ConfigError
-    from ovtraj.runs import StoreError
     from ovtraj.runs.recompute import RecomputeError, recompute
 
     try:
@@ -566,7 +568,6 @@ def replay(run_id: str, store_root: StoreOpt = None, as_json: JsonOpt = False) -
     """Re-derive the mission totals from the stored stage rows (no simulation).
 
     Example: `ovtraj replay 1fe6042587a62a93 --json`"""
-    from ovtraj.runs import StoreError
     from ovtraj.runs import replay as replay_run
 
     try:

@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
+from ovtraj.bounded_reads import read_text_file
 from ovtraj.cli.common import (
     JsonOpt,
     StoreOpt,
@@ -21,9 +21,16 @@ from ovtraj.cli.common import (
     renamed_options,
     run_store,
     store_location,
+    table_console,
 )
+from ovtraj.config import ConfigError
 from ovtraj.config.io_limits import echoed, shown_text
+from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import quantity, utc
+from ovtraj.store.files import StoreError, read_json
+from ovtraj.store.layout import MANIFEST, PIPELINE_MARKER
+from ovtraj.store.records import plain
+from ovtraj.tracking.keys import history_key
 
 
 @dataclass
@@ -33,14 +40,6 @@ class _Item:
     figures: list[Any]
     plan: dict[str, Any] | None = None
     plan_path: Path | None = None
-
-
-def _console() -> Console:
-    """Where the tables go: no rich markup (a stored name holding ``[bold]`` or ``[/]`` is
-    text, not a style or a markup error); every stored text in them goes through
-    :func:`shown_text` (escaped, cut)."""
-    console = Console(highlight=False, markup=False)
-    return console if console.is_terminal else Console(highlight=False, markup=False, width=10_000)
 
 
 def _stored_path(store: Any, catalog: Any, path: Any, field: str) -> Any:
@@ -96,7 +95,6 @@ def _run_item(store: Any, run_id: str) -> _Item:
 
 def _pipeline_item(store: Any, marker: Path) -> _Item:
     from ovtraj.runs.store import checked_id
-    from ovtraj.store.files import read_json
     from ovtraj.tracking.figures import pipeline_figures
 
     summary = read_json(marker)
@@ -110,7 +108,6 @@ def _pipeline_item(store: Any, marker: Path) -> _Item:
 def _resolve(store: Any, catalog: Any, ref: str) -> _Item:
     """A run, pipeline result or plan named by its id (`ovtraj runs`) or a file."""
     from ovtraj.runs.store import RunStore
-    from ovtraj.store.layout import MANIFEST, PIPELINE_MARKER
 
     path = Path(ref)
     if path.is_dir() and (path / MANIFEST).is_file():
@@ -143,9 +140,7 @@ def _fail(err: Exception) -> None:
 
 
 def _errors() -> tuple[type[Exception], ...]:
-    from ovtraj.config import ConfigError
     from ovtraj.mission.plan import PlanError
-    from ovtraj.store.files import StoreError
 
     return (StoreError, ConfigError, PlanError, ValueError, OSError)
 
@@ -199,7 +194,7 @@ def diff(
         table.add_column(column, no_wrap=column == "field")
     for row in text_rows(found):
         table.add_row(*row)
-    _console().print(table)
+    table_console().print(table)
     typer.echo(f"{changed} of {len(found) if everything else changed} figures differ")
 
 
@@ -246,10 +241,8 @@ def history(
 
     Example: `ovtraj history --target-name 'ISS-like space target' --out trend.png`"""
     from ovtraj.plots.history import history_plot
-    from ovtraj.store.records import plain
     from ovtraj.tracking.catalog import CATALOG_DIR, refresh
     from ovtraj.tracking.history import history as history_rows
-    from ovtraj.tracking.keys import history_key
 
     root = store_location(store_root)
     try:
@@ -307,7 +300,7 @@ def history(
             quantity(r.mc_landing_miss_p95_m, "m"),
             quantity(r.mc_dv_margin_p95_mps, "m/s"),
         )
-    _console().print(table)
+    table_console().print(table)
     typer.echo(f"plot: {written}")
 
 
@@ -437,7 +430,7 @@ def lineage(
                 link.state,
                 "; ".join(shown_text(x) for x in (link.detail, link.path or "") if x),
             )
-        _console().print(table)
+        table_console().print(table)
         verdict = "every link verifies" if not broken else f"{len(broken)} link(s) broken"
         typer.echo(verdict)
     if broken:
@@ -446,8 +439,6 @@ def lineage(
 
 def _exported_plan(path: Path) -> str:
     """The plan id an exported CCSDS file names (``COMMENT ovtraj plan <id>``)."""
-    from ovtraj.bounded_reads import read_text_file
-    from ovtraj.config.orchestration import load_orchestration
 
     largest = int(load_orchestration().reads.unrecorded_file_max_mib * 2**20)
     text = read_text_file(path, max_bytes=largest, limit="reads.unrecorded_file_max_mib")

@@ -1,11 +1,14 @@
-"""The launch-window scan: ``ovtraj window SCENARIO --days N`` (issue 48; docs/window.md)."""
+"""The launch-window scan: ``ovtraj window SCENARIO --days N``, a whole pipeline per launch
+day (docs/window.md)."""
 
 from __future__ import annotations
 
 import logging
-from typing import Annotated, Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+from rich.table import Table
 
 from ovtraj.cli.common import (
     AllowUnconvergedOpt,
@@ -14,12 +17,13 @@ from ovtraj.cli.common import (
     StoreOpt,
     TargetOpt,
     app,
-    loaded_scenario,
+    exits_on,
     option_limits,
     print_json,
     run_store,
+    table_console,
 )
-from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt, runner_choice
+from ovtraj.cli.doe import DaskAddressOpt, SamplesOpt, SeedOpt
 from ovtraj.cli.picking import (
     MaxDvOpt,
     MaxTimeOpt,
@@ -29,9 +33,18 @@ from ovtraj.cli.picking import (
     pick_from_options,
 )
 from ovtraj.cli.progress import echo, progress_bar
+from ovtraj.config import Scenario
 from ovtraj.config.io_limits import shown_text
 from ovtraj.config.mission import DoeSettings
+from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import quantity
+from ovtraj.paths import scenario_file
+from ovtraj.store.files import StoreError
+from ovtraj.version import code_version
+from ovtraj.window.settings import load_window_settings
+
+if TYPE_CHECKING:  # the runners load the numerics: imported when run
+    from ovtraj.runs.runners import RunnerChoice
 
 DaysOpt = Annotated[
     int,
@@ -99,59 +112,89 @@ def window(
 
     Example: `ovtraj window --days 7 --runner processes --workers 2`"""
     from ovtraj.window.records import window_verdict
-    from ovtraj.window.settings import load_window_settings
 
     # refused before any work
     chosen = pick_from_options(None, weights, max_time_h, max_dv, min_payload)
+    _check_days(days)
+    scenario, choice = _scenario_and_runner(config, target, runner, dask_address, workers)
+    store = run_store(store_root, scenario, config)
+    outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
+    converged, verdict = window_verdict(outcome.records)
+    if as_json:
+        print_json(_window_json(outcome, store, converged, verdict))
+    else:
+        _print_window(outcome, store, verdict)
+    if outcome.best_day is None or not (converged or allow_unconverged):
+        raise typer.Exit(code=1)
+
+
+def _check_days(days: int) -> None:
+    """``--days`` within 1..configs/window.yaml ``max_days``, else one line, exit 2."""
     limit = load_window_settings().max_days
     if not 1 <= days <= limit:
         shown = f"must lie in 1..{limit} (configs/window.yaml max_days)"
         typer.echo(f"--days {days}: {shown}", err=True)
         raise typer.Exit(code=2)
-    scenario = loaded_scenario(config, target)
-    if scenario.mission is None or scenario.launch is None:
-        typer.echo(f"{config}: the scenario has no mission section", err=True)
-        raise typer.Exit(code=2)
-    choice = runner_choice(scenario.mission.doe, runner, dask_address, workers)
-    store = run_store(store_root, scenario, config)
-    outcome = _scan(scenario, days, samples, seed, chosen, store, choice, as_json)
-    files = {name: path.resolve() for name, path in outcome.files.items()}
+
+
+def _scenario_and_runner(
+    config: Path | None,
+    target: str | None,
+    runner: str | None,
+    dask_address: str | None,
+    workers: int | None,
+) -> tuple[Scenario, RunnerChoice]:
+    """The scenario (a mission and a launch section needed) and where the days run, as a
+    pipeline's (:mod:`ovtraj.runs.preparation`); bad input is one line, exit 2."""
+    from ovtraj.runs.preparation import mission_scenario, runner_choice
+
+    with exits_on(ValueError):
+        scenario = mission_scenario(config, target)
+        if scenario.launch is None:
+            raise ValueError(f"{scenario_file(config)}: the scenario has no launch section")
+        choice = runner_choice(scenario.mission.doe, runner, dask_address, workers, as_options=True)
+    return scenario, choice
+
+
+def _window_json(outcome: Any, store: Any, converged: bool, verdict: str) -> dict[str, Any]:
     best = outcome.best_day
-    converged, verdict = window_verdict(outcome.records)
-    if as_json:
-        print_json(
-            {
-                "window_id": outcome.window_id,
-                "reused": outcome.reused,
-                "converged": converged,
-                "verdict": verdict,
-                "days": len(outcome.records),
-                "planned_days": outcome.planned_days,
-                "best_day": best,
-                "best_date": None if best is None else outcome.records[best]["date"],
-                "rows": _json_rows(outcome, store),
-                "files": {name: str(path) for name, path in files.items()},
-            }
-        )
-    else:
-        _print_table(outcome, store)
-        typer.echo(verdict)
-        if best is not None:
-            record = outcome.records[best]
-            typer.echo(f"best day: {record['date']} (day {best}), score {record['score']:.4f}")
-        for label, name in (
-            ("table", "window.parquet"),
-            ("plot", "window.png"),
-            ("plot", "window.svg"),
-            ("porkchop", "porkchop.parquet"),
-            ("porkchop", "porkchop.png"),
-            ("porkchop", "porkchop.svg"),
-            ("page", "window.html"),
-            ("window", "window.json"),
-        ):
-            typer.echo(f"{label}: {files[name]}")
-    if best is None or not (converged or allow_unconverged):
-        raise typer.Exit(code=1)
+    return {
+        "window_id": outcome.window_id,
+        "reused": outcome.reused,
+        "converged": converged,
+        "verdict": verdict,
+        "days": len(outcome.records),
+        "planned_days": outcome.planned_days,
+        "best_day": best,
+        "best_date": None if best is None else outcome.records[best]["date"],
+        "rows": _json_rows(outcome, store),
+        "files": {name: str(path.resolve()) for name, path in outcome.files.items()},
+    }
+
+
+# The window's files as the command prints them: (label, file name).
+_FILES = (
+    ("table", "window.parquet"),
+    ("plot", "window.png"),
+    ("plot", "window.svg"),
+    ("porkchop", "porkchop.parquet"),
+    ("porkchop", "porkchop.png"),
+    ("porkchop", "porkchop.svg"),
+    ("page", "window.html"),
+    ("window", "window.json"),
+)
+
+
+def _print_window(outcome: Any, store: Any, verdict: str) -> None:
+    """The days' table, the verdict, the best day and the window's files."""
+    _print_table(outcome, store)
+    typer.echo(verdict)
+    best = outcome.best_day
+    if best is not None:
+        record = outcome.records[best]
+        typer.echo(f"best day: {record['date']} (day {best}), score {record['score']:.4f}")
+    for label, name in _FILES:
+        typer.echo(f"{label}: {outcome.files[name].resolve()}")
 
 
 def _scan(
@@ -166,25 +209,20 @@ def _scan(
 ) -> Any:
     """The library's driver (:func:`ovtraj.window.scan.scan_window`, as the window flow)
     with the days on the library's pool; a fault is one line on stderr, exit 2."""
-    from ovtraj.config.orchestration import load_orchestration
-    from ovtraj.runs import StoreError
     from ovtraj.runs.execute import BatchesFailed
     from ovtraj.runs.runners import ClusterError
     from ovtraj.surrogate import SurrogateError
-    from ovtraj.version import code_version
     from ovtraj.window.scan import PoolDays, WindowRequest, scan_window
 
     say = logging.getLogger("ovtraj.window").info if as_json else echo
     request = WindowRequest(days=days, samples=samples, seed=seed, pick=pick)
     runner = PoolDays(choice, load_orchestration().dask)
-    try:
-        with progress_bar("launch grid", enabled=not as_json) as update:
-            return scan_window(
-                scenario, request, store, code_version(), runner, progress=say, grid_progress=update
-            )
-    except (StoreError, SurrogateError, ValueError, ClusterError, BatchesFailed) as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+    faults = (StoreError, SurrogateError, ValueError, ClusterError, BatchesFailed)
+    with exits_on(*faults), progress_bar("launch grid", enabled=not as_json) as update:
+        outcome = scan_window(
+            scenario, request, store, code_version(), runner, progress=say, grid_progress=update
+        )
+    return outcome
 
 
 def _plan_path(record: dict[str, Any], store: Any) -> str:
@@ -216,9 +254,6 @@ def _json_rows(outcome: Any, store: Any) -> list[dict[str, Any]]:
 
 def _print_table(outcome: Any, store: Any) -> None:
     """The days as a table on stdout (rich; full width when not a terminal)."""
-    from rich.console import Console
-    from rich.table import Table
-
     table = Table(
         title=f"launch window {outcome.window_id}" + (" (stored)" if outcome.reused else ""),
         title_justify="left",
@@ -245,7 +280,4 @@ def _print_table(outcome: Any, store: Any) -> None:
         )
     # A day's record is stored text (a reused window's is read back): escaped and cut
     # (shown_text), and no rich markup.
-    console = Console(highlight=False, markup=False)
-    if not console.is_terminal:
-        console = Console(highlight=False, markup=False, width=10_000)
-    console.print(table)
+    table_console().print(table)
