@@ -1,4 +1,4 @@
-"""The dispersed Monte Carlo of a mission plan, closed and open loop (issue 23)."""
+"""The dispersed Monte Carlo of a mission plan, closed and open loop."""
 
 from __future__ import annotations
 
@@ -19,18 +19,10 @@ from ovtraj.formatting import duration
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.fly import fly_plan
-from ovtraj.mission.montecarlo import (
-    CORRECTIONS,
-    IMPULSES,
-    MANOEUVRES,
-    DispersedFlight,
-    RunOutcome,
-    draw_run,
-    fly_closed_loop,
-    fly_open_loop,
-    planned_dv,
-    summarise,
-)
+from ovtraj.mission.montecarlo_draw import DispersedFlight, draw_run
+from ovtraj.mission.montecarlo_flight import fly_closed_loop, fly_open_loop
+from ovtraj.mission.montecarlo_outcome import CORRECTIONS, IMPULSES, MANOEUVRES, RunOutcome
+from ovtraj.mission.montecarlo_statistics import planned_dv, summarise
 from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import read_plan, write_plan
 from ovtraj.mission.sky_flight import format_fidelity_report
@@ -292,7 +284,9 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
     import pyarrow.parquet as pq
 
     from flows.mission_monte_carlo import plan_monte_carlo_flow
-    from ovtraj.mission.montecarlo import STORED_RUN_SCHEMA, loop_summaries, monte_carlo
+    from ovtraj.mission.montecarlo import monte_carlo
+    from ovtraj.mission.montecarlo_outcome import STORED_RUN_SCHEMA
+    from ovtraj.mission.montecarlo_statistics import loop_summaries
     from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 
     data = yaml.safe_load(config_path("dispersions.yaml").read_text())
@@ -343,7 +337,7 @@ def test_the_flow_stores_every_run_and_a_second_run_flies_nothing(
     assert {k: stored[k] for k in closed} == closed
 
 
-# --- the plan flown under the high-fidelity sky (issue 47) ---------------------------------
+# --- the plan flown under the high-fidelity sky ------------------------------------------
 
 
 def test_the_plan_flown_under_the_high_fidelity_sky_lands_and_reports_its_extra_dv(

@@ -20,7 +20,8 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from ovtraj.cli import app
-from ovtraj.mission.montecarlo import MANOEUVRES, planned_dv
+from ovtraj.mission.montecarlo_outcome import MANOEUVRES
+from ovtraj.mission.montecarlo_statistics import planned_dv
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan_store import read_plan
 from ovtraj.paths import config_path

@@ -389,7 +389,8 @@ def test_the_high_fidelity_flight_is_shown_beside_the_plan(plan, scenario):
     beside the plan's."""
     from ovtraj.config.dispersions import default_dispersions
     from ovtraj.mission.high_fidelity import high_fidelity_settings
-    from ovtraj.mission.montecarlo import MANOEUVRES, path_limits
+    from ovtraj.mission.montecarlo_outcome import MANOEUVRES
+    from ovtraj.mission.montecarlo_statistics import path_limits
     from ovtraj.mission.sky_flight import fidelity_report, fly_nominal
     from ovtraj.pipeline.report_tables import flight_shown
     from ovtraj.store.records import json_text

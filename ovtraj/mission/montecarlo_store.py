@@ -2,7 +2,7 @@
 
 A run directory of :class:`ovtraj.store.batched.BatchedRun`: ``config.json`` holds the plan
 and the dispersions that count for results, each batch's part holds a row per run and loop
-(``closed``, ``open``) of :data:`~ovtraj.mission.montecarlo.STORED_RUN_SCHEMA`. The run id
+(``closed``, ``open``) of :data:`~ovtraj.mission.montecarlo_outcome.STORED_RUN_SCHEMA`. The run id
 hashes the plan, the dispersions (not their ``execution`` settings), the number of runs, the
 seed and the code version (and the force model of a high-fidelity closed loop).
 
@@ -21,12 +21,9 @@ from typing import Any
 
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
-from ovtraj.mission.montecarlo import (
-    STORED_RUN_SCHEMA,
-    loop_summaries,
-    monte_carlo_report,
-    simulate_batch,
-)
+from ovtraj.mission.montecarlo import simulate_batch
+from ovtraj.mission.montecarlo_outcome import STORED_RUN_SCHEMA
+from ovtraj.mission.montecarlo_statistics import loop_summaries, monte_carlo_report
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.store.batched import BatchedRun, StoreError, content_id
 
@@ -46,8 +43,8 @@ def plan_monte_carlo_id(
     force_model: dict[str, Any] | None = None,
 ) -> str:
     """Content hash of what a plan Monte Carlo's rows depend on; ``force_model`` (the
-    high-fidelity sky of the closed loop, issue 47) only when given, so that the J2
-    Monte Carlo keeps its id."""
+    high-fidelity sky of the closed loop) only when given, so that a J2 Monte Carlo's id
+    does not depend on the high-fidelity settings."""
     content = {
         "kind": RUN_KIND,
         "plan": plan,

@@ -1,8 +1,7 @@
 """The plan flown closed-loop without dispersions, under the J2 sky and under the
-high-fidelity one, side by side with the plan (``ovtraj fly PLAN --fidelity high``,
-issue 47).
+high-fidelity one, side by side with the plan (``ovtraj fly PLAN --fidelity high``).
 
-The closed loop is the Monte Carlo's (:func:`ovtraj.mission.montecarlo.fly_closed_loop`)
+The closed loop is the Monte Carlo's (:func:`ovtraj.mission.montecarlo_flight.fly_closed_loop`)
 with every error drawn as zero: the corrections then answer only what the sky does
 differently from the planner's model. Under the J2 sky that is nothing (the figures equal
 the plan's to the solvers' tolerances); under the high-fidelity sky (EGM2008, drag, Sun,
@@ -19,15 +18,10 @@ from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.formatting import number, printable, split_unit
-from ovtraj.mission.montecarlo import (
-    MANOEUVRES,
-    PATH_LIMITS,
-    RunOutcome,
-    draw_run,
-    fly_closed_loop,
-    path_limits,
-    planned_dv,
-)
+from ovtraj.mission.montecarlo_draw import draw_run
+from ovtraj.mission.montecarlo_flight import fly_closed_loop
+from ovtraj.mission.montecarlo_outcome import MANOEUVRES, PATH_LIMITS, RunOutcome
+from ovtraj.mission.montecarlo_statistics import path_limits, planned_dv
 from ovtraj.mission.plan import MissionPlan
 
 __all__ = ["fidelity_report", "fly_nominal", "format_fidelity_report", "nominal_dispersions"]

@@ -25,7 +25,8 @@ from ovtraj.config import Scenario
 from ovtraj.formatting import MISSING, clipped, number, printable, utc
 from ovtraj.mission.manoeuvres import manoeuvre_table, propellant_budget
 from ovtraj.mission.margins import limit_margins
-from ovtraj.mission.montecarlo import MANOEUVRES, path_limits, planned_dv
+from ovtraj.mission.montecarlo_outcome import MANOEUVRES
+from ovtraj.mission.montecarlo_statistics import path_limits, planned_dv
 from ovtraj.mission.plan import MissionPlan
 
 __all__ = ["FlightResultError", "flight_shown", "manoeuvres_shown", "margins_shown"]

@@ -28,7 +28,8 @@ from ovtraj.config import scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.config.montecarlo_plots import MonteCarloPlotSettings, default_montecarlo_plots
-from ovtraj.mission.montecarlo import MANOEUVRES, planned_dv
+from ovtraj.mission.montecarlo_outcome import MANOEUVRES
+from ovtraj.mission.montecarlo_statistics import planned_dv
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, fly_batch
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.paths import config_path
