@@ -16,13 +16,8 @@ from ovtraj.config import scenario_from_dict
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, evaluate
 from ovtraj.mission.chain import launch_leg
-from ovtraj.pipeline.features import (
-    DEORBIT_PASSES,
-    PHASING_WAIT,
-    WAIT,
-    KnownLimits,
-    fit_mission_surrogates,
-)
+from ovtraj.pipeline.features import DEORBIT_PASSES, PHASING_WAIT, WAIT, KnownLimits
+from ovtraj.pipeline.mission_fit import fit_mission_surrogates
 from ovtraj.pipeline.pass_model import PassModel
 from ovtraj.rendezvous.phasing import secular_phasing
 

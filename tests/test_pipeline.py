@@ -1,4 +1,4 @@
-"""The surrogate pipeline on the real mission chain (issue 7).
+"""The surrogate pipeline on the real mission chain.
 
 A 20-sample DoE of the default scenario, then surrogates, NSGA-II, verification of
 front points with the real chain and infill; the plan of a front point and its replay.
@@ -736,7 +736,7 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     features = surrogates.features(designs)
     wait = surrogates.wait.predict(designs[:, :1])[WAIT]
     # The phase input: the wait's phase in the target's period (surrogate.burn_phase false
-    # since issue 43: with the plane aimed, the rendezvous part is fitted on H_P0 alone and
+    # with the plane aimed at the rendezvous: the rendezvous part is fitted on H_P0 alone and
     # no part takes it; the burn's phase is tested below).
     assert surrogates.burn_phase is None
     period_phase = 2 * np.pi * np.mod(wait, surrogates.period_s) / surrogates.period_s
@@ -788,7 +788,7 @@ def test_phase_surrogates_compose_the_parts_and_round_trip(small):
     assert not np.allclose(
         moved, shared.surrogates.predict_parts(designs)["dv_rendezvous_mps"], rtol=1e-6
     )
-    # With the burn's phase (surrogate.burn_phase, the chain before issue 43): twice the
+    # With the burn's phase (surrogate.burn_phase, the chain with the plane at insertion): twice the
     # first burn's argument of latitude, in closed form from H_P0.
     burned = _with_surrogate(
         scenario,
@@ -832,11 +832,8 @@ def test_pinned_deorbit_burns_stay_out_of_the_deorbit_part_alone(small):
 
     from ovtraj.mission import reference
     from ovtraj.mission.design_space import bounds_arrays
-    from ovtraj.pipeline.features import (
-        DEORBIT_WAIT,
-        fit_mission_surrogates,
-        pinned_deorbit_burns,
-    )
+    from ovtraj.pipeline.features import DEORBIT_WAIT
+    from ovtraj.pipeline.mission_fit import fit_mission_surrogates, pinned_deorbit_burns
 
     # The regime: without deorbit.solver.pass_cost_margin_mps a burn the deorbit's
     # correction pinned at the preparation orbit's start (its wait 0) pays for reaching the
@@ -874,7 +871,7 @@ def test_pinned_deorbit_burns_stay_out_of_the_deorbit_part_alone(small):
 
 
 def test_no_prediction_leaves_its_physical_range_on_a_dense_grid(small):
-    """Issue 21: T_total above the stay + t_dsp it contains, M_load inside the launch fit's
+    """T_total above the stay + t_dsp it contains, M_load inside the launch fit's
     range, each dV part above its two-body floor, on a 31 x 21 x 13 grid (8463 designs)."""
     from ovtraj.launch.launch_fit import find_launch_fit
     from ovtraj.mission.design_space import bounds_arrays
@@ -1181,7 +1178,7 @@ def test_warm_started_fronts_hold_the_previous_front_and_replay(small, tmp_path)
 
 
 def test_every_front_point_is_planned_as_promised(small, tmp_path):
-    """Issue 43: the plan of each verified front point (its launch solved to the chain's
+    """The plan of each verified front point (its launch solved to the chain's
     insertion) flies its front values within ``mission.plan.front_tolerance``."""
     from ovtraj.mission.plan_build import plan_and_record
 

@@ -1,4 +1,4 @@
-"""Physics-informed surrogates of the mission objectives (issue 7; docs/optimize.md).
+"""Physics-informed surrogates of the mission objectives (docs/optimize.md).
 
 dV_total is dominated by the rendezvous impulse, and that impulse oscillates with the
 parking altitude H_P0: the phasing wait grows smoothly with H_P0 (~1570 s per km on the
@@ -23,7 +23,7 @@ wait it is smooth. So, instead of one model per objective on the design variable
   median offset: it moves in whole days, which a regressor smears;
 - dV_total is the sum of its three parts' predictions.
 
-Every prediction stays in its physical range by construction (issue 21):
+Every prediction stays in its physical range by construction:
 
 - M_load is not regressed: it is the launch fit's payload series at H_P0, the very function
   the chain evaluates, so it is exact and inside the fit's range;
@@ -36,13 +36,13 @@ Every prediction stays in its physical range by construction (issue 21):
 
 Both sets are ordinary :class:`~ovtraj.surrogate.SurrogateSet` (CV selection, held-out
 checks, stored with their data hash); :class:`MissionSurrogates` composes them behind the
-same interface (``predict``, ``feasibility``, ``cube``, names, tables).
+same interface (``predict``, ``feasibility``, ``cube``, names, tables), and
+:func:`ovtraj.pipeline.mission_fit.fit_mission_surrogates` fits them on a run's data.
 """
 
 from __future__ import annotations
 
 import math
-from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, get_args
@@ -61,7 +61,6 @@ from ovtraj.config.mission import (
     DvPart,
 )
 from ovtraj.launch.fourier import FourierSeries
-from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.pipeline.burn_phase import BurnPhaseModel
 from ovtraj.pipeline.pass_model import PassModel, target_mean_elements
@@ -69,8 +68,7 @@ from ovtraj.rendezvous.hohmann import hohmann_impulses_mps
 from ovtraj.store.backends import location
 from ovtraj.store.files import Digest, StoreError, read_json
 from ovtraj.store.products import Product
-from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube, fit_surrogates
-from ovtraj.surrogate.validation import holdout_mask
+from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube
 
 KIND = "mission-phase-surrogates/5"
 # Stored by earlier versions and still read: /4 had no known limits, /3 no burn phase.
@@ -496,29 +494,6 @@ def load_surrogates(directory: Path) -> SurrogateSet | MissionSurrogates:
     return SurrogateSet.load(directory)
 
 
-def launch_payload(scenario: Scenario, data: Any) -> FourierSeries:
-    """The launch fit's payload series, checked against the run's own M_load values."""
-    fit = find_launch_fit(scenario)
-    if fit is None:
-        raise SurrogateError(
-            "no launch fit is stored for this scenario: M_load is the launch fit's payload "
-            "(ovtraj launch-fit solves it)"
-        )
-    payload = fit.series[PAYLOAD]
-    known = np.isfinite(data.outputs["m_load_kg"])
-    if known.any():
-        expected = np.asarray(payload(data.designs[known, 0] * 1e3), dtype=float)
-        tolerance = scenario.mission.surrogate.payload_match_kg
-        worst = float(np.max(np.abs(expected - data.outputs["m_load_kg"][known])))
-        if worst > tolerance:
-            raise SurrogateError(
-                f"the stored launch fit's payload differs from the run's M_load by up to "
-                f"{worst:.3g} kg (surrogate.payload_match_kg {tolerance:g} kg): the run was "
-                "evaluated with another launch fit"
-            )
-    return payload
-
-
 def unregressed(surrogates: SurrogateSet | MissionSurrogates) -> dict[str, str]:
     """The outputs a fitted set models without a regressor (so without CV figures), each
     with how: T_total by the pass model (:data:`PASS_MODEL`)."""
@@ -529,166 +504,3 @@ def unregressed(surrogates: SurrogateSet | MissionSurrogates) -> dict[str, str]:
 def composed_waits(wait: SurrogateSet, designs: np.ndarray) -> np.ndarray:
     """The wait model's waits [s] of designs (m, 3) (as :meth:`MissionSurrogates.waits`)."""
     return wait.predict(np.atleast_2d(np.asarray(designs, dtype=float))[:, :1])[WAIT]
-
-
-def fit_mission_surrogates(
-    data: Any,
-    scenario: Scenario,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    *,
-    candidates: dict[str, str] | None = None,
-    executor: Executor | None = None,
-) -> MissionSurrogates:
-    """Fit the wait model and the phase-input model on a run's training data.
-
-    ``candidates``: an earlier fit's ``selected``, to refit those models without comparing
-    candidates again; ``executor``: where the candidates are scored
-    (:func:`ovtraj.surrogate.fit_surrogates`).
-    """
-    settings = scenario.mission.surrogate
-    if not data.feasible.any():
-        raise SurrogateError(f"all {len(data)} samples are infeasible: nothing to fit")
-    payload = launch_payload(scenario, data)
-    floors = DvFloors.of(scenario)
-    wait = data.components[WAIT]
-    known = np.isfinite(wait)
-    # The wait depends on H_P0 alone: one sample per distinct H_P0 (infill points at a
-    # bound share it, and repeated inputs make Kriging's correlation matrix singular).
-    _, first = np.unique(data.designs[:, 0], return_index=True)
-    known &= np.isin(np.arange(len(wait)), first)
-    if known.sum() < settings.min_training_samples:
-        raise SurrogateError(
-            f"the phase input needs the rendezvous wait of at least "
-            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
-        )
-    wait_set = fit_surrogates(
-        data.designs[known][:, :1],
-        {WAIT: wait[known]},
-        np.ones(int(known.sum()), dtype=bool),
-        lower[:1],
-        upper[:1],
-        settings,
-        input_names=DESIGN_NAMES[:1],
-        sample_ids=data.sample_ids[known],
-        candidates=candidates,
-        executor=executor,
-    )
-    pass_model = None
-    if settings.pass_forecast is not None:
-        series = find_launch_fit(scenario).series
-        pass_model = PassModel.of(scenario, series["insertion_time_s"], series["flight_time_s"])
-        pass_model = pass_model.calibrated(
-            data.designs, composed_waits(wait_set, data.designs), data.outputs["t_total_s"]
-        )
-    burn_phase = None
-    if settings.burn_phase:
-        series = find_launch_fit(scenario).series
-        burn_phase = BurnPhaseModel.of(
-            scenario, series["insertion_time_s"], series["insertion_u_deg"]
-        )
-    period = target_draconic_period(scenario)
-    bounds = {
-        "payload": payload,
-        "floors": floors,
-        "stay_s": 3600.0 * scenario.mission.stay_h,
-        "softness_s": 3600.0 * settings.floor_softness_h,
-        "softness_mps": settings.floor_softness_mps,
-        "pass_model": pass_model,
-        "burn_phase": burn_phase,
-        "departure_phase": settings.departure_phase,
-        "limits": KnownLimits.of(scenario, pass_model),
-    }
-    if bounds["limits"] is not None:
-        bounds["phasing"] = _phasing_wait_set(data, scenario, lower, upper, candidates, executor)
-    composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
-    # The samples a known limit made infeasible say nothing of the other causes the
-    # classifier is left to learn.
-    classified = None
-    if composed.limits is not None:
-        classified = ~composed.limits.explained(data, pass_model)
-    time = {} if pass_model is not None else {"t_total_s": data.outputs["t_total_s"]}
-    outputs = {
-        **time,
-        **{name: np.where(data.feasible, data.components[name], np.nan) for name in DV_PARTS},
-    }
-    main = fit_surrogates(
-        composed.features(data.designs),
-        outputs,
-        data.feasible,
-        np.concatenate([lower, [-1.0] * len(composed.phase_inputs)]),
-        np.concatenate([upper, [1.0] * len(composed.phase_inputs)]),
-        settings,
-        input_names=(*DESIGN_NAMES, *composed.phase_inputs),
-        sample_ids=data.sample_ids,
-        candidates=candidates,
-        executor=executor,
-        output_inputs={k: v for k, v in settings.part_inputs.items() if k in outputs},
-        left_out=_pinned_deorbit_burns(data, settings),
-        classified=classified,
-    )
-    return MissionSurrogates(wait_set, main, period, lower, upper, **bounds)
-
-
-def _phasing_wait_set(
-    data: Any,
-    scenario: Scenario,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    candidates: dict[str, str] | None,
-    executor: Executor | None,
-) -> SurrogateSet:
-    """The phasing wait [s] on H_P0 for the wait limit: every sample whose rendezvous got
-    as far as a refined phasing wait (feasible ones, and those refused by less than the
-    burn window: both sides of the limit); further beyond, the stage kept a secular
-    estimate only, and those samples stay out."""
-    settings = scenario.mission.surrogate
-    rendezvous = scenario.rendezvous
-    wait = np.asarray(data.components[PHASING_WAIT], dtype=float)
-    longest = rendezvous.max_wait_time_s + rendezvous.burn_epoch_window_s
-    known = np.isfinite(wait) & (wait <= longest)
-    _, first = np.unique(data.designs[:, 0], return_index=True)  # one per distinct H_P0
-    known &= np.isin(np.arange(len(wait)), first)
-    if known.sum() < settings.min_training_samples:
-        raise SurrogateError(
-            f"the wait limit needs the phasing wait of at least "
-            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
-        )
-    return fit_surrogates(
-        data.designs[known][:, :1],
-        {PHASING_WAIT: wait[known]},
-        np.ones(int(known.sum()), dtype=bool),
-        lower[:1],
-        upper[:1],
-        settings,
-        input_names=DESIGN_NAMES[:1],
-        sample_ids=data.sample_ids[known],
-        candidates=candidates,
-        executor=executor,
-    )
-
-
-def pinned_deorbit_burns(data: Any) -> np.ndarray:
-    """The feasible samples whose deorbit burn the stage's correction pinned at the start
-    of the preparation orbit (its burn-time bound; the stage's ``wait_time_s`` is 0): a
-    pass reached only by moving the burn, at a cost in impulse (the 7 costliest deorbits,
-    91-172 m/s, of the direct method's 583 feasible designs; every other one 71-88 m/s;
-    docs/optimize.md)."""
-    wait = np.asarray(data.components[DEORBIT_WAIT], dtype=float)
-    return data.feasible & ~(wait > 0.0)
-
-
-def _pinned_deorbit_burns(data: Any, settings: Any) -> dict[str, np.ndarray]:
-    """``left_out`` of the phase-input model: the deorbit part's regime is the minimum
-    impulse after a wait (``surrogate.skip_pinned_deorbit_burns``), so the pinned burns
-    stay out of its fit when enough samples remain."""
-    if not settings.skip_pinned_deorbit_burns:
-        return {}
-    pinned = pinned_deorbit_burns(data)
-    # The training samples fit_surrogates would keep (its seeded hold-out split).
-    held = holdout_mask(data.feasible, settings.holdout_fraction, settings.seed)
-    if not pinned.any() or (data.feasible & ~held & ~pinned).sum() < (
-        settings.min_training_samples
-    ):
-        return {}
-    return {"dv_deorbit_mps": pinned}

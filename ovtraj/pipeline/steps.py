@@ -14,8 +14,9 @@ A fit or front is computed only in a process on the pinned OpenBLAS kernel
 (:func:`ovtraj.environment.require_pinned_kernel`); loading a stored one needs none.
 
 The plots (``parity-*.png``, ``front.png``) are views: with ``views=False`` a step stores
-its data without them (the pipeline's rounds do: it draws the last round's views in its
-own directory at the end, issue 21), and that choice is part of the product's id.
+its data without them (the pipeline's rounds do, drawing costing time: it draws the last
+round's views in its own directory at the end), and that choice is part of the product's
+id.
 
 ``fit_id`` hashes the training data (:func:`ovtraj.surrogate.training_data_hash`),
 the design bounds, the surrogate settings and the code version; ``front_id`` the
@@ -49,11 +50,8 @@ from ovtraj.optimize import Normalisation, SurrogateFront, surrogate_front
 from ovtraj.optimize.objectives import MISSION_OBJECTIVES
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads, mapped, started
 from ovtraj.pipeline.data import TrainingData
-from ovtraj.pipeline.features import (
-    MissionSurrogates,
-    fit_mission_surrogates,
-    load_surrogates,
-)
+from ovtraj.pipeline.features import MissionSurrogates, load_surrogates
+from ovtraj.pipeline.mission_fit import fit_mission_surrogates
 from ovtraj.runs import Run
 from ovtraj.runs.runners import limit_threads
 from ovtraj.store.backends import location
