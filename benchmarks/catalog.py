@@ -61,7 +61,7 @@ from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.mission.plan_build import plan_and_record
 from ovtraj.mission.plan_store import plan_json
 from ovtraj.runs import RunStore, execute, latin_hypercube
-from ovtraj.runs.store import results_hash
+from ovtraj.runs.ids import results_hash
 from ovtraj.store.files import Digest
 from ovtraj.store.layout import (
     MANIFEST,

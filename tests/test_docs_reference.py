@@ -1,5 +1,5 @@
 """Every file, module, command and option the README and docs/ name exists: a path in
-backquotes (``ovtraj/...``, ``configs/...``), a dotted name (``ovtraj.runs.store.checked_id``),
+backquotes (``ovtraj/...``, ``configs/...``), a dotted name (``ovtraj.runs.ids.checked_id``),
 and every ``ovtraj COMMAND --option`` in a code block or a backquoted span, checked against
 the repository and the CLI itself (click's command tree of :data:`ovtraj.cli.app`)."""
 

@@ -13,7 +13,7 @@ import yaml
 
 from ovtraj.launch.launch_fit import find_launch_fit, launch_fit_key
 from ovtraj.runs import RunStore, execute, prepare_run, run_doe
-from ovtraj.runs.store import run_id
+from ovtraj.runs.ids import run_id
 from ovtraj.target_sources import load_scenario, load_scenario_with_target
 from tests.conftest import DEFAULT_SCENARIO, REPO
 

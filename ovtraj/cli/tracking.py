@@ -44,8 +44,8 @@ class _Item:
 
 def _stored_path(store: Any, catalog: Any, path: Any, field: str) -> Any:
     """``path``, built from a catalog row's ``field``, if it lies inside the store
-    (:func:`ovtraj.runs.store.within_store`): the catalog is a file like any other."""
-    from ovtraj.runs.store import within_store
+    (:func:`ovtraj.runs.ids.within_store`): the catalog is a file like any other."""
+    from ovtraj.runs.ids import within_store
 
     return within_store(store.root, path, f"{catalog.path}: {field}")
 
@@ -94,7 +94,7 @@ def _run_item(store: Any, run_id: str) -> _Item:
 
 
 def _pipeline_item(store: Any, marker: Path) -> _Item:
-    from ovtraj.runs.store import checked_id
+    from ovtraj.runs.ids import checked_id
     from ovtraj.tracking.figures import pipeline_figures
 
     summary = read_json(marker)

@@ -15,7 +15,7 @@ from typing import Any
 
 from ovtraj.pipeline.loop import MARKER as PIPELINE_MARKER
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import checked_id
+from ovtraj.runs.ids import checked_id
 from ovtraj.store.backends import S3Path
 from ovtraj.store.files import read_json
 from ovtraj.store.layout import MANIFEST

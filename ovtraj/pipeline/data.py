@@ -12,7 +12,8 @@ from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import MISSION_OBJECTIVES
 from ovtraj.runs import Run, RunStore, prepare_run
-from ovtraj.runs.store import StoreError, results_config
+from ovtraj.runs.ids import results_config
+from ovtraj.runs.store import StoreError
 from ovtraj.target_sources import load_scenario
 
 

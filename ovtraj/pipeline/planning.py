@@ -16,7 +16,7 @@ from ovtraj.pipeline.pick import Pick, pick_front_point
 from ovtraj.pipeline.plan_flights import REPORT_SUFFIX, stored_flights
 from ovtraj.pipeline.report import pick_explanation, write_report
 from ovtraj.runs import Run, RunStore, StoreError
-from ovtraj.runs.store import checked_id, within_store
+from ovtraj.runs.ids import checked_id, within_store
 from ovtraj.store.backends import location
 from ovtraj.store.files import file_digest
 from ovtraj.store.layout import PLAN_MARKER_SUFFIX

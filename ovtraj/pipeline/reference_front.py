@@ -30,7 +30,7 @@ from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import MISSION_OBJECTIVES, Normalisation
 from ovtraj.optimize.direct import DirectFront
 from ovtraj.paths import reference_dir
-from ovtraj.runs.store import results_config
+from ovtraj.runs.ids import results_config
 from ovtraj.store.products import Product
 
 FRONT = "front.parquet"

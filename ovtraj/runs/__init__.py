@@ -1,9 +1,10 @@
-"""DoE runs of the mission chain and their Parquet run store (issue 6); a plan's stored
+"""DoE runs of the mission chain and their Parquet run store; a plan's stored
 Monte Carlo, its one driver (:mod:`ovtraj.runs.plan_monte_carlo`)."""
 
 from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe
-from ovtraj.runs.store import Run, RunStore, StoreError, run_id
+from ovtraj.runs.ids import run_id
+from ovtraj.runs.store import Run, RunStore, StoreError
 
 __all__ = [
     "Run",

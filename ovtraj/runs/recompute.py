@@ -30,9 +30,10 @@ from ovtraj.config import scenario_from_dict
 from ovtraj.config.reproducibility import FILE, RecomputeSettings, load_reproducibility
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import MissionContext
+from ovtraj.runs.batch_tables import result_rows
 from ovtraj.runs.execute import evaluate_batch
 from ovtraj.runs.schemas import DATASETS
-from ovtraj.runs.store import Run, result_rows
+from ovtraj.runs.store import Run
 from ovtraj.store.records import table_from_rows
 from ovtraj.version import code_version
 

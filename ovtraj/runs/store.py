@@ -42,11 +42,10 @@ Guarantees:
   interrupted writes left. A run whose manifest says ``running`` while no process
   holds its lock was interrupted (:meth:`Run.status`).
 
-The run id is a content hash of what changes results: the resolved config (which
-holds the design bounds) without the settings that only say how the run executes
-or what is done with it afterwards (``mission.doe``, ``mission.surrogate``,
-``mission.optimize``, ``mission.verify``, ``mission.plan``), the seed, the samples
-themselves, the parent run and the code version.
+The run id (:func:`ovtraj.runs.ids.run_id`) is a content hash of what changes results.
+The writer's side of a run (locks, claims, batches written and adopted) is
+:mod:`ovtraj.runs.run_writing`; what a batch stores, :mod:`ovtraj.runs.batch_tables`; the
+check of a whole run, :mod:`ovtraj.runs.run_verify`.
 
 A child run (``parent``) starts with its parent's samples: the parent's stored
 batches are adopted as the child's first batches (hard links where the file system
@@ -56,177 +55,43 @@ manifest says how many batches were adopted (``inherited_batches``).
 
 from __future__ import annotations
 
-import datetime
-import hashlib
-import json
-import os
-from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 import pyarrow as pa
 
 from ovtraj.config import Scenario
 from ovtraj.config.mission import DoeSettings
 from ovtraj.environment import dependency_versions
-from ovtraj.interrupts import interrupt_of
-from ovtraj.mission import STAGES, MissionRecord
-from ovtraj.runs.schemas import (
-    DATASETS,
-    SCHEMA_VERSION,
-    TIMING_COLUMNS,
-    stored_columns,
-    stored_rows,
-)
+from ovtraj.mission import STAGES
+from ovtraj.runs.batch_tables import part_name
+from ovtraj.runs.ids import checked_id, results_hash, run_id
+from ovtraj.runs.run_verify import verify_run
+from ovtraj.runs.run_writing import MANIFEST_LOCK_WAIT_S, RunWriting, utc_now
+from ovtraj.runs.schemas import DATASETS, SCHEMA_VERSION
 from ovtraj.store import locks, paths
 from ovtraj.store.backends import S3Path, location
 from ovtraj.store.environment_block import stamped
 from ovtraj.store.files import (
-    TEMPORARY_SUFFIX,
     Digest,
     StoreError,
-    make_folders,
     marker_files,
-    read_bytes,
     read_json,
     read_table,
-    remove_file,
-    remove_orphans,
-    write_bytes,
     write_json,
     write_parquet,
 )
-from ovtraj.store.layout import ID_HEX_DIGITS, MANIFEST, is_id
-from ovtraj.store.records import table_from_frame, table_from_rows
+from ovtraj.store.layout import MANIFEST
+from ovtraj.store.records import table_from_frame
 from ovtraj.store.seals import authenticated, read_authenticated, write_sealed
 from ovtraj.store.verification import VerifyReport
 
-__all__ = ["ID_HEX_DIGITS", "Run", "RunStore", "StoreError", "VerifyReport", "checked_id", "run_id"]
-
-RUN_FILES = ("config.json", "samples.parquet")
-# Waits on the manifest lock: a holder only reads and rewrites one small file.
-MANIFEST_LOCK_WAIT_S = 60.0
-# The layout's names and ids: ovtraj.store.layout (ids: :func:`checked_id` where they enter).
-# Markers of a run's pipeline products (glob patterns under the run); each lists its
-# files, relative to its own folder, with their digests.
-PRODUCT_MARKERS = (
-    "surrogates/*/meta.json",
-    "fronts/*/meta.json",
-    "pipeline/*/pipeline.json",
-    "pipeline/*/plans/*.files.json",
-)
+__all__ = ["Run", "RunStore", "StoreError"]
 
 
-# Settings that do not change a sample's results: how the DoE executes, and what
-# the pipeline does with the results afterwards.
-NON_RESULT_SETTINGS = ("doe", "surrogate", "optimize", "verify", "plan")
-
-
-def results_config(resolved: dict[str, Any]) -> dict[str, Any]:
-    """The resolved config without :data:`NON_RESULT_SETTINGS` (a copy)."""
-    content = dict(resolved)
-    mission = content.get("mission")
-    if isinstance(mission, dict):
-        content["mission"] = {k: v for k, v in mission.items() if k not in NON_RESULT_SETTINGS}
-    return content
-
-
-def samples_hash(samples: pd.DataFrame) -> str:
-    """Hash of the design table (ids and values, bit for bit)."""
-    table = samples.reset_index(drop=True)
-    digest = hashlib.sha256()
-    for column in sorted(table.columns):
-        digest.update(column.encode("utf-8"))
-        digest.update(np.ascontiguousarray(table[column].to_numpy(dtype=float)).tobytes())
-    return digest.hexdigest()[:16]
-
-
-def results_hash(resolved: dict[str, Any]) -> str:
-    """Hash of :func:`results_config` (the runs of one scenario share it)."""
-    text = json.dumps(results_config(resolved), sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
-
-
-def run_id(
-    resolved: dict[str, Any], seed: int, samples: pd.DataFrame, code: str, parent: str | None
-) -> str:
-    content = {
-        "config": results_config(resolved),
-        "seed": seed,
-        "samples": len(samples),
-        "samples_hash": samples_hash(samples),
-        "code": code,
-        "parent": parent,
-    }
-    text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:ID_HEX_DIGITS]
-
-
-def checked_id(value: Any, what: str = "run id") -> str:
-    """``value`` if it is an id of the store (see :data:`ID_HEX_DIGITS`), else
-    :class:`StoreError` naming it, escaped (a newline shows as ``\\n``) and cut
-    (:func:`ovtraj.config.io_limits.echoed`)."""
-    if not isinstance(value, str) or not is_id(value):
-        from ovtraj.config.io_limits import echoed
-
-        raise StoreError(
-            f"{what} {echoed(repr(value))} is not an id of this store ({ID_HEX_DIGITS} "
-            "lowercase hexadecimal digits, as `ovtraj runs` lists them)"
-        )
-    return value
-
-
-def within_store(root: Path | S3Path, path: Path | S3Path, what: str) -> Path | S3Path:
-    """``path`` if, its links followed, it lies inside the store ``root``, else
-    :class:`StoreError` naming ``what`` (a file and its field): a path built from ids
-    (:func:`checked_id`) cannot climb out of the store by its name, this refuses a folder
-    of the store that is a link to elsewhere. An object store has no links."""
-    if isinstance(root, S3Path) or isinstance(path, S3Path):
-        return path
-    if not path.resolve().is_relative_to(root.resolve()):
-        from ovtraj.formatting import printable
-
-        raise StoreError(f"{what}: {printable(str(path))} leads outside the store {root}")
-    return path
-
-
-def part_name(batch: int) -> str:
-    return f"part-{batch:05d}.parquet"
-
-
-def result_rows(
-    pairs: list[tuple[int, MissionRecord]],
-) -> tuple[dict[str, list[dict[str, Any]]], dict[str, dict[str, Any]]]:
-    """The rows a batch of (sample id, record) pairs stores, by dataset (``stages/<stage>``,
-    for the stages some sample reached, and ``totals``), and the timing columns taken out of
-    the stage rows (stage -> sample id -> value; kept in the batch marker, never in a table)."""
-    rows: dict[str, list[dict[str, Any]]] = {}
-    timing: dict[str, dict[str, Any]] = {}
-    for stage in STAGES:
-        found = []
-        for sid, rec in pairs:
-            if stage not in rec.stages:
-                continue
-            row = dict(rec.stages[stage])
-            for column in TIMING_COLUMNS:
-                if column in row:
-                    timing.setdefault(stage, {})[str(sid)] = row.pop(column)
-            found.append({"sample_id": sid, **row})
-        if found:
-            rows[f"stages/{stage}"] = found
-    rows["totals"] = [{"sample_id": sid, **rec.totals()} for sid, rec in pairs]
-    return rows, timing
-
-
-def _utc_now() -> str:
-    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-
-
-class Run:
-    """One stored run."""
+class Run(RunWriting):
+    """One stored run (its writing methods: :class:`~ovtraj.runs.run_writing.RunWriting`)."""
 
     def __init__(self, directory: Path | S3Path | str) -> None:
         self.directory = location(directory)
@@ -248,9 +113,9 @@ class Run:
     @property
     def manifest(self) -> dict[str, Any]:
         """The manifest, its format checked, and its seal when a store key is configured."""
-        return authenticated(self.directory / MANIFEST, self._manifest_document())
+        return authenticated(self.directory / MANIFEST, self.manifest_document())
 
-    def _manifest_document(self) -> dict[str, Any]:
+    def manifest_document(self) -> dict[str, Any]:
         """The manifest as stored (seal included, not checked), of this store format."""
         manifest = read_json(self.directory / MANIFEST)
         if not isinstance(manifest, dict):
@@ -298,24 +163,6 @@ class Run:
             except (StoreError, OSError):
                 break  # a removed ancestor ends what can be followed
         return chain
-
-    def update_manifest(self, **changes: Any) -> bool:
-        """Merge ``changes`` into the manifest; returns False (writes nothing) if none differ."""
-        if all(self.manifest.get(k) == v for k, v in changes.items()):
-            return False  # checked without the lock too: a read-only store is never locked
-        with locks.hold(self._lock("manifest"), wait_s=MANIFEST_LOCK_WAIT_S):
-            manifest = self.manifest
-            if all(manifest.get(k) == v for k, v in changes.items()):
-                return False
-            write_sealed(self.directory / MANIFEST, manifest | changes, replace=True)
-        return True
-
-    def _lock(self, name: str) -> Path:
-        return self.directory / "locks" / f"{name}.lock"
-
-    def in_use(self) -> bool:
-        """Whether a process is working on the run (holds its run lock)."""
-        return locks.held(self._lock("run"))
 
     def status(self) -> str:
         """The manifest's status; ``interrupted`` when it says running and nobody is."""
@@ -393,192 +240,6 @@ class Run:
         done = self.done_batches()
         return [(k, batch) for k, batch in self.batches(batch_size) if k not in done]
 
-    @contextmanager
-    def working(self) -> Iterator[list[Path]]:
-        """Hold the run lock (shared) while this process writes batches.
-
-        When no other process works on the run, the temporary files of interrupted
-        writes are removed first (yielded). The manifest says ``running`` meanwhile;
-        an exception (including an interrupt) marks it ``interrupted`` with the cause.
-        """
-        path = self._lock("run")
-        removed: list[Path] = []
-        with locks.hold(path) as alone:
-            if alone:
-                removed = remove_orphans(self.directory)
-        with locks.hold(path, shared=True, wait_s=MANIFEST_LOCK_WAIT_S):
-            previous = self.manifest.get("status")
-            changes: dict[str, Any] = {"status": "running"}
-            if previous in ("running", "interrupted") and alone:
-                changes["resumed_after_interruption"] = (
-                    int(self.manifest.get("resumed_after_interruption", 0)) + 1
-                )
-            self.update_manifest(**changes)
-            try:
-                yield removed
-            except BaseException as err:
-                # An interrupt wrapped by compiled code is the interrupt (ovtraj.interrupts).
-                cause = interrupt_of(err) or err
-                try:
-                    self.update_manifest(
-                        status="interrupted",
-                        interrupted=f"{type(cause).__name__}: {cause}"[:500],
-                        interrupted_utc=_utc_now(),
-                    )
-                except StoreError:
-                    pass  # the cause is reported; the lock tells readers the run stopped
-                if cause is not err:
-                    raise cause from err
-                raise
-
-    @contextmanager
-    def claim(self, batch: int, *, wait_s: float = 0.0) -> Iterator[bool]:
-        """Claim batch ``batch`` for this process (see :func:`ovtraj.store.locks.hold`).
-
-        Whoever holds the claim may compute and write the batch; it first clears what
-        an interrupted attempt left of it (files that no marker covers).
-        """
-        with locks.hold(self._lock(f"batch-{batch}"), wait_s=wait_s) as claimed:
-            if claimed and not self.is_stored(batch):
-                self._clear_unmarked(batch)
-            yield claimed
-
-    def _batch_paths(self, batch: int) -> list[Path]:
-        name = part_name(batch)
-        paths = [self.directory / "totals" / name]
-        for folder in ("stages", "trajectories"):
-            paths += [self.directory / folder / stage / name for stage in STAGES]
-        return paths
-
-    def _clear_unmarked(self, batch: int) -> None:
-        for path in self._batch_paths(batch):
-            remove_file(path)
-
-    def _clear_interrupted(self, batch: int) -> list[Path]:
-        """Remove the temporary files an earlier holder of the batch's claim left (a
-        worker killed mid-write); the caller holds the claim, so no live writer owns them."""
-        removed = []
-        for path in self._batch_paths(batch):
-            if isinstance(path, S3Path) or not path.parent.is_dir():
-                continue  # an object store's writes leave no temporary object
-            for temporary in path.parent.glob(f".{path.name}.*{TEMPORARY_SUFFIX}"):
-                if remove_file(temporary):
-                    removed.append(temporary)
-        return removed
-
-    def adopt(self, parent: Run) -> int:
-        """Take the parent's stored batches as this run's first ones; returns their count.
-
-        Done once, when the child is created: files are hard-linked (copied where links
-        are not possible) under renumbered names with their digests, the batch markers
-        last, then the manifest records the count. Re-running it after an interruption
-        is harmless.
-        """
-        if "inherited_batches" in self.manifest:
-            return int(self.manifest["inherited_batches"])
-        stored = parent.markers()
-        for new, (old, marker) in enumerate(stored.items()):
-            files = {}
-            for relative, digest in marker["files"].items():
-                target = relative.replace(part_name(old), part_name(new))
-                _link(
-                    parent.directory / relative, self.directory / target, Digest.from_json(digest)
-                )
-                files[target] = digest
-            adopted = {**marker, "batch": new, "files": files, "adopted_from": [parent.id, old]}
-            write_sealed(self.directory / "batches" / f"{new}.json", adopted)
-        self.update_manifest(inherited_batches=len(stored))
-        return len(stored)
-
-    def write_batch(
-        self,
-        batch: int,
-        records: Iterable[MissionRecord],
-        sample_ids: list[int],
-        *,
-        trajectory_steps: dict[str, float],
-    ) -> bool:
-        """Store a batch's records; returns False (and writes nothing) if already stored.
-
-        The caller holds the batch's claim (:meth:`claim`). ``trajectory_steps`` gives
-        the stored sampling of each stage's trajectory (:func:`.schemas.stored_rows`).
-        """
-        marker = self.directory / "batches" / f"{batch}.json"
-        if marker.exists():
-            return False
-        self._clear_interrupted(batch)
-        try:
-            self._write_batch(marker, batch, list(records), sample_ids, trajectory_steps)
-        except BaseException:
-            self._clear_unmarked(batch)  # frees the space a full disk needs for the manifest
-            raise
-        return True
-
-    def _write_batch(
-        self,
-        marker: Path,
-        batch: int,
-        records: list[MissionRecord],
-        sample_ids: list[int],
-        trajectory_steps: dict[str, float],
-    ) -> None:
-        pairs = list(zip(sample_ids, records, strict=True))
-        part = part_name(batch)
-        files: dict[str, Digest] = {}
-        rows, stage_timing = result_rows(pairs)
-        timing: dict[str, Any] = {
-            "sample_wall_time_s": {str(sid): rec.wall_time_s for sid, rec in pairs},
-            "stage_wall_time_s": stage_timing,
-        }
-
-        def store(relative: str, table: pa.Table, dataset: str) -> None:
-            files[relative] = write_parquet(self.directory / relative, table, DATASETS[dataset])
-
-        for stage in STAGES:
-            dataset = f"stages/{stage}"
-            if dataset in rows:
-                store(
-                    f"{dataset}/{part}",
-                    table_from_rows(rows[dataset], DATASETS[dataset], dataset),
-                    dataset,
-                )
-            dataset = f"trajectories/{stage}"
-            if dataset not in DATASETS:
-                continue
-            tables = [
-                (sid, rec.trajectories[stage])
-                for sid, rec in pairs
-                if len(rec.trajectories.get(stage, ()))
-            ]
-            if tables:
-                # One concatenation and one selection for the batch: per sample they cost
-                # ~6 ms, two thirds of a sample's storing (docs/mission.md).
-                columns = stored_columns(stage)
-                frame = pd.concat([table for _, table in tables], ignore_index=True)[columns]
-                ids = np.repeat([sid for sid, _ in tables], [len(t) for _, t in tables])
-                keep = np.concatenate(
-                    [stored_rows(t, stage, trajectory_steps[stage]) for _, t in tables]
-                )
-                frame = frame.loc[keep].reset_index(drop=True)
-                frame.insert(0, "sample_id", ids[keep])
-                store(
-                    f"{dataset}/{part}",
-                    table_from_frame(frame, DATASETS[dataset], dataset),
-                    dataset,
-                )
-        store(
-            f"totals/{part}",
-            table_from_rows(rows["totals"], DATASETS["totals"], "totals"),
-            "totals",
-        )
-        content = {
-            "batch": batch,
-            "sample_ids": [int(s) for s in sample_ids],
-            "files": {name: digest.to_json() for name, digest in sorted(files.items())},
-            "timing": timing,
-        }
-        write_sealed(marker, stamped(content))
-
     # -- reading ----------------------------------------------------------------------------
     def _dataset(self, name: str) -> pd.DataFrame:
         """Every marked part of a dataset, checked, in sample order."""
@@ -651,94 +312,9 @@ class Run:
 
     # -- checking -----------------------------------------------------------------------------
     def verify(self) -> VerifyReport:
-        """Check every file of the run against its recorded digest and schema (like fsck).
-
-        Covered files: the manifest's (config, samples), each batch marker's, and those
-        listed by the markers of the run's surrogate fits, fronts and pipeline results.
-        Files that nothing lists are reported as uncovered (readers never use them). With
-        a store key configured, the manifest and every marker whose seal is missing or wrong
-        are reported as tampered (:mod:`ovtraj.store.seals`); the files such a marker lists are
-        still checked against its digests, for accidents.
-        """
-        report = VerifyReport(self.id)
-        covered = {self.directory / MANIFEST}
-        expected: list[tuple[Path, Any, pa.Schema | None]] = []
-
-        try:
-            manifest = self._manifest_document()
-        except StoreError as err:
-            report.problems.append(str(err))
-            return report
-        report.check_document(self.directory / MANIFEST, manifest)
-        recorded = manifest.get("files")
-        recorded = recorded if isinstance(recorded, dict) else {}
-        for name in RUN_FILES:
-            schema = DATASETS["samples"] if name == "samples.parquet" else None
-            expected.append((self.directory / name, recorded.get(name), schema))
-        for path in sorted((self.directory / "batches").glob("*")):
-            covered.add(path)
-            try:
-                marker = read_json(path)
-                listed = marker["files"]
-                if not isinstance(listed, dict):
-                    raise TypeError
-                report.check_document(path, marker)
-                marker_files(path, marker)  # names inside the run and usable digests
-            except StoreError as err:
-                report.problems.append(str(err))
-                continue
-            except (KeyError, TypeError):
-                report.problems.append(f"{path}: not a batch marker")
-                continue
-            for relative, digest in listed.items():
-                dataset = relative.rsplit("/", 1)[0]
-                expected.append((self.directory / relative, digest, DATASETS.get(dataset)))
-        for pattern in PRODUCT_MARKERS:
-            for marker_path in sorted(self.directory.glob(pattern)):
-                covered.add(marker_path)
-                try:
-                    marker = read_json(marker_path)
-                    listed = marker.get("files")
-                except StoreError as err:
-                    report.problems.append(str(err))
-                    continue
-                except AttributeError:
-                    report.problems.append(f"{marker_path}: not a marker")
-                    continue
-                if not isinstance(listed, dict):
-                    report.problems.append(f"{marker_path}: lists no file digests")
-                    continue
-                report.check_document(marker_path, marker)
-                try:
-                    marker_files(marker_path, marker)  # names inside its folder, usable digests
-                except StoreError as err:
-                    report.problems.append(str(err))
-                    continue
-                for relative, digest in listed.items():
-                    expected.append((marker_path.parent / relative, digest, None))
-        for path, digest, schema in expected:
-            covered.add(path)
-            report.check_file(path, digest, schema)
-        report.find_uncovered(self.directory, covered)
-        return report
-
-
-def _link(source: Path | S3Path, target: Path | S3Path, digest: Digest) -> None:
-    """``target`` becomes ``source``'s content (checked): a hard link, or a copy."""
-    payload = read_bytes(source, digest)
-    if isinstance(source, S3Path) or isinstance(target, S3Path):
-        write_bytes(target, payload)  # an object store has no links
-        return
-    try:
-        make_folders(target.parent)
-        os.link(source, target)
-        return
-    except FileExistsError:
-        read_bytes(target, digest)  # adopted by an earlier, interrupted attempt
-        return
-    except OSError:
-        pass
-    write_bytes(target, payload)
+        """Check every file of the run against its recorded digest and schema
+        (:func:`~ovtraj.runs.run_verify.verify_run`)."""
+        return verify_run(self)
 
 
 class RunStore:
@@ -777,7 +353,7 @@ class RunStore:
         run = Run(directory)
         # Refuses another store format, naming the file; the seal is checked by every read of
         # the manifest, so that `verify` can open a tampered run to report it.
-        run._manifest_document()
+        run.manifest_document()
         return run
 
     def create(
@@ -801,7 +377,7 @@ class RunStore:
         if (directory / MANIFEST).is_file():
             return self._reopen(rid, samples)
         run = Run(directory)
-        with locks.hold(run._lock("manifest"), wait_s=MANIFEST_LOCK_WAIT_S):
+        with locks.hold(run.lock_file("manifest"), wait_s=MANIFEST_LOCK_WAIT_S):
             if (directory / MANIFEST).is_file():  # created meanwhile by another process
                 return self._reopen(rid, samples)
             files = {
@@ -817,7 +393,7 @@ class RunStore:
                 "schema_version": SCHEMA_VERSION,
                 "parent": parent,
                 "lineage": list(lineage or ([parent] if parent else [])),
-                "created_utc": _utc_now(),
+                "created_utc": utc_now(),
                 "scenario": resolved.get("name"),
                 "results_hash": results_hash(resolved),
                 "code_version": code,

@@ -22,11 +22,11 @@ __all__ = [
     "is_id",
 ]
 
-# Run ids (ovtraj.runs.store.run_id) and the ids of a run's products (surrogate fits,
+# Run ids (ovtraj.runs.ids.run_id) and the ids of a run's products (surrogate fits,
 # fronts, pipeline results: ovtraj.pipeline.steps.content_id) are this many hexadecimal
 # digits of a SHA-256. An id is a folder name of the store: one that is not such a string
 # (``..``, a ``/``, a newline that would forge a log line) is refused where it enters
-# (ovtraj.runs.store.checked_id).
+# (ovtraj.runs.ids.checked_id).
 ID_HEX_DIGITS = 16
 ID_PATTERN = re.compile(f"[0-9a-f]{{{ID_HEX_DIGITS}}}")
 MANIFEST = "manifest.json"

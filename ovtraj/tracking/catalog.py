@@ -206,11 +206,11 @@ def _row(kind: str, item_id: str, source: str, digest: str, **values: Any) -> di
 
 
 def checked_id(value: Any, what: str = "id") -> str:
-    """``value`` if it is an id of the store, else :func:`ovtraj.runs.store.checked_id`'s
+    """``value`` if it is an id of the store, else :func:`ovtraj.runs.ids.checked_id`'s
     error (loaded only then: the run store's code imports the mission chain, ~1.4 s)."""
     if isinstance(value, str) and is_id(value):
         return value
-    from ovtraj.runs.store import checked_id as checked
+    from ovtraj.runs.ids import checked_id as checked
 
     return checked(value, what)
 

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from ovtraj.formatting import printable
-from ovtraj.runs.store import Run, RunStore, checked_id, within_store
+from ovtraj.runs.ids import checked_id, within_store
+from ovtraj.runs.store import Run, RunStore
 from ovtraj.store.batched import content_id
 from ovtraj.store.files import Digest, StoreError, file_digest, read_json
 from ovtraj.store.layout import PIPELINE_DIR, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, PLANS_DIR

@@ -22,7 +22,7 @@ from typing import Any
 
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.runs import RunStore
-from ovtraj.runs.store import checked_id
+from ovtraj.runs.ids import checked_id
 from ovtraj.store.files import StoreError, file_digest, remove_file
 from ovtraj.store.seals import read_authenticated, write_sealed
 from ovtraj.window.porkchop import Sweep, sweep_problem

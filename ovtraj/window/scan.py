@@ -56,8 +56,8 @@ from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.pipeline.steps import content_id
 from ovtraj.runs import RunStore
+from ovtraj.runs.ids import checked_id
 from ovtraj.runs.runners import RunnerChoice, batch_pool
-from ovtraj.runs.store import checked_id
 from ovtraj.store.backends import location
 from ovtraj.store.files import StoreError, file_digest
 from ovtraj.window.days import day_scenario, launch_date
