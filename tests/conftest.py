@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import copy
+import hashlib
 import os
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +15,7 @@ import yaml
 from ovtraj.astro.constants import EarthModel
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.physical import default_earth
+from ovtraj.mission.chain import MissionDesign
 from ovtraj.target_sources import load_scenario
 
 # Prefect must never try to reach the network from the test suite.
@@ -54,6 +57,27 @@ REENTRY_KEYS = {
     "feasible",
 }
 DEFAULT_SCENARIO = REPO / "configs" / "scenario.yaml"
+# A feasible design of the shipped scenario (parking altitude [km], phasing-orbit apogee
+# altitude [km], waiting time before the phasing manoeuvre [h]): its plan is the
+# reference plan every plan, export, Monte Carlo and hostile-input test starts from.
+FEASIBLE_DESIGN = MissionDesign(285.06, 326.96, 0.79)
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now (for a server a test starts)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def digest(directory: Path, pattern: str = "*.parquet") -> dict[str, str]:
+    """SHA-256 of every file under ``directory`` matching ``pattern``, by relative path:
+    two stores hold the same bytes when their digests are equal."""
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob(pattern))
+        if p.is_file()
+    }
 
 
 @pytest.fixture(scope="session")
@@ -101,6 +125,36 @@ def earth() -> EarthModel:
 @pytest.fixture(scope="session")
 def scenario() -> Scenario:
     return load_scenario(DEFAULT_SCENARIO)
+
+
+@pytest.fixture(scope="session")
+def mission_context(scenario):
+    """The shipped scenario with its reference launch fit (data/reference/launch_fit)."""
+    from ovtraj.launch.launch_fit import find_launch_fit
+    from ovtraj.mission.chain import MissionContext
+
+    fit = find_launch_fit(scenario)
+    assert fit is not None, "the reference launch fit is missing (data/reference/launch_fit)"
+    return MissionContext(scenario, fit)
+
+
+@pytest.fixture(scope="session")
+def reference_plan(mission_context, tmp_path_factory):
+    """The plan of :data:`FEASIBLE_DESIGN` on the shipped scenario, built once per worker
+    (a launch solve, the chain and the plan's own checks: seconds each time)."""
+    from ovtraj.mission.plan_build import build_plan
+
+    cache = tmp_path_factory.mktemp("reference-plan-launch-solves")
+    source = {"run_id": "test", "front_index": 0}
+    return build_plan(mission_context, FEASIBLE_DESIGN, source=source, launch_cache=cache)
+
+
+@pytest.fixture(scope="session")
+def reference_plan_file(reference_plan, tmp_path_factory) -> Path:
+    """:func:`reference_plan` written as ``chosen.json`` (and its CSV) in a folder of its own."""
+    from ovtraj.mission.plan_store import write_plan
+
+    return write_plan(reference_plan, tmp_path_factory.mktemp("reference-plan"), "chosen")[0]
 
 
 @pytest.fixture

@@ -25,7 +25,6 @@ import copy
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import sysconfig
@@ -40,18 +39,12 @@ import yaml
 from ovtraj.config.orchestration import RESULTS_ENV
 from ovtraj.environment import CORETYPE_ENV, pin
 from ovtraj.runs import RunStore
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, held_claim
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, free_port, held_claim
 
 DASK = Path(sys.executable).with_name("dask")
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 START_TIMEOUT_S = 90.0
 RUN_TIMEOUT_S = 300.0
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def _environment() -> dict[str, str]:
@@ -71,7 +64,7 @@ class Cluster:
 
     def __init__(self, root: Path) -> None:
         self.root = root
-        self.port = _free_port()
+        self.port = free_port()
         self.address = f"tcp://127.0.0.1:{self.port}"
         self.processes: dict[str, subprocess.Popen] = {}
         self.folders: dict[str, Path] = {}

@@ -21,7 +21,6 @@ import datetime
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -33,7 +32,7 @@ import httpx
 import pytest
 import yaml
 
-from tests.conftest import REPO
+from tests.conftest import REPO, free_port
 
 PREFECT = Path(sys.executable).with_name("prefect")
 POOL = "ovtraj-process"
@@ -83,12 +82,6 @@ def _declared() -> list[dict[str, Any]]:
     return spec["deployments"]
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 def _environment(root: Path, api: str) -> dict[str, str]:
     """The caller's environment without any PREFECT_/OVTRAJ_ setting, plus ours."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
@@ -134,7 +127,7 @@ def prefect_server(root: Path, **settings: str) -> Iterator[tuple[str, dict[str,
     """``prefect server start`` on a free port of 127.0.0.1 with its own PREFECT_HOME in
     ``root`` (and ``settings`` in its environment); yields (address, environment, log)
     once its API answers, and stops its process group afterwards."""
-    port = _free_port()
+    port = free_port()
     address = f"http://127.0.0.1:{port}"
     env = _environment(root, f"{address}/api")
     env.update(settings)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import hashlib
 
 import pandas as pd
 import pytest
@@ -11,7 +10,7 @@ import yaml
 
 from ovtraj.mission import STAGES
 from ovtraj.runs import RunStore, StoreError, execute, latin_hypercube, run_id
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest
 
 
 def _config(tmp_path, **doe) -> str:
@@ -22,13 +21,6 @@ def _config(tmp_path, **doe) -> str:
     path = tmp_path / "scenario.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     return str(path)
-
-
-def _digest(directory) -> dict[str, str]:
-    return {
-        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(directory.rglob("*.parquet"))
-    }
 
 
 @pytest.fixture(scope="module")
@@ -45,13 +37,13 @@ def eight(prefect_server, tmp_path_factory):
 
     artifact = Artifact.get("doe-run")
     store = RunStore(tmp / "runs")
-    digest = _digest(store.run(first["run_id"]).directory)
+    stored = digest(store.run(first["run_id"]).directory)
     second = run_doe_flow(config=config)
     return {
         "first": first,
         "second": second,
         "evaluations": (after_first - before, execute.EVALUATIONS["count"] - after_first),
-        "digest": digest,
+        "digest": stored,
         "store": store,
         "artifact": artifact,
     }
@@ -91,7 +83,7 @@ def test_second_identical_run_simulates_nothing_and_changes_nothing(eight):
     assert eight["evaluations"] == (8, 0)
     assert eight["second"]["run_id"] == eight["first"]["run_id"]
     run = eight["store"].run(eight["first"]["run_id"])
-    assert _digest(run.directory) == eight["digest"]
+    assert digest(run.directory) == eight["digest"]
 
 
 def test_replay_rederives_the_totals_without_simulation(eight):
@@ -162,14 +154,14 @@ def test_corrupted_parquet_is_named_and_nothing_else_is_overwritten(eight, tmp_p
     run = store.run(source.name)
     victim = copy_dir / "stages" / "deorbit" / "part-00001.parquet"
     victim.write_bytes(victim.read_bytes()[:100])  # truncated
-    before = {k: v for k, v in _digest(copy_dir).items() if "deorbit/part-00001" not in k}
+    before = {k: v for k, v in digest(copy_dir).items() if "deorbit/part-00001" not in k}
     with pytest.raises(StoreError, match=r"part-00001\.parquet"):
         run.stage("deorbit")
     with pytest.raises(StoreError, match=r"part-00001\.parquet"):
         execute.replay(run)
     # Writing an already stored batch again is refused: nothing is overwritten.
     assert run.write_batch(1, [], [], trajectory_steps={}) is False
-    after = {k: v for k, v in _digest(copy_dir).items() if "deorbit/part-00001" not in k}
+    after = {k: v for k, v in digest(copy_dir).items() if "deorbit/part-00001" not in k}
     assert after == before
     # The catalog reads a run's manifest and totals, not its stage parts: the damaged run is
     # still listed with its summary, not as an unreadable run.

@@ -31,17 +31,11 @@ import pytest
 import yaml
 
 from ovtraj.cli import run_command
-from ovtraj.launch.launch_fit import find_launch_fit
-from ovtraj.mission.chain import MissionContext, MissionDesign
-from ovtraj.mission.plan_build import build_plan
-from ovtraj.mission.plan_store import write_plan
 from ovtraj.paths import config_path
-from ovtraj.target_sources import load_scenario
 from tests.conftest import DEFAULT_SCENARIO, REPO
 
 TARGETS = REPO / "tests" / "data" / "targets"
 ISS_TLE = TARGETS / "iss_2019-12-09.tle"
-FEASIBLE = MissionDesign(285.06, 326.96, 0.79)  # tests/test_ccsds_export.py's design
 DEEP = 100_000  # levels of nesting
 DIGITS = "9" * 5000  # a number of 5,000 digits
 # The variants also given to the commands that share a reader with one fed every variant.
@@ -83,18 +77,9 @@ def _run(args: list[str]) -> int | None:
 
 
 @pytest.fixture(scope="module")
-def plan_data(tmp_path_factory) -> dict:
+def plan_data(reference_plan_file) -> dict:
     """A well-formed mission plan (as its JSON file holds it)."""
-    scenario = load_scenario(config_path("scenario.yaml"))
-    context = MissionContext(scenario, find_launch_fit(scenario))
-    plan = build_plan(
-        context,
-        FEASIBLE,
-        source={"run_id": "test", "front_index": 0},
-        launch_cache=tmp_path_factory.mktemp("launch_solves"),
-    )
-    json_path, _ = write_plan(plan, tmp_path_factory.mktemp("plan"), "chosen")
-    return json.loads(json_path.read_text())
+    return json.loads(reference_plan_file.read_text())
 
 
 @pytest.fixture

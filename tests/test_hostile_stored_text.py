@@ -29,10 +29,6 @@ import pytest
 
 from ovtraj.cli import run_command
 from ovtraj.config.io_limits import io_limits
-from ovtraj.launch.launch_fit import find_launch_fit
-from ovtraj.mission.chain import MissionContext, MissionDesign
-from ovtraj.mission.plan_build import build_plan
-from ovtraj.mission.plan_store import write_plan
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline import Pick, pick_front_point
 from ovtraj.pipeline.pick import weight_fractions
@@ -40,7 +36,6 @@ from ovtraj.pipeline.report import pick_explanation
 from ovtraj.store.layout import is_id
 from tests.conftest import DEFAULT_SCENARIO
 
-FEASIBLE = MissionDesign(285.06, 326.96, 0.79)  # tests/test_plan.py's feasible design
 DOE_ID = "0123456789abcdef"
 PIPELINE_ID = "89abcdef01234567"
 LINKED_ID = "fedcba9876543210"
@@ -94,13 +89,9 @@ def _plain(text: str) -> None:
 
 
 @pytest.fixture(scope="module")
-def plan(tmp_path_factory, scenario) -> dict:
+def plan(reference_plan_file) -> dict:
     """A real plan (the chain evaluated at a feasible design), as JSON data."""
-    context = MissionContext(scenario, find_launch_fit(scenario))
-    cache = tmp_path_factory.mktemp("launch_solves")
-    built = build_plan(context, FEASIBLE, source={"front_index": 0}, launch_cache=cache)
-    json_path, _ = write_plan(built, tmp_path_factory.mktemp("plan"), "chosen")
-    return json.loads(json_path.read_text())
+    return json.loads(reference_plan_file.read_text())
 
 
 @pytest.fixture
@@ -303,7 +294,8 @@ def test_weights_of_1e308_pick_the_point_weights_1_1_1_pick(scenario):
 
 def test_history_refuses_a_catalog_row_whose_id_is_not_an_id(tmp_path):
     from ovtraj.store.files import StoreError
-    from ovtraj.tracking.catalog import SCHEMA, Catalog
+    from ovtraj.tracking.catalog import Catalog
+    from ovtraj.tracking.catalog_schema import SCHEMA
     from ovtraj.tracking.history import history
 
     row = dict.fromkeys(SCHEMA.names)

@@ -23,22 +23,16 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, free_port
 
 BIN = Path(sys.executable).parent
 BUCKET = "ovtraj-test"
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def s3(tmp_path_factory):
     """A moto S3 server of our own; yields the environment that points clients at it."""
-    port = _free_port()
+    port = free_port()
     log = tmp_path_factory.mktemp("moto") / "moto.log"
     with open(log, "wb") as out:
         server = subprocess.Popen(

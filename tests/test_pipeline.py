@@ -41,7 +41,7 @@ from ovtraj.pipeline.loop import load_pipeline
 from ovtraj.runs import RunStore, StoreError, execute, prepare_run, run_doe
 from ovtraj.surrogate import SurrogateError
 from ovtraj.version import code_version
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, prefect_record
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest, prefect_record
 
 OBJECTIVES = ("t_total_s", "dv_total_mps", "m_load_kg")
 
@@ -334,7 +334,7 @@ def test_parity_plots_begun_on_a_pool_during_the_rounds_give_the_same_files(smal
     surely_last = len(rounds) == last or result.summary["stop_reason"] == "budget"
     assert len(begun) == (1 if surely_last else 0)
     assert all(name.startswith("parity-") for names in begun for name in names)
-    drawn, stored = _digest(again.directory), _digest(result.directory)
+    drawn, stored = digest(again.directory, "*"), digest(result.directory, "*")
     assert {k: v for k, v in drawn.items() if k != "pipeline.json"} == {
         k: v for k, v in stored.items() if k != "pipeline.json"
     }
@@ -346,14 +346,6 @@ def test_parity_plots_begun_on_a_pool_during_the_rounds_give_the_same_files(smal
     for marker in markers:
         marker.pop("created_utc")
     assert markers[0] == markers[1]
-
-
-def _digest(directory) -> dict[str, str]:
-    return {
-        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(directory.rglob("*"))
-        if p.is_file()
-    }
 
 
 def _fake_run(store, scenario, feasible: bool | None):
@@ -381,15 +373,15 @@ def test_empty_and_all_infeasible_runs_are_refused_and_nothing_is_written(tmp_pa
     store = RunStore(tmp_path)
     steps = PipelineSteps(evaluate=lambda run: run)
     empty = _fake_run(store, scenario, None)
-    before = _digest(empty.directory)
+    before = digest(empty.directory, "*")
     with pytest.raises(StoreError, match="no evaluated samples"):
         run_pipeline(scenario, empty, store=store, code="fake", steps=steps)
-    assert _digest(empty.directory) == before
+    assert digest(empty.directory, "*") == before
     infeasible = _fake_run(RunStore(tmp_path / "other"), scenario, False)
-    before = _digest(infeasible.directory)
+    before = digest(infeasible.directory, "*")
     with pytest.raises(SurrogateError, match="all 12 samples are infeasible"):
         run_pipeline(scenario, infeasible, store=store, code="fake", steps=steps)
-    assert _digest(infeasible.directory) == before
+    assert digest(infeasible.directory, "*") == before
 
 
 def test_cli_optimize_plan_and_fly(small, tmp_path):
@@ -443,14 +435,14 @@ def test_cli_optimize_plan_and_fly(small, tmp_path):
     assert checked.clean and not checked.uncovered, (checked.problems, checked.uncovered)
     # Bad inputs: clear errors, nothing written.
     plans = small["result"].directory / "plans"
-    before = _digest(plans)
+    before = digest(plans, "*")
     done = runner.invoke(app, ["plan", doe, "--pick", "99", "--store", root])
     assert done.exit_code == 2 and "outside the front" in done.output
     done = runner.invoke(app, ["plan", "0123456789abcdef", "--store", root])
     assert done.exit_code == 2 and "no such run" in done.output
     done = runner.invoke(app, ["optimize", "0123456789abcdef", "--store", root])
     assert done.exit_code == 2 and "no such run" in done.output
-    assert _digest(plans) == before
+    assert digest(plans, "*") == before
 
 
 def _rewrite_value(path, column: str, delta: float) -> None:
@@ -467,7 +459,7 @@ def _rewrite_value(path, column: str, delta: float) -> None:
 def test_pipeline_refuses_a_changed_or_different_result_for_the_same_inputs(small):
     """A stored pipeline result is checked on every read and never overwritten."""
     result = small["result"]
-    before = _digest(result.directory)
+    before = digest(result.directory, "*")
     front_file, marker = result.directory / "front.parquet", result.directory / "pipeline.json"
     stored = {path: path.read_bytes() for path in (front_file, marker)}
 
@@ -499,7 +491,7 @@ def test_pipeline_refuses_a_changed_or_different_result_for_the_same_inputs(smal
         )
         with pytest.raises(PipelineError, match="differs"):
             again()
-        after = _digest(result.directory)
+        after = digest(result.directory, "*")
         changed = {"front.parquet", "pipeline.json"}
         assert {k: v for k, v in after.items() if k not in changed} == {
             k: v for k, v in before.items() if k not in changed
@@ -513,7 +505,7 @@ def test_pipeline_refuses_a_changed_or_different_result_for_the_same_inputs(smal
             load_pipeline(result.directory)
     finally:
         (result.directory / "moved.parquet").rename(result.directory / "verification.parquet")
-    assert _digest(result.directory) == before
+    assert digest(result.directory, "*") == before
 
 
 def test_stored_pipeline_products_list_every_file_with_the_declared_schemas(small):

@@ -12,7 +12,6 @@
 from __future__ import annotations
 
 import copy
-import hashlib
 import os
 import re
 import signal
@@ -26,7 +25,7 @@ import pytest
 import yaml
 
 from ovtraj.runs import RunStore
-from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, held_claim
+from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest, held_claim
 
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
@@ -55,13 +54,6 @@ def _stored_in(output: str) -> Path:
     return Path(match.group(1))
 
 
-def _digest(directory: Path) -> dict[str, str]:
-    return {
-        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(directory.rglob("*.parquet"))
-    }
-
-
 @pytest.mark.parametrize("runner", ["threads", "processes", "dask"])
 def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
     serial = _config(tmp_path / "serial", samples=4, batch_size=2, workers=2)
@@ -73,8 +65,8 @@ def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
     first, second = _stored_in(reference.stdout), _stored_in(done.stdout)
     assert first.name == second.name  # the runner is not part of the run
     assert second.parent == tmp_path / runner / "runs"  # the config's relative store
-    digests = _digest(second)
-    assert len(digests) >= 8 and digests == _digest(first)
+    digests = digest(second)
+    assert len(digests) >= 8 and digests == digest(first)
     run = RunStore(second.parent).run(second.name)
     assert run.manifest["status"] == "complete" and run.verify().clean
 
@@ -106,7 +98,7 @@ def test_runs_in_a_row_share_the_started_pool_they_are_given(tmp_path):
         # run_doe's own runner is serial (in this process): the pool given ran the samples
         in_process = EVALUATIONS["count"] - before
         assert in_process == (0 if runner == "processes" else 4)
-        stored[runner] = (child.id, _digest(child.directory))
+        stored[runner] = (child.id, digest(child.directory))
     assert stored["processes"] == stored["serial"] and len(stored["serial"][1]) >= 8
 
 

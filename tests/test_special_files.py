@@ -22,17 +22,11 @@ from pathlib import Path
 import pytest
 
 from ovtraj.cli import run_command
-from ovtraj.launch.launch_fit import find_launch_fit
-from ovtraj.mission.chain import MissionContext, MissionDesign
 from ovtraj.mission.plan import PlanError
-from ovtraj.mission.plan_build import build_plan
 from ovtraj.mission.plan_store import write_plan
-from ovtraj.paths import config_path
 from ovtraj.store import locks
 from ovtraj.store.files import StoreError, write_bytes
-from ovtraj.target_sources import load_scenario
 
-FEASIBLE = MissionDesign(285.06, 326.96, 0.79)  # tests/test_ccsds_export.py's design
 AT_ONCE_S = 1.0  # the bound the checks promise: before any work, no read of the file
 ALARM_S = 60  # the old code never ended: the alarm ends the case and fails it
 
@@ -105,19 +99,13 @@ def test_a_special_file_at_a_runs_config_ends_the_run_at_once(kind, stored_run_i
 
 
 @pytest.fixture(scope="module")
-def plan(tmp_path_factory):
-    scenario = load_scenario(config_path("scenario.yaml"))
-    context = MissionContext(scenario, find_launch_fit(scenario))
-    cache = tmp_path_factory.mktemp("launch_solves")
-    return build_plan(
-        context, FEASIBLE, source={"run_id": "test", "front_index": 0}, launch_cache=cache
-    )
+def plan(reference_plan):
+    return reference_plan
 
 
 @pytest.fixture(scope="module")
-def plan_file(plan, tmp_path_factory) -> Path:
-    json_path, _ = write_plan(plan, tmp_path_factory.mktemp("plan"), "chosen")
-    return json_path
+def plan_file(reference_plan_file) -> Path:
+    return reference_plan_file
 
 
 @pytest.mark.parametrize("kind", ["FIFO", "/dev/zero"])
