@@ -299,7 +299,7 @@ def test_state_transition_matrix_against_central_differences(earth, j2):
 def test_batch_state_transition_matrices_equal_the_scalar_ones(earth, j2):
     """More states than SIMD lanes (chunks and a padded last one), each with its times.
 
-    The batch integrator is compiled without compact mode (issue 20) and the scalar one
+    The batch integrator is compiled without compact mode (for speed) and the scalar one
     with it: the same Taylor method, other operation order, so they agree to the
     integration's tolerance (up to 2.4e-8 m on ~7e6 m here), not to the bit."""
     rng = np.random.default_rng(7)
