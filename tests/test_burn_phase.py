@@ -35,17 +35,20 @@ PHASING_TOLERANCE_S = 450.0
 
 
 @pytest.fixture(scope="module")
-def scenario():
-    """The shipped scenario with the chain before issue 43 (the target's plane at insertion)."""
+def in_plane_scenario():
+    """The shipped scenario with the launch inserting into the target's plane (no
+    ``mission.insertion`` settings): the burn-phase model's own case."""
     shipped = load_scenario(config_path("scenario.yaml"))
     mission = shipped.mission.model_copy(update={"insertion": None})
     return shipped.model_copy(update={"mission": mission})
 
 
 @pytest.fixture(scope="module")
-def model(scenario):
-    series = find_launch_fit(scenario).series
-    return BurnPhaseModel.of(scenario, series["insertion_time_s"], series["insertion_u_deg"])
+def model(in_plane_scenario):
+    series = find_launch_fit(in_plane_scenario).series
+    return BurnPhaseModel.of(
+        in_plane_scenario, series["insertion_time_s"], series["insertion_u_deg"]
+    )
 
 
 def test_first_wait_takes_arrays_and_floats_alike():
@@ -63,9 +66,9 @@ def test_first_wait_takes_arrays_and_floats_alike():
     assert np.all(np.minimum(closed, 2 * math.pi - closed) < 1e-9)
 
 
-def test_the_closed_form_wait_is_the_stages_refined_phasing(scenario, model):
-    context = MissionContext(scenario, find_launch_fit(scenario))
-    common = rendezvous_settings(scenario)
+def test_the_closed_form_wait_is_the_stages_refined_phasing(in_plane_scenario, model):
+    context = MissionContext(in_plane_scenario, find_launch_fit(in_plane_scenario))
+    common = rendezvous_settings(in_plane_scenario)
     altitudes = np.linspace(252.0, 338.0, 8)
     waits, _ = model.burn(altitudes)
     for altitude, wait in zip(altitudes, waits, strict=True):
@@ -83,7 +86,7 @@ def test_the_closed_form_wait_is_the_stages_refined_phasing(scenario, model):
         assert abs(wait - refined) <= PHASING_TOLERANCE_S, (altitude, wait, refined)
 
 
-def test_the_burn_phase_explains_the_rendezvous_plane_change(scenario, model):
+def test_the_burn_phase_explains_the_rendezvous_plane_change(in_plane_scenario, model):
     """On the chain's reference designs, one harmonic of the burn phase carries the
     rendezvous's cost above its Hohmann floor: the plane change follows where the burns
     fall against the line where the J2-drifted planes cross."""
@@ -92,8 +95,8 @@ def test_the_burn_phase_explains_the_rendezvous_plane_change(scenario, model):
     )
     stored = stored[stored.feasible]
     altitude = stored["parking_altitude_km"].to_numpy()
-    target_a = target_mean_motion(scenario).a_m
-    earth = scenario.earth
+    target_a = target_mean_motion(in_plane_scenario).a_m
+    earth = in_plane_scenario.earth
     floors = []
     for h in altitude:
         transfer = hohmann(earth.radius + 1e3 * h, target_a, earth.mu)
@@ -120,7 +123,7 @@ def test_the_model_round_trips(model):
     assert np.array_equal(again.phase_rad(designs), model.phase_rad(designs))
 
 
-def test_the_departure_phase_explains_the_transfer_above_its_trend(scenario):
+def test_the_departure_phase_explains_the_transfer_above_its_trend():
     """On 40 hypercube designs of the chain, where on the target's slightly eccentric orbit
     the OV leaves it (the pass model's separation time with the chain's own wait) carries
     the transfer's impulse beyond its trend in H_dp: the departure radius sets the

@@ -73,11 +73,6 @@ RADIATION = PARAMETERS.index("radiation_m2_kg")
 # Shared systems: each compiled once for the module
 # --------------------------------------------------------------------------- #
 @pytest.fixture(scope="module")
-def scenario():
-    return load_scenario(SCENARIO_YAML)
-
-
-@pytest.fixture(scope="module")
 def terms(scenario):
     """The shipped model: EGM2008 20x20, NRLMSISE-00 (constant space weather), Sun, Moon, SRP."""
     return force_terms(default_force_model(), scenario)
