@@ -64,21 +64,34 @@ def published_comparison(
     angles 0 and +-``zero_speed_error_burn_angle_deg``; ``summary``:
     :func:`monte_carlo_summary`.
     """
+    return [
+        _iterations_row(problem, result),
+        *_burn_angle_rows(problem, study),
+        *_dispersion_rows(problem, summary),
+    ]
+
+
+def _iterations_row(problem: DeorbitBurnProblem, result: DeorbitBurnResult | None) -> Comparison:
+    """Iterations of a converged solve to the u tolerance (seed sec. 2.4)."""
+    pub = problem.config.published
+    iterations = math.nan if result is None or not result.converged else float(result.iterations)
+    return Comparison(
+        f"iterations to {problem.config.guidance.u_tolerance_deg:g} deg",
+        "",
+        f"{pub.iterations}",
+        iterations,
+        None if math.isnan(iterations) else iterations <= pub.iterations,
+    )
+
+
+def _burn_angle_rows(problem: DeorbitBurnProblem, study: pd.DataFrame | None) -> list[Comparison]:
+    """The burn-angle study's figures (seed sec. 2.5): delta-v at angle 0 and at
+    +-the published angle, the rise of the entry speed error between them, the angle
+    that nulls it."""
     pub = problem.config.published
     tol = pub.approximate_tolerance_mps
     angle = pub.zero_speed_error_burn_angle_deg
     rows = []
-
-    iterations = math.nan if result is None or not result.converged else float(result.iterations)
-    rows.append(
-        Comparison(
-            f"iterations to {problem.config.guidance.u_tolerance_deg:g} deg",
-            "",
-            f"{pub.iterations}",
-            iterations,
-            None if math.isnan(iterations) else iterations <= pub.iterations,
-        )
-    )
     dv0 = _study_value(study, 0.0, "dv_mps")
     rows.append(
         Comparison(
@@ -122,36 +135,37 @@ def published_comparison(
             None,
         )
     )
+    return rows
+
+
+def _dispersion_rows(problem: DeorbitBurnProblem, summary: pd.DataFrame | None) -> list[Comparison]:
+    """The Monte Carlo dispersions of both strategies (seed sec. 4)."""
+    pub = problem.config.published
     along1 = _strategy_value(summary, 1, "along_track_error_km_max_abs")
-    rows.append(
+    fpa2 = _strategy_value(summary, 2, "entry_fpa_error_deg_max_abs")
+    return [
         Comparison(
             "strategy 1: largest along-track entry error",
             "km",
             f"< {pub.strategy1_along_track_km:g}",
             along1,
             None if math.isnan(along1) else along1 < pub.strategy1_along_track_km,
-        )
-    )
-    fpa2 = _strategy_value(summary, 2, "entry_fpa_error_deg_max_abs")
-    rows.append(
+        ),
         Comparison(
             "strategy 2: largest entry flight-path-angle error",
             "deg",
             f"<= {pub.strategy2_fpa_deg:g}",
             fpa2,
             None if math.isnan(fpa2) else fpa2 <= pub.strategy2_fpa_deg,
-        )
-    )
-    rows.append(
+        ),
         Comparison(
             "strategy 2: largest along-track entry error",
             "km",
             f"up to {pub.strategy2_along_track_km:g}",
             _strategy_value(summary, 2, "along_track_error_km_max_abs"),
             None,
-        )
-    )
-    return rows
+        ),
+    ]
 
 
 def format_comparison(rows: list[Comparison]) -> str:
