@@ -285,10 +285,9 @@ def run_doe(
     started (:func:`~ovtraj.runs.runners.batch_pool`), used instead of starting one, so
     that several runs in a row (the pipeline's DoE and infill) share its processes and
     each process's mission context (``runner``, ``workers`` and ``dask_address`` are then
-    the pool's). Batches that another
-    process is computing are left to it at first, then waited for
-    (``mission.doe.claim_wait_s``); one whose process died is computed again. A complete
-    run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches;
+    the pool's). Batches that another process is computing are left to it at first, then
+    waited for (``mission.doe.claim_wait_s``); one whose process died is computed again. A
+    complete run is not written to at all. ``time_limit_s`` bounds the wait for a pool's batches;
     ``on_batch`` receives each finished batch's summary (:func:`store_batch_job`).
     Messages (a line per batch) go to ``progress`` when given, else to this module's
     logger (info); ``on_progress(samples done, samples of the run, label)`` is called
@@ -309,41 +308,54 @@ def run_doe(
         require_pinned_kernel()  # the batches run here: refused before the run is touched
     counted = _SampleCount(batches, todo, on_progress)
     settings = dask or load_orchestration().dask
-    failures: dict[int, str] = {}
+    jobs = _BatchJobs(run, scenario, launch_fit, batches, say, settings, on_batch, counted)
+    jobs.job = job or store_batch_job
+    started = (
+        nullcontext(pool)
+        if pool is not None
+        else batch_pool(runner, workers, dask_address, settings)
+    )
+    claim_wait_s = scenario.mission.doe.claim_wait_s
+    failures = _evaluate_batches(run, jobs, started, batch_size, claim_wait_s, time_limit_s)
+    finish(run)
+    _raise_failures(run, failures)
+    return run
+
+
+def _evaluate_batches(
+    run: Run,
+    jobs: _BatchJobs,
+    started: AbstractContextManager[BatchPool],
+    batch_size: int,
+    claim_wait_s: float,
+    time_limit_s: float | None,
+) -> dict[int, str]:
+    """The run's batches evaluated on the pool ``started`` while this process works on the
+    run (:meth:`Run.working`); returns the errors of the batches that failed. A
+    :class:`ClusterError` leaves the run ``failed`` unless it is complete."""
     try:
         with run.working() as removed:
             if removed:
-                say(f"removed {len(removed)} temporary file(s) of an interrupted write")
-            run.update_manifest(batches=len(batches), batch_size=batch_size)
-            started = (
-                nullcontext(pool)
-                if pool is not None
-                else batch_pool(runner, workers, dask_address, settings)
-            )
+                jobs.say(f"removed {len(removed)} temporary file(s) of an interrupted write")
+            run.update_manifest(batches=len(jobs.batches), batch_size=batch_size)
             with started as pool:
-                jobs = _BatchJobs(
-                    run, scenario, launch_fit, batches, pool, say, settings, on_batch, counted
-                )
-                jobs.job = job or store_batch_job
-                todo = [k for k, _ in batches if not run.is_stored(k)]
-                waiting = jobs.evaluate(todo, 0.0, time_limit_s)
-                for k in waiting:
-                    say(f"batch {k + 1}/{len(batches)}: another process is computing it; waiting")
-                jobs.evaluate(waiting, scenario.mission.doe.claim_wait_s, time_limit_s)
-                failures = jobs.failures
+                return jobs.evaluate_all(pool, claim_wait_s, time_limit_s)
     except ClusterError as err:  # after `working` has said `interrupted`: the cause wins
         finish(run)
         if run.manifest.get("status") != "complete":
             run.update_manifest(status="failed", failure=f"ClusterError: {err}"[:1000])
         raise
-    finish(run)
+
+
+def _raise_failures(run: Run, failures: dict[int, str]) -> None:
+    """Record the failed batches in the manifest and raise :class:`BatchesFailed`; nothing
+    when none failed or the run is complete all the same (another process stored them)."""
     if failures and run.manifest.get("status") != "complete":
         texts = [f"batch {k}: {why}" for k, why in sorted(failures.items())]
         run.update_manifest(failures=texts)
         raise BatchesFailed(
             f"run {run.id} incomplete: {len(failures)} batch(es) failed: {'; '.join(texts)}"
         )
-    return run
 
 
 class PoolBatches:
@@ -451,13 +463,13 @@ class _BatchJobs:
         scenario: Scenario,
         launch_fit: LaunchFit,
         batches: list[tuple[int, pd.DataFrame]],
-        pool: BatchPool,
         say: Callable[[str], None],
         settings: DaskSettings,
         on_batch: Callable[[dict[str, Any]], None] | None = None,
         counted: _SampleCount | None = None,
     ) -> None:
-        self.run, self.pool, self.say, self.settings = run, pool, say, settings
+        self.run, self.say, self.settings = run, say, settings
+        self.pool: BatchPool | None = None  # given by :meth:`evaluate_all`
         self.batches = dict(batches)
         self.resolved, self.coefficients = scenario.resolved(), launch_fit.to_dict()
         self.failures: dict[int, str] = {}
@@ -482,6 +494,19 @@ class _BatchJobs:
             + ("" if summary["stored"] else " (already stored)")
         )
         return True
+
+    def evaluate_all(
+        self, pool: BatchPool, claim_wait_s: float, time_limit_s: float | None
+    ) -> dict[int, str]:
+        """Every batch not stored yet on ``pool``: those another process is computing are
+        left to it at first, then waited for (``claim_wait_s``); returns the failures."""
+        self.pool = pool
+        todo = [k for k in self.batches if not self.run.is_stored(k)]
+        waiting = self.evaluate(todo, 0.0, time_limit_s)
+        for k in waiting:
+            self.say(f"batch {k + 1}/{len(self.batches)}: another process is computing it; waiting")
+        self.evaluate(waiting, claim_wait_s, time_limit_s)
+        return self.failures
 
     def evaluate(self, todo: list[int], wait_s: float, time_limit_s: float | None) -> list[int]:
         """Evaluate ``todo``; returns the batches another process holds."""
