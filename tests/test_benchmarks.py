@@ -38,6 +38,9 @@ import yaml
 from ovtraj.mission import reference
 from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_search
 
+# Left out of the fast tier (-m "not slow"): it runs every benchmark on its small setting.
+pytestmark = pytest.mark.slow
+
 BENCHMARKS = REPO / "benchmarks"
 TIMEOUT_S = 600
 

@@ -41,6 +41,10 @@ from ovtraj.environment import CORETYPE_ENV, pin
 from ovtraj.runs import RunStore
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, free_port, held_claim
 
+# Left out of the fast tier (-m "not slow"): it starts a Dask scheduler and workers and runs DoEs
+# on them.
+pytestmark = pytest.mark.slow
+
 DASK = Path(sys.executable).with_name("dask")
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 START_TIMEOUT_S = 90.0

@@ -29,6 +29,9 @@ from tests.test_dask_cluster import (
     _stored_in,
 )
 
+# Left out of the fast tier (-m "not slow"): it starts a TLS-secured Dask cluster.
+pytestmark = pytest.mark.slow
+
 _TLS_ENV = "DASK_DISTRIBUTED__COMM__TLS__"
 
 

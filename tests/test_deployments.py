@@ -34,6 +34,10 @@ import yaml
 
 from tests.conftest import REPO, free_port
 
+# Left out of the fast tier (-m "not slow"): it starts a Prefect server, a work pool and a process
+# worker.
+pytestmark = pytest.mark.slow
+
 PREFECT = Path(sys.executable).with_name("prefect")
 POOL = "ovtraj-process"
 SERVER_START_TIMEOUT_S = 120.0

@@ -12,6 +12,9 @@ from ovtraj.mission import STAGES
 from ovtraj.runs import RunStore, StoreError, execute, latin_hypercube, run_id
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest
 
+# Left out of the fast tier (-m "not slow"): it runs the DoE flow on the session's Prefect server.
+pytestmark = pytest.mark.slow
+
 
 def _config(tmp_path, **doe) -> str:
     data = yaml.safe_load(DEFAULT_SCENARIO.read_text(encoding="utf-8"))

@@ -26,6 +26,9 @@ import pytest
 
 from tests.conftest import REPO
 
+# Left out of the fast tier (-m "not slow"): it builds the wheel and installs it into a new venv.
+pytestmark = pytest.mark.slow
+
 
 def _tracked_files() -> list[str]:
     done = subprocess.run(

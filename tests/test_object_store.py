@@ -25,6 +25,10 @@ import yaml
 
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, free_port
 
+# Left out of the fast tier (-m "not slow"): it starts a moto S3 server and runs the command in
+# subprocesses against it.
+pytestmark = pytest.mark.slow
+
 BIN = Path(sys.executable).parent
 BUCKET = "ovtraj-test"
 

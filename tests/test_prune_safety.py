@@ -22,6 +22,9 @@ import pytest
 
 from tests.conftest import DEFAULT_SCENARIO, prefect_record
 
+# Left out of the fast tier (-m "not slow"): it runs DoEs through the command in subprocesses.
+pytestmark = pytest.mark.slow
+
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 # Generous: a prune takes ~2 s here; one that waits on a FIFO never ends.
 TIMEOUT_S = 120

@@ -27,6 +27,10 @@ import yaml
 from ovtraj.runs import RunStore
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest, held_claim
 
+# Left out of the fast tier (-m "not slow"): it runs DoEs on every runner: threads, processes and
+# a Dask cluster.
+pytestmark = pytest.mark.slow
+
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
 

@@ -25,6 +25,10 @@ from ovtraj.store import locks
 from ovtraj.store.files import StoreError
 from tests.conftest import DEFAULT_SCENARIO
 
+# Left out of the fast tier (-m "not slow"): it runs the command in subprocesses under a memory
+# limit.
+pytestmark = pytest.mark.slow
+
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 # Generous: each command takes 2-5 s here; a read that waits on a FIFO never ends.
 TIMEOUT_S = 120

@@ -79,6 +79,10 @@ from tests.conftest import REPO, shorten_launch_fit
 from tests.test_dask_tls import TlsCluster
 from tests.test_install import _tracked_files
 
+# Left out of the fast tier (-m "not slow"): it installs into a fresh venv with every dependency
+# resolved by pip and runs every README command.
+pytestmark = pytest.mark.slow
+
 INSTALL_TIMEOUT_S = 900.0  # a fresh venv's `pip install -e`: ~90 s here
 COMMAND_TIMEOUT_S = 300.0  # the longest command with these settings: ~30 s (the first, compiling)
 MONTE_CARLO_RUNS = "4"  # for `--monte-carlo N`: the README's 100 take ~2 min

@@ -43,6 +43,10 @@ from ovtraj.window.porkchop import PORKCHOP_SCHEMA
 from ovtraj.window.report import WINDOW_SCHEMA
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
+# Left out of the fast tier (-m "not slow"): it scans a 3-day launch window, in the command and in
+# its flow.
+pytestmark = pytest.mark.slow
+
 DAYS = 3
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 
