@@ -1,4 +1,4 @@
-"""The public numeric kernels of ``ovtraj.astro`` against independent references (issue 45).
+"""The public numeric kernels of ``ovtraj.astro`` against independent references.
 
 Angle wraps against the IEEE remainder and numpy's complex argument, the eccentricity
 vector and the perigee radius against states built from orbital elements with the
@@ -119,13 +119,41 @@ def test_wrap_to_two_pi_against_the_ieee_remainder():
 
 def test_wrap_to_two_pi_interval_ends():
     """[0, 2 pi): 2 pi goes to 0, and so does a tiny negative angle that np.mod rounds up
-    to 2 pi; a 0-d array for a scalar."""
+    to 2 pi."""
     assert np.mod(-1e-17, TWO_PI) == TWO_PI  # the case the kernel exists for
     assert wrap_to_two_pi(-1e-17) == 0.0
     assert wrap_to_two_pi(TWO_PI) == 0.0
     assert wrap_to_two_pi(-math.pi / 2) == 1.5 * math.pi
     assert wrap_to_two_pi(math.nextafter(TWO_PI, 0.0)) == math.nextafter(TWO_PI, 0.0)
-    assert np.ndim(wrap_to_two_pi(1.0)) == 0
+    assert math.copysign(1.0, wrap_to_two_pi(-0.0)) == 1.0
+    assert math.isnan(wrap_to_two_pi(math.nan))
+    assert math.isnan(wrap_to_two_pi(math.inf))
+
+
+def test_wrap_to_two_pi_is_the_modulo_but_at_the_tiny_negative_angles():
+    """The modulo's float for every angle but the negative ones within half an ulp of 0
+    (-4.4e-16 < x < 0), where the modulo gives 2 pi and the kernel 0."""
+    angles = np.concatenate([ANGLES, [-4e-16, -5e-16, math.nan, -math.inf]])
+    with np.errstate(invalid="ignore"):
+        wrapped, modulo = wrap_to_two_pi(angles), np.mod(angles, TWO_PI)
+    differs = ~((wrapped == modulo) | (np.isnan(wrapped) & np.isnan(modulo)))
+    assert angles[differs].tolist() == [-1e-17, -4e-16]
+    assert [x % TWO_PI for x in angles[differs].tolist()] == [TWO_PI, TWO_PI]
+
+
+def test_wrap_to_two_pi_keeps_the_type_of_its_argument():
+    assert type(wrap_to_two_pi(7.0)) is float
+    assert type(wrap_to_two_pi(np.float64(7.0))) is np.float64
+    wrapped = wrap_to_two_pi(ANGLES)
+    assert isinstance(wrapped, np.ndarray)
+    assert wrapped.shape == ANGLES.shape
+    assert wrapped.tolist() == [wrap_to_two_pi(a) for a in ANGLES.tolist()]
+
+
+def test_wrap_to_two_pi_compiled_by_numba_gives_the_same_bits():
+    compiled = numba.njit(wrap_to_two_pi)
+    angles = [*ANGLES.tolist(), -4e-16]
+    assert [compiled(a) for a in angles] == [wrap_to_two_pi(a) for a in angles]
 
 
 # --------------------------------------------------------------------------------------------

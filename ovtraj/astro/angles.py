@@ -5,7 +5,7 @@ Three interval conventions, one function each (angles in rad):
 * :func:`wrap_to_pi`: [-pi, pi) (up to rounding, see there), for differences of angles
   (errors, offsets);
 * :func:`wrap_to_two_pi`: [0, 2 pi), for angles measured from a reference direction
-  (headings, sidereal angles);
+  (headings, sidereal angles, orbital elements) and for angles ahead (the turn to go);
 * :func:`principal_angle`: (-pi, pi], the principal value of ``atan2`` and
   ``numpy.angle``, computed exactly (IEEE remainder).
 
@@ -13,11 +13,13 @@ Whole turns are turns of the float ``TWO_PI``, 2.4e-16 rad short of the real 2 p
 angle of n turns is reduced as n float turns (an offset of n * 2.4e-16 rad from the real
 reduction, irrelevant for the few turns an orbit's angles make).
 
-:func:`wrap_to_pi` is plain arithmetic on floats, so the same function also runs compiled
-by numba (``numba.njit(wrap_to_pi)``, :mod:`ovtraj.reentry.dynamics`). A bare
-``x % TWO_PI`` is the modulo of Python and numpy (the sign of the divisor); it can give
-2 pi itself for a negative ``x`` within half an ulp of 0, which :func:`wrap_to_two_pi`
-maps to 0.
+:func:`wrap_to_pi` and :func:`wrap_to_two_pi` are plain arithmetic on floats, so the same
+functions also run compiled by numba (``numba.njit(wrap_to_pi)``,
+:mod:`ovtraj.reentry.dynamics`). A bare ``x % TWO_PI`` is the modulo of Python and numpy
+(the sign of the divisor); it can give 2 pi itself for a negative ``x`` within half an
+ulp of 0 (-4.4e-16 < x < 0), which :func:`wrap_to_two_pi` maps to 0; for every other
+``x`` the two give the same float (-0.0 gives 0.0, NaN and infinities give NaN, in both).
+No module wraps an angle by its own modulo (tests/test_one_definition.py).
 
 References
 ----------
@@ -30,7 +32,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 __all__ = ["TWO_PI", "principal_angle", "wrap_to_pi", "wrap_to_two_pi"]
 
@@ -51,14 +53,18 @@ def wrap_to_pi(angle: float | NDArray[np.float64]) -> float | NDArray[np.float64
     return (angle + math.pi) % TWO_PI - math.pi
 
 
-def wrap_to_two_pi(angle: ArrayLike) -> NDArray[np.float64]:
-    """``angle`` reduced by whole turns to [0, 2 pi) [rad], as an array (0-d for a scalar).
+def wrap_to_two_pi(angle: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+    """``angle`` reduced by whole turns to [0, 2 pi) [rad].
 
-    ``numpy.mod`` alone returns 2 pi for a negative ``angle`` within half an ulp of 0
-    (``-1e-17 + 2 pi`` rounds to ``2 pi``); that result is mapped to 0.
+    Takes a float (the result is a float of the same type) or a numpy array (elementwise).
+    The modulo alone returns 2 pi for a negative ``angle`` within half an ulp of 0
+    (``-1e-17 + 2 pi`` rounds to ``2 pi``); that result is mapped to 0 by multiplying
+    with the comparison (1 or 0), which keeps the argument's type where ``numpy.where``
+    would make a float an array, and compiles in numba. Every other result is the
+    modulo's, bit for bit. Runs compiled by numba as well.
     """
-    wrapped = np.mod(angle, TWO_PI)
-    return np.where(wrapped >= TWO_PI, 0.0, wrapped)
+    wrapped = angle % TWO_PI
+    return wrapped * (wrapped < TWO_PI)
 
 
 def principal_angle(angle: float) -> float:

@@ -50,6 +50,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from ovtraj.units import M_PER_KM
+
 __all__ = [
     "Atmosphere",
     "ExponentialAtmosphere",
@@ -60,8 +62,6 @@ __all__ = [
 
 FloatOrArray = float | NDArray[np.float64]
 _Branch = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-
-_M_PER_KM = 1000.0
 
 
 @runtime_checkable
@@ -197,8 +197,8 @@ class US76Atmosphere:
             table.geopotential_gravity_m_s2 * self._molecular_weight / self._gas_constant
         )
 
-        base_heights = np.array(table.layer_base_geopotential_height_km) * _M_PER_KM
-        lapse_rates = np.array(table.layer_lapse_rate_K_per_km) / _M_PER_KM
+        base_heights = np.array(table.layer_base_geopotential_height_km) * M_PER_KM
+        lapse_rates = np.array(table.layer_lapse_rate_K_per_km) / M_PER_KM
         base_temperatures = [table.sea_level_temperature_K]
         base_pressures = [table.sea_level_pressure_Pa]
         for i in range(len(base_heights) - 1):
@@ -220,11 +220,11 @@ class US76Atmosphere:
         self.layer_base_temperature_K = _readonly(base_temperatures)
         self.layer_base_pressure_Pa = _readonly(base_pressures)
         self.molecular_weight_ratio_altitude_m = _readonly(
-            np.array(table.molecular_weight_ratio_altitude_km) * _M_PER_KM
+            np.array(table.molecular_weight_ratio_altitude_km) * M_PER_KM
         )
         self.molecular_weight_ratio = _readonly(table.molecular_weight_ratio)
 
-        z7 = table.lower_region_top_altitude_km * _M_PER_KM
+        z7 = table.lower_region_top_altitude_km * M_PER_KM
         self.lower_region_top_altitude_m = z7
         at_z7 = np.array([z7])
         molecular_temperature_z7, pressure_z7 = self._lower_state(at_z7)
@@ -235,21 +235,21 @@ class US76Atmosphere:
         )
 
         nodes = np.array(table.upper_density_nodes_km_kg_m3)
-        self.node_altitude_m = _readonly(np.concatenate(([z7], nodes[:, 0] * _M_PER_KM)))
+        self.node_altitude_m = _readonly(np.concatenate(([z7], nodes[:, 0] * M_PER_KM)))
         self.node_log_density = _readonly(np.log(np.concatenate(([density_z7], nodes[:, 1]))))
         self._node_slope = np.diff(self.node_log_density) / np.diff(self.node_altitude_m)
         self.top_altitude_m = float(self.node_altitude_m[-1])
 
         # Upper temperature segments, each based on the value where the previous one ends.
-        self._z8 = table.isothermal_top_altitude_km * _M_PER_KM
-        self._z9 = table.ellipse_top_altitude_km * _M_PER_KM
-        self._z10 = table.linear_top_altitude_km * _M_PER_KM
+        self._z8 = table.isothermal_top_altitude_km * M_PER_KM
+        self._z9 = table.ellipse_top_altitude_km * M_PER_KM
+        self._z10 = table.linear_top_altitude_km * M_PER_KM
         self._ellipse_amplitude = table.ellipse_amplitude_K
-        self._ellipse_semi_axis = table.ellipse_semi_axis_km * _M_PER_KM
+        self._ellipse_semi_axis = table.ellipse_semi_axis_km * M_PER_KM
         self._ellipse_centre = self.temperature_86km_K - self._ellipse_amplitude
-        self._linear_gradient = table.linear_gradient_K_per_km / _M_PER_KM
+        self._linear_gradient = table.linear_gradient_K_per_km / M_PER_KM
         self._exospheric_temperature = table.exospheric_temperature_K
-        self._exponential_rate = table.exponential_rate_per_km / _M_PER_KM
+        self._exponential_rate = table.exponential_rate_per_km / M_PER_KM
         self._t9 = float(self._ellipse_temperature(np.array([self._z9]))[0])
         self._t10 = self._t9 + self._linear_gradient * (self._z10 - self._z9)
 
@@ -316,7 +316,7 @@ class US76Atmosphere:
 
     def _range_error(self, offending: float) -> ValueError:
         return ValueError(
-            f"altitude_m must lie in [0, {self.top_altitude_m / _M_PER_KM:g} km] "
+            f"altitude_m must lie in [0, {self.top_altitude_m / M_PER_KM:g} km] "
             f"(US76 range, geometric altitude in metres); got {offending!r} m"
         )
 

@@ -4,10 +4,10 @@ Conventions
 -----------
 * SI units: metres, seconds, radians. States are arrays shaped ``(..., 3)``;
   every function vectorises over the leading axes and also accepts scalars.
-* Angles returned by the state -> elements conversions are reduced with
-  ``numpy.mod(angle, 2*pi)``: ``[0, 2*pi)``, except that an angle within half an ulp
-  below 0 comes out as ``2*pi`` (:mod:`ovtraj.astro.angles`); the inclination lies in
-  ``[0, pi]``.
+* Angles returned by the state -> elements conversions are reduced to ``[0, 2*pi)``
+  by :func:`ovtraj.astro.angles.wrap_to_two_pi` (an angle within half an ulp below 0
+  comes out as 0, not as the ``2*pi`` a bare modulo would give); the inclination lies
+  in ``[0, pi]``.
 * The gravitational parameter ``mu`` [m^3/s^2] is always a keyword argument:
   nothing here reads a configuration.
 
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import TWO_PI, wrap_to_two_pi
 from ovtraj.astro.vectors import cross
 
 FloatOrArray = float | NDArray[np.float64]
@@ -260,7 +260,7 @@ def _plane_geometry(
     safe_node_norm = np.where(equatorial, 1.0, node_norm)
     x_hat = np.broadcast_to(np.array([1.0, 0.0, 0.0]), node.shape)
     node_hat = np.where(equatorial[..., None], x_hat, node / safe_node_norm[..., None])
-    raan = np.where(equatorial, 0.0, np.mod(np.arctan2(node[..., 1], node[..., 0]), TWO_PI))
+    raan = np.where(equatorial, 0.0, wrap_to_two_pi(np.arctan2(node[..., 1], node[..., 0])))
     ahead_hat = cross(h_hat, node_hat)
     return _PlaneGeometry(h_hat=h_hat, node_hat=node_hat, ahead_hat=ahead_hat, i=i, raan=raan)
 
@@ -470,7 +470,7 @@ def rv_to_coe(
     e = _norm(ecc_vec)
     circular = e <= circular_tol
     argp = np.where(
-        circular, 0.0, np.mod(_angle_about(plane.node_hat, ecc_vec, plane.h_hat), TWO_PI)
+        circular, 0.0, wrap_to_two_pi(_angle_about(plane.node_hat, ecc_vec, plane.h_hat))
     )
     u = _angle_about(plane.node_hat, r, plane.h_hat)
     return ClassicalElements(
@@ -479,7 +479,7 @@ def rv_to_coe(
         i=_scalar_or_array(plane.i),
         raan=_scalar_or_array(plane.raan),
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(np.mod(u - argp, TWO_PI)),
+        nu=_scalar_or_array(wrap_to_two_pi(u - argp)),
     )
 
 
@@ -492,7 +492,7 @@ def argument_of_latitude(r: ArrayLike, v: ArrayLike) -> FloatOrArray:
     """
     r, v = np.broadcast_arrays(_as_float(r), _as_float(v))
     plane = _plane_geometry(r, v, _DEGENERATE_TOL)
-    return _scalar_or_array(np.mod(_angle_about(plane.node_hat, r, plane.h_hat), TWO_PI))
+    return _scalar_or_array(wrap_to_two_pi(_angle_about(plane.node_hat, r, plane.h_hat)))
 
 
 # --------------------------------------------------------------------------- #
@@ -538,7 +538,7 @@ def rv_to_nonsingular(
         i=_scalar_or_array(plane.i),
         raan=_scalar_or_array(plane.raan),
         u=_scalar_or_array(
-            np.mod(np.arctan2(_dot(r, plane.ahead_hat), _dot(r, plane.node_hat)), TWO_PI)
+            wrap_to_two_pi(np.arctan2(_dot(r, plane.ahead_hat), _dot(r, plane.node_hat)))
         ),
     )
 
@@ -552,21 +552,21 @@ def classical_to_nonsingular(coe: ClassicalElements) -> NonsingularElements:
         ey=_scalar_or_array(e * np.sin(argp)),
         i=coe.i,
         raan=coe.raan,
-        u=_scalar_or_array(np.mod(argp + _as_float(coe.nu), TWO_PI)),
+        u=_scalar_or_array(wrap_to_two_pi(argp + _as_float(coe.nu))),
     )
 
 
 def nonsingular_to_classical(el: NonsingularElements) -> ClassicalElements:
     """Back to classical elements; argp = atan2(ey, ex), which is 0 when e = 0."""
     ex, ey = _as_float(el.ex), _as_float(el.ey)
-    argp = np.mod(np.arctan2(ey, ex), TWO_PI)
+    argp = wrap_to_two_pi(np.arctan2(ey, ex))
     return ClassicalElements(
         a=el.a,
         e=_scalar_or_array(np.hypot(ex, ey)),
         i=el.i,
         raan=el.raan,
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(np.mod(_as_float(el.u) - argp, TWO_PI)),
+        nu=_scalar_or_array(wrap_to_two_pi(_as_float(el.u) - argp)),
     )
 
 
@@ -625,7 +625,7 @@ def rv_to_equinoctial(r: ArrayLike, v: ArrayLike, *, mu: float) -> EquinoctialEl
         k=_scalar_or_array(_dot(ecc_vec, f_hat)),
         p=_scalar_or_array(p),
         q=_scalar_or_array(q),
-        L=_scalar_or_array(np.mod(np.arctan2(_dot(r, g_hat), _dot(r, f_hat)), TWO_PI)),
+        L=_scalar_or_array(wrap_to_two_pi(np.arctan2(_dot(r, g_hat), _dot(r, f_hat)))),
     )
 
 
@@ -640,21 +640,21 @@ def classical_to_equinoctial(coe: ClassicalElements) -> EquinoctialElements:
         k=_scalar_or_array(e * np.cos(varpi)),
         p=_scalar_or_array(tan_half_i * np.sin(raan)),
         q=_scalar_or_array(tan_half_i * np.cos(raan)),
-        L=_scalar_or_array(np.mod(varpi + _as_float(coe.nu), TWO_PI)),
+        L=_scalar_or_array(wrap_to_two_pi(varpi + _as_float(coe.nu))),
     )
 
 
 def equinoctial_to_classical(el: EquinoctialElements) -> ClassicalElements:
     """Inverse of :func:`classical_to_equinoctial`; raan := 0 when i = 0, argp := 0 when e = 0."""
     h, k, p, q = (_as_float(x) for x in (el.h, el.k, el.p, el.q))
-    raan = np.mod(np.arctan2(p, q), TWO_PI)
+    raan = wrap_to_two_pi(np.arctan2(p, q))
     e = np.hypot(h, k)
-    argp = np.where(e > 0.0, np.mod(np.arctan2(h, k) - raan, TWO_PI), 0.0)
+    argp = np.where(e > 0.0, wrap_to_two_pi(np.arctan2(h, k) - raan), 0.0)
     return ClassicalElements(
         a=el.a,
         e=_scalar_or_array(e),
         i=_scalar_or_array(2.0 * np.arctan(np.hypot(p, q))),
         raan=_scalar_or_array(raan),
         argp=_scalar_or_array(argp),
-        nu=_scalar_or_array(np.mod(_as_float(el.L) - raan - argp, TWO_PI)),
+        nu=_scalar_or_array(wrap_to_two_pi(_as_float(el.L) - raan - argp)),
     )

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.constants import EarthConstants
 from ovtraj.astro.elements import (
     eccentricity_vector_from_dots,
@@ -126,11 +126,11 @@ def predict_entry(
     u_entry, _ = _conic_entry(
         np.asarray(osc.a), np.asarray(osc.ex), np.asarray(osc.ey), entry_radius
     )
-    u_entry = u_now + np.mod(u_entry - u_now, TWO_PI)
+    u_entry = u_now + wrap_to_two_pi(u_entry - u_now)
     lam_now = np.asarray(true_to_mean_argument_of_latitude(np.asarray(mean.u), m_ex, m_ey))
     lam_entry = np.asarray(true_to_mean_argument_of_latitude(u_entry, m_ex, m_ey))
     # Time to go (seed eq. 23): the mean-latitude angle still to fly over its secular rate.
-    dt = (np.mod(lam_entry - lam_now + 0.1, TWO_PI) - 0.1) / lam_rate
+    dt = (wrap_to_two_pi(lam_entry - lam_now + 0.1) - 0.1) / lam_rate
     # States whose orbit misses r_E are carried along with dt = 0 and reported as NaN
     # (Kepler's equation must not see a NaN).
     reaches = np.isfinite(dt)
@@ -148,7 +148,7 @@ def predict_entry(
         p = a * (1.0 - ex * ex - ey * ey)
         r_pred = p / (1.0 + ex * np.cos(u_pred) + ey * np.sin(u_pred))
         u_rate = np.sqrt(mu * p) / r_pred**2
-        u_entry = u_now + np.mod(u_pred - u_now, TWO_PI) + offset
+        u_entry = u_now + wrap_to_two_pi(u_pred - u_now) + offset
         speed = np.sqrt(mu * (2.0 / entry_radius - 1.0 / a))
         dt = dt + offset / u_rate
         reaches &= np.isfinite(dt)

@@ -39,8 +39,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch, gmst_rad
+from ovtraj.astro.epoch import Epoch, gmst_rad
 from ovtraj.astro.frames import ecef_to_eci_state, eci_to_ecef
+from ovtraj.units import S_PER_DAY
 
 __all__ = ["teme_gmst_rad", "teme_to_eci", "teme_to_pef"]
 
@@ -52,7 +53,7 @@ def teme_gmst_rad(epoch: Epoch, t_s: ArrayLike) -> np.ndarray:
     as SGP4's own ``gstime`` does, rather than linearised from the epoch.
     """
     t = np.asarray(t_s, dtype=float)
-    return np.asarray(gmst_rad(np.full(t.shape, epoch.jd1), epoch.jd2 + t / SECONDS_PER_DAY))
+    return np.asarray(gmst_rad(np.full(t.shape, epoch.jd1), epoch.jd2 + t / S_PER_DAY))
 
 
 def teme_to_pef(

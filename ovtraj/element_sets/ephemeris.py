@@ -12,14 +12,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 from sgp4.api import SGP4_ERRORS
 
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.teme import teme_gmst_rad, teme_to_eci
 from ovtraj.element_sets.elements import SourceElements
 from ovtraj.errors import ConfigError
+from ovtraj.units import M_PER_KM, S_PER_DAY
 
 __all__ = ["sgp4_eci"]
-
-_M_PER_KM = 1e3
 
 
 def sgp4_eci(
@@ -33,7 +32,7 @@ def sgp4_eci(
     """
     t = np.atleast_1d(np.asarray(t_s, dtype=float))
     jd = np.full(t.shape, epoch.jd1)
-    fraction = epoch.jd2 + t / SECONDS_PER_DAY
+    fraction = epoch.jd2 + t / S_PER_DAY
     codes, r_km, v_kms = elements.satrec.sgp4_array(jd, fraction)
     bad = np.flatnonzero(codes)
     if bad.size:
@@ -49,5 +48,5 @@ def sgp4_eci(
         )
     theta = teme_gmst_rad(epoch, t)
     return teme_to_eci(
-        np.asarray(r_km) * _M_PER_KM, np.asarray(v_kms) * _M_PER_KM, theta, omega=omega
+        np.asarray(r_km) * M_PER_KM, np.asarray(v_kms) * M_PER_KM, theta, omega=omega
     )

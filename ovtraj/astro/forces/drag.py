@@ -17,9 +17,9 @@ from typing import Any
 
 import heyoka as hy
 
-__all__ = ["SpaceWeather", "drag_acceleration", "geodetic", "thermosphere_density"]
+from ovtraj.units import M_PER_KM
 
-METRES_PER_KM = 1000.0
+__all__ = ["SpaceWeather", "drag_acceleration", "geodetic", "thermosphere_density"]
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ def thermosphere_density(
 ) -> Any:
     """Density [kg/m^3] by the ``model`` thermoNET (``nrlmsise00`` or ``jb08``)."""
     altitude_m, latitude, longitude = geodetic_coordinates
-    where = [altitude_m / METRES_PER_KM, latitude, longitude]
+    where = [altitude_m / M_PER_KM, latitude, longitude]
     if model == "nrlmsise00":
         return hy.model.nrlmsise00_tn(where, weather.f107, weather.f107a, weather.ap, day_of_year)
     if model == "jb08":

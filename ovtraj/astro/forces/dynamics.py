@@ -32,6 +32,7 @@ from ovtraj.astro.forces.terms import FORCE_TERMS, check_term_names, needed
 from ovtraj.astro.forces.third_body import moon_position, sun_position, third_body_acceleration
 from ovtraj.astro.forces.time_scales import tt_centuries_expression
 from ovtraj.astro.propagation.gravity import two_body_j2_acceleration
+from ovtraj.units import DAYS_PER_JULIAN_CENTURY, S_PER_DAY
 
 __all__ = [
     "KERNELS",
@@ -46,7 +47,6 @@ __all__ = [
 
 PARAMETERS = ("tt0", "doy0", "ballistic_m2_kg", "radiation_m2_kg", "floor_radius_m")
 _STATE = ("x", "y", "z", "vx", "vy", "vz")
-SECONDS_PER_DAY = 86400.0
 
 
 @dataclass(frozen=True)
@@ -125,7 +125,7 @@ def symbols() -> Symbols:
         state=state,
         par=par,
         tt=tt_centuries_expression(par["tt0"], hy.time),
-        day_of_year=par["doy0"] + hy.time / SECONDS_PER_DAY,
+        day_of_year=par["doy0"] + hy.time / S_PER_DAY,
     )
 
 
@@ -137,7 +137,7 @@ def _weather(terms: ForceTerms, tt: Any) -> SpaceWeather:
         )
     data = hy.sw_data()
     # NRLMSISE-00's F10.7 is the previous day's (Picone et al. 2002).
-    day = 1.0 / 36525.0
+    day = 1.0 / DAYS_PER_JULIAN_CENTURY
     return SpaceWeather(
         hy.model.f107(tt - day, data),
         hy.model.f107a_center81(tt, data),

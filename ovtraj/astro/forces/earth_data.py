@@ -19,7 +19,7 @@ from functools import lru_cache
 import heyoka as hy
 import numpy as np
 
-MJD_OFFSET = 2400000.5  # JD - MJD [day]
+from ovtraj.units import JD_MINUS_MJD
 
 __all__ = ["earth_orientation_data", "earth_orientation_span", "space_weather_span"]
 
@@ -45,11 +45,11 @@ def earth_orientation_data(extrapolation_days: float) -> hy.eop_data:
 def earth_orientation_span(extrapolation_days: float) -> tuple[float, float]:
     """First and last JD (UTC) [day] :func:`earth_orientation_data` covers."""
     mjd = np.asarray(earth_orientation_data(extrapolation_days).table["mjd"])
-    return float(mjd[0] + MJD_OFFSET), float(mjd[-1] + MJD_OFFSET)
+    return float(mjd[0] + JD_MINUS_MJD), float(mjd[-1] + JD_MINUS_MJD)
 
 
 @lru_cache(maxsize=1)
 def space_weather_span() -> tuple[float, float]:
     """First and last JD (UTC) [day] of the bundled space weather."""
     mjd = np.asarray(hy.sw_data().table["mjd"])
-    return float(mjd[0] + MJD_OFFSET), float(mjd[-1] + MJD_OFFSET)
+    return float(mjd[0] + JD_MINUS_MJD), float(mjd[-1] + JD_MINUS_MJD)

@@ -19,10 +19,9 @@ from typing import Any
 
 import heyoka as hy
 
-__all__ = ["icrs_to_teme", "moon_position", "sun_position", "third_body_acceleration"]
+from ovtraj.units import JULIAN_CENTURIES_PER_MILLENNIUM, M_PER_KM
 
-METRES_PER_KM = 1000.0
-JULIAN_CENTURIES_PER_MILLENNIUM = 10.0
+__all__ = ["icrs_to_teme", "moon_position", "sun_position", "third_body_acceleration"]
 
 
 def icrs_to_teme(
@@ -54,7 +53,7 @@ def moon_position(
 ) -> list[Any]:
     """Geocentric Moon [m] in TEME at TT centuries ``tt`` (ELP2000 truncated at
     ``threshold``)."""
-    moon_fk5 = [METRES_PER_KM * c for c in hy.model.elp2000_cartesian_fk5(tt, thresh=threshold)]
+    moon_fk5 = [M_PER_KM * c for c in hy.model.elp2000_cartesian_fk5(tt, thresh=threshold)]
     moon_icrs = hy.model.rot_fk5j2000_icrs(moon_fk5)
     return icrs_to_teme(moon_icrs, tt, eop, precession_threshold)
 

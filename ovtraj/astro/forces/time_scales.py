@@ -14,11 +14,8 @@ from typing import Any
 
 import erfa
 
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
-
-J2000_JD = 2451545.0  # JD of J2000.0 [day] (IAU 1994)
-DAYS_PER_JULIAN_CENTURY = 36525.0
-SECONDS_PER_JULIAN_CENTURY = DAYS_PER_JULIAN_CENTURY * SECONDS_PER_DAY
+from ovtraj.astro.epoch import Epoch
+from ovtraj.units import DAYS_PER_JULIAN_CENTURY, J2000_JD, S_PER_DAY, S_PER_JULIAN_CENTURY
 
 __all__ = [
     "day_of_year",
@@ -38,9 +35,9 @@ def day_of_year(epoch: Epoch) -> float:
     """Days [day] from 1 January 00:00 UTC of the epoch's year (0 on 1 January at midnight)."""
     moment = epoch.to_datetime()
     start = datetime(moment.year, 1, 1, tzinfo=UTC)
-    return (moment - start).total_seconds() / SECONDS_PER_DAY
+    return (moment - start).total_seconds() / S_PER_DAY
 
 
 def tt_centuries_expression(origin_tt: Any, time: Any) -> Any:
     """TT centuries at ``time`` [s] after an origin of ``origin_tt`` centuries (expressions)."""
-    return origin_tt + time / SECONDS_PER_JULIAN_CENTURY
+    return origin_tt + time / S_PER_JULIAN_CENTURY
