@@ -1,12 +1,16 @@
 """Flow: Monte Carlo of the finite-thrust deorbit burn (``flows/deorbit_monte_carlo.py``).
 
+A thin adapter of the library's one Monte Carlo driver
+(:func:`ovtraj.store.monte_carlo.drive_monte_carlo` with the study
+:class:`ovtraj.studies.deorbit_burn.stored_monte_carlo.DeorbitMonteCarlo`):
+
 1. read the problem (seed 004 case by default) and its Monte Carlo settings;
-2. create (or reopen) the run directory ``<store>/<run_id>/``: the id hashes the resolved
-   problem, the number of runs, the strategies, the seed and the code version;
-3. simulate the runs the store does not hold yet, in batches of several runs per task (a
-   task costs 0.05-0.5 s of orchestration) on the configured task runner (threads or
-   processes, used as a context manager inside this flow run); each task is cached on its
-   inputs and writes its own batch to Parquet;
+2. the driver creates (or reopens) the run directory ``<store>/<run_id>/``: the id hashes
+   the resolved problem, the number of runs, the strategies, the seed and the code version;
+3. it simulates the runs the store does not hold yet, in batches of several runs per task
+   (a task costs 0.05-0.5 s of orchestration) on the configured task runner
+   (:class:`flows.monte_carlo_tasks.MonteCarloTasks`); each task is cached on its inputs
+   and writes its own batch to Parquet;
 4. summary statistics per strategy, scatter and histogram plots of the entry errors and the
    published figures into the run directory; a table artifact; the summary is returned.
 """
@@ -27,16 +31,13 @@ from flows.common import (
     prune_expired_results,
     run_name,
     run_tags,
-    store_missing_batches,
 )
-from flows.runners import check_runner
+from flows.monte_carlo_tasks import MonteCarloTasks, raise_failed_batches
+from ovtraj.store.monte_carlo import drive_monte_carlo
 from ovtraj.store.paths import store_root as store_root_of
-from ovtraj.store.records import plain
-from ovtraj.studies.deorbit_burn.montecarlo import monte_carlo_summary
-from ovtraj.studies.deorbit_burn.plots import plot_dispersions
 from ovtraj.studies.deorbit_burn.problem import load_deorbit_burn
-from ovtraj.studies.deorbit_burn.published import published_comparison
 from ovtraj.studies.deorbit_burn.store import MonteCarloRun
+from ovtraj.studies.deorbit_burn.stored_monte_carlo import DeorbitMonteCarlo
 from tasks.common import TIMEOUTS, code_version
 from tasks.deorbit_monte_carlo import deorbit_mc_batch_task
 
@@ -71,77 +72,78 @@ def deorbit_monte_carlo_flow(
     are kept and a re-run simulates only the missing runs.
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.deorbit_monte_carlo_s
-    logger = get_run_logger()
     prune_expired_results()
+    study, tasks = _prepared(
+        config,
+        runs,
+        strategies,
+        seed,
+        store,
+        batch_size,
+        workers,
+        runner,
+        dask_address,
+        deadline,
+    )
+    name = study.problem.name
+
+    def opened(run: MonteCarloRun, todo: int) -> None:
+        label_flow_run(
+            f"deorbit-monte-carlo {name} {run.id}", run_tags("deorbit-monte-carlo", name, run.id)
+        )
+        get_run_logger().info(
+            "run %s (%s): %d runs, %d to simulate", run.id, name, study.runs, todo
+        )
+
+    report = drive_monte_carlo(study, tasks, opened=opened)
+    _publish(report)
+    raise_failed_batches(report, report.pop("failed_batches"))
+    return report
+
+
+def _prepared(
+    config: str,
+    runs: int | None,
+    strategies: list[int] | None,
+    seed: int | None,
+    store: str | None,
+    batch_size: int | None,
+    workers: int | None,
+    runner: str | None,
+    dask_address: str | None,
+    deadline: float,
+) -> tuple[DeorbitMonteCarlo, MonteCarloTasks]:
+    """The flow's parameters as the driver's study and flier: the problem of ``config``
+    and its ``monte_carlo`` values for those left None."""
     problem = load_deorbit_burn(Path(config))
     settings = problem.config.monte_carlo
-    chosen_runner = runner or settings.task_runner
-    check_runner(chosen_runner, dask_address)
-    n = settings.runs if runs is None else runs
-    chosen = [int(s) for s in (settings.strategies if strategies is None else strategies)]
-    seed = settings.seed if seed is None else int(seed)
-    size = settings.batch_size if batch_size is None else batch_size
-    if n < 1 or size < 1:
-        raise ValueError(f"runs and batch_size must be >= 1; got runs {n}, batch_size {size}")
-    resolved = problem.resolved()
-    run = MonteCarloRun.create(
-        store_root_of(settings.store, Path(config).resolve().parent, store),
-        resolved=resolved,
-        runs=n,
-        strategies=chosen,
-        seed=seed,
-        code=code_version(),
-    )
-    labels = run_tags("deorbit-monte-carlo", problem.name, run.id)
-    label_flow_run(f"deorbit-monte-carlo {problem.name} {run.id}", labels)
-    todo = sorted(set(range(n)) - run.done_runs())
-    logger.info("run %s (%s): %d runs, %d to simulate", run.id, problem.name, n, len(todo))
-    url = str(run.directory.resolve())
-    failures = store_missing_batches(
-        run,
-        todo,
-        size,
+    tasks = MonteCarloTasks.configured(
         deorbit_mc_batch_task,
-        lambda group: {
-            "resolved_problem": resolved,
-            "run_url": url,
-            "strategies": chosen,
-            "seed": seed,
-        },
-        runner=chosen_runner,
-        workers=workers or settings.workers,
+        settings,
+        TIMEOUTS.deorbit_mc_batch_per_run_s,
+        runner=runner,
+        workers=workers,
         dask_address=dask_address,
-        retries=settings.task_retries,
-        timeout_per_run_s=TIMEOUTS.deorbit_mc_batch_per_run_s,
+        batch_size=settings.batch_size if batch_size is None else batch_size,
         deadline=deadline,
         limit=LIMIT,
     )
-    frame = run.results()
-    summary = monte_carlo_summary(frame)
-    plots = plot_dispersions(frame, run.directory / "plots", problem.entry.radius_m)
-    comparison = [
-        row.as_dict()
-        for row in published_comparison(problem, summary=summary)
-        if row.figure.startswith("strategy")
-    ]
-    report = {
-        "run_id": run.id,
-        "directory": str(run.directory),
-        "name": problem.name,
-        "runs": n,
-        "stored_runs": len(run.done_runs()),
-        "strategies": chosen,
-        "seed": seed,
-        "simulated_runs": len(todo),
-        "status": "incomplete" if failures else "complete",
-        "statistics": [plain(row) for row in summary.to_dict(orient="records")],
-        "published": comparison,
-        "plots": [str(p) for p in plots],
-    }
-    run.write_summary(report)
-    run.update_info(
-        status=report["status"], failures=[f"runs from {k}: {why}" for k, why in failures.items()]
+    study = DeorbitMonteCarlo(
+        problem,
+        runs=settings.runs if runs is None else runs,
+        strategies=[int(s) for s in (settings.strategies if strategies is None else strategies)],
+        seed=settings.seed if seed is None else int(seed),
+        root=store_root_of(settings.store, Path(config).resolve().parent, store),
+        code=code_version(),
+        batch_size=tasks.batch_size,
     )
+    return study, tasks
+
+
+def _publish(report: dict[str, Any]) -> None:
+    """A table artifact of the statistics per strategy and a markdown artifact showing the
+    plots."""
+    run_id = report["run_id"]
     create_table_artifact(
         key="deorbit-monte-carlo",
         table=[
@@ -158,17 +160,15 @@ def deorbit_monte_carlo_flow(
             }
             for row in report["statistics"]
         ],
-        description=f"Deorbit-burn Monte Carlo {run.id} of {problem.name} ({n} runs)",
+        description=(
+            f"Deorbit-burn Monte Carlo {run_id} of {report['name']} ({report['runs']} runs)"
+        ),
     )
     create_markdown_artifact(
         key="deorbit-monte-carlo-plots",
-        markdown="\n\n".join(embedded_plots(plots)) or "no plots",
-        description=f"entry errors of the Monte Carlo {run.id} (scatter, histograms)",
+        markdown="\n\n".join(embedded_plots(report["plots"])) or "no plots",
+        description=f"entry errors of the Monte Carlo {run_id} (scatter, histograms)",
     )
-    if failures:
-        text = "; ".join(f"runs from {k}: {why}" for k, why in failures.items())
-        raise RuntimeError(f"run {run.id}: {len(failures)} batch(es) failed: {text}")
-    return report
 
 
 if __name__ == "__main__":

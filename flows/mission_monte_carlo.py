@@ -1,16 +1,18 @@
 """Flow: dispersed Monte Carlo of a mission plan, closed and open loop.
 
-A thin adapter of the library's driver (:mod:`ovtraj.runs.plan_monte_carlo`, which
-``ovtraj fly PLAN --monte-carlo N`` runs too, so both store the same run for the same
-inputs):
+A thin adapter of the library's one Monte Carlo driver
+(:func:`ovtraj.store.monte_carlo.drive_monte_carlo` with the study
+:class:`ovtraj.runs.plan_monte_carlo.PlanMonteCarlo`, which ``ovtraj fly PLAN
+--monte-carlo N`` runs too, so both store the same run for the same inputs):
 
 1. read the plan and the dispersions (``configs/dispersions.yaml`` by default);
 2. the driver creates (or reopens) the run directory ``<store>/<run_id>/``: the id hashes
    the plan, the dispersions that count for results, the number of runs, the seed and the
    code version;
 3. it flies the runs the store does not hold yet, closed and open loop, here in batches of
-   several runs per Prefect task on the configured task runner; each task is cached on its
-   inputs and writes its own batch to Parquet;
+   several runs per Prefect task on the configured task runner
+   (:class:`flows.monte_carlo_tasks.MonteCarloTasks`); each task is cached on its inputs
+   and writes its own batch to Parquet;
 4. it writes the landing-miss statistics of each loop, the landed fractions, the smallest
    margin of each path limit and the dV spent (``dv_mps``: p50 / p95 / max of the total
    and of each manoeuvre against the plan's) into ``summary.json``, and the pictures (the
@@ -35,20 +37,16 @@ from flows.common import (
     prune_expired_results,
     run_name,
     run_tags,
-    store_missing_batches,
 )
-from flows.runners import check_runner
+from flows.monte_carlo_tasks import MonteCarloTasks, raise_failed_batches
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.mission.high_fidelity import high_fidelity_settings
 from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
 from ovtraj.mission.plan_store import read_plan
 from ovtraj.paths import config_path
-from ovtraj.runs.plan_monte_carlo import (
-    PlanMonteCarloRequest,
-    drive_plan_monte_carlo,
-    store_of,
-)
+from ovtraj.runs.plan_monte_carlo import PlanMonteCarlo, store_of
+from ovtraj.store.monte_carlo import drive_monte_carlo
 from tasks.common import TIMEOUTS, code_version
 from tasks.mission_monte_carlo import plan_mc_batch_task
 
@@ -88,60 +86,80 @@ def plan_monte_carlo_flow(
     stored batches are kept and a re-run flies only the missing runs.
     """
     deadline = time.monotonic() + FLOW_TIMEOUTS.mission_monte_carlo_s
-    logger = get_run_logger()
     prune_expired_results()
+    study, tasks = _prepared(
+        plan,
+        dispersions,
+        runs,
+        seed,
+        store,
+        batch_size,
+        workers,
+        runner,
+        dask_address,
+        fidelity,
+        force_model,
+        deadline,
+    )
+
+    def opened(run: PlanMonteCarloRun, todo: int) -> None:
+        labels = run_tags("plan-monte-carlo", study.plan.scenario.get("name"), run.id)
+        label_flow_run(f"plan-monte-carlo {run.id}", labels)
+        get_run_logger().info("run %s: %d runs, %d to fly", run.id, study.runs, todo)
+
+    report = drive_monte_carlo(study, tasks, opened=opened)
+    _publish(report, fidelity)
+    raise_failed_batches(report, report["failed_batches"])
+    return report
+
+
+def _prepared(
+    plan: str,
+    dispersions: str | None,
+    runs: int | None,
+    seed: int | None,
+    store: str | None,
+    batch_size: int | None,
+    workers: int | None,
+    runner: str | None,
+    dask_address: str | None,
+    fidelity: str,
+    force_model: str | None,
+    deadline: float,
+) -> tuple[PlanMonteCarlo, MonteCarloTasks]:
+    """The flow's parameters as the driver's study and flier: the plan, the dispersions
+    file (the shipped one by default) and its ``execution`` values for those left None."""
     mission_plan = read_plan(Path(plan))
     config_file = Path(dispersions) if dispersions else config_path("dispersions.yaml")
     config = load_model(DispersionsConfig, config_file)
     execution = config.execution
-    chosen_runner = runner or execution.task_runner
-    check_runner(chosen_runner, dask_address)
-    n = runs or execution.runs
-    seed = execution.seed if seed is None else int(seed)
-    size = batch_size or execution.batch_size
-    sky = high_fidelity_settings(mission_plan, fidelity, force_model)
-    request = PlanMonteCarloRequest(
+    tasks = MonteCarloTasks.configured(
+        plan_mc_batch_task,
+        execution,
+        TIMEOUTS.mission_mc_batch_per_run_s,
+        runner=runner,
+        workers=workers,
+        dask_address=dask_address,
+        batch_size=batch_size or execution.batch_size,
+        deadline=deadline,
+        limit=LIMIT,
+    )
+    study = PlanMonteCarlo(
         plan=mission_plan,
         dispersions=config,
-        runs=n,
-        seed=seed,
+        runs=runs or execution.runs,
+        seed=execution.seed if seed is None else int(seed),
         root=store_of(config, config_file, store),
         code=code_version(),
-        batch_size=size,
-        force_model=sky,
+        batch_size=tasks.batch_size,
+        force_model=high_fidelity_settings(mission_plan, fidelity, force_model),
     )
+    return study, tasks
 
-    def opened(run: PlanMonteCarloRun, todo: int) -> None:
-        labels = run_tags("plan-monte-carlo", mission_plan.scenario.get("name"), run.id)
-        label_flow_run(f"plan-monte-carlo {run.id}", labels)
-        logger.info("run %s: %d runs, %d to fly", run.id, n, todo)
 
-    def fly(run: PlanMonteCarloRun, batches: list[list[int]]) -> dict[int, str]:
-        """Each batch a cached Prefect task (store_missing_batches groups the runs into
-        the same batches again)."""
-        inputs = {
-            "plan": mission_plan.to_dict(),
-            "dispersions": config.model_dump(mode="json"),
-            "run_url": str(run.directory.resolve()),
-            "seed": seed,
-            "force_model": None if sky is None else sky.model_dump(mode="json"),
-        }
-        return store_missing_batches(
-            run,
-            [k for runs in batches for k in runs],
-            size,
-            plan_mc_batch_task,
-            lambda group: inputs,
-            runner=chosen_runner,
-            workers=workers or execution.workers,
-            dask_address=dask_address,
-            retries=execution.task_retries,
-            timeout_per_run_s=TIMEOUTS.mission_mc_batch_per_run_s,
-            deadline=deadline,
-            limit=LIMIT,
-        )
-
-    report = drive_plan_monte_carlo(request, fly, opened=opened)
+def _publish(report: dict[str, Any], fidelity: str) -> None:
+    """Two table artifacts (each loop's landing miss; the dV spent per manoeuvre) and a
+    markdown artifact showing the pictures."""
     run_id = report["run_id"]
     loops = {"closed": report, "open": report["open_loop"]}  # the closed loop's at the top
     create_table_artifact(
@@ -158,7 +176,10 @@ def plan_monte_carlo_flow(
             }
             for loop, s in loops.items()
         ],
-        description=f"Plan Monte Carlo {run_id} ({n} runs, seed {seed}, {fidelity} sky)",
+        description=(
+            f"Plan Monte Carlo {run_id} ({report['runs']} runs, seed {report['seed']}, "
+            f"{fidelity} sky)"
+        ),
     )
     create_table_artifact(
         key="plan-monte-carlo-dv",
@@ -177,10 +198,6 @@ def plan_monte_carlo_flow(
         markdown="\n\n".join(embedded_plots(report["plots"])),
         description=f"Plan Monte Carlo {run_id}: the landing footprint and the dV per manoeuvre",
     )
-    failed = report["failed_batches"]
-    if failed:
-        raise RuntimeError(f"run {run_id}: {len(failed)} batch(es) failed: {'; '.join(failed)}")
-    return report
 
 
 def _km(value: float | None) -> float | None:

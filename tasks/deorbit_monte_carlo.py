@@ -2,30 +2,12 @@
 
 from __future__ import annotations
 
-import json
-import time
-from pathlib import Path
 from typing import Any
 
 from prefect import task
 
-from ovtraj.studies.deorbit_burn.montecarlo import MonteCarloContext, simulate_runs
-from ovtraj.studies.deorbit_burn.problem import deorbit_burn_from_dict
-from ovtraj.studies.deorbit_burn.store import MonteCarloRun
+from ovtraj.studies.deorbit_burn.stored_monte_carlo import store_deorbit_batch
 from tasks.common import TIMEOUTS, cached, parameter, run_label
-from tasks.process_cache import process_cache, remember
-
-# Nominal plans kept per process: a few problems at once.
-CONTEXTS = 4
-
-
-def _context(resolved_json: str) -> MonteCarloContext:
-    """The nominal plan, solved once per worker process (or thread pool) and problem."""
-    cache = process_cache("deorbit-mc-context")
-    if resolved_json not in cache:
-        problem = deorbit_burn_from_dict(json.loads(resolved_json), "resolved")
-        remember(cache, resolved_json, MonteCarloContext(problem), CONTEXTS)
-    return cache[resolved_json]
 
 
 def _name() -> str:
@@ -47,7 +29,10 @@ def deorbit_mc_batch_task(
     strategies: list[int],
     seed: int,
 ) -> dict[str, Any]:
-    """Simulate the runs (every strategy on the same draws) and store them as one batch.
+    """Simulate the runs (every strategy on the same draws) and store them as one batch:
+    :func:`ovtraj.studies.deorbit_burn.stored_monte_carlo.store_deorbit_batch`, the job of
+    every batch of a deorbit-burn Monte Carlo (its nominal plan solved once per worker
+    process and problem).
 
     The worker writes its own Parquet part (atomic, marker last) into the run at
     ``run_url`` (absolute), so the rows never travel back through Prefect; the task
@@ -56,14 +41,4 @@ def deorbit_mc_batch_task(
     not hold, and runs again with a refreshed cache a batch whose files went missing
     after a cached run.
     """
-    start = time.perf_counter()
-    context = _context(json.dumps(resolved_problem, sort_keys=True))
-    frame = simulate_runs(context, runs, strategies, seed)
-    MonteCarloRun(Path(run_url)).write_batch(batch, frame)
-    return {
-        "batch": batch,
-        "runs": len(runs),
-        "rows": len(frame),
-        "failed": int((~frame["ok"]).sum()),
-        "wall_time_s": time.perf_counter() - start,
-    }
+    return store_deorbit_batch(resolved_problem, run_url, batch, runs, strategies, seed)

@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from prefect import task
 
-from ovtraj.config.base import model_from_dict
-from ovtraj.config.dispersions import DispersionsConfig
-from ovtraj.config.force_model import ForceModelSettings
-from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, fly_batch
-from ovtraj.mission.plan import MissionPlan
+from ovtraj.mission.montecarlo_store import store_plan_batch
 from tasks.common import TIMEOUTS, cached, parameter, run_label
 
 
@@ -37,21 +32,11 @@ def plan_mc_batch_task(
 ) -> dict[str, Any]:
     """Fly the runs closed and open loop and store them as one batch (the closed loop
     under ``force_model``'s high-fidelity sky when given):
-    :func:`ovtraj.mission.montecarlo_store.fly_batch`, as ``ovtraj fly --monte-carlo``
-    flies its batches.
+    :func:`ovtraj.mission.montecarlo_store.store_plan_batch`, the job of every batch of a
+    plan's Monte Carlo (``ovtraj fly --monte-carlo`` flies the same in its process).
 
     The worker writes its own Parquet part (atomic, marker last) into the run at
     ``run_url``, so the rows never travel back through Prefect; the task returns a small
     summary. The cache key hashes the inputs and the code version.
     """
-    return fly_batch(
-        PlanMonteCarloRun(Path(run_url)),
-        MissionPlan.model_validate(plan),
-        model_from_dict(DispersionsConfig, dispersions, "the run's dispersions"),
-        batch,
-        runs,
-        seed,
-        None
-        if force_model is None
-        else model_from_dict(ForceModelSettings, force_model, "the run's force model"),
-    )
+    return store_plan_batch(plan, dispersions, run_url, batch, runs, seed, force_model)

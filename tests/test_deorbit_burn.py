@@ -442,6 +442,7 @@ def ten_runs(prefect_server, tmp_path_factory):
     digest = _digest(Path(first["directory"]))
     second = deorbit_monte_carlo_flow(config)
     return {
+        "config": config,
         "first": first,
         "second": second,
         "runs": (middle["runs"] - before["runs"], SIMULATIONS["runs"] - middle["runs"]),
@@ -495,6 +496,41 @@ def test_second_identical_flow_run_simulates_nothing(ten_runs):
     assert ten_runs["second"]["run_id"] == ten_runs["first"]["run_id"]
     assert ten_runs["second"]["simulated_runs"] == 0
     assert _digest(Path(ten_runs["first"]["directory"])) == ten_runs["digest"]
+
+
+def test_the_library_driver_stores_the_flows_run_without_prefect(ten_runs, tmp_path):
+    """The flow is the library's driver with its batches as tasks: the same study flown in
+    this process stores the same run (id, parts, plots, summary but for where it is)."""
+    from ovtraj.runs.monte_carlo_pool import PoolFlier
+    from ovtraj.runs.runners import RunnerChoice
+    from ovtraj.store.monte_carlo import drive_monte_carlo
+    from ovtraj.studies.deorbit_burn.stored_monte_carlo import DeorbitMonteCarlo
+
+    flown = ten_runs["first"]
+    theirs = Path(flown["directory"])
+    study = DeorbitMonteCarlo(
+        load_deorbit_burn(ten_runs["config"]),
+        runs=10,
+        strategies=flown["strategies"],
+        seed=flown["seed"],
+        root=tmp_path,
+        code=MonteCarloRun(theirs).info["code_version"],
+        batch_size=5,
+    )
+    report = drive_monte_carlo(study, PoolFlier(RunnerChoice("serial", 1)))
+    ours = Path(report["directory"])
+    assert report["run_id"] == flown["run_id"] and report["failed_batches"] == []
+    where = {"directory", "plots", "failed_batches"}
+    assert {k: v for k, v in report.items() if k not in where} == {
+        k: v for k, v in flown.items() if k not in where
+    }
+    assert [Path(p).name for p in report["plots"]] == [Path(p).name for p in flown["plots"]]
+    for name in (
+        "config.json",
+        *_digest(theirs),
+        *(f"plots/{Path(p).name}" for p in flown["plots"]),
+    ):
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
 
 
 def test_a_deleted_run_is_simulated_again_although_its_tasks_are_cached(prefect_server, tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -492,3 +493,56 @@ def test_an_edited_summary_is_never_shown_the_report_is_built_again_from_the_bat
     assert done.exit_code == 1
     (line,) = [x for x in done.stdout.splitlines() if x.startswith("tampered: ")]
     assert str(path) in line
+
+
+# --- the one driver: where the batches fly changes nothing stored ---------------------------
+
+
+@pytest.mark.slow  # two spawned processes import the package (tens of seconds here)
+def test_a_pool_of_processes_stores_what_this_process_stores(plan, tmp_path):
+    """The driver's batches on the library's process pool store the same bytes as the
+    command's flights in its own process (a failed batch there would say so)."""
+    from ovtraj.runs.monte_carlo_pool import PoolFlier
+    from ovtraj.runs.plan_monte_carlo import PICTURES, PlanMonteCarlo
+    from ovtraj.runs.runners import RunnerChoice
+    from ovtraj.store.environment_block import unstamped
+    from ovtraj.store.monte_carlo import drive_monte_carlo
+
+    def stored(runner: str) -> tuple[dict, dict[str, bytes]]:
+        study = PlanMonteCarlo(
+            plan=plan,
+            dispersions=default_dispersions(),
+            runs=3,
+            seed=6,
+            root=tmp_path / runner,
+            code="test",
+            batch_size=2,
+        )
+        counted = []
+        flier = PoolFlier(RunnerChoice(runner, 2), on_run=lambda: counted.append(1))
+        report = drive_monte_carlo(study, flier)
+        assert report["failed_batches"] == [] and len(counted) == 3, report["failed_batches"]
+        directory = Path(report["directory"])
+        files = {
+            str(p.relative_to(directory)): p.read_bytes()
+            for p in sorted(directory.rglob("*"))
+            if p.is_file() and "locks" not in p.relative_to(directory).parts
+        }
+        return report, files
+
+    here, ours = stored("serial")
+    pooled, theirs = stored("processes")
+    assert here["run_id"] == pooled["run_id"] and here["simulated_runs"] == 3
+    assert sorted(ours) == sorted(theirs)
+    assert {"runs/part-00000.parquet", "runs/part-00002.parquet"} <= set(ours)
+    assert {f"plots/{name}.png" for name in PICTURES} <= set(ours)
+    for name in ours:
+        if name.endswith((".parquet", ".png")) or name in ("config.json", "summary.json"):
+            assert ours[name] == theirs[name], name
+        else:  # the records but for when they were written and how long each run took
+            drop = ("created_utc", "timing")
+            mine, other = (
+                {k: v for k, v in unstamped(json.loads(x)).items() if k not in drop}
+                for x in (ours[name], theirs[name])
+            )
+            assert mine == other, name

@@ -85,34 +85,12 @@ def fly(
     is written again with it (both paths printed).
 
     Example: `ovtraj fly plan-sample-30.json --monte-carlo 20 --seed 1`"""
-    from ovtraj.mission.flight_report import format_flight_report
-    from ovtraj.mission.fly import fly_plan
-    from ovtraj.mission.high_fidelity import high_fidelity_settings
-    from ovtraj.mission.plan import PlanError
-    from ovtraj.mission.plan_store import read_plan
-
-    try:
-        plan = read_plan(plan_file)
-        dispersions = _dispersions(dispersions_file) if monte_carlo or fidelity == "high" else None
-        force_model = high_fidelity_settings(plan, fidelity.value, force_model_file)
-    except PlanError as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
-    except ConfigError as err:
-        typer.echo(str(err), err=True)
-        raise typer.Exit(code=2) from None
+    plan, dispersions, force_model = _fly_inputs(
+        plan_file, fidelity.value, dispersions_file, force_model_file, bool(monte_carlo)
+    )
     if monte_carlo:  # the estimate said (stderr) before the work; refused beyond the limit
         typer.echo(_monte_carlo_estimate(monte_carlo, fidelity.value, allow_long_run), err=True)
-    if force_model is not None:
-        from ovtraj.paths import config_path
-
-        read = config_path("force_model.yaml") if force_model_file is None else force_model_file
-        row, landed = _high_fidelity(plan, dispersions, force_model, str(Path(read).resolve()))
-        text = row.pop("text")
-    else:
-        report = fly_plan(plan)
-        row, landed = report.to_dict(), report.landed_within_stated_miss
-        text = format_flight_report(report)
+    row, landed, text = _nominal_flight(plan, dispersions, force_model, force_model_file)
     if monte_carlo:
         row["monte_carlo"] = _monte_carlo(
             plan, dispersions, monte_carlo, seed, as_json, force_model, dispersions_file
@@ -128,6 +106,51 @@ def fly(
         _store_flight(plan_file, plan, row, as_json)
     if not landed:
         raise typer.Exit(code=1)
+
+
+def _fly_inputs(
+    plan_file: Path,
+    fidelity: str,
+    dispersions_file: Path | None,
+    force_model_file: Path | None,
+    monte_carlo: bool,
+) -> tuple[Any, Any, Any]:
+    """The plan, the dispersions (only for a Monte Carlo or the high-fidelity flight) and
+    the force model (``fidelity`` high only); a bad file: one line, exit 2."""
+    from ovtraj.mission.high_fidelity import high_fidelity_settings
+    from ovtraj.mission.plan import PlanError
+    from ovtraj.mission.plan_store import read_plan
+
+    try:
+        plan = read_plan(plan_file)
+        dispersions = _dispersions(dispersions_file) if monte_carlo or fidelity == "high" else None
+        force_model = high_fidelity_settings(plan, fidelity, force_model_file)
+    except PlanError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    except ConfigError as err:
+        typer.echo(str(err), err=True)
+        raise typer.Exit(code=2) from None
+    return plan, dispersions, force_model
+
+
+def _nominal_flight(
+    plan: Any, dispersions: Any, force_model: Any, force_model_file: Path | None
+) -> tuple[dict, bool, str]:
+    """The plan flown without dispersions: the open-loop replay (no ``force_model``), else
+    the closed loop under both skies (:func:`_high_fidelity`); its row, whether it landed
+    within the stated miss, and its text."""
+    if force_model is None:
+        from ovtraj.mission.flight_report import format_flight_report
+        from ovtraj.mission.fly import fly_plan
+
+        report = fly_plan(plan)
+        return report.to_dict(), report.landed_within_stated_miss, format_flight_report(report)
+    from ovtraj.paths import config_path
+
+    read = config_path("force_model.yaml") if force_model_file is None else force_model_file
+    row, landed = _high_fidelity(plan, dispersions, force_model, str(Path(read).resolve()))
+    return row, landed, row.pop("text")
 
 
 def _store_flight(plan_file: Path, plan: Any, row: dict, as_json: bool) -> None:
@@ -218,21 +241,19 @@ def _monte_carlo(
 ) -> dict:
     """The dispersed runs, closed and open loop, flown in this process (a progress bar on
     stderr unless ``as_json``) and stored as the Monte Carlo flow stores them, by the same
-    driver (:mod:`ovtraj.runs.plan_monte_carlo`): the same run id, rows, summary and
-    pictures, in the dispersions file's ``execution.store`` (else the workspace's runs/).
-    The report, with the run's directory and pictures; the closed loop under
-    ``force_model``'s sky when given. A failed batch or an unusable store: one line, exit 2
-    (the stored batches are kept: the same command flies the missing runs)."""
-    from ovtraj.runs.plan_monte_carlo import (
-        PlanMonteCarloRequest,
-        drive_plan_monte_carlo,
-        fly_here,
-        store_of,
-    )
+    driver and study (:class:`ovtraj.runs.plan_monte_carlo.PlanMonteCarlo`): the same run
+    id, rows, summary and pictures, in the dispersions file's ``execution.store`` (else the
+    workspace's runs/). The report, with the run's directory and pictures; the closed loop
+    under ``force_model``'s sky when given. A failed batch or an unusable store: one line,
+    exit 2 (the stored batches are kept: the same command flies the missing runs)."""
+    from ovtraj.runs.monte_carlo_pool import PoolFlier
+    from ovtraj.runs.plan_monte_carlo import PlanMonteCarlo, store_of
+    from ovtraj.runs.runners import RunnerChoice
     from ovtraj.store.files import StoreError
+    from ovtraj.store.monte_carlo import drive_monte_carlo
     from ovtraj.version import code_version
 
-    request = PlanMonteCarloRequest(
+    study = PlanMonteCarlo(
         plan=plan,
         dispersions=dispersions,
         runs=runs,
@@ -252,8 +273,9 @@ def _monte_carlo(
             flown["done"] += 1
             update(flown["done"], flown["total"])
 
+        here = PoolFlier(RunnerChoice("serial", 1), on_run=step)
         try:
-            report = drive_plan_monte_carlo(request, fly_here(request, step), opened=opened)
+            report = drive_monte_carlo(study, here, opened=opened)
         except StoreError as err:
             typer.echo(str(err), err=True)
             raise typer.Exit(code=2) from None
@@ -362,7 +384,7 @@ def export(
     from ovtraj.mission.ccsds import UnflownPlan, export_plan
     from ovtraj.mission.plan import PlanError
     from ovtraj.mission.plan_store import read_plan
-    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.catalog_rows import plan_id
     from ovtraj.tracking.lineage import record_export
 
     fmt = chosen.value

@@ -1,4 +1,5 @@
-"""Stored Monte Carlo runs of a mission plan (:mod:`ovtraj.mission.montecarlo`).
+"""Stored Monte Carlo runs of a mission plan (:mod:`ovtraj.mission.montecarlo`), and one
+batch of them flown and stored, by whatever process runs it (:func:`store_plan_batch`).
 
 A run directory of :class:`ovtraj.store.batched.BatchedRun`: ``config.json`` holds the plan
 and the dispersions that count for results, each batch's part holds a row per run and loop
@@ -19,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ovtraj.config.base import model_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.mission.montecarlo import simulate_batch
@@ -27,7 +29,7 @@ from ovtraj.mission.montecarlo_statistics import loop_summaries, monte_carlo_rep
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.store.batched import BatchedRun, StoreError, content_id
 
-__all__ = ["PlanMonteCarloRun", "fly_batch", "plan_monte_carlo_id"]
+__all__ = ["PlanMonteCarloRun", "plan_monte_carlo_id", "store_plan_batch"]
 
 RUN_KIND = "mission_monte_carlo"
 
@@ -121,23 +123,37 @@ class PlanMonteCarloRun(BatchedRun):
         return self.report() if stored is None else stored
 
 
-def fly_batch(
-    run: PlanMonteCarloRun,
-    plan: MissionPlan,
-    dispersions: DispersionsConfig,
+def store_plan_batch(
+    plan: dict[str, Any],
+    dispersions: dict[str, Any],
+    run_url: str,
     batch: int,
     runs: list[int],
     seed: int,
-    force_model: ForceModelSettings | None = None,
+    force_model: dict[str, Any] | None = None,
     on_run: Callable[[], None] | None = None,
 ) -> dict[str, Any]:
     """Fly ``runs`` closed and open loop (:func:`~ovtraj.mission.montecarlo.simulate_batch`)
-    and store them as the run's batch ``batch`` (its first run number); a small summary
-    back (``batch``, ``runs``, ``rows``, ``failed``, ``wall_time_s``). The Prefect task of
-    a batch and the command's batches in this process are this call."""
+    and store them as the batch ``batch`` (its first run number) of the run at ``run_url``
+    (absolute); a small summary back (``batch``, ``runs``, ``rows``, ``failed``,
+    ``wall_time_s``); ``on_run()`` after each run.
+
+    The inputs are plain: the plan (``MissionPlan.to_dict()``), the dispersions and the
+    force model of a high-fidelity closed loop (their JSON dumps). The job of every batch
+    of a plan's Monte Carlo (:class:`~ovtraj.store.monte_carlo.BatchJob`), wherever it
+    runs: the command's process, a pool's process, a Dask worker, a Prefect task."""
     start = time.perf_counter()
-    frame = simulate_batch(plan, dispersions, runs, seed, force_model, on_run)
-    run.write_batch(batch, frame)
+    frame = simulate_batch(
+        MissionPlan.model_validate(plan),
+        model_from_dict(DispersionsConfig, dispersions, "the run's dispersions"),
+        runs,
+        seed,
+        None
+        if force_model is None
+        else model_from_dict(ForceModelSettings, force_model, "the run's force model"),
+        on_run,
+    )
+    PlanMonteCarloRun(Path(run_url)).write_batch(batch, frame)
     return {
         "batch": batch,
         "runs": len(runs),

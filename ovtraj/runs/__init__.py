@@ -1,5 +1,6 @@
 """DoE runs of the mission chain and their Parquet run store; a plan's stored
-Monte Carlo, its one driver (:mod:`ovtraj.runs.plan_monte_carlo`)."""
+Monte Carlo (:mod:`ovtraj.runs.plan_monte_carlo`, a study of the one Monte Carlo driver)
+and a Monte Carlo's batches on the library's pools (:mod:`ovtraj.runs.monte_carlo_pool`)."""
 
 from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.runs.execute import evaluate_batch, prepare_run, replay, run_doe

@@ -1,25 +1,23 @@
-"""The stored Monte Carlo of a mission plan, once: the one driver behind ``ovtraj fly PLAN
+"""A mission plan's stored Monte Carlo: the study of the one Monte Carlo driver
+(:func:`ovtraj.store.monte_carlo.drive_monte_carlo`) behind ``ovtraj fly PLAN
 --monte-carlo N`` and the plan Monte Carlo flow (``flows/mission_monte_carlo.py``).
 
 1. the run ``<store>/<run_id>/`` is created, or the stored one reopened
    (:class:`~ovtraj.mission.montecarlo_store.PlanMonteCarloRun`: its id hashes the plan,
    the dispersions that count for results, the runs, the seed, the code version and the
    force model of a high-fidelity closed loop);
-2. the runs it does not hold yet fly in batches of ``batch_size`` consecutive runs, by a
-   :data:`BatchFlier`, each batch storing its own part: one after another in this process
-   (:func:`fly_here`, the command) or as Prefect tasks on a task runner (the flow);
+2. the runs it does not hold yet fly in batches of ``batch_size`` consecutive runs, each
+   batch storing its own part (:func:`~ovtraj.mission.montecarlo_store.store_plan_batch`):
+   one after another in the command's process
+   (:class:`~ovtraj.runs.monte_carlo_pool.PoolFlier`), or as Prefect tasks on the flow's
+   task runner;
 3. ``summary.json`` (:meth:`PlanMonteCarloRun.report`, built from the stored batches
    alone), the run's status in ``run.json``, and the pictures
    (:mod:`ovtraj.plots.montecarlo`) in ``plots/``, their digests listed in ``run.json``.
-
-Where the batches fly is the flier's business, nothing else: the run id, the parts' rows,
-the summary and the pictures are the same either way (tests/test_montecarlo_store.py
-compares the flow's run with the command's file by file).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,39 +28,27 @@ from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.config.montecarlo_plots import MonteCarloPlotSettings, default_montecarlo_plots
 from ovtraj.mission.montecarlo_outcome import MANOEUVRES
 from ovtraj.mission.montecarlo_statistics import planned_dv
-from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, fly_batch
+from ovtraj.mission.montecarlo_store import PlanMonteCarloRun, store_plan_batch
 from ovtraj.mission.plan import MissionPlan
 from ovtraj.paths import config_path
 from ovtraj.plots.montecarlo import LOOPS, LandingPoints, Site, dv_figure, footprint_figure
 from ovtraj.plots.render import png_bytes
-from ovtraj.store.batched import consecutive_batches
+from ovtraj.store.monte_carlo import BatchJob
 from ovtraj.store.paths import store_root
 
-__all__ = [
-    "PICTURES",
-    "BatchFlier",
-    "PlanMonteCarloRequest",
-    "drive_plan_monte_carlo",
-    "fly_here",
-    "monte_carlo_figures",
-    "open_run",
-    "store_of",
-]
+__all__ = ["PICTURES", "PlanMonteCarlo", "monte_carlo_figures", "store_of"]
 
 # The pictures of a run, each stored as plots/<name>.png.
 PICTURES = ("landing_footprint", "dv_per_manoeuvre")
 _TOTAL = ("total", "dv_total_mps")  # the dV histograms' last panel and its stored column
 
-BatchFlier = Callable[[PlanMonteCarloRun, list[list[int]]], dict[int, str]]
-"""Flies the batches (each a list of consecutive run numbers) and stores each in the run
-as the batch of its first run number; returns the failed ones, by first run number, with
-what went wrong."""
-
 
 @dataclass(frozen=True)
-class PlanMonteCarloRequest:
-    """What a plan Monte Carlo flies and where it is stored: ``root`` the run store,
-    ``code`` the code version its id hashes, ``batch_size`` runs per stored part."""
+class PlanMonteCarlo:
+    """What a plan Monte Carlo flies and where it is stored
+    (:class:`~ovtraj.store.monte_carlo.MonteCarloStudy`): ``root`` the run store, ``code``
+    the code version its id hashes, ``batch_size`` runs per stored part; the closed loop
+    under ``force_model``'s sky when given."""
 
     plan: MissionPlan
     dispersions: DispersionsConfig
@@ -72,6 +58,57 @@ class PlanMonteCarloRequest:
     code: str
     batch_size: int
     force_model: ForceModelSettings | None = None
+
+    def open_run(self) -> PlanMonteCarloRun:
+        """The run of these inputs: created, or the stored one (same id) reopened."""
+        return PlanMonteCarloRun.create(
+            self.root,
+            plan=self.plan.to_dict(),
+            dispersions=self.dispersions.results_content(),
+            runs=self.runs,
+            seed=self.seed,
+            code=self.code,
+            force_model=self._force_model(),
+        )
+
+    def job(self, run: PlanMonteCarloRun) -> BatchJob:
+        """A batch of ``run``: :func:`~ovtraj.mission.montecarlo_store.store_plan_batch` of
+        the plan, the dispersions, the run's absolute path, the seed and the force model."""
+        return BatchJob(
+            store_plan_batch,
+            {
+                "plan": self.plan.to_dict(),
+                "dispersions": self.dispersions.model_dump(mode="json"),
+                "run_url": str(run.directory.resolve()),
+                "seed": self.seed,
+                "force_model": self._force_model(),
+            },
+        )
+
+    def finish(
+        self, run: PlanMonteCarloRun, simulated: int, failures: dict[int, str]
+    ) -> dict[str, Any]:
+        """The run's report (:meth:`PlanMonteCarloRun.report`, as ``summary.json`` holds it)
+        with what this pass adds: ``directory`` (absolute), ``simulated_runs``, ``plots``
+        (the pictures' absolute paths) and ``failed_batches`` (a line for each batch that
+        failed; the stored ones are kept and a new pass flies only the missing runs)."""
+        report = run.report()
+        run.write_summary(report)
+        pictures = monte_carlo_figures(run)
+        plots = run.write_plots({f"{name}.png": png_bytes(pictures[name]) for name in PICTURES})
+        failed = [f"runs from {k}: {why}" for k, why in sorted(failures.items())]
+        run.update_info(status=report["status"], failures=failed)
+        return {
+            **report,
+            "directory": str(run.directory.absolute()),
+            "simulated_runs": simulated,
+            "plots": [str(p.absolute()) for p in plots],
+            "failed_batches": failed,
+        }
+
+    def _force_model(self) -> dict[str, Any] | None:
+        force_model = self.force_model
+        return None if force_model is None else force_model.model_dump(mode="json")
 
 
 def store_of(
@@ -83,86 +120,6 @@ def store_of(
     ``runs/``, which ``ovtraj runs`` and ``ovtraj history`` read."""
     read = config_path("dispersions.yaml") if dispersions_file is None else dispersions_file
     return store_root(dispersions.execution.store, Path(read).resolve().parent, override)
-
-
-def open_run(request: PlanMonteCarloRequest) -> PlanMonteCarloRun:
-    """The request's run: created, or the stored one (same id) reopened."""
-    force_model = request.force_model
-    return PlanMonteCarloRun.create(
-        request.root,
-        plan=request.plan.to_dict(),
-        dispersions=request.dispersions.results_content(),
-        runs=request.runs,
-        seed=request.seed,
-        code=request.code,
-        force_model=None if force_model is None else force_model.model_dump(mode="json"),
-    )
-
-
-def drive_plan_monte_carlo(
-    request: PlanMonteCarloRequest,
-    fly: BatchFlier,
-    *,
-    opened: Callable[[PlanMonteCarloRun, int], None] | None = None,
-) -> dict[str, Any]:
-    """The Monte Carlo of ``request`` stored (module notes), its batches flown by ``fly``;
-    ``opened(run, runs to fly)`` once the run is known, before any flight.
-
-    Returns the run's report (:meth:`PlanMonteCarloRun.report`, as ``summary.json`` holds
-    it) with what this pass adds: ``directory`` (absolute), ``simulated_runs``, ``plots``
-    (the pictures' absolute paths) and ``failed_batches`` (a line for each batch that
-    failed; the stored ones are kept and a new pass flies only the missing runs)."""
-    run = open_run(request)
-    todo = sorted(set(range(request.runs)) - run.done_runs())
-    if opened is not None:
-        opened(run, len(todo))
-    failures: dict[int, str] = {}
-    batches = consecutive_batches(todo, request.batch_size)
-    if batches:
-        run.update_info(status="running")
-        failures = fly(run, batches)
-    report = run.report()
-    run.write_summary(report)
-    pictures = monte_carlo_figures(run)
-    plots = run.write_plots({f"{name}.png": png_bytes(pictures[name]) for name in PICTURES})
-    failed = [f"runs from {k}: {why}" for k, why in sorted(failures.items())]
-    run.update_info(status=report["status"], failures=failed)
-    return {
-        **report,
-        "directory": str(run.directory.absolute()),
-        "simulated_runs": len(todo),
-        "plots": [str(p.absolute()) for p in plots],
-        "failed_batches": failed,
-    }
-
-
-def fly_here(
-    request: PlanMonteCarloRequest, on_run: Callable[[], None] | None = None
-) -> BatchFlier:
-    """A :data:`BatchFlier` that flies the batches one after another in this process
-    (:func:`~ovtraj.mission.montecarlo_store.fly_batch`, the Prefect task's body);
-    ``on_run()`` after each run. A batch that raises is a failed batch, as a failed
-    task is in the flow, and the next one still flies."""
-
-    def fly(run: PlanMonteCarloRun, batches: list[list[int]]) -> dict[int, str]:
-        failures: dict[int, str] = {}
-        for runs in batches:
-            try:
-                fly_batch(
-                    run,
-                    request.plan,
-                    request.dispersions,
-                    runs[0],
-                    runs,
-                    request.seed,
-                    request.force_model,
-                    on_run,
-                )
-            except Exception as err:  # reported per batch, as the flow does
-                failures[runs[0]] = f"{type(err).__name__}: {err}"
-        return failures
-
-    return fly
 
 
 def monte_carlo_figures(

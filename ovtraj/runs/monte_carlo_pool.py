@@ -1,0 +1,137 @@
+"""A stored Monte Carlo's batches on the library's pools (:func:`.runners.batch_pool`):
+the :class:`~ovtraj.store.monte_carlo.BatchFlier` of the command line.
+
+``serial`` flies the batches one after another in this process (``ovtraj fly PLAN
+--monte-carlo N``), a step after each run; ``threads``, ``processes`` and ``dask`` submit
+every batch at once to the pool, each job carrying its plain inputs
+(:class:`~ovtraj.store.monte_carlo.BatchJob`), and count its runs when it ends. The
+Prefect tasks of the flows are the other flier (``flows/monte_carlo_tasks.py``).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import functools
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from types import TracebackType
+from typing import Any
+
+from ovtraj.config.orchestration import DaskSettings, load_orchestration
+from ovtraj.runs.runners import BatchPool, ClusterError, RunnerChoice, batch_pool
+from ovtraj.store.batched import BatchedRun
+from ovtraj.store.monte_carlo import BatchJob
+
+__all__ = ["PoolFlier"]
+
+
+class PoolFlier:
+    """The batches of a stored Monte Carlo on the pool of ``choice``, started on enter.
+
+    ``on_run()`` after each run flown (on a pool: a batch's runs when it ends). A batch
+    that raises is a failed batch (by its first run, with what went wrong), as a failed
+    task is in the flows, and the others still fly. On a Dask cluster that has had no
+    worker for ``dask.no_worker_timeout_s`` (``dask``: ``configs/orchestration.yaml``'s
+    unless given), the batches still waiting are cancelled and :class:`ClusterError` is
+    raised."""
+
+    def __init__(
+        self,
+        choice: RunnerChoice,
+        *,
+        on_run: Callable[[], None] | None = None,
+        dask: DaskSettings | None = None,
+    ) -> None:
+        self.choice, self.on_run, self.dask = choice, on_run, dask
+        self._stack = ExitStack()
+        self.pool: BatchPool | None = None
+
+    def __enter__(self) -> PoolFlier:
+        choice = self.choice
+        if self.dask is None and choice.runner != "serial":  # a pool's settings only
+            self.dask = load_orchestration().dask
+        self.pool = self._stack.enter_context(
+            batch_pool(choice.runner, choice.workers, choice.dask_address, self.dask)
+        )
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        trace: TracebackType | None,
+    ) -> None:
+        self.pool = None
+        self._stack.close()
+
+    def fly(self, run: BatchedRun, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
+        """Each batch flown by ``job`` (stored in ``run`` by the job itself); the failed
+        batches by first run."""
+        if self.pool is None or self.pool.executor is None:
+            return self._fly_here(job, batches)
+        return self._fly_on_pool(job, batches)
+
+    def _fly_here(self, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
+        failures: dict[int, str] = {}
+        for runs in batches:
+            try:
+                job.function(**job.inputs, batch=runs[0], runs=runs, on_run=self.on_run)
+            except Exception as err:  # reported per batch, as the flows report a task
+                failures[runs[0]] = f"{type(err).__name__}: {err}"
+        return failures
+
+    def _fly_on_pool(self, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
+        assert self.pool is not None and self.pool.executor is not None
+        submitted = {
+            self.pool.executor.submit(
+                functools.partial(job.function, **job.inputs, batch=runs[0], runs=runs)
+            ): runs
+            for runs in batches
+        }
+        failures: dict[int, str] = {}
+        pending = set(submitted)
+        gone_since: float | None = None
+        while pending:
+            done, pending = concurrent.futures.wait(
+                pending, timeout=self._no_worker_s() / 10, return_when="FIRST_COMPLETED"
+            )
+            for future in done:
+                failures.update(self._ended(future, submitted[future]))
+            if pending:
+                gone_since = self._check_workers(gone_since, pending)
+        return failures
+
+    def _ended(self, future: concurrent.futures.Future, runs: list[int]) -> dict[int, str]:
+        """A batch's job ended: its runs counted, or its failure."""
+        try:
+            future.result()
+        except Exception as err:
+            return {runs[0]: f"{type(err).__name__}: {err}"}
+        if self.on_run is not None:
+            for _ in runs:
+                self.on_run()
+        return {}
+
+    def _no_worker_s(self) -> float:
+        return self.dask.no_worker_timeout_s if self.dask is not None else float("inf")
+
+    def _check_workers(self, gone_since: float | None, pending: set[Any]) -> float | None:
+        """When the workers went missing (None: they are there); past the bound, the
+        waiting batches cancelled and :class:`ClusterError` raised."""
+        assert self.pool is not None
+        if self.pool.workers_alive():
+            return None
+        now = time.monotonic()
+        if gone_since is None:
+            return now
+        no_worker = self._no_worker_s()
+        if now - gone_since < no_worker:
+            return gone_since
+        for future in pending:
+            future.cancel()
+        raise ClusterError(
+            f"the Dask cluster has had no worker for {no_worker:g} s "
+            "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
+            f"{len(pending)} batch(es) waiting: its workers died or left; see their logs"
+        )
