@@ -8,6 +8,8 @@ the pipeline.
 - :mod:`.products`: a directory of files listed by a marker written last;
 - :mod:`.batched`: a run stored batch by batch (the generic store of the Monte Carlo
   studies; the mission DoE's run store is :mod:`ovtraj.runs.store`);
+- :mod:`.monte_carlo`: the one driver of such a run, its missing batches flown by whatever
+  flier the caller gives (the command's process or pool, the flows' Prefect tasks);
 - :mod:`.result_records`: Prefect's task result records, read as data only;
 - :mod:`.paths`: where a run store is (``--store``, the config's, the workspace's);
 - :mod:`.settings`: the store's limits and waits, given by the configuration layer.
