@@ -64,7 +64,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.elements import (
     FloatOrArray,
     NonsingularElements,
@@ -204,8 +204,8 @@ def propagate_mean(
         ex=_scalar_or_array(ex_t),
         ey=_scalar_or_array(ey_t),
         i=_scalar_or_array(np.array(i_t)),
-        raan=_scalar_or_array(np.mod(raan + np.asarray(raan_dot) * dt, TWO_PI)),
-        u=_scalar_or_array(np.mod(u_t, TWO_PI)),
+        raan=_scalar_or_array(wrap_to_two_pi(raan + np.asarray(raan_dot) * dt)),
+        u=_scalar_or_array(wrap_to_two_pi(u_t)),
     )
 
 
@@ -329,8 +329,8 @@ def _from_lambda_tuple(x: tuple[NDArray[np.float64], ...]) -> NonsingularElement
         ex=_scalar_or_array(ex),
         ey=_scalar_or_array(ey),
         i=_scalar_or_array(i),
-        raan=_scalar_or_array(np.mod(raan, TWO_PI)),
-        u=_scalar_or_array(np.mod(u, TWO_PI)),
+        raan=_scalar_or_array(wrap_to_two_pi(raan)),
+        u=_scalar_or_array(wrap_to_two_pi(u)),
     )
 
 

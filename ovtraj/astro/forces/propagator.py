@@ -28,6 +28,7 @@ from ovtraj.astro.forces.dynamics import (
     step_boundaries,
     symbols,
 )
+from ovtraj.units import S_PER_DAY
 
 __all__ = ["AccelerationFunction", "Arc", "HighFidelityPropagator", "rhs_function"]
 
@@ -133,7 +134,7 @@ class HighFidelityPropagator:
         if abs(t1 - t0) > self.max_arc_s:
             raise ValueError(
                 f"an arc of {abs(t1 - t0):.0f} s exceeds integration.max_arc_days "
-                f"({self.max_arc_s / 86400.0:g} days)"
+                f"({self.max_arc_s / S_PER_DAY:g} days)"
             )
         state = np.asarray(state, dtype=float)
         radius0 = float(np.linalg.norm(state[:3]))
