@@ -166,15 +166,56 @@ def _fmt(value: float, key: str) -> str:
 
 
 def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
-    """Convert a validated config to SI and check that the problem can be posed."""
+    """Convert a validated config to SI and check that the problem can be posed.
+
+    Every check adds its line to the refusal, in the order of the config's sections; the
+    terminal energy is checked once the rest stands (it needs a posable problem).
+    """
+    problems: list[str] = []
+    states = _states(config, problems)
+    atmosphere = _atmosphere(config, states["state_lower"], states["state_upper"], problems)
+    controls = _controls(config, problems)
+    if config.objective == "min_heat_load" and config.path.heat_rate is None:
+        problems.append(
+            "objective = 'min_heat_load': needs path.heat_rate (the heat-rate law to integrate)"
+        )
+    problem = EntryProblem(
+        config=config,
+        source=source,
+        **_earth(config),
+        **_vehicle(config),
+        **atmosphere,
+        **states,
+        **controls,
+        **_path_limits(config),
+        **_task(config),
+    )
+    if not problems:
+        problems.extend(_energy_problems(problem))
+    if problems:
+        raise ConfigError(problems, source)
+    return problem
+
+
+def _earth(config: OptimalEntryConfig) -> dict[str, Any]:
+    """mu, radius, rotation rate (0 when the Earth does not rotate), g0 and the gravity
+    model: the config's, or the project's Earth where it leaves them out."""
     earth = default_earth()
     e = config.earth
-    mu = e.mu_m3_s2 if e.mu_m3_s2 is not None else earth.mu
-    radius = e.radius_m if e.radius_m is not None else earth.radius
     omega_value = e.rotation_rate_rad_s if e.rotation_rate_rad_s is not None else earth.omega
-    g0 = e.g0_m_s2 if e.g0_m_s2 is not None else earth.g0_m_s2
-    problems: list[str] = []
+    return {
+        "mu": e.mu_m3_s2 if e.mu_m3_s2 is not None else earth.mu,
+        "radius": e.radius_m if e.radius_m is not None else earth.radius,
+        "omega": omega_value if e.rotating else 0.0,
+        "g0": e.g0_m_s2 if e.g0_m_s2 is not None else earth.g0_m_s2,
+        "gravity": e.gravity,
+    }
 
+
+def _states(config: OptimalEntryConfig, problems: list[str]) -> dict[str, NDArray[np.float64]]:
+    """The initial state, the state bounds and the terminal bounds (within the state
+    bounds) in SI; the initial state outside its bounds and terminal bounds that do not
+    meet them are refused in ``problems``."""
     sb = config.state_bounds
     state_lower = np.array([getattr(sb, _CONFIG_FIELD[k])[0] * _TO_SI[k] for k in STATE_KEYS])
     state_upper = np.array([getattr(sb, _CONFIG_FIELD[k])[1] * _TO_SI[k] for k in STATE_KEYS])
@@ -203,7 +244,23 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
             "state_bounds.speed_mps: the energy formulation needs a positive lower speed "
             "(the speed is recovered from the energy by a square root)"
         )
+    return {
+        "initial_state": initial,
+        "state_lower": state_lower,
+        "state_upper": state_upper,
+        "final_lower": final_lower,
+        "final_upper": final_upper,
+    }
 
+
+def _atmosphere(
+    config: OptimalEntryConfig,
+    state_lower: NDArray[np.float64],
+    state_upper: NDArray[np.float64],
+    problems: list[str],
+) -> dict[str, Any]:
+    """The library's atmosphere (numpy), its top and the NLP's expressions of it; US76
+    refuses altitude bounds outside its range."""
     atm = config.atmosphere
     top = state_upper[0]
     if atm.model == "us76":
@@ -226,10 +283,13 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
         nlp_atm = exponential_atmosphere(
             atm.density0_kg_m3, atm.scale_height_km * 1e3, atm.speed_of_sound_mps
         )
+    return {"atmosphere": model, "atmosphere_top_m": atmosphere_top, "nlp_atmosphere": nlp_atm}
 
+
+def _controls(config: OptimalEntryConfig, problems: list[str]) -> dict[str, Any]:
+    """The bounds and rate limits of (alpha, bank) in rad and rad/s; a guess outside the
+    bounds is refused in ``problems``."""
     c = config.controls
-    control_lower = np.radians([c.alpha.lower_deg, c.bank.lower_deg])
-    control_upper = np.radians([c.alpha.upper_deg, c.bank.upper_deg])
     rates = tuple(
         None if ctl.max_rate_deg_s is None else math.radians(ctl.max_rate_deg_s)
         for ctl in (c.alpha, c.bank)
@@ -245,56 +305,56 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
             f"guess.bank_deg = {g.bank_deg:g}: outside controls.bank "
             f"[{c.bank.lower_deg:g}, {c.bank.upper_deg:g}]"
         )
+    return {
+        "control_lower": np.radians([c.alpha.lower_deg, c.bank.lower_deg]),
+        "control_upper": np.radians([c.alpha.upper_deg, c.bank.upper_deg]),
+        "control_rate": (rates[0], rates[1]),
+    }
 
+
+def _vehicle(config: OptimalEntryConfig) -> dict[str, Any]:
+    """Mass, reference area and the lift and drag polynomials with their alpha unit."""
+    aero = config.vehicle.aero
+    return {
+        "mass": config.vehicle.mass_kg,
+        "area": config.vehicle.reference_area_m2,
+        "cl": np.array(aero.cl, dtype=float),
+        "cd": np.array(aero.cd, dtype=float),
+        "alpha_scale": 180.0 / math.pi if aero.alpha_unit == "deg" else 1.0,
+    }
+
+
+def _path_limits(config: OptimalEntryConfig) -> dict[str, Any]:
+    """The load, dynamic-pressure and heat-rate limits in SI (None: not constrained) and
+    the heat-rate law."""
     path = config.path
     heat = path.heat_rate
-    if config.objective == "min_heat_load" and heat is None:
-        problems.append(
-            "objective = 'min_heat_load': needs path.heat_rate (the heat-rate law to integrate)"
-        )
-    aero = config.vehicle.aero
-    s = config.solver
-    problem = EntryProblem(
-        config=config,
-        source=source,
-        mu=mu,
-        radius=radius,
-        omega=omega_value if e.rotating else 0.0,
-        g0=g0,
-        gravity=e.gravity,
-        mass=config.vehicle.mass_kg,
-        area=config.vehicle.reference_area_m2,
-        cl=np.array(aero.cl, dtype=float),
-        cd=np.array(aero.cd, dtype=float),
-        alpha_scale=180.0 / math.pi if aero.alpha_unit == "deg" else 1.0,
-        atmosphere=model,
-        atmosphere_top_m=atmosphere_top,
-        nlp_atmosphere=nlp_atm,
-        initial_state=initial,
-        state_lower=state_lower,
-        state_upper=state_upper,
-        final_lower=final_lower,
-        final_upper=final_upper,
-        control_lower=control_lower,
-        control_upper=control_upper,
-        control_rate=(rates[0], rates[1]),
-        max_load_g=path.max_load_g,
-        load_definition=path.load_definition,
-        max_dynamic_pressure=None
+    return {
+        "max_load_g": path.max_load_g,
+        "load_definition": path.load_definition,
+        "max_dynamic_pressure": None
         if path.max_dynamic_pressure_kpa is None
         else path.max_dynamic_pressure_kpa * 1e3,
-        heat_coefficient=None if heat is None else heat.coefficient,
-        heat_density_exponent=0.0 if heat is None else heat.density_exponent,
-        heat_speed_exponent=0.0 if heat is None else heat.speed_exponent,
-        heat_alpha_polynomial=np.array([1.0] if heat is None else heat.alpha_polynomial),
-        max_heat_rate=None if heat is None else heat.max_kw_m2 * 1e3,
-        objective=config.objective,
-        independent=config.transcription.independent,
-        method=config.transcription.method,
-        segments=config.transcription.segments,
-        nodes_per_segment=config.transcription.nodes_per_segment,
-        final_time_bounds=config.transcription.final_time_bounds_s,
-        solver=NlpSettings(
+        "heat_coefficient": None if heat is None else heat.coefficient,
+        "heat_density_exponent": 0.0 if heat is None else heat.density_exponent,
+        "heat_speed_exponent": 0.0 if heat is None else heat.speed_exponent,
+        "heat_alpha_polynomial": np.array([1.0] if heat is None else heat.alpha_polynomial),
+        "max_heat_rate": None if heat is None else heat.max_kw_m2 * 1e3,
+    }
+
+
+def _task(config: OptimalEntryConfig) -> dict[str, Any]:
+    """The objective, the transcription and the solver's settings."""
+    t = config.transcription
+    s = config.solver
+    return {
+        "objective": config.objective,
+        "independent": t.independent,
+        "method": t.method,
+        "segments": t.segments,
+        "nodes_per_segment": t.nodes_per_segment,
+        "final_time_bounds": t.final_time_bounds_s,
+        "solver": NlpSettings(
             backend=s.backend,
             tolerance=s.tolerance,
             constraint_tolerance=s.constraint_tolerance,
@@ -305,20 +365,22 @@ def entry_problem(config: OptimalEntryConfig, source: str = "") -> EntryProblem:
             expand=s.expand,
             time_limit_s=s.time_limit_s,
         ),
-    )
-    if not problems:
-        e0 = problem.initial_energy
-        e_lo, _ = problem.terminal_energy_bounds()
-        if not e_lo < e0:
-            problems.append(
-                f"terminal.altitude_km, terminal.speed_mps: the lowest terminal energy they "
-                f"allow ({e_lo / 1e6:.6g} MJ/kg) is not below the initial energy "
-                f"({e0 / 1e6:.6g} MJ/kg, initial.altitude_km and initial.speed_mps); an "
-                f"unpowered entry only loses energy"
-            )
-    if problems:
-        raise ConfigError(problems, source)
-    return problem
+    }
+
+
+def _energy_problems(problem: EntryProblem) -> list[str]:
+    """An unpowered entry only loses energy: the lowest terminal energy must lie below
+    the initial one."""
+    e0 = problem.initial_energy
+    e_lo, _ = problem.terminal_energy_bounds()
+    if e_lo < e0:
+        return []
+    return [
+        f"terminal.altitude_km, terminal.speed_mps: the lowest terminal energy they "
+        f"allow ({e_lo / 1e6:.6g} MJ/kg) is not below the initial energy "
+        f"({e0 / 1e6:.6g} MJ/kg, initial.altitude_km and initial.speed_mps); an "
+        f"unpowered entry only loses energy"
+    ]
 
 
 def load_optimal_entry(path: str | Path) -> EntryProblem:
