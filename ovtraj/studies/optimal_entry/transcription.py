@@ -91,7 +91,7 @@ class Transcription:
 
     def jacobian(self) -> ca.Function:
         """``(x, p) -> (g, dg/dx)`` for IPOPT, block by block: a constant sparse matrix for
-        the linear terms plus CasADi's Jacobian of the nonlinear ones (issue 22).
+        the linear terms plus CasADi's Jacobian of the nonlinear ones.
 
         A segment's differentiation matrix couples all its state points, so the Jacobian
         of the whole of ``g`` needs a forward sweep per state-point variable through every
@@ -253,109 +253,14 @@ def transcribe(
     point_fraction, colloc_fraction, colloc_point, support_idx, segment_points, edges = _layout(
         scheme, edges
     )
-    nx, nu, npar = ocp.nx, ocp.nu, ocp.npar
     m, kc = len(point_fraction), len(colloc_fraction)
-
-    # MX variables around per-node SX functions: derivatives are generated for one node
-    # and mapped, which builds the NLP in a fraction of the time of one flat SX graph.
-    xs = ca.MX.sym("x", nx, m)  # scaled states, one column per state point
-    us = ca.MX.sym("u", nu, kc)
-    sf_var = ca.MX.sym("sf") if ocp.free_final else None
-    ps = ca.MX.sym("p", npar)
-    x_scale = ca.DM(ocp.state_scale)
-    x = xs * ca.repmat(x_scale, 1, m)
-    u = us * ca.repmat(ca.DM(ocp.control_scale), 1, kc)
-    p = ps * ca.DM(ocp.parameter_scale) if npar else ps
-    sf = sf_var * ocp.sf_scale if sf_var is not None else ca.MX(ocp.sf_bounds[0])
-    span = sf - ocp.s0
-    s_colloc = ocp.s0 + ca.DM(colloc_fraction).T * span
-
-    # One symbolic evaluation per node; map() keeps the expression graph compact. The
-    # node functions are the problem's, so every mesh of a refinement reuses their
-    # derivatives.
-    node = ocp.node_functions
-    x_colloc = x[:, colloc_point.tolist()]
-    f_all = node.dynamics.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
-
-    constraints: list[ca.MX] = []
-    lbg: list[NDArray] = []
-    ubg: list[NDArray] = []
-    d = ca.DM(scheme.d)
-    w = ca.DM(scheme.weights)
-    inv_scale = ca.DM(1.0 / ocp.state_scale)
-    objective = ca.MX(0.0)
-    if node.lagrange is not None:
-        l_all = node.lagrange.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
-    n = scheme.n
-    # Constraint blocks as (linear terms, nonlinear terms, lower, upper): the linear terms
-    # (differentiation matrices, end-point differences, monotonicity) have a constant
-    # Jacobian, evaluated once (Transcription.jacobian).
-    blocks: list[tuple[ca.MX | None, ca.MX | None, NDArray, NDArray]] = []
-    defect_linear, defect_dynamics, end_linear, end_dynamics = [], [], [], []
-    for k in range(segments):
-        half = 0.5 * span * float(edges[k + 1] - edges[k])
-        cols = list(range(k * n, (k + 1) * n))
-        f_k = f_all[:, cols] * ca.repmat(inv_scale, 1, n)
-        defect_linear.append(ca.vec(ca.mtimes(xs[:, support_idx[k].tolist()], d.T)))
-        defect_dynamics.append(ca.vec(-half * f_k))
-        if scheme.end_by_quadrature:
-            end = int(segment_points[k][-1])
-            start = int(support_idx[k][0])
-            end_linear.append(xs[:, end] - xs[:, start])
-            end_dynamics.append(-half * ca.mtimes(f_k, w))
-        if node.lagrange is not None:
-            objective += half * ca.mtimes(l_all[:, cols], w)
-    zeros = np.zeros(nx * kc)
-    blocks.append((ca.vertcat(*defect_linear), ca.vertcat(*defect_dynamics), zeros, zeros))
-    if end_linear:
-        zeros = np.zeros(nx * segments)
-        blocks.append((ca.vertcat(*end_linear), ca.vertcat(*end_dynamics), zeros, zeros))
-    for j in ocp.increasing_states:
-        # State points are in increasing s: consecutive differences of x_j >= 0.
-        blocks.append(
-            (ca.vec(xs[j, 1:] - xs[j, : m - 1]), None, np.zeros(m - 1), np.full(m - 1, np.inf))
-        )
-    if node.path is not None:
-        c_all = node.path.map(kc)(x_colloc, u, s_colloc, ca.repmat(p, 1, kc))
-        blocks.append(
-            (None, ca.vec(c_all), np.tile(ocp.path_lower, kc), np.tile(ocp.path_upper, kc))
-        )
-    x_first, x_last = x[:, 0], x[:, m - 1]
-    if ocp.boundary is not None:
-        blocks.append(
-            (
-                None,
-                ocp.boundary(x_first, x_last, sf, p),
-                np.asarray(ocp.boundary_lower, dtype=float),
-                np.asarray(ocp.boundary_upper, dtype=float),
-            )
-        )
-    for linear, nonlinear, lower_g, upper_g in blocks:
-        parts = [term for term in (linear, nonlinear) if term is not None]
-        constraints.append(parts[0] + parts[1] if len(parts) == 2 else parts[0])
-        lbg.append(lower_g)
-        ubg.append(upper_g)
+    v = _variables(ocp, m, colloc_fraction, colloc_point)
+    blocks, objective = _collocation(ocp, scheme, edges, support_idx, segment_points, v)
+    blocks += _path_and_boundary(ocp, v)
+    constraints, lbg, ubg = _stacked(blocks)
     if ocp.mayer is not None:
-        objective += ocp.mayer(x_first, x_last, sf, p)
-
-    # Variable bounds: states everywhere, tightened at the two ends.
-    lower = np.tile(ocp.state_lower, (m, 1))
-    upper = np.tile(ocp.state_upper, (m, 1))
-    lower[0] = np.maximum(lower[0], ocp.initial_lower)
-    upper[0] = np.minimum(upper[0], ocp.initial_upper)
-    lower[-1] = np.maximum(lower[-1], ocp.final_lower)
-    upper[-1] = np.minimum(upper[-1], ocp.final_upper)
-    lbx = [(lower / ocp.state_scale).ravel(), np.tile(ocp.control_lower / ocp.control_scale, kc)]
-    ubx = [(upper / ocp.state_scale).ravel(), np.tile(ocp.control_upper / ocp.control_scale, kc)]
-    variables = [ca.vec(xs), ca.vec(us)]
-    if sf_var is not None:
-        variables.append(sf_var)
-        lbx.append(np.array([ocp.sf_bounds[0] / ocp.sf_scale]))
-        ubx.append(np.array([ocp.sf_bounds[1] / ocp.sf_scale]))
-    if npar:
-        variables.append(ps)
-        lbx.append(ocp.parameter_lower / ocp.parameter_scale)
-        ubx.append(ocp.parameter_upper / ocp.parameter_scale)
+        objective += ocp.mayer(v.x_first, v.x_last, v.sf, v.p)
+    variables, lbx, ubx = _variable_bounds(ocp, v, m, kc)
     nlp = {
         "x": ca.vertcat(*variables),
         "f": objective / ocp.objective_scale,
@@ -376,6 +281,177 @@ def transcribe(
         colloc_point=colloc_point,
         segment_points=segment_points,
         segment_edges=edges,
-        _nxvar=nx * m,
-        _nuvar=nu * kc,
+        _nxvar=ocp.nx * m,
+        _nuvar=ocp.nu * kc,
     )
+
+
+# A block of g's rows: (linear terms, nonlinear terms, lower bounds, upper bounds). The
+# linear terms (differentiation matrices, end-point differences, monotonicity) have a
+# constant Jacobian, evaluated once (Transcription.jacobian).
+_Block = tuple[ca.MX | None, ca.MX | None, NDArray, NDArray]
+
+
+@dataclass(frozen=True)
+class _Variables:
+    """The NLP's variables (scaled) and the physical values they stand for."""
+
+    xs: ca.MX  # scaled states, one column per state point
+    us: ca.MX  # scaled controls, one column per collocation point
+    sf_var: ca.MX | None  # the scaled final value of s, when free
+    ps: ca.MX  # scaled parameters
+    x: ca.MX
+    u: ca.MX
+    p: ca.MX
+    sf: ca.MX
+    span: ca.MX  # sf - s0
+    s_colloc: ca.MX
+    x_colloc: ca.MX  # the states at the collocation points
+    x_first: ca.MX
+    x_last: ca.MX
+
+
+def _variables(
+    ocp: OptimalControlProblem, m: int, colloc_fraction: NDArray, colloc_point: NDArray
+) -> _Variables:
+    # MX variables around per-node SX functions: derivatives are generated for one node
+    # and mapped, which builds the NLP in a fraction of the time of one flat SX graph.
+    kc = len(colloc_fraction)
+    xs = ca.MX.sym("x", ocp.nx, m)
+    us = ca.MX.sym("u", ocp.nu, kc)
+    sf_var = ca.MX.sym("sf") if ocp.free_final else None
+    ps = ca.MX.sym("p", ocp.npar)
+    x_scale = ca.DM(ocp.state_scale)
+    x = xs * ca.repmat(x_scale, 1, m)
+    u = us * ca.repmat(ca.DM(ocp.control_scale), 1, kc)
+    p = ps * ca.DM(ocp.parameter_scale) if ocp.npar else ps
+    sf = sf_var * ocp.sf_scale if sf_var is not None else ca.MX(ocp.sf_bounds[0])
+    span = sf - ocp.s0
+    s_colloc = ocp.s0 + ca.DM(colloc_fraction).T * span
+    return _Variables(
+        xs=xs,
+        us=us,
+        sf_var=sf_var,
+        ps=ps,
+        x=x,
+        u=u,
+        p=p,
+        sf=sf,
+        span=span,
+        s_colloc=s_colloc,
+        x_colloc=x[:, colloc_point.tolist()],
+        x_first=x[:, 0],
+        x_last=x[:, m - 1],
+    )
+
+
+def _collocation(
+    ocp: OptimalControlProblem,
+    scheme: CollocationScheme,
+    edges: NDArray,
+    support_idx: list[NDArray],
+    segment_points: list[NDArray],
+    v: _Variables,
+) -> tuple[list[_Block], ca.MX]:
+    """The defect constraints of every segment (and, LG, its end by quadrature), and the
+    Lagrange term's quadrature (module notes)."""
+    nx, segments, n, kc = ocp.nx, len(edges) - 1, scheme.n, v.us.shape[1]
+    # One symbolic evaluation per node; map() keeps the expression graph compact. The
+    # node functions are the problem's, so every mesh of a refinement reuses their
+    # derivatives.
+    node = ocp.node_functions
+    f_all = node.dynamics.map(kc)(v.x_colloc, v.u, v.s_colloc, ca.repmat(v.p, 1, kc))
+    d = ca.DM(scheme.d)
+    w = ca.DM(scheme.weights)
+    inv_scale = ca.DM(1.0 / ocp.state_scale)
+    objective = ca.MX(0.0)
+    if node.lagrange is not None:
+        l_all = node.lagrange.map(kc)(v.x_colloc, v.u, v.s_colloc, ca.repmat(v.p, 1, kc))
+    defect_linear, defect_dynamics, end_linear, end_dynamics = [], [], [], []
+    for k in range(segments):
+        half = 0.5 * v.span * float(edges[k + 1] - edges[k])
+        cols = list(range(k * n, (k + 1) * n))
+        f_k = f_all[:, cols] * ca.repmat(inv_scale, 1, n)
+        defect_linear.append(ca.vec(ca.mtimes(v.xs[:, support_idx[k].tolist()], d.T)))
+        defect_dynamics.append(ca.vec(-half * f_k))
+        if scheme.end_by_quadrature:
+            end = int(segment_points[k][-1])
+            start = int(support_idx[k][0])
+            end_linear.append(v.xs[:, end] - v.xs[:, start])
+            end_dynamics.append(-half * ca.mtimes(f_k, w))
+        if node.lagrange is not None:
+            objective += half * ca.mtimes(l_all[:, cols], w)
+    zeros = np.zeros(nx * kc)
+    blocks: list[_Block] = [
+        (ca.vertcat(*defect_linear), ca.vertcat(*defect_dynamics), zeros, zeros)
+    ]
+    if end_linear:
+        zeros = np.zeros(nx * segments)
+        blocks.append((ca.vertcat(*end_linear), ca.vertcat(*end_dynamics), zeros, zeros))
+    return blocks, objective
+
+
+def _path_and_boundary(ocp: OptimalControlProblem, v: _Variables) -> list[_Block]:
+    """The states that may not decrease, the path constraints at the collocation points
+    and the boundary constraints."""
+    m, kc = v.xs.shape[1], v.us.shape[1]
+    blocks: list[_Block] = []
+    for j in ocp.increasing_states:
+        # State points are in increasing s: consecutive differences of x_j >= 0.
+        blocks.append(
+            (ca.vec(v.xs[j, 1:] - v.xs[j, : m - 1]), None, np.zeros(m - 1), np.full(m - 1, np.inf))
+        )
+    node = ocp.node_functions
+    if node.path is not None:
+        c_all = node.path.map(kc)(v.x_colloc, v.u, v.s_colloc, ca.repmat(v.p, 1, kc))
+        blocks.append(
+            (None, ca.vec(c_all), np.tile(ocp.path_lower, kc), np.tile(ocp.path_upper, kc))
+        )
+    if ocp.boundary is not None:
+        blocks.append(
+            (
+                None,
+                ocp.boundary(v.x_first, v.x_last, v.sf, v.p),
+                np.asarray(ocp.boundary_lower, dtype=float),
+                np.asarray(ocp.boundary_upper, dtype=float),
+            )
+        )
+    return blocks
+
+
+def _stacked(blocks: list[_Block]) -> tuple[list[ca.MX], list[NDArray], list[NDArray]]:
+    """Each block's rows (its linear plus its nonlinear terms) and their bounds."""
+    constraints: list[ca.MX] = []
+    lbg: list[NDArray] = []
+    ubg: list[NDArray] = []
+    for linear, nonlinear, lower_g, upper_g in blocks:
+        parts = [term for term in (linear, nonlinear) if term is not None]
+        constraints.append(parts[0] + parts[1] if len(parts) == 2 else parts[0])
+        lbg.append(lower_g)
+        ubg.append(upper_g)
+    return constraints, lbg, ubg
+
+
+def _variable_bounds(
+    ocp: OptimalControlProblem, v: _Variables, m: int, kc: int
+) -> tuple[list[ca.MX], list[NDArray], list[NDArray]]:
+    """The NLP's variables in order and their (scaled) bounds: states everywhere,
+    tightened at the two ends; controls; the final value of s; the parameters."""
+    lower = np.tile(ocp.state_lower, (m, 1))
+    upper = np.tile(ocp.state_upper, (m, 1))
+    lower[0] = np.maximum(lower[0], ocp.initial_lower)
+    upper[0] = np.minimum(upper[0], ocp.initial_upper)
+    lower[-1] = np.maximum(lower[-1], ocp.final_lower)
+    upper[-1] = np.minimum(upper[-1], ocp.final_upper)
+    lbx = [(lower / ocp.state_scale).ravel(), np.tile(ocp.control_lower / ocp.control_scale, kc)]
+    ubx = [(upper / ocp.state_scale).ravel(), np.tile(ocp.control_upper / ocp.control_scale, kc)]
+    variables = [ca.vec(v.xs), ca.vec(v.us)]
+    if v.sf_var is not None:
+        variables.append(v.sf_var)
+        lbx.append(np.array([ocp.sf_bounds[0] / ocp.sf_scale]))
+        ubx.append(np.array([ocp.sf_bounds[1] / ocp.sf_scale]))
+    if ocp.npar:
+        variables.append(v.ps)
+        lbx.append(ocp.parameter_lower / ocp.parameter_scale)
+        ubx.append(ocp.parameter_upper / ocp.parameter_scale)
+    return variables, lbx, ubx
