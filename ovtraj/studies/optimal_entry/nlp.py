@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import Bounds, NonlinearConstraint, minimize
+from scipy.optimize import Bounds, NonlinearConstraint, OptimizeResult, minimize
 
 from ovtraj.deadline import Deadline
 from ovtraj.studies.optimal_entry.transcription import Transcription
@@ -191,100 +191,17 @@ def _solve_scipy(
     tr: Transcription, w0: NDArray[np.float64], s: NlpSettings, deadline: Deadline
 ) -> NlpSolution:
     start = time.perf_counter()
-    x, f, g = tr.nlp["x"], tr.nlp["f"], tr.nlp["g"]
-    fixed = tr.lbx == tr.ubx
-    free = ~fixed
-    base = np.where(fixed, tr.lbx, np.clip(w0, tr.lbx, tr.ubx))
-    funcs = ca.Function("fg", [x], [f, ca.gradient(f, x), g, ca.jacobian(g, x)])
-
-    def full(z: NDArray[np.float64]) -> NDArray[np.float64]:
-        w = base.copy()
-        w[free] = z
-        return w
-
-    cache: dict[bytes, tuple] = {}
-
-    def evaluate(z: NDArray[np.float64]) -> tuple:
-        key = z.tobytes()
-        if key not in cache:
-            cache.clear()
-            fv, gr, gv, jac = funcs(full(z))
-            cache[key] = (
-                float(fv),
-                np.asarray(gr, dtype=float).ravel()[free],
-                np.asarray(gv, dtype=float).ravel(),
-                np.asarray(ca.densify(jac), dtype=float)[:, free],
-            )
-        return cache[key]
-
-    eq = tr.lbg == tr.ubg
-    low = ~eq & np.isfinite(tr.lbg)
-    high = ~eq & np.isfinite(tr.ubg)
-    z0 = base[free]
-    bounds = Bounds(tr.lbx[free], tr.ubx[free])
+    nlp = _ReducedNlp(tr, w0)
+    z0 = nlp.base[nlp.free]
+    bounds = Bounds(tr.lbx[nlp.free], tr.ubx[nlp.free])
     built = time.perf_counter()
     if s.backend == "slsqp":
-        constraints = [
-            {
-                "type": "eq",
-                "fun": lambda z: evaluate(z)[2][eq] - tr.lbg[eq],
-                "jac": lambda z: evaluate(z)[3][eq],
-            },
-            {
-                "type": "ineq",
-                "fun": lambda z: np.concatenate(
-                    (evaluate(z)[2][low] - tr.lbg[low], tr.ubg[high] - evaluate(z)[2][high])
-                ),
-                "jac": lambda z: np.vstack((evaluate(z)[3][low], -evaluate(z)[3][high])),
-            },
-        ]
-        if not (low.any() or high.any()):
-            constraints = constraints[:1]
-        res = minimize(
-            lambda z: evaluate(z)[0],
-            z0,
-            jac=lambda z: evaluate(z)[1],
-            method="SLSQP",
-            bounds=bounds,
-            constraints=constraints,
-            options={"maxiter": s.max_iterations, "ftol": s.tolerance},
-            callback=lambda *_: deadline.stop_if_expired(),
-        )
+        res = _slsqp(tr, nlp, z0, bounds, s, deadline)
     else:
-        lam = type(x).sym("lam", g.numel())
-        hessians = ca.Function(
-            "h", [x, lam], [ca.hessian(f, x)[0], ca.hessian(ca.dot(lam, g), x)[0]]
-        )
-
-        def hess_f(z: NDArray[np.float64]) -> NDArray[np.float64]:
-            return np.asarray(ca.densify(hessians(full(z), 0.0)[0]), dtype=float)[
-                np.ix_(free, free)
-            ]
-
-        def hess_g(z: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
-            return np.asarray(ca.densify(hessians(full(z), v)[1]), dtype=float)[np.ix_(free, free)]
-
-        nonlinear = NonlinearConstraint(
-            lambda z: evaluate(z)[2],
-            tr.lbg,
-            tr.ubg,
-            jac=lambda z: evaluate(z)[3],
-            hess=hess_g,
-        )
-        res = minimize(
-            lambda z: evaluate(z)[0],
-            z0,
-            jac=lambda z: evaluate(z)[1],
-            hess=hess_f,
-            method="trust-constr",
-            bounds=bounds,
-            constraints=[nonlinear],
-            options={"maxiter": s.max_iterations, "gtol": s.tolerance, "xtol": s.tolerance},
-            callback=lambda *_: deadline.stop_if_expired(),
-        )
+        res = _trust_constr(tr, nlp, z0, bounds, s, deadline)
     done = time.perf_counter()
-    w = full(np.asarray(res.x, dtype=float))
-    gv = np.asarray(funcs(w)[2], dtype=float).ravel()
+    w = nlp.full(np.asarray(res.x, dtype=float))
+    gv = np.asarray(nlp.funcs(w)[2], dtype=float).ravel()
     violation = _violation(tr, gv, w)
     iterations = int(getattr(res, "nit", 0) or 0)
     limit = None
@@ -303,4 +220,122 @@ def _solve_scipy(
         max_constraint_violation=violation,
         backend=s.backend,
         limit=limit,
+    )
+
+
+class _ReducedNlp:
+    """The NLP without its fixed variables (equal bounds, which SLSQP does not accept):
+    objective, gradient, constraints and their Jacobian (dense) from CasADi, evaluated once
+    per point for scipy's separate requests."""
+
+    def __init__(self, tr: Transcription, w0: NDArray[np.float64]) -> None:
+        x, f, g = tr.nlp["x"], tr.nlp["f"], tr.nlp["g"]
+        fixed = tr.lbx == tr.ubx
+        self.free = ~fixed
+        self.base = np.where(fixed, tr.lbx, np.clip(w0, tr.lbx, tr.ubx))
+        self.funcs = ca.Function("fg", [x], [f, ca.gradient(f, x), g, ca.jacobian(g, x)])
+        self._cache: dict[bytes, tuple] = {}
+
+    def full(self, z: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The whole NLP vector of the free variables ``z``."""
+        w = self.base.copy()
+        w[self.free] = z
+        return w
+
+    def evaluate(self, z: NDArray[np.float64]) -> tuple:
+        """(objective, its gradient, the constraints, their Jacobian) at ``z``."""
+        key = z.tobytes()
+        cache = self._cache
+        if key not in cache:
+            cache.clear()
+            fv, gr, gv, jac = self.funcs(self.full(z))
+            cache[key] = (
+                float(fv),
+                np.asarray(gr, dtype=float).ravel()[self.free],
+                np.asarray(gv, dtype=float).ravel(),
+                np.asarray(ca.densify(jac), dtype=float)[:, self.free],
+            )
+        return cache[key]
+
+
+def _slsqp(
+    tr: Transcription,
+    nlp: _ReducedNlp,
+    z0: NDArray[np.float64],
+    bounds: Bounds,
+    s: NlpSettings,
+    deadline: Deadline,
+) -> OptimizeResult:
+    """SLSQP with a quasi-Newton Hessian; the constraints as equalities and one-sided
+    inequalities."""
+    evaluate = nlp.evaluate
+    eq = tr.lbg == tr.ubg
+    low = ~eq & np.isfinite(tr.lbg)
+    high = ~eq & np.isfinite(tr.ubg)
+    constraints = [
+        {
+            "type": "eq",
+            "fun": lambda z: evaluate(z)[2][eq] - tr.lbg[eq],
+            "jac": lambda z: evaluate(z)[3][eq],
+        },
+        {
+            "type": "ineq",
+            "fun": lambda z: np.concatenate(
+                (evaluate(z)[2][low] - tr.lbg[low], tr.ubg[high] - evaluate(z)[2][high])
+            ),
+            "jac": lambda z: np.vstack((evaluate(z)[3][low], -evaluate(z)[3][high])),
+        },
+    ]
+    if not (low.any() or high.any()):
+        constraints = constraints[:1]
+    return minimize(
+        lambda z: evaluate(z)[0],
+        z0,
+        jac=lambda z: evaluate(z)[1],
+        method="SLSQP",
+        bounds=bounds,
+        constraints=constraints,
+        options={"maxiter": s.max_iterations, "ftol": s.tolerance},
+        callback=lambda *_: deadline.stop_if_expired(),
+    )
+
+
+def _trust_constr(
+    tr: Transcription,
+    nlp: _ReducedNlp,
+    z0: NDArray[np.float64],
+    bounds: Bounds,
+    s: NlpSettings,
+    deadline: Deadline,
+) -> OptimizeResult:
+    """trust-constr with CasADi's exact Hessians of the objective and of the
+    multiplier-weighted constraints."""
+    evaluate, full, free = nlp.evaluate, nlp.full, nlp.free
+    x, f, g = tr.nlp["x"], tr.nlp["f"], tr.nlp["g"]
+    lam = type(x).sym("lam", g.numel())
+    hessians = ca.Function("h", [x, lam], [ca.hessian(f, x)[0], ca.hessian(ca.dot(lam, g), x)[0]])
+
+    def hess_f(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(ca.densify(hessians(full(z), 0.0)[0]), dtype=float)[np.ix_(free, free)]
+
+    def hess_g(z: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(ca.densify(hessians(full(z), v)[1]), dtype=float)[np.ix_(free, free)]
+
+    nonlinear = NonlinearConstraint(
+        lambda z: evaluate(z)[2],
+        tr.lbg,
+        tr.ubg,
+        jac=lambda z: evaluate(z)[3],
+        hess=hess_g,
+    )
+    return minimize(
+        lambda z: evaluate(z)[0],
+        z0,
+        jac=lambda z: evaluate(z)[1],
+        hess=hess_f,
+        method="trust-constr",
+        bounds=bounds,
+        constraints=[nonlinear],
+        options={"maxiter": s.max_iterations, "gtol": s.tolerance, "xtol": s.tolerance},
+        callback=lambda *_: deadline.stop_if_expired(),
     )
