@@ -41,7 +41,11 @@ from ovtraj.studies.optimal_entry.nlp import NlpSolution, solve_nlp, stopped_bef
 from ovtraj.studies.optimal_entry.ocp import Guess
 from ovtraj.studies.optimal_entry.problem import EntryProblem
 from ovtraj.studies.optimal_entry.result import OptimalEntryResult
-from ovtraj.studies.optimal_entry.transcription import DiscreteSolution, transcribe
+from ovtraj.studies.optimal_entry.transcription import (
+    DiscreteSolution,
+    Transcription,
+    transcribe,
+)
 
 __all__ = ["solve_optimal_entry"]
 
@@ -68,6 +72,43 @@ def solve_optimal_entry(
     """
     independent = problem.independent if independent is None else independent
     method = problem.method if transcription is None else transcription
+    _check_choices(problem, independent, method)
+    start = time.perf_counter()
+    deadline = Deadline(problem.solver.time_limit_s, "solver.time_limit_s")
+    traj = guess_trajectory(problem, deadline)
+    form = formulate(problem, independent, traj)
+    guess = form.guess(traj)
+    mesh = problem.config.transcription
+    edges = np.linspace(0.0, 1.0, problem.segments + 1)
+    refinements, iterations = 0, 0
+    while True:
+        tr = transcribe(form.ocp, method, problem.nodes_per_segment, edges=edges)
+        sol = _solve_mesh(problem, tr, tr.initial_point(guess), refinements, deadline)
+        iterations += sol.iterations
+        discrete = tr.unpack(sol.w)
+        outcome = _assess(problem, form, discrete, sol, deadline)
+        if (
+            outcome.accepted
+            or not sol.converged
+            or refinements >= mesh.max_refinements
+            or deadline.reached
+        ):
+            break
+        refined = _refined_mesh(problem, tr, edges, outcome, deadline)
+        if refined is None:
+            break
+        edges = refined
+        guess = _warm_start(discrete)
+        refinements += 1
+    solve_time = time.perf_counter() - start
+    return _result(
+        problem, form, discrete, sol, outcome, method, solve_time, refinements, iterations
+    )
+
+
+def _check_choices(problem: EntryProblem, independent: str, method: str) -> None:
+    """Refuse an unknown formulation or transcription, and the energy formulation of a
+    problem whose speed may reach zero."""
     if independent not in ("energy", "time"):
         raise ValueError(f"independent must be 'energy' or 'time', got {independent!r}")
     if method not in ("lg", "lgr"):
@@ -80,64 +121,55 @@ def solve_optimal_entry(
             ],
             problem.source,
         )
-    start = time.perf_counter()
-    deadline = Deadline(problem.solver.time_limit_s, "solver.time_limit_s")
-    traj = guess_trajectory(problem, deadline)
-    form = formulate(problem, independent, traj)
-    guess = form.guess(traj)
-    mesh = problem.config.transcription
-    edges = np.linspace(0.0, 1.0, problem.segments + 1)
-    refinements, iterations = 0, 0
-    while True:
-        tr = transcribe(form.ocp, method, problem.nodes_per_segment, edges=edges)
-        w0 = tr.initial_point(guess)
-        if deadline.reached:
-            when = "while flying the initial guess" if refinements == 0 else "refining the mesh"
-            sol = stopped_before(w0, f"{deadline.reason()} {when}", problem.solver.backend)
-        else:
-            sol = solve_nlp(tr, w0, problem.solver, deadline)
-        iterations += sol.iterations
-        discrete = tr.unpack(sol.w)
-        outcome = _assess(problem, form, discrete, sol, deadline)
-        if (
-            outcome.accepted
-            or not sol.converged
-            or refinements >= mesh.max_refinements
-            or deadline.reached
-        ):
-            break
-        t_points = outcome.states["time_s"].to_numpy()
-        if np.all(np.diff(t_points) > 0.0):
-            try:
-                errors = segment_errors(
-                    problem,
-                    t_points,
-                    _physical_states(outcome.states),
-                    tr.segment_points,
-                    _controls(problem, outcome),
-                    deadline,
-                )
-            except (ArithmeticError, ValueError):  # no refinement then: the verdict stands
-                break
-        else:  # energy: split the segments where the recovered time goes backwards
-            errors = np.array(
-                [
-                    np.inf if np.any(np.diff(t_points[pts]) <= 0.0) else 0.0
-                    for pts in tr.segment_points
-                ]
+
+
+def _solve_mesh(
+    problem: EntryProblem,
+    tr: Transcription,
+    w0: np.ndarray,
+    refinements: int,
+    deadline: Deadline,
+) -> NlpSolution:
+    """One mesh's NLP solved from ``w0``, or not started once the deadline has passed."""
+    if deadline.reached:
+        when = "while flying the initial guess" if refinements == 0 else "refining the mesh"
+        return stopped_before(w0, f"{deadline.reason()} {when}", problem.solver.backend)
+    return solve_nlp(tr, w0, problem.solver, deadline)
+
+
+def _refined_mesh(
+    problem: EntryProblem,
+    tr: Transcription,
+    edges: np.ndarray,
+    outcome: _Outcome,
+    deadline: Deadline,
+) -> np.ndarray | None:
+    """The next mesh's segment edges, split where a segment's re-flight misses (None: no
+    refinement, the verdict stands)."""
+    t_points = outcome.states["time_s"].to_numpy()
+    if np.all(np.diff(t_points) > 0.0):
+        try:
+            errors = segment_errors(
+                problem,
+                t_points,
+                _physical_states(outcome.states),
+                tr.segment_points,
+                _controls(problem, outcome),
+                deadline,
             )
-        terminal = min((r.position_error_km for r in outcome.reports), default=None)
-        refined = refined_edges(
-            edges, errors, problem.config.feasibility.tolerance_km, mesh.max_segments, terminal
+        except (ArithmeticError, ValueError):  # no refinement then: the verdict stands
+            return None
+    else:  # energy: split the segments where the recovered time goes backwards
+        errors = np.array(
+            [np.inf if np.any(np.diff(t_points[pts]) <= 0.0) else 0.0 for pts in tr.segment_points]
         )
-        if refined is None:
-            break
-        edges = refined
-        guess = _warm_start(discrete)
-        refinements += 1
-    solve_time = time.perf_counter() - start
-    return _result(
-        problem, form, discrete, sol, outcome, method, solve_time, refinements, iterations
+    terminal = min((r.position_error_km for r in outcome.reports), default=None)
+    return refined_edges(
+        edges,
+        errors,
+        problem.config.feasibility.tolerance_km,
+        problem.config.transcription.max_segments,
+        terminal,
     )
 
 
