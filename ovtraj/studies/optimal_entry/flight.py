@@ -174,21 +174,52 @@ def fly(
     until then is kept.
     """
     if isinstance(controls, ControlTable):
-        # The compiled flight (milliseconds); the deadline is checked before it.
-        if deadline is not None and deadline.expired():
-            t0, y0 = (0.0, problem.initial_state) if start is None else start
-            return Flown(np.array([t0]), np.array([y0], dtype=float), "time limit")
-        flown = fly_compiled(
-            problem,
-            controls,
-            t_end,
-            rtol=rtol,
-            atol=atol,
-            stop_energy=stop_energy,
-            breaks=breaks,
-            start=start,
+        return _fly_table(
+            problem, controls, t_end, rtol, atol, stop_energy, breaks, deadline, start
         )
-        return Flown(flown.t, flown.y, flown.status, flown.path)
+    return _fly_python(problem, controls, t_end, rtol, atol, stop_energy, breaks, deadline, start)
+
+
+def _fly_table(
+    problem: EntryProblem,
+    controls: ControlTable,
+    t_end: float,
+    rtol: float,
+    atol: float,
+    stop_energy: float | None,
+    breaks: NDArray[np.float64] | None,
+    deadline: Deadline | None,
+    start: tuple[float, NDArray[np.float64]] | None,
+) -> Flown:
+    """The compiled flight (milliseconds); the deadline is checked before it."""
+    if deadline is not None and deadline.expired():
+        t0, y0 = (0.0, problem.initial_state) if start is None else start
+        return Flown(np.array([t0]), np.array([y0], dtype=float), "time limit")
+    flown = fly_compiled(
+        problem,
+        controls,
+        t_end,
+        rtol=rtol,
+        atol=atol,
+        stop_energy=stop_energy,
+        breaks=breaks,
+        start=start,
+    )
+    return Flown(flown.t, flown.y, flown.status, flown.path)
+
+
+def _fly_python(
+    problem: EntryProblem,
+    controls: Controls,
+    t_end: float,
+    rtol: float,
+    atol: float,
+    stop_energy: float | None,
+    breaks: NDArray[np.float64] | None,
+    deadline: Deadline | None,
+    start: tuple[float, NDArray[np.float64]] | None,
+) -> Flown:
+    """The Python right-hand side under scipy's DOP853, from break to break."""
     model = PointMass(problem)
     frozen = np.zeros(6)
     t0, y0 = (0.0, problem.initial_state.copy()) if start is None else start
@@ -202,21 +233,7 @@ def fly(
         alpha, bank = controls(t)
         return model.rates(z * scale, alpha, bank) / scale
 
-    events = []
-
-    def ground(t: float, z: NDArray[np.float64]) -> float:
-        return z[0] * scale[0]
-
-    ground.terminal = True  # type: ignore[attr-defined]
-    events.append(ground)
-    if stop_energy is not None:
-
-        def energy(t: float, z: NDArray[np.float64]) -> float:
-            return model.energy(z[0] * scale[0], z[3] * scale[3]) - stop_energy
-
-        energy.terminal = True  # type: ignore[attr-defined]
-        energy.direction = -1  # type: ignore[attr-defined]
-        events.append(energy)
+    events = _stop_events(model, scale, stop_energy)
     edges = [t0]
     if breaks is not None:
         edges += sorted(float(b) for b in breaks if t0 < b < t_end)
@@ -241,3 +258,25 @@ def fly(
             status = f"integration failed: {sol.message}"
             break
     return Flown(t=np.concatenate(times), y=np.vstack(states) * scale, status=status)
+
+
+def _stop_events(
+    model: PointMass, scale: NDArray[np.float64], stop_energy: float | None
+) -> list[Callable[[float, NDArray[np.float64]], float]]:
+    """solve_ivp's terminal events on the scaled state: the ground, then (if given) the
+    energy falling to ``stop_energy``."""
+
+    def ground(t: float, z: NDArray[np.float64]) -> float:
+        return z[0] * scale[0]
+
+    ground.terminal = True  # type: ignore[attr-defined]
+    events = [ground]
+    if stop_energy is not None:
+
+        def energy(t: float, z: NDArray[np.float64]) -> float:
+            return model.energy(z[0] * scale[0], z[3] * scale[3]) - stop_energy
+
+        energy.terminal = True  # type: ignore[attr-defined]
+        energy.direction = -1  # type: ignore[attr-defined]
+        events.append(energy)
+    return events
