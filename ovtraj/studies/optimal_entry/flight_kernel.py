@@ -1,4 +1,5 @@
-"""The numpy flight model of :mod:`.flight`, compiled with numba (issue 22).
+"""The numpy flight model of :mod:`.flight`, compiled with numba (the feasibility check
+and the mesh refinement fly the controls again many times a solve).
 
 The same equations as :class:`~ovtraj.studies.optimal_entry.flight.PointMass` (3-DOF
 point mass over a spherical, optionally rotating Earth; Vinh, Busemann & Culp 1980,
@@ -456,7 +457,6 @@ def _integrate(
     """DOP853 from ``edges[0]`` through each edge, restarting there; terminal events."""
     ts = np.empty(cap)
     zs = np.empty((cap, 6))
-    n = 0
     ts[0] = t0
     zs[0, :] = z0
     n = 1
@@ -467,6 +467,7 @@ def _integrate(
     z_new = np.empty(6)
     work = np.empty(6)
     weights = np.empty(6)
+    buffers = (k, z_new, work, weights)  # a step's stages, new state and work arrays
     status = COMPLETED
     for e in range(1, edges.shape[0]):
         t_bound = edges[e]
@@ -475,49 +476,19 @@ def _integrate(
         _rhs(t, z, scale, f, controls, model)
         h_abs = _initial_step(t, z, f, t_bound, scale, controls, model, rtol, atol)
         while t < t_bound:
-            min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
-            rejected = False
-            while True:
-                if not h_abs >= min_step:  # also a NaN step: never loop on it
-                    return ts[:n], zs[:n], FAILED
-                t_new = min(t + h_abs, t_bound)
-                h = t_new - t
-                _step(t, z, f, h, scale, controls, model, k, z_new, work)
-                for i in range(6):
-                    weights[i] = atol + max(abs(z[i]), abs(z_new[i])) * rtol
-                error = _error_norm(k, h, weights)
-                if error < 1.0:
-                    factor = (
-                        _MAX_FACTOR
-                        if error == 0.0
-                        else min(_MAX_FACTOR, _SAFETY * error**_ERROR_EXPONENT)
-                    )
-                    if rejected:
-                        factor = min(1.0, factor)
-                    h_abs = h * factor
-                    break
-                shrink = _SAFETY * error**_ERROR_EXPONENT
-                h_abs = h * (shrink if shrink > _MIN_FACTOR else _MIN_FACTOR)  # NaN: the minimum
-                rejected = True
+            ok, t_new, h, h_abs = _accepted_step(
+                t, z, f, h_abs, t_bound, scale, controls, model, rtol, atol, buffers
+            )
+            if not ok:
+                return ts[:n], zs[:n], FAILED
             ground0, energy0 = _event(z, scale, model, stop_energy, use_energy)
             ground1, energy1 = _event(z_new, scale, model, stop_energy, use_energy)
             crossed = ground0 > 0.0 and ground1 <= 0.0
             ended = use_energy and energy0 > 0.0 and energy1 <= 0.0
             if crossed or ended:
-                # The root inside the step: bisection on the step length from (t, z).
-                lo, hi = 0.0, h
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    _step(t, z, f, mid, scale, controls, model, k, work, weights)
-                    g, en = _event(work, scale, model, stop_energy, use_energy)
-                    value = g if crossed else en
-                    if value > 0.0:
-                        lo = mid
-                    else:
-                        hi = mid
-                    if hi - lo <= 1e-12 * max(1.0, abs(t)):
-                        break
-                _step(t, z, f, hi, scale, controls, model, k, z_new, work)
+                hi = _event_root(
+                    t, z, f, h, crossed, scale, controls, model, stop_energy, use_energy, buffers
+                )
                 if n >= cap:
                     return ts[:n], zs[:n], FAILED
                 ts[n] = t + hi
@@ -533,6 +504,82 @@ def _integrate(
             zs[n, :] = z
             n += 1
     return ts[:n], zs[:n], status
+
+
+@njit(cache=True, error_model="numpy")
+def _accepted_step(
+    t: float,
+    z: Array,
+    f: Array,
+    h_abs: float,
+    t_bound: float,
+    scale: Array,
+    controls: Arrays,
+    model: Arrays,
+    rtol: float,
+    atol: float,
+    buffers: Arrays,
+) -> tuple[bool, float, float, float]:
+    """One step from ``(t, z)`` towards ``t_bound`` under scipy's step-size control,
+    retried smaller until its error is accepted: (ok, its end, its length, the next
+    step's length), its stages and new state left in ``buffers``. Not ok when the step
+    falls below its minimum (or is NaN)."""
+    k, z_new, work, weights = buffers
+    min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+    rejected = False
+    while True:
+        if not h_abs >= min_step:  # also a NaN step: never loop on it
+            return False, t, 0.0, h_abs
+        t_new = min(t + h_abs, t_bound)
+        h = t_new - t
+        _step(t, z, f, h, scale, controls, model, k, z_new, work)
+        for i in range(6):
+            weights[i] = atol + max(abs(z[i]), abs(z_new[i])) * rtol
+        error = _error_norm(k, h, weights)
+        if error < 1.0:
+            factor = (
+                _MAX_FACTOR if error == 0.0 else min(_MAX_FACTOR, _SAFETY * error**_ERROR_EXPONENT)
+            )
+            if rejected:
+                factor = min(1.0, factor)
+            return True, t_new, h, h * factor
+        shrink = _SAFETY * error**_ERROR_EXPONENT
+        h_abs = h * (shrink if shrink > _MIN_FACTOR else _MIN_FACTOR)  # NaN: the minimum
+        rejected = True
+
+
+@njit(cache=True, error_model="numpy")
+def _event_root(
+    t: float,
+    z: Array,
+    f: Array,
+    h: float,
+    crossed: bool,
+    scale: Array,
+    controls: Arrays,
+    model: Arrays,
+    stop_energy: float,
+    use_energy: bool,
+    buffers: Arrays,
+) -> float:
+    """The length of the step from ``(t, z)`` to the event inside a step of length ``h``
+    (the ground if ``crossed``, else the terminal energy), by bisection; the state there
+    left as the new state in ``buffers``."""
+    k, z_new, work, weights = buffers
+    lo, hi = 0.0, h
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        _step(t, z, f, mid, scale, controls, model, k, work, weights)
+        g, en = _event(work, scale, model, stop_energy, use_energy)
+        value = g if crossed else en
+        if value > 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-12 * max(1.0, abs(t)):
+            break
+    _step(t, z, f, hi, scale, controls, model, k, z_new, work)
+    return hi
 
 
 @njit(cache=True, error_model="numpy")
