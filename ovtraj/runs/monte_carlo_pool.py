@@ -68,9 +68,10 @@ class PoolFlier:
     def fly(self, run: BatchedRun, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
         """Each batch flown by ``job`` (stored in ``run`` by the job itself); the failed
         batches by first run."""
-        if self.pool is None or self.pool.executor is None:
+        pool = self.pool
+        if pool is None or pool.executor is None:
             return self._fly_here(job, batches)
-        return self._fly_on_pool(job, batches)
+        return self._fly_on_pool(pool, job, batches)
 
     def _fly_here(self, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
         failures: dict[int, str] = {}
@@ -81,25 +82,28 @@ class PoolFlier:
                 failures[runs[0]] = f"{type(err).__name__}: {err}"
         return failures
 
-    def _fly_on_pool(self, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
-        assert self.pool is not None and self.pool.executor is not None
+    def _fly_on_pool(
+        self, pool: BatchPool, job: BatchJob, batches: list[list[int]]
+    ) -> dict[int, str]:
+        assert pool.executor is not None and self.dask is not None  # a pool's, on enter
         submitted = {
-            self.pool.executor.submit(
+            pool.executor.submit(
                 functools.partial(job.function, **job.inputs, batch=runs[0], runs=runs)
             ): runs
             for runs in batches
         }
+        no_worker = self.dask.no_worker_timeout_s
         failures: dict[int, str] = {}
         pending = set(submitted)
         gone_since: float | None = None
         while pending:
             done, pending = concurrent.futures.wait(
-                pending, timeout=self._no_worker_s() / 10, return_when="FIRST_COMPLETED"
+                pending, timeout=no_worker / 10, return_when="FIRST_COMPLETED"
             )
             for future in done:
                 failures.update(self._ended(future, submitted[future]))
             if pending:
-                gone_since = self._check_workers(gone_since, pending)
+                gone_since = _workers_gone_since(pool, gone_since, pending, no_worker)
         return failures
 
     def _ended(self, future: concurrent.futures.Future, runs: list[int]) -> dict[int, str]:
@@ -113,25 +117,22 @@ class PoolFlier:
                 self.on_run()
         return {}
 
-    def _no_worker_s(self) -> float:
-        return self.dask.no_worker_timeout_s if self.dask is not None else float("inf")
 
-    def _check_workers(self, gone_since: float | None, pending: set[Any]) -> float | None:
-        """When the workers went missing (None: they are there); past the bound, the
-        waiting batches cancelled and :class:`ClusterError` raised."""
-        assert self.pool is not None
-        if self.pool.workers_alive():
-            return None
-        now = time.monotonic()
-        if gone_since is None:
-            return now
-        no_worker = self._no_worker_s()
-        if now - gone_since < no_worker:
-            return gone_since
-        for future in pending:
-            future.cancel()
-        raise ClusterError(
-            f"the Dask cluster has had no worker for {no_worker:g} s "
-            "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
-            f"{len(pending)} batch(es) waiting: its workers died or left; see their logs"
-        )
+def _workers_gone_since(
+    pool: BatchPool, since: float | None, pending: set[Any], no_worker_s: float
+) -> float | None:
+    """Since when the pool has had no worker (``time.monotonic()``; None: it has some);
+    past ``no_worker_s`` [s], the waiting batches cancelled and :class:`ClusterError`
+    raised (only a Dask cluster loses its workers)."""
+    if pool.workers_alive():
+        return None
+    now = time.monotonic()
+    if since is None or now - since < no_worker_s:
+        return now if since is None else since
+    for future in pending:
+        future.cancel()
+    raise ClusterError(
+        f"the Dask cluster has had no worker for {no_worker_s:g} s "
+        "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
+        f"{len(pending)} batch(es) waiting: its workers died or left; see their logs"
+    )
