@@ -69,9 +69,9 @@ class PoolFlier:
         """Each batch flown by ``job`` (stored in ``run`` by the job itself); the failed
         batches by first run."""
         pool = self.pool
-        if pool is None or pool.executor is None:
+        if pool is None or pool.executor is None or self.dask is None:
             return self._fly_here(job, batches)
-        return self._fly_on_pool(pool, job, batches)
+        return self._fly_on_pool(pool, pool.executor, self.dask.no_worker_timeout_s, job, batches)
 
     def _fly_here(self, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
         failures: dict[int, str] = {}
@@ -83,16 +83,21 @@ class PoolFlier:
         return failures
 
     def _fly_on_pool(
-        self, pool: BatchPool, job: BatchJob, batches: list[list[int]]
+        self,
+        pool: BatchPool,
+        executor: concurrent.futures.Executor,
+        no_worker: float,
+        job: BatchJob,
+        batches: list[list[int]],
     ) -> dict[int, str]:
-        assert pool.executor is not None and self.dask is not None  # a pool's, on enter
+        """Every batch submitted to the pool's ``executor`` at once, collected as they end;
+        ``no_worker`` [s]: how long a Dask cluster may have no worker."""
         submitted = {
-            pool.executor.submit(
+            executor.submit(
                 functools.partial(job.function, **job.inputs, batch=runs[0], runs=runs)
             ): runs
             for runs in batches
         }
-        no_worker = self.dask.no_worker_timeout_s
         failures: dict[int, str] = {}
         pending = set(submitted)
         gone_since: float | None = None
