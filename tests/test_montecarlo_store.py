@@ -1,6 +1,7 @@
 """The stored plan Monte Carlo: `ovtraj fly PLAN --monte-carlo N` and the plan Monte Carlo
-flow run one driver (ovtraj.runs.plan_monte_carlo), so they store the same run; the run is
-catalogued, fills the history's Monte Carlo columns, and carries its pictures.
+flow run one driver and study (ovtraj.store.monte_carlo, ovtraj.runs.plan_monte_carlo), so
+they store the same run; the run is catalogued, fills the history's Monte Carlo columns, and
+carries its pictures.
 
 The plans are the session's re-plan nights (tests/conftest.py:replan_nights), stored by
 real pipelines; the Monte Carlo flies three runs of the J2 sky (the cheapest).
