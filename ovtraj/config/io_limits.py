@@ -29,10 +29,9 @@ from ovtraj.bounded_reads import read_text_file
 from ovtraj.config.base import ConfigError, StrictModel, bounded, model_from_dict, parse_yaml
 from ovtraj.formatting import one_line
 from ovtraj.paths import config_path
+from ovtraj.units import BYTES_PER_GIB, BYTES_PER_KIB
 
 FILE = "io_limits.yaml"
-_BYTES_PER_KIB = 1024
-_BYTES_PER_GIB = 1 << 30
 
 
 class IoLimits(StrictModel):
@@ -84,12 +83,12 @@ class IoLimits(StrictModel):
     @property
     def config_file_max_bytes(self) -> int:
         """``config_file_max_kib`` in bytes [B]."""
-        return int(self.config_file_max_kib * _BYTES_PER_KIB)
+        return int(self.config_file_max_kib * BYTES_PER_KIB)
 
     @property
     def doe_estimate_shown_bytes(self) -> float:
         """``doe_estimate_shown_gib`` in bytes [B]."""
-        return self.doe_estimate_shown_gib * _BYTES_PER_GIB
+        return self.doe_estimate_shown_gib * BYTES_PER_GIB
 
 
 @lru_cache(maxsize=1)

@@ -36,6 +36,7 @@ from ovtraj.config.base import ConfigError, StrictModel, bounded, load_model
 from ovtraj.config.body import TargetBodyConfig
 from ovtraj.element_sets.elements import SourceElements
 from ovtraj.element_sets.inline import inline_elements
+from ovtraj.units import BYTES_PER_MIB, S_PER_HOUR
 
 ElementSet = Literal["osculating", "mean"]
 
@@ -46,7 +47,6 @@ READ_KEYS = ("tle_file", "omm_file", "url")
 # Samples of the SGP4 ephemeris one fit may use: one fit evaluation stays well under
 # 0.1 s (a day at one sample per minute is 1441).
 _MAX_FIT_SAMPLES = 100_000
-_BYTES_PER_MIB = 1 << 20
 # A host name as a redirect's host is compared with it: a DNS name or an IPv4 address
 # (letters, digits, dots and hyphens), no scheme, port or path.
 _HOST_NAME = re.compile(r"[a-z0-9]([a-z0-9.-]*[a-z0-9])?")
@@ -128,11 +128,11 @@ class TargetSourceSettings(StrictModel):
     @property
     def max_bytes(self) -> int:
         """``url_max_mib`` in bytes [B]: the largest download or element-set file."""
-        return int(self.url_max_mib * _BYTES_PER_MIB)
+        return int(self.url_max_mib * BYTES_PER_MIB)
 
     @model_validator(mode="after")
     def _samples_in_reach(self) -> TargetSourceSettings:
-        span_s = self.fit_span_h * 3600.0
+        span_s = self.fit_span_h * S_PER_HOUR
         if self.fit_step_s > span_s:
             raise ValueError(
                 f"fit_step_s = {self.fit_step_s:g} s is longer than fit_span_h = "
@@ -181,7 +181,8 @@ class TargetConfig(StrictModel):
     @classmethod
     def _one_inline_source(cls, data: Any) -> Any:
         """Exactly one source, given inline: a file or URL is read by the scenario loader
-        (:func:`ovtraj.target_sources.load_scenario`), never by validation (issue 45)."""
+        (:func:`ovtraj.target_sources.load_scenario`), never by validation (checking a model
+        reads no file and no network)."""
         if not isinstance(data, dict):
             return data
         given = [key for key in SOURCE_KEYS if data.get(key) is not None]

@@ -35,11 +35,11 @@ from ovtraj.environment import environment
 from ovtraj.store.backends import S3Path
 from ovtraj.store.files import StoreError
 from ovtraj.store.settings import given_settings
+from ovtraj.units import BYTES_PER_KIB
 
 __all__ = ["ENVIRONMENT_KEY", "EnvironmentBlock", "environment_problem", "stamped", "unstamped"]
 
 ENVIRONMENT_KEY = "environment"
-_BYTES_PER_KIB = 1024
 # How a declared field's name looks (the only names an error line repeats).
 _NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 
@@ -117,7 +117,7 @@ class EnvironmentBlock(_Declared):
 
 def _problem(block: Any) -> str | None:
     """Why ``block`` is not a declared environment block, in a few words; None if it is."""
-    largest = int(given_settings().environment_block_max_kib * _BYTES_PER_KIB)
+    largest = int(given_settings().environment_block_max_kib * BYTES_PER_KIB)
     try:
         size = len(json.dumps(block, separators=(",", ":"), allow_nan=False))
     except (TypeError, ValueError, RecursionError):

@@ -62,6 +62,7 @@ from ovtraj.formatting import one_line
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
 from ovtraj.store.records import json_text
 from ovtraj.store.settings import given_settings
+from ovtraj.units import BYTES_PER_MIB
 
 __all__ = [
     "DecodedTables",
@@ -94,7 +95,6 @@ TEMPORARY_SUFFIX = ".tmp"
 PARQUET_COMPRESSION = "zstd"
 PARQUET_COMPRESSION_LEVEL = 9
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")  # hashlib's hexdigest(): what a marker records
-_BYTES_PER_MIB = 2**20
 # A store holds regular files only: a final symbolic link is not followed (ELOOP) and a
 # FIFO opens without waiting for a writer, so both are refused by the checks after opening.
 _OPEN_STORED = (
@@ -129,7 +129,7 @@ class Digest:
         if not isinstance(data, dict):
             raise ValueError(f"not a file digest (a JSON {type(data).__name__}, not an object)")
         size, sha256 = data.get("bytes"), data.get("sha256")
-        largest = int(given_settings().stored_file_max_mib * _BYTES_PER_MIB)
+        largest = int(given_settings().stored_file_max_mib * BYTES_PER_MIB)
         if type(size) is not int or not 0 <= size <= largest:
             found = "a whole number outside it" if type(size) is int else f"a {type(size).__name__}"
             raise ValueError(
@@ -199,7 +199,7 @@ def _read_local(path: Path, expected: Digest | None) -> bytes:
                 f"{expected.size} recorded)"
             )
         if expected is None:
-            largest = int(given_settings().unrecorded_file_max_mib * _BYTES_PER_MIB)
+            largest = int(given_settings().unrecorded_file_max_mib * BYTES_PER_MIB)
             if info.st_size > largest:
                 raise StoreError(
                     f"{path}: {info.st_size} bytes, more than a file read without a recorded "
@@ -579,7 +579,7 @@ class DecodedTables:
 def decoded_tables() -> DecodedTables:
     """This process's :class:`DecodedTables`, bounded by ``reads.decoded_tables_mib`` of
     ``configs/orchestration.yaml`` (:mod:`ovtraj.store.settings`)."""
-    return DecodedTables(int(given_settings().decoded_tables_mib * _BYTES_PER_MIB))
+    return DecodedTables(int(given_settings().decoded_tables_mib * BYTES_PER_MIB))
 
 
 def read_table(
