@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from ovtraj.units import M_PER_KM
+
 # Evaluation slack at the ends of the validity range, relative to its width.
 RANGE_RELATIVE_TOLERANCE = 1e-9
-
-_KM = 1000.0
 
 
 class FourierRangeError(ValueError):
@@ -94,9 +94,9 @@ _DICT_KEYS = (
 
 def _format_km(value_m: float, bounds_m: tuple[float, float]) -> str:
     """Altitude in km with one decimal, more if one decimal would hide the violation."""
-    text = f"{value_m / _KM:.1f}"
-    if any(text == f"{bound / _KM:.1f}" for bound in bounds_m):
-        text = f"{value_m / _KM:.9f}"
+    text = f"{value_m / M_PER_KM:.1f}"
+    if any(text == f"{bound / M_PER_KM:.1f}" for bound in bounds_m):
+        text = f"{value_m / M_PER_KM:.9f}"
     return text
 
 
@@ -175,7 +175,7 @@ class FourierSeries:
                 shown += f", ... ({bad.size} values)"
             raise FourierRangeError(
                 f"launch fit '{self.name}' is valid for target altitude "
-                f"{self.h_min_m / _KM:.1f}-{self.h_max_m / _KM:.1f} km; "
+                f"{self.h_min_m / M_PER_KM:.1f}-{self.h_max_m / M_PER_KM:.1f} km; "
                 f"got {shown} km (no extrapolation)"
             )
         return h

@@ -28,6 +28,7 @@ from ovtraj.launch.fourier_solve import (
     predict_normalised,
     to_absolute,
 )
+from ovtraj.units import M_PER_KM
 
 # Normalised starting frequencies W (rad per unit s, i.e. per whole altitude range):
 # 0.2*pi ... 1.0*pi. At W <= pi the fitted range spans at most half a period of the
@@ -49,8 +50,6 @@ DEFAULT_SOLVER_TOLERANCE = 1e-12
 # the cap bounds the cost. The coefficients are re-solved exactly at the final W and
 # the result is never worse than the best start, so a capped refinement is safe.
 DEFAULT_MAX_REFINE_EVALUATIONS = 100
-
-_KM = 1000.0
 
 
 @dataclass(frozen=True)
@@ -135,7 +134,7 @@ def fit_samples(h_m: np.ndarray, y: np.ndarray, *, order: int, compute_loo: bool
         dup = sorted({float(v) for v in h_sorted[1:][steps <= 0.0]})
         raise ValueError(
             "h_m must hold distinct altitudes (strictly increasing after sorting); got "
-            f"duplicate(s) at {', '.join(f'{v / _KM:g} km' for v in dup)}"
+            f"duplicate(s) at {', '.join(f'{v / M_PER_KM:g} km' for v in dup)}"
         )
     h_min = float(h_sorted[0])
     span = float(h_sorted[-1] - h_sorted[0])

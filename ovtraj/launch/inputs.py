@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import nonsingular_to_classical
 from ovtraj.astro.epoch import Epoch
@@ -83,7 +83,7 @@ def target_plane_at(scenario: Scenario, day: Epoch) -> TargetPlane:
     raan_rate, _, _ = secular_rates(
         float(coe.a), float(coe.e), float(coe.i), mu=earth.mu, radius=earth.radius, j2=earth.j2
     )
-    return TargetPlane(float(mean.i), float(mean.raan) % TWO_PI, float(raan_rate))
+    return TargetPlane(float(mean.i), wrap_to_two_pi(float(mean.raan)), float(raan_rate))
 
 
 def launch_input(scenario: Scenario, *, altitude_km: float | None = None) -> LaunchInput:

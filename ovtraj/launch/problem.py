@@ -31,6 +31,7 @@ from ovtraj.astro.elements import eccentricity_vector
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.config.launch import DESIGN_VARIABLES
 from ovtraj.launch.ascent import AscentModel, AscentOutcome, simulate
+from ovtraj.units import RAD_PER_DEG
 
 ANGLE_VARIABLES = frozenset(
     {
@@ -107,7 +108,7 @@ class LaunchProblem:
         self._radius_target = earth.radius + target.altitude_m
         self._circular_speed = math.sqrt(earth.mu / self._radius_target)
         self._to_si = np.array(
-            [math.pi / 180.0 if name in ANGLE_VARIABLES else 1.0 for name in DESIGN_VARIABLES]
+            [RAD_PER_DEG if name in ANGLE_VARIABLES else 1.0 for name in DESIGN_VARIABLES]
         )
 
     @property

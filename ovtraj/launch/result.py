@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import ClassicalElements
 from ovtraj.astro.epoch import Epoch
@@ -91,7 +91,7 @@ class LaunchResult:
         """Osculating argument of latitude at insertion [rad], in [0, 2 pi)."""
         if self.osculating is None:
             return None
-        return (self.osculating.argp + self.osculating.nu) % TWO_PI
+        return wrap_to_two_pi(self.osculating.argp + self.osculating.nu)
 
     @property
     def total_loss_mps(self) -> float | None:
@@ -296,7 +296,7 @@ ROW = RowColumns(
             "raan_deg",
             FLOAT,
             "deg: osculating node at insertion, [0, 360)",
-            _osculating(lambda osc: _deg(osc.raan % TWO_PI)),
+            _osculating(lambda osc: _deg(wrap_to_two_pi(osc.raan))),
         ),
         Column(
             "mean_inclination_deg",
