@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ovtraj.astro.angles import principal_angle
+from ovtraj.astro.elements import orbital_period
 
 
 @dataclass(frozen=True)
@@ -69,10 +70,11 @@ def hohmann_impulses_mps(
 
 
 def hohmann_time_s(r1_m: ArrayLike, r2_m: ArrayLike, mu: float) -> np.ndarray:
-    """Hohmann transfer time [s] between circular radii [m] (arrays broadcast):
-    T = pi sqrt(a_t^3 / mu), a_t = (r1 + r2) / 2 (as :func:`hohmann`)."""
+    """Hohmann transfer time [s] between circular radii [m] (arrays broadcast): half the
+    period of the transfer ellipse, T = pi sqrt(a_t^3 / mu), a_t = (r1 + r2) / 2 (as
+    :func:`hohmann`). Halving the period is exact: the same float as pi sqrt(a_t^3 / mu)."""
     a_t = 0.5 * (np.asarray(r1_m, dtype=float) + np.asarray(r2_m, dtype=float))
-    return math.pi * np.sqrt(a_t**3 / mu)
+    return 0.5 * orbital_period(a_t, mu=mu)
 
 
 def lead_angle(transfer: HohmannTransfer, target_rate_rad_s: float) -> float:

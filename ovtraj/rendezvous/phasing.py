@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ovtraj.astro.angles import TWO_PI, principal_angle
+from ovtraj.astro.angles import principal_angle, wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import FloatOrArray, NonsingularElements
 from ovtraj.astro.j2_elements import secular_rates, state_to_mean
@@ -55,7 +55,7 @@ def first_wait(phase0: ArrayLike, lead: ArrayLike, relative_rate: ArrayLike) -> 
     """
     phase0, lead, rate = (np.asarray(v, dtype=float) for v in (phase0, lead, relative_rate))
     gap = np.where(rate > 0, phase0 - lead, lead - phase0)
-    wait = np.mod(gap, TWO_PI) / np.abs(rate)
+    wait = wrap_to_two_pi(gap) / np.abs(rate)
     return float(wait) if wait.ndim == 0 else wait
 
 
