@@ -32,8 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from ovtraj.astro.angles import TWO_PI
-from ovtraj.astro.elements import perigee_radius_from_semi_latus_rectum
+from ovtraj.astro.elements import orbital_period, perigee_radius_from_semi_latus_rectum
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, flight_path_angle, rsw_basis
 from ovtraj.astro.propagation import AltitudeCrossing, OrbitPropagator, PropagationResult
 from ovtraj.config.deorbit import DeorbitSolverConfig
@@ -132,7 +131,7 @@ class DescentModel:
         if energy >= 0.0 or not descent.ok:
             return descent.t, descent.state
         a = -mu / (2.0 * energy)
-        period = TWO_PI * math.sqrt(a**3 / mu)
+        period = float(orbital_period(a, mu=mu))
         # The arc starts near apoapsis: its lowest point is about half a period later.
         t_low = min(burn_t_s + 0.5 * period, descent.t)
         state = self.propagator.propagate(after, burn_t_s, t_low).state

@@ -29,11 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.elements import orbital_period
 from ovtraj.astro.frames import ecef_to_geocentric, eci_to_ecef, great_circle_distance
 from ovtraj.astro.propagation import LatitudeCrossing, OrbitPropagator, PropagationResult
 from ovtraj.astro.vectors import cross
 from ovtraj.deorbit.inputs import EntryRegion
+from ovtraj.units import S_PER_HOUR
 
 
 @dataclass(frozen=True)
@@ -109,7 +110,7 @@ def forecast_passes(
             "inclination): the ground track never crosses it",
         )
     r0 = float(np.linalg.norm(state0[:3]))
-    period = TWO_PI * math.sqrt(r0**3 / propagator.earth.mu)
+    period = float(orbital_period(r0, mu=propagator.earth.mu))
 
     def distance(t: float) -> float:
         lat, lon = subsatellite_point(
@@ -120,7 +121,7 @@ def forecast_passes(
         )
 
     # Every crossing's sub-satellite point and distance in one array call: a long horizon
-    # has ~100 crossings, and one-point calls were half the forecast's time (issue 20).
+    # has ~100 crossings, and one-point calls were half the forecast's time.
     hit_states = np.array([hit.state for hit in result.hits]).reshape(-1, 6)
     hit_times = np.array([hit.t for hit in result.hits])
     lats_c, lons_c = subsatellite_point(
@@ -170,8 +171,9 @@ def forecast_passes(
         reason = (
             f"no {entry.pass_direction} pass of the ground track crossing the entry latitude "
             "inside the entry region "
-            f"within the {horizon_s / 3600.0:g} h horizon ({len(passes)} crossings of the entry "
-            f"latitude, nearest {min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
+            f"within the {horizon_s / S_PER_HOUR:g} h horizon "
+            f"({len(passes)} crossings of the entry latitude, nearest "
+            f"{min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
             " km)"
         )
     return Forecast(passes, result, reason)

@@ -13,6 +13,7 @@ from ovtraj.astro.epoch import Epoch
 from ovtraj.config.deorbit import DeorbitSolverConfig, PreparationOrbitConfig
 from ovtraj.config.scenario import Scenario
 from ovtraj.target_state import circular_orbit_state
+from ovtraj.units import S_PER_HOUR
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,7 @@ def deorbit_input(
             pass_direction=entry.pass_direction,
         ),
         max_impulse_mps=scenario.vehicle.max_impulse_mps,
-        horizon_s=settings.horizon_h * 3600.0,
+        horizon_s=settings.horizon_h * S_PER_HOUR,
         max_descent_revolutions=settings.max_descent_revolutions,
         solver=settings.solver,
         trajectory_step_s=settings.trajectory_step_s,

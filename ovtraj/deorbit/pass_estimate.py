@@ -1,6 +1,6 @@
 """The first pass through the entry region of a circular J2 orbit, in closed form.
 
-A low-fidelity stand-in for :func:`ovtraj.deorbit.forecast.forecast_passes` (issue 21): no
+A low-fidelity stand-in for :func:`ovtraj.deorbit.forecast.forecast_passes`: no
 integration, vectorised over many orbits at once. The orbit is circular in mean elements
 and moves with the J2 secular rates only (Brouwer 1959, :func:`secular_rates`):
 ``u(t) = u0 + u_dot t`` and ``raan(t) = raan0 + raan_dot t``. Over a spherical Earth its
@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.deorbit.estimate import descent_central_angle_rad, tangential_deorbit
@@ -91,7 +91,7 @@ def first_pass_s(
     lead = descent_angle_rad(radius, entry, earth) / np.sqrt(earth.mu / radius**3)
     best = np.full(t0.shape, np.inf)
     for u in crossings:
-        du = np.mod(u - u0, TWO_PI)[:, None] + TWO_PI * k
+        du = wrap_to_two_pi(u - u0)[:, None] + TWO_PI * k
         t = du / u_dot[:, None]  # since t0
         absolute = t0[:, None] + t
         longitude = (

@@ -34,7 +34,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.elements import orbital_period
 from ovtraj.astro.frames import (
     ecef_to_geocentric,
     eci_to_ecef,
@@ -126,7 +126,7 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
             wall_time_s=_since(start),
         )
     r0 = float(np.linalg.norm(inp.state0[:3]))
-    period = TWO_PI * math.sqrt(r0**3 / inp.earth.mu)
+    period = float(orbital_period(r0, mu=inp.earth.mu))
     model = DescentModel(
         propagator, forecast.trajectory, entry, inp.max_descent_revolutions * period
     )
