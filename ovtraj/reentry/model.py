@@ -10,6 +10,7 @@ import numpy as np
 from ovtraj.config.physical import default_atmosphere
 from ovtraj.reentry import dynamics as dyn
 from ovtraj.reentry.inputs import EntryState, ReentryInput
+from ovtraj.units import DEG_PER_RAD
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class EntryModel:
         p[dyn.P_OMEGA] = earth.omega if s.integration.earth_rotation else 0.0
         p[dyn.P_G0] = earth.g0_m_s2
         p[dyn.P_MASS_AREA] = vehicle.mass_kg / vehicle.reference_area_m2
-        p[dyn.P_ALPHA_SCALE] = 180.0 / math.pi if vehicle.aero.alpha_unit == "deg" else 1.0
+        p[dyn.P_ALPHA_SCALE] = DEG_PER_RAD if vehicle.aero.alpha_unit == "deg" else 1.0
         p[dyn.P_ATM_MODEL] = 1.0 if atm.model == "exponential" else 0.0
         p[dyn.P_ATM_STEP] = atm.table_step_m
         p[dyn.P_RHO0] = atm.density0_kg_m3

@@ -16,7 +16,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.deadline import Deadline
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS, STATUS_TEXT
 from ovtraj.reentry.guidance import BankGuidance, Limits, Shot, unit_bounds
@@ -157,7 +157,7 @@ def _result(
         terminal_latitude_rad=float(x[2]),
         terminal_longitude_rad=float(x[1]),
         terminal_fpa_rad=float(x[4]),
-        terminal_heading_rad=float(x[5] % TWO_PI),
+        terminal_heading_rad=float(wrap_to_two_pi(x[5])),
         max_heat_rate_w_m2=flight.max_heat_rate_w_m2,
         max_heat_rate_time_s=flight.max_heat_rate_time_s,
         max_load_g=flight.max_load_g,
@@ -184,7 +184,7 @@ def trajectory_table(inp: ReentryInput, history: np.ndarray | None) -> pd.DataFr
     """Time, altitude, position, speed, angles, bank, Mach and path quantities, sampled.
 
     On plain arrays (the same arithmetic as on columns): a frame of Series aligns indexes
-    and cost ~5 ms per flight, a tenth of the stage (benchmarks/mission.py, issue 20).
+    and cost ~5 ms per flight, a tenth of the stage (benchmarks/mission.py).
     """
     if history is None or len(history) == 0:
         return pd.DataFrame()
