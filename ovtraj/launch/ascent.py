@@ -402,35 +402,73 @@ def simulate(model: AscentModel, design: NDArray, *, keep_history: bool = False)
     """Fly every row of ``design`` (SI units, absolute azimuth; see the column constants)."""
     design = np.atleast_2d(np.asarray(design, dtype=float))
     n = len(design)
-    launcher = model.launcher
-    stages = launcher.stages
+    stages = model.launcher.stages
     dyn = _Dynamics(model, design[:, AZIMUTH])
-    y = initial_state(model, n, design[:, PAYLOAD])
-    t_abs = np.zeros(n)
-    recorder = _Recorder(n, keep_history)
-    fairing_on = np.ones(n, dtype=bool)
-    fairing_stage = np.full(n, -1)
-    fairing_time = np.full(n, np.nan)
-    fairing_burn_time = np.zeros(n)
-    speed0 = _inertial_speed(dyn, y)
-    crashed = np.zeros(n, dtype=bool)
+    y0 = initial_state(model, n, design[:, PAYLOAD])
+    flight = _Flight(dyn, model.launcher, y0, _Recorder(n, keep_history))
+    speed0 = _inertial_speed(dyn, flight.y)
+    drops_before = {2: stages[0].burnout_drop_kg, 4: stages[1].burnout_drop_kg}
+    for index, make in enumerate(_programme(model, design)):
+        if index in drops_before:
+            flight.y[MASS] -= drops_before[index]
+        for phase in make(flight.y):
+            flight.fly(phase)
+    return _outcome(model, design, flight, speed0)
 
-    def const(x: float) -> NDArray:
-        return np.full(n, x)
 
-    def uniform(duration: NDArray, longest: float, step: float) -> NDArray:
-        """Step boundaries: the same number of steps for every row, whatever the batch,
-        so that a design's trajectory never depends on the other rows."""
-        steps = max(1, math.ceil(longest / step - 1e-9))
-        return np.linspace(0.0, 1.0, steps + 1)[:, None] * duration[None, :]
+PhaseMaker = Callable[[NDArray], list[_Phase]]  # (state at the phase's start) -> its phases
 
-    def free_fall(_: NDArray) -> list[_Phase]:
-        d = const(launcher.free_fall_s)
+
+def _uniform_grid(duration: NDArray, longest: float, step: float) -> NDArray:
+    """Step boundaries: the same number of steps for every row, whatever the batch,
+    so that a design's trajectory never depends on the other rows."""
+    steps = max(1, math.ceil(longest / step - 1e-9))
+    return np.linspace(0.0, 1.0, steps + 1)[:, None] * duration[None, :]
+
+
+def _programme(model: AscentModel, design: NDArray) -> list[PhaseMaker]:
+    """The flight in order: free fall, stage 1, separation coast, stage 2, coast, stage 3."""
+    launcher = model.launcher
+    n = len(design)
+    return [
+        _free_fall(model, n),
+        _burn(
+            model,
+            n,
+            0,
+            lambda _: _alpha_programme(design, launcher),
+            _alpha_programme_knots(design, launcher),
+        ),
+        _coast(
+            model,
+            1,
+            np.full(n, launcher.separation_coast_s),
+            launcher.separation_coast_s,
+            model.powered_step_s,
+            "separation coast",
+        ),
+        _burn(
+            model,
+            n,
+            1,
+            lambda y_now: _linear_pitch(_velocity_pitch(y_now), design[:, PITCH_RATE_2]),
+        ),
+        _coast(model, 2, design[:, COAST], model.longest_coast_s, model.coast_step_s, "coast"),
+        _burn(model, n, 2, lambda _: _linear_pitch(design[:, PITCH_3], design[:, PITCH_RATE_3])),
+    ]
+
+
+def _free_fall(model: AscentModel, n: int) -> PhaseMaker:
+    """The drop: no thrust, wing on, at the drop's angle of attack."""
+    launcher = model.launcher
+
+    def make(_: NDArray) -> list[_Phase]:
+        d = np.full(n, launcher.free_fall_s)
         return [
             _Phase(
                 "free fall",
                 0,
-                uniform(d, launcher.free_fall_s, model.powered_step_s),
+                _uniform_grid(d, launcher.free_fall_s, model.powered_step_s),
                 0.0,
                 0.0,
                 0.0,
@@ -440,114 +478,135 @@ def simulate(model: AscentModel, design: NDArray, *, keep_history: bool = False)
             )
         ]
 
-    def burn(
-        k: int, attitude_of: Callable[[NDArray], Attitude], knots: NDArray | None = None
-    ) -> Callable[[NDArray], list[_Phase]]:
-        """A stage burn on a uniform grid; the programme's corners (rows of ``knots``)
-        are added to each row's grid so that no RK4 step straddles one. A corner
-        passing a grid point only shrinks a step to zero: results stay continuous."""
-        stage = stages[k]
+    return make
 
-        def make(y_now: NDArray) -> list[_Phase]:
-            total = stage.burn_time_s
-            grid = uniform(const(total), total, model.powered_step_s)
-            if knots is not None:
-                grid = np.sort(np.vstack([grid, np.clip(knots, 0.0, total).T]), axis=0)
-            return [
-                _Phase(
-                    f"stage {k + 1} burn",
-                    k,
-                    grid,
-                    stage.vacuum_thrust_n,
-                    stage.mass_flow_kg_s,
-                    stage.nozzle_exit_area_m2,
-                    k == 0,
-                    1.0 if k == 0 else launcher.aero.upper_axial_scale,
-                    attitude_of(y_now),
-                )
-            ]
 
-        return make
+def _burn(
+    model: AscentModel,
+    n: int,
+    k: int,
+    attitude_of: Callable[[NDArray], Attitude],
+    knots: NDArray | None = None,
+) -> PhaseMaker:
+    """A stage burn on a uniform grid; the programme's corners (rows of ``knots``)
+    are added to each row's grid so that no RK4 step straddles one. A corner
+    passing a grid point only shrinks a step to zero: results stay continuous."""
+    launcher = model.launcher
+    stage = launcher.stages[k]
 
-    def coast(
-        k: int, duration: NDArray, longest: float, step: float, name: str
-    ) -> Callable[[NDArray], list[_Phase]]:
-        def make(_: NDArray) -> list[_Phase]:
-            return [
-                _Phase(
-                    name,
-                    k,
-                    uniform(duration, longest, step),
-                    0.0,
-                    0.0,
-                    0.0,
-                    False,
-                    launcher.aero.upper_axial_scale,
-                    _along_velocity,
-                )
-            ]
+    def make(y_now: NDArray) -> list[_Phase]:
+        total = stage.burn_time_s
+        grid = _uniform_grid(np.full(n, total), total, model.powered_step_s)
+        if knots is not None:
+            grid = np.sort(np.vstack([grid, np.clip(knots, 0.0, total).T]), axis=0)
+        return [
+            _Phase(
+                f"stage {k + 1} burn",
+                k,
+                grid,
+                stage.vacuum_thrust_n,
+                stage.mass_flow_kg_s,
+                stage.nozzle_exit_area_m2,
+                k == 0,
+                1.0 if k == 0 else launcher.aero.upper_axial_scale,
+                attitude_of(y_now),
+            )
+        ]
 
-        return make
+    return make
 
-    phases = [
-        free_fall,
-        burn(
-            0,
-            lambda _: _alpha_programme(design, launcher),
-            _alpha_programme_knots(design, launcher),
-        ),
-        coast(
-            1,
-            const(launcher.separation_coast_s),
-            launcher.separation_coast_s,
-            model.powered_step_s,
-            "separation coast",
-        ),
-        burn(1, lambda y_now: _linear_pitch(_velocity_pitch(y_now), design[:, PITCH_RATE_2])),
-        coast(2, design[:, COAST], model.longest_coast_s, model.coast_step_s, "coast"),
-        burn(2, lambda _: _linear_pitch(design[:, PITCH_3], design[:, PITCH_RATE_3])),
-    ]
-    drops_before = {2: stages[0].burnout_drop_kg, 4: stages[1].burnout_drop_kg}
 
-    for index, make in enumerate(phases):
-        if index in drops_before:
-            y[MASS] -= drops_before[index]
-        for phase in make(y):
-            t_local = phase.grid[0].copy()
-            for k in range(len(phase.grid) - 1):
-                h_live = np.where(crashed, 0.0, phase.grid[k + 1] - phase.grid[k])
-                y_new, diag = _rk4_step(dyn, t_local, y, h_live, phase)
-                recorder.sample(t_abs, y, diag, phase)
-                # A row that reaches the ground stops there (its errors stay finite).
-                down = ~np.isfinite(y_new).all(axis=0) | (dyn.altitude(y_new) < 0.0)
-                if np.any(down):
-                    crashed |= down
-                    y_new[:, down] = y[:, down]
-                if phase.stage >= launcher.fairing_earliest_stage:
-                    y_new, rows, frac = _jettison_fairing(
-                        dyn, phase, launcher, t_local, y, y_new, h_live, fairing_on
-                    )
-                    fairing_stage[rows] = phase.stage
-                    fairing_time[rows] = t_abs[rows] + frac * h_live[rows]
-                    fairing_burn_time[rows] = (
-                        t_local[rows] + frac * h_live[rows] if phase.thrust_n > 0 else 0.0
-                    )
-                y = y_new
-                t_local = t_local + h_live
-                t_abs = t_abs + h_live
-            _, diag = dyn(t_local, y, phase, diagnostics=True)
-            recorder.sample(t_abs, y, diag, phase)
-            recorder.close_phase()
+def _coast(
+    model: AscentModel, k: int, duration: NDArray, longest: float, step: float, name: str
+) -> PhaseMaker:
+    """A coast of ``duration`` [s] per row along the velocity, in steps sized for
+    ``longest`` [s]."""
 
-    # Payload separation at stage-3 burnout: what flies on is the payload.
+    def make(_: NDArray) -> list[_Phase]:
+        return [
+            _Phase(
+                name,
+                k,
+                _uniform_grid(duration, longest, step),
+                0.0,
+                0.0,
+                0.0,
+                False,
+                model.launcher.aero.upper_axial_scale,
+                _along_velocity,
+            )
+        ]
+
+    return make
+
+
+class _Flight:
+    """The population in flight: its state, clocks, ground contact and fairing, stepped
+    through one phase after another."""
+
+    def __init__(
+        self, dyn: _Dynamics, launcher: LauncherModel, y: NDArray, recorder: _Recorder
+    ) -> None:
+        n = y.shape[1]
+        self.dyn = dyn
+        self.launcher = launcher
+        self.y = y
+        self.t_abs = np.zeros(n)
+        self.recorder = recorder
+        self.fairing_on = np.ones(n, dtype=bool)
+        self.fairing_stage = np.full(n, -1)
+        self.fairing_time = np.full(n, np.nan)
+        self.fairing_burn_time = np.zeros(n)
+        self.crashed = np.zeros(n, dtype=bool)
+
+    def fly(self, phase: _Phase) -> None:
+        """Every RK4 step of ``phase``, its path figures recorded."""
+        t_local = phase.grid[0].copy()
+        for k in range(len(phase.grid) - 1):
+            h_live = np.where(self.crashed, 0.0, phase.grid[k + 1] - phase.grid[k])
+            self._step(phase, t_local, h_live)
+            t_local = t_local + h_live
+            self.t_abs = self.t_abs + h_live
+        _, diag = self.dyn(t_local, self.y, phase, diagnostics=True)
+        self.recorder.sample(self.t_abs, self.y, diag, phase)
+        self.recorder.close_phase()
+
+    def _step(self, phase: _Phase, t_local: NDArray, h_live: NDArray) -> None:
+        dyn, y = self.dyn, self.y
+        y_new, diag = _rk4_step(dyn, t_local, y, h_live, phase)
+        self.recorder.sample(self.t_abs, y, diag, phase)
+        # A row that reaches the ground stops there (its errors stay finite).
+        down = ~np.isfinite(y_new).all(axis=0) | (dyn.altitude(y_new) < 0.0)
+        if np.any(down):
+            self.crashed |= down
+            y_new[:, down] = y[:, down]
+        if phase.stage >= self.launcher.fairing_earliest_stage:
+            y_new, rows, frac = _jettison_fairing(
+                dyn, phase, self.launcher, t_local, y, y_new, h_live, self.fairing_on
+            )
+            self.fairing_stage[rows] = phase.stage
+            self.fairing_time[rows] = self.t_abs[rows] + frac * h_live[rows]
+            self.fairing_burn_time[rows] = (
+                t_local[rows] + frac * h_live[rows] if phase.thrust_n > 0 else 0.0
+            )
+        self.y = y_new
+
+
+def _outcome(
+    model: AscentModel, design: NDArray, flight: _Flight, speed0: NDArray
+) -> AscentOutcome:
+    """The end state at payload separation (stage-3 burnout: what flies on is the
+    payload) and the path figures."""
+    y = flight.y
     y[MASS] = design[:, PAYLOAD]
     axes = launch_frame_axes(model.drop.latitude_rad, model.drop.longitude_rad, design[:, AZIMUTH])
     r_ecef, v_ecef = launch_to_ecef(y[POS].T, y[VEL].T, axes, radius_m=model.earth.radius)
     omega_ecef = np.array([0.0, 0.0, model.earth.omega])
     v_inertial = v_ecef + np.cross(omega_ecef, r_ecef)
+    recorder = flight.recorder
     return AscentOutcome(
         design=design,
-        time_s=t_abs,
+        time_s=flight.t_abs,
         state=y.T.copy(),
         r_ecef=r_ecef,
         v_ecef=v_ecef,
@@ -557,11 +616,11 @@ def simulate(model: AscentModel, design: NDArray, *, keep_history: bool = False)
         max_axial_load_g=recorder.max_load,
         max_axial_load_time_s=recorder.max_load_t,
         min_altitude_m=recorder.min_alt,
-        fairing_stage=fairing_stage,
-        fairing_time_s=fairing_time,
-        fairing_burn_time_s=fairing_burn_time,
+        fairing_stage=flight.fairing_stage,
+        fairing_time_s=flight.fairing_time,
+        fairing_burn_time_s=flight.fairing_burn_time,
         speed_start_inertial_mps=speed0,
-        crashed=crashed,
+        crashed=flight.crashed,
         history=recorder.history,
     )
 
