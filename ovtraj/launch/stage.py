@@ -20,8 +20,10 @@ import math
 import time
 from collections.abc import Callable
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from ovtraj.astro.angles import TWO_PI, wrap_to_pi
 from ovtraj.astro.atmosphere import TabulatedAtmosphere
@@ -38,6 +40,7 @@ from ovtraj.launch.ascent import (
     IDEAL,
     STEERING,
     AscentModel,
+    AscentOutcome,
     DropPoint,
 )
 from ovtraj.launch.ascent_optimization import OptimisationOutcome, optimise_launch
@@ -188,61 +191,20 @@ def finish_launch(
     has fixed it (:mod:`ovtraj.launch.insertion`), else the first in-plane one.
     ``violations``: the caller's reasons in place of the constraints' (a time limit and a
     crash are always reported)."""
-    earth = inp.earth
     ev = problem.evaluate(outcome.x, keep_history=True)
     asc = ev.outcome
     flight_time = float(asc.time_s[0])
-    r_fixed, v_fixed_inertial = asc.r_ecef[0], asc.v_inertial_ecef_axes[0]
-    if insertion_time is None:
-        mean_fixed = state_to_mean(
-            r_fixed, v_fixed_inertial, mu=earth.mu, radius=earth.radius, j2=earth.j2
-        )
-        t_drop, t_ins = insertion_time_s(inp, float(mean_fixed.raan), flight_time)
-    else:
-        t_ins = float(insertion_time)
-        t_drop = t_ins - flight_time
-    theta = inp.launch_day.gmst_rad() + earth.omega * t_ins
-    r_eci = ecef_to_eci(r_fixed, theta)
-    v_eci = ecef_to_eci(v_fixed_inertial, theta)
-    osc = rv_to_coe(r_eci, v_eci, mu=earth.mu)
-    mean = state_to_mean(r_eci, v_eci, mu=earth.mu, radius=earth.radius, j2=earth.j2)
-    r_norm, v_norm = float(np.linalg.norm(r_eci)), float(np.linalg.norm(v_eci))
-    radius_target = earth.radius + inp.target_altitude_m
-    plane = inp.target_plane
-    raan_error = wrap_to_pi(float(mean.raan) - plane.raan_at(t_ins))
-
-    state = asc.state[0]
-    launcher = problem.model.launcher
-    fairing_stage = int(asc.fairing_stage[0])
-    ideal_rocket = launcher.ideal_delta_v_mps(
-        float(ev.payload_kg[0]),
-        fairing_stage=fairing_stage if fairing_stage >= 0 else None,
-        fairing_burn_time_s=float(asc.fairing_burn_time_s[0]),
-    )
-    reasons = []
-    if outcome.limit is not None:
-        reasons.append(outcome.limit)
-    if violations is not None:
-        reasons.extend(violations)
-    elif outcome.max_violation > 0.0:
-        worst = _worst_constraints(ev)
-        reasons.append(f"insertion or path constraints not met: {worst}")
-    if asc.crashed[0]:
-        reasons.append("the trajectory hits the ground")
+    t_drop, t_ins = _timed(inp, asc, insertion_time)
+    theta = inp.launch_day.gmst_rad() + inp.earth.omega * t_ins
+    r_eci = ecef_to_eci(asc.r_ecef[0], theta)
+    v_eci = ecef_to_eci(asc.v_inertial_ecef_axes[0], theta)
+    insertion = _insertion_figures(inp, r_eci, v_eci, t_ins, asc.speed_start_inertial_mps[0])
+    ideal_rocket = _ideal_rocket_delta_v(problem.model.launcher, ev)
+    reasons = _failure_reasons(ev, outcome, violations)
     design = problem.to_config_units(outcome.x)
-    table = trajectory_table(
-        asc.history,
-        row=0,
-        axes=launch_frame_axes(
-            math.radians(inp.drop.latitude_deg),
-            math.radians(inp.drop.longitude_deg),
-            problem.to_si(outcome.x)[0, 0],
-        ),
-        earth=earth,
-        drop_time_s=t_drop,
-        step_s=inp.integration.trajectory_step_s,
-    )
-    lat, lon, _ = ecef_to_geocentric(r_fixed, radius=earth.radius)
+    azimuth = problem.to_si(outcome.x)[0, 0]
+    table = _trajectory(inp, asc, azimuth, t_drop)
+    lat, lon, _ = ecef_to_geocentric(asc.r_ecef[0], radius=inp.earth.radius)
     return LaunchResult(
         feasible=not reasons,
         reason="; ".join(reasons) or None,
@@ -251,42 +213,132 @@ def finish_launch(
         launch_day=inp.launch_day,
         payload_kg=float(ev.payload_kg[0]),
         design=dict(zip(DESIGN_VARIABLES, (float(v) for v in design), strict=True)),
-        azimuth_rad=float(problem.to_si(outcome.x)[0, 0]),
+        azimuth_rad=float(azimuth),
         drop_time_s=t_drop,
         insertion_time_s=t_ins,
         flight_time_s=flight_time,
-        insertion_r_eci_m=r_eci,
-        insertion_v_eci_mps=v_eci,
         insertion_latitude_rad=float(lat),
         insertion_longitude_rad=float(lon),
-        osculating=osc,
-        mean_inclination_rad=float(mean.i),
-        mean_raan_rad=float(mean.raan) % TWO_PI,
-        mean_u_rad=float(mean.u) % TWO_PI,
-        altitude_error_m=r_norm - radius_target,
-        speed_error_mps=v_norm - math.sqrt(earth.mu / radius_target),
-        flight_path_angle_error_rad=math.asin(float(np.dot(r_eci, v_eci)) / (r_norm * v_norm)),
-        inclination_error_rad=float(mean.i) - plane.inclination_rad,
-        raan_error_rad=raan_error,
-        max_dynamic_pressure_pa=float(asc.max_dynamic_pressure_pa[0]),
-        max_dynamic_pressure_time_s=float(asc.max_dynamic_pressure_time_s[0]),
-        max_axial_load_g=float(asc.max_axial_load_g[0]),
-        max_axial_load_time_s=float(asc.max_axial_load_time_s[0]),
-        fairing_jettison_time_s=float(asc.fairing_time_s[0]),
         ideal_delta_v_rocket_equation_mps=ideal_rocket,
-        ideal_delta_v_integrated_mps=float(state[IDEAL]),
-        speed_gain_mps=float(v_norm - asc.speed_start_inertial_mps[0]),
-        losses_mps={
+        phases=outcome.phases,
+        trajectories=outcome.trajectories + 1,
+        wall_time_s=wall_time_s,
+        trajectory=table,
+        **insertion,
+        **_path_figures(asc),
+    )
+
+
+def _timed(
+    inp: LaunchInput, asc: AscentOutcome, insertion_time: float | None
+) -> tuple[float, float]:
+    """The drop and insertion epochs [s from the launch day's 0 h]: the insertion's when
+    given, else the first in-plane one (module notes)."""
+    flight_time = float(asc.time_s[0])
+    if insertion_time is None:
+        earth = inp.earth
+        mean_fixed = state_to_mean(
+            asc.r_ecef[0],
+            asc.v_inertial_ecef_axes[0],
+            mu=earth.mu,
+            radius=earth.radius,
+            j2=earth.j2,
+        )
+        return insertion_time_s(inp, float(mean_fixed.raan), flight_time)
+    t_ins = float(insertion_time)
+    return t_ins - flight_time, t_ins
+
+
+def _trajectory(
+    inp: LaunchInput, asc: AscentOutcome, azimuth_rad: float, t_drop: float
+) -> pd.DataFrame:
+    """Row 0's recorded ascent as the stage's trajectory table (launch frame of the
+    azimuth, times from the launch day's 0 h)."""
+    return trajectory_table(
+        asc.history,
+        row=0,
+        axes=launch_frame_axes(
+            math.radians(inp.drop.latitude_deg), math.radians(inp.drop.longitude_deg), azimuth_rad
+        ),
+        earth=inp.earth,
+        drop_time_s=t_drop,
+        step_s=inp.integration.trajectory_step_s,
+    )
+
+
+def _insertion_figures(
+    inp: LaunchInput, r_eci: np.ndarray, v_eci: np.ndarray, t_ins: float, speed_start_mps: float
+) -> dict[str, Any]:
+    """The insertion state's elements, its errors from the target orbit and plane, and the
+    speed gained since the drop (``speed_start_mps``, inertial)."""
+    earth = inp.earth
+    osc = rv_to_coe(r_eci, v_eci, mu=earth.mu)
+    mean = state_to_mean(r_eci, v_eci, mu=earth.mu, radius=earth.radius, j2=earth.j2)
+    r_norm, v_norm = float(np.linalg.norm(r_eci)), float(np.linalg.norm(v_eci))
+    radius_target = earth.radius + inp.target_altitude_m
+    plane = inp.target_plane
+    raan_error = wrap_to_pi(float(mean.raan) - plane.raan_at(t_ins))
+    return {
+        "insertion_r_eci_m": r_eci,
+        "insertion_v_eci_mps": v_eci,
+        "osculating": osc,
+        "mean_inclination_rad": float(mean.i),
+        "mean_raan_rad": float(mean.raan) % TWO_PI,
+        "mean_u_rad": float(mean.u) % TWO_PI,
+        "altitude_error_m": r_norm - radius_target,
+        "speed_error_mps": v_norm - math.sqrt(earth.mu / radius_target),
+        "flight_path_angle_error_rad": math.asin(float(np.dot(r_eci, v_eci)) / (r_norm * v_norm)),
+        "inclination_error_rad": float(mean.i) - plane.inclination_rad,
+        "raan_error_rad": raan_error,
+        "speed_gain_mps": float(v_norm - speed_start_mps),
+    }
+
+
+def _ideal_rocket_delta_v(launcher: LauncherModel, ev: Evaluation) -> float:
+    """The rocket equation's speed [m/s] of the flown design, its fairing where it left."""
+    asc = ev.outcome
+    fairing_stage = int(asc.fairing_stage[0])
+    return launcher.ideal_delta_v_mps(
+        float(ev.payload_kg[0]),
+        fairing_stage=fairing_stage if fairing_stage >= 0 else None,
+        fairing_burn_time_s=float(asc.fairing_burn_time_s[0]),
+    )
+
+
+def _failure_reasons(
+    ev: Evaluation, outcome: OptimisationOutcome, violations: list[str] | None
+) -> list[str]:
+    """Why the design is infeasible (empty: feasible); see :func:`finish_launch`."""
+    reasons = []
+    if outcome.limit is not None:
+        reasons.append(outcome.limit)
+    if violations is not None:
+        reasons.extend(violations)
+    elif outcome.max_violation > 0.0:
+        worst = _worst_constraints(ev)
+        reasons.append(f"insertion or path constraints not met: {worst}")
+    if ev.outcome.crashed[0]:
+        reasons.append("the trajectory hits the ground")
+    return reasons
+
+
+def _path_figures(asc: AscentOutcome) -> dict[str, Any]:
+    """The path maxima, the fairing's jettison and the speed budget's terms of row 0."""
+    state = asc.state[0]
+    return {
+        "max_dynamic_pressure_pa": float(asc.max_dynamic_pressure_pa[0]),
+        "max_dynamic_pressure_time_s": float(asc.max_dynamic_pressure_time_s[0]),
+        "max_axial_load_g": float(asc.max_axial_load_g[0]),
+        "max_axial_load_time_s": float(asc.max_axial_load_time_s[0]),
+        "fairing_jettison_time_s": float(asc.fairing_time_s[0]),
+        "ideal_delta_v_integrated_mps": float(state[IDEAL]),
+        "losses_mps": {
             "gravity": float(state[GRAVITY]),
             "aero": float(state[AERO]),
             "steering": float(state[STEERING]),
             "back_pressure": float(state[BACK_PRESSURE]),
         },
-        phases=outcome.phases,
-        trajectories=outcome.trajectories + 1,
-        wall_time_s=wall_time_s,
-        trajectory=table,
-    )
+    }
 
 
 def _worst_constraints(ev: Evaluation) -> str:
