@@ -1,4 +1,4 @@
-"""The insertion the mission chain starts from, and the launch solved to fly there (issue 43).
+"""The insertion the mission chain starts from, and the launch solved to fly there.
 
 The chain takes the launch from the launch fit (patent 5.1): payload, drop-to-insertion
 time, insertion epoch and argument of latitude at the parking altitude ``H``. It starts the
@@ -8,8 +8,9 @@ OV on a circular orbit there (:func:`circular_insertion_state`):
   (:mod:`ovtraj.launch.problem`): radius ``R_E + H``, circular speed, zero flight-path
   angle, osculating; its *mean* (first-order J2) inclination and node are the plane's,
   as the stage constrains the mean inclination and times the drop on the mean node;
-* ``mean_circular``: a circular orbit of J2 mean elements at ``H`` (the chain before
-  issue 43); its osculating radius at the insertion point lies ~2 km below ``R_E + H``.
+* ``mean_circular``: a circular orbit of J2 mean elements at ``H`` (where runs stored
+  without this setting start); its osculating radius at the insertion point lies ~2 km
+  below ``R_E + H``.
 
 A plan flies from the carrier's drop, so it needs the launch programme itself. The launch
 optimum is flat: programmes within 0.01 kg of the best payload insert up to 0.11 deg of
@@ -31,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import Bounds, minimize
+from scipy.optimize import Bounds, OptimizeResult, minimize
 
 from ovtraj.astro.angles import TWO_PI
 from ovtraj.astro.constants import EarthModel
@@ -42,6 +43,7 @@ from ovtraj.config.mission import InsertionOrbit, LaunchMatchSettings
 from ovtraj.deadline import Deadline
 from ovtraj.launch.ascent_optimization import PAYLOAD_INDEX, OptimisationOutcome, PhaseRecord
 from ovtraj.launch.inputs import LaunchInput
+from ovtraj.launch.problem import LaunchProblem
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
 from ovtraj.target_state import circular_orbit_state
@@ -136,74 +138,93 @@ def solve_launch_to(
         problem = launch_problem(inp)
     except ValueError as err:
         return LaunchResult.infeasible(inp, str(err))
-    r_fixed, v_fixed = point.earth_fixed(inp.launch_day.gmst_rad(), inp.earth.omega)
-    scale = np.r_[
-        [settings.position_tolerance_m] * 3,
-        [settings.velocity_tolerance_mps] * 3,
-        settings.flight_time_tolerance_s,
-    ]
-    n, step = problem.dimension, inp.local.finite_difference_step
-    margin = problem.target.path_limit_fraction
-    # Payload in kg: the objective's scale, so that ftol is a change of payload.
-    payload_span = float(problem.upper[PAYLOAD_INDEX] - problem.lower[PAYLOAD_INDEX])
-    cache: dict[str, tuple] = {}
+    match = _Match(problem, point, inp, settings)
+    deadline = Deadline(settings.time_limit_s, "mission.insertion.launch_match.time_limit_s")
+    x0 = np.clip(problem.to_scaled(np.array([seed_design[k] for k in DESIGN_VARIABLES])), 0, 1)
+    before = problem.trajectories
+    try:
+        with np.errstate(all="ignore"):
+            result = _maximum_payload(problem, match, x0, settings, deadline)
+            x = _polished(np.clip(result.x, 0.0, 1.0), match, settings.polish_iterations)
+            miss, _, paths, _ = match(x)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
+        return LaunchResult.infeasible(inp, f"numerical failure: {type(err).__name__}: {err}")
+    violations = _misses(miss, paths / match.margin)
+    limit = deadline.reason(int(result.nit)) if deadline.reached else None
+    if limit is None and not result.success and violations:
+        violations.append(f"SLSQP: {result.message}")
+    wall = time.perf_counter() - start
+    outcome = _match_outcome(problem, x, result, miss, violations, limit, before, wall)
+    return finish_launch(
+        inp, problem, outcome, wall, insertion_time=point.t_s, violations=violations
+    )
 
-    def match(x: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+
+class _Match:
+    """The insertion constraints of a design ``x`` (scaled): the misses of the Earth-fixed
+    position, inertial velocity and drop-to-insertion time from ``point``'s, each over its
+    tolerance, the path margins, and their central-difference Jacobians."""
+
+    def __init__(
+        self,
+        problem: LaunchProblem,
+        point: InsertionPoint,
+        inp: LaunchInput,
+        settings: LaunchMatchSettings,
+    ) -> None:
+        self.problem = problem
+        self.flight_time_s = point.flight_time_s
+        self.r_fixed, self.v_fixed = point.earth_fixed(inp.launch_day.gmst_rad(), inp.earth.omega)
+        self.scale = np.r_[
+            [settings.position_tolerance_m] * 3,
+            [settings.velocity_tolerance_mps] * 3,
+            settings.flight_time_tolerance_s,
+        ]
+        self.n, self.step = problem.dimension, inp.local.finite_difference_step
+        self.margin = problem.target.path_limit_fraction
+        self._key: bytes | None = None
+        self._values: tuple[NDArray, NDArray, NDArray, NDArray]
+
+    def __call__(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Scaled misses and path margins of ``x``, and their central-difference Jacobians,
         from one batch of 2n + 1 ascents (cached for the last point)."""
         key = np.asarray(x, dtype=float).tobytes()
-        if cache.get("key") != key:
+        if self._key != key:
+            n, step = self.n, self.step
             rows = np.vstack([x, x + step * np.eye(n), x - step * np.eye(n)])
-            ev = problem.evaluate(rows)
+            ev = self.problem.evaluate(rows)
             asc = ev.outcome
             miss = (
                 np.c_[
-                    asc.r_ecef - r_fixed,
-                    asc.v_inertial_ecef_axes - v_fixed,
-                    asc.time_s - point.flight_time_s,
+                    asc.r_ecef - self.r_fixed,
+                    asc.v_inertial_ecef_axes - self.v_fixed,
+                    asc.time_s - self.flight_time_s,
                 ]
-                / scale
+                / self.scale
             )
-            paths = ev.inequality * margin  # 1 - q_max / q_limit, 1 - n_max / n_limit
-            cache["key"] = key
-            cache["values"] = (
+            paths = ev.inequality * self.margin  # 1 - q_max / q_limit, 1 - n_max / n_limit
+            self._key = key
+            self._values = (
                 miss[0],
                 ((miss[1 : n + 1] - miss[n + 1 :]) / (2 * step)).T,
                 paths[0],
                 ((paths[1 : n + 1] - paths[n + 1 :]) / (2 * step)).T,
             )
-        return cache["values"]
+        return self._values
 
-    deadline = Deadline(settings.time_limit_s, "mission.insertion.launch_match.time_limit_s")
-    gradient = np.zeros(n)
-    gradient[PAYLOAD_INDEX] = -payload_span
-    x0 = np.clip(problem.to_scaled(np.array([seed_design[k] for k in DESIGN_VARIABLES])), 0, 1)
-    before = problem.trajectories
-    try:
-        with np.errstate(all="ignore"):
-            result = minimize(
-                lambda x: -payload_span * float(x[PAYLOAD_INDEX]),
-                x0,
-                jac=lambda x: gradient,
-                method="SLSQP",
-                bounds=Bounds(np.zeros(n), np.ones(n)),
-                constraints=[
-                    {"type": "eq", "fun": lambda x: match(x)[0], "jac": lambda x: match(x)[1]},
-                    {"type": "ineq", "fun": lambda x: match(x)[2], "jac": lambda x: match(x)[3]},
-                ],
-                options={"maxiter": settings.max_iterations, "ftol": settings.payload_ftol_kg},
-                callback=lambda _: deadline.stop_if_expired(),
-            )
-            x = _polished(np.clip(result.x, 0.0, 1.0), match, settings.polish_iterations)
-            miss, _, paths, _ = match(x)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
-        return LaunchResult.infeasible(inp, f"numerical failure: {type(err).__name__}: {err}")
-    violations = _misses(miss, paths / margin)
-    limit = deadline.reason(int(result.nit)) if deadline.reached else None
-    if limit is None and not result.success and violations:
-        violations.append(f"SLSQP: {result.message}")
+
+def _match_outcome(
+    problem: LaunchProblem,
+    x: NDArray,
+    result: OptimizeResult,
+    miss: NDArray,
+    violations: list[str],
+    limit: str | None,
+    trajectories_before: int,
+    wall_time_s: float,
+) -> OptimisationOutcome:
+    """The solved design ``x`` as the launch optimiser's outcome: one phase, the match."""
     payload = float(problem.to_config_units(x)[PAYLOAD_INDEX])
-    wall = time.perf_counter() - start
     record = PhaseRecord(
         name=MATCH_PHASE,
         payload_kg=payload,
@@ -212,22 +233,47 @@ def solve_launch_to(
         feasible=not violations,
         accepted=True,
         iterations=int(result.nit),
-        trajectories=problem.trajectories - before,
-        wall_time_s=wall,
+        trajectories=problem.trajectories - trajectories_before,
+        wall_time_s=wall_time_s,
         message=str(result.message),
     )
-    outcome = OptimisationOutcome(
+    return OptimisationOutcome(
         x=x,
         payload_kg=payload,
         max_violation=record.max_violation,
         max_residual=record.max_residual,
         phases=[record],
         trajectories=problem.trajectories,
-        wall_time_s=wall,
+        wall_time_s=wall_time_s,
         limit=limit,
     )
-    return finish_launch(
-        inp, problem, outcome, wall, insertion_time=point.t_s, violations=violations
+
+
+def _maximum_payload(
+    problem: LaunchProblem,
+    match: _Match,
+    x0: NDArray,
+    settings: LaunchMatchSettings,
+    deadline: Deadline,
+) -> OptimizeResult:
+    """SLSQP from ``x0`` (scaled): the largest payload within the match and path limits."""
+    n = problem.dimension
+    # Payload in kg: the objective's scale, so that ftol is a change of payload.
+    payload_span = float(problem.upper[PAYLOAD_INDEX] - problem.lower[PAYLOAD_INDEX])
+    gradient = np.zeros(n)
+    gradient[PAYLOAD_INDEX] = -payload_span
+    return minimize(
+        lambda x: -payload_span * float(x[PAYLOAD_INDEX]),
+        x0,
+        jac=lambda x: gradient,
+        method="SLSQP",
+        bounds=Bounds(np.zeros(n), np.ones(n)),
+        constraints=[
+            {"type": "eq", "fun": lambda x: match(x)[0], "jac": lambda x: match(x)[1]},
+            {"type": "ineq", "fun": lambda x: match(x)[2], "jac": lambda x: match(x)[3]},
+        ],
+        options={"maxiter": settings.max_iterations, "ftol": settings.payload_ftol_kg},
+        callback=lambda _: deadline.stop_if_expired(),
     )
 
 
