@@ -227,80 +227,128 @@ def _short_period_corrections(
 
     Brouwer (1959) short-period parts of a, e, i, l, g, h (J2 only), as in
     Schaub & Junkins Appendix F, recombined without 1/e (Lyddane 1963):
-    e dl = -eta^3 gamma2' B / 4, e dg = eta^2 gamma2' B / 4 + e gamma2' C / 4, with
-
-    B = 2 (3c^2 - 1) (eta^2 (a/r)^2 + a/r + 1) sin f
-        + 3 s^2 [(1 - eta^2 (a/r)^2 - a/r) sin(2g + f) + (eta^2 (a/r)^2 + a/r + 1/3) sin(2g + 3f)]
-    C = 6 (5c^2 - 1) (f - l + e sin f)
-        + (3 - 5c^2) [3 sin(2g + 2f) + 3 e sin(2g + f) + e sin(2g + 3f)]
-
-    and de = gamma2'/2 [(3c^2 - 1) A1 + 3 s^2 A2 cos(2g + 2f)
-                        - eta^2 s^2 (3 cos(2g + f) + cos(2g + 3f))],
-    where A1 = ((1 + e cos f)^3 - eta^3) / e and A2 = ((1 + e cos f)^3 - eta^2) / e
-    are expanded so that nothing divides by e. Returns the corrections
-    (da, dex, dey, di, draan, dlambda) to add to the mean elements.
+    e dl = -eta^3 gamma2' B / 4, e dg = eta^2 gamma2' B / 4 + e gamma2' C / 4. One
+    group of the formula at a time: da (:func:`_da`), de (:func:`_de`), Brouwer's B
+    (:func:`_b_term`) and C (:func:`_c_parts`), then e dg and dl + dg, dh and di, and
+    de, e dg turned into (ex, ey). Returns the corrections (da, dex, dey, di, draan,
+    dlambda) to add to the mean elements.
     """
-    e = np.hypot(ex, ey)
-    # argp is arbitrary for e = 0 (atan2 gives 0); the combinations built
-    # below only depend on u there, so any value is right.
-    argp = np.arctan2(ey, ex)
-    f = u - argp
-    eta_sq = 1.0 - e * e
-    eta = np.sqrt(eta_sq)
-    cos_i, sin_i = np.cos(i), np.sin(i)
-    cos_sq, sin_sq = cos_i * cos_i, sin_i * sin_i
-    gamma2 = 0.5 * j2 * (radius / a) ** 2
-    gamma2p = gamma2 / eta_sq**2
+    q = _ShortPeriodArguments(a, ex, ey, i, u, lam, radius=radius, j2=j2)
+    da = _da(a, q)
+    de = _de(q)
+    b = _b_term(q)
+    centre_plus, harmonics = _c_parts(q)
+    c = 6.0 * (5.0 * q.cos_sq - 1.0) * centre_plus + (3.0 - 5.0 * q.cos_sq) * harmonics
 
-    cos_f, sin_f = np.cos(f), np.sin(f)
-    e_cos_f, e_sin_f = e * cos_f, e * sin_f
-    a_over_r = (1.0 + e_cos_f) / eta_sq
-    # 2g + 2f = 2u, 2g + f = 2u - f, 2g + 3f = 2u + f
-    cos_2u, sin_2u = np.cos(2.0 * u), np.sin(2.0 * u)
-    cos_2u_m_f, sin_2u_m_f = np.cos(2.0 * u - f), np.sin(2.0 * u - f)
-    cos_2u_p_f, sin_2u_p_f = np.cos(2.0 * u + f), np.sin(2.0 * u + f)
-    # true minus mean anomaly (equation of the centre), bounded by ~2e
-    centre = wrap_to_pi(u - lam)
-
-    da = (
-        a
-        * gamma2
-        * (
-            (3.0 * cos_sq - 1.0) * (a_over_r**3 - 1.0 / (eta_sq * eta))
-            + 3.0 * sin_sq * a_over_r**3 * cos_2u
-        )
-    )
-
-    cubic_over_e = 3.0 * cos_f + 3.0 * e_cos_f * cos_f + e_cos_f * e_cos_f * cos_f
-    a1 = cubic_over_e + e * (1.0 + eta + eta_sq) / (1.0 + eta)
-    a2 = cubic_over_e + e
-    de = (
+    # e dg = eta^2 gamma2' B / 4 + e gamma2' C / 4 and dl + dg, whose 1/e terms cancel.
+    e_dargp = 0.25 * q.gamma2p * (q.eta_sq * b + q.e * c)
+    dlam = 0.25 * q.gamma2p * (q.eta_sq * q.e * b / (1.0 + q.eta) + c)
+    # dh and di.
+    draan = -0.5 * q.gamma2p * q.cos_i * (6.0 * centre_plus - harmonics)
+    di = (
         0.5
-        * gamma2p
-        * (
-            (3.0 * cos_sq - 1.0) * a1
-            + 3.0 * sin_sq * a2 * cos_2u
-            - eta_sq * sin_sq * (3.0 * cos_2u_m_f + cos_2u_p_f)
-        )
+        * q.gamma2p
+        * q.cos_i
+        * q.sin_i
+        * (3.0 * q.cos_2u + q.e * (3.0 * q.cos_2u_m_f + q.cos_2u_p_f))
     )
 
-    r_term = eta_sq * a_over_r**2 + a_over_r
-    b = 2.0 * (3.0 * cos_sq - 1.0) * (r_term + 1.0) * sin_f + 3.0 * sin_sq * (
-        (1.0 - r_term) * sin_2u_m_f + (r_term + 1.0 / 3.0) * sin_2u_p_f
-    )
-    centre_plus = centre + e_sin_f
-    harmonics = 3.0 * sin_2u + e * (3.0 * sin_2u_m_f + sin_2u_p_f)
-    c = 6.0 * (5.0 * cos_sq - 1.0) * centre_plus + (3.0 - 5.0 * cos_sq) * harmonics
-
-    e_dargp = 0.25 * gamma2p * (eta_sq * b + e * c)
-    dlam = 0.25 * gamma2p * (eta_sq * e * b / (1.0 + eta) + c)
-    draan = -0.5 * gamma2p * cos_i * (6.0 * centre_plus - harmonics)
-    di = 0.5 * gamma2p * cos_i * sin_i * (3.0 * cos_2u + e * (3.0 * cos_2u_m_f + cos_2u_p_f))
-
-    cos_g, sin_g = np.cos(argp), np.sin(argp)
+    # d(ex + i ey) = exp(i g) (de + i e dg).
+    cos_g, sin_g = np.cos(q.argp), np.sin(q.argp)
     dex = cos_g * de - sin_g * e_dargp
     dey = sin_g * de + cos_g * e_dargp
     return da, dex, dey, di, draan, dlam
+
+
+class _ShortPeriodArguments:
+    """What every group of :func:`_short_period_corrections` takes from the mean elements:
+    e, argp, eta, the inclination's and the true anomaly's cosines and sines, gamma2 and
+    gamma2' = gamma2 / eta^4, a/r, the harmonics of 2u and 2u -+ f, and the equation of
+    the centre."""
+
+    def __init__(
+        self,
+        a: NDArray[np.float64],
+        ex: NDArray[np.float64],
+        ey: NDArray[np.float64],
+        i: NDArray[np.float64],
+        u: NDArray[np.float64],
+        lam: NDArray[np.float64],
+        *,
+        radius: float,
+        j2: float,
+    ) -> None:
+        e = np.hypot(ex, ey)
+        # argp is arbitrary for e = 0 (atan2 gives 0); the combinations built
+        # below only depend on u there, so any value is right.
+        argp = np.arctan2(ey, ex)
+        f = u - argp
+        eta_sq = 1.0 - e * e
+        cos_i, sin_i = np.cos(i), np.sin(i)
+        gamma2 = 0.5 * j2 * (radius / a) ** 2
+        self.e, self.argp, self.eta_sq, self.eta = e, argp, eta_sq, np.sqrt(eta_sq)
+        self.cos_i, self.sin_i = cos_i, sin_i
+        self.cos_sq, self.sin_sq = cos_i * cos_i, sin_i * sin_i
+        self.gamma2, self.gamma2p = gamma2, gamma2 / eta_sq**2
+
+        self.cos_f, self.sin_f = np.cos(f), np.sin(f)
+        self.e_cos_f, self.e_sin_f = e * self.cos_f, e * self.sin_f
+        self.a_over_r = (1.0 + self.e_cos_f) / eta_sq
+        # 2g + 2f = 2u, 2g + f = 2u - f, 2g + 3f = 2u + f
+        self.cos_2u, self.sin_2u = np.cos(2.0 * u), np.sin(2.0 * u)
+        self.cos_2u_m_f, self.sin_2u_m_f = np.cos(2.0 * u - f), np.sin(2.0 * u - f)
+        self.cos_2u_p_f, self.sin_2u_p_f = np.cos(2.0 * u + f), np.sin(2.0 * u + f)
+        # true minus mean anomaly (equation of the centre), bounded by ~2e
+        self.centre = wrap_to_pi(u - lam)
+
+
+def _da(a: NDArray[np.float64], q: _ShortPeriodArguments) -> NDArray[np.float64]:
+    """da = a gamma2 [(3c^2 - 1)((a/r)^3 - eta^-3) + 3 s^2 (a/r)^3 cos 2u]."""
+    return (
+        a
+        * q.gamma2
+        * (
+            (3.0 * q.cos_sq - 1.0) * (q.a_over_r**3 - 1.0 / (q.eta_sq * q.eta))
+            + 3.0 * q.sin_sq * q.a_over_r**3 * q.cos_2u
+        )
+    )
+
+
+def _de(q: _ShortPeriodArguments) -> NDArray[np.float64]:
+    """de = gamma2'/2 [(3c^2 - 1) A1 + 3 s^2 A2 cos(2g + 2f) - eta^2 s^2 (3 cos(2g + f) +
+    cos(2g + 3f))], A1 = ((1 + e cos f)^3 - eta^3) / e and A2 = ((1 + e cos f)^3 - eta^2) / e
+    expanded so that nothing divides by e."""
+    cos_f, e_cos_f, e, eta, eta_sq = q.cos_f, q.e_cos_f, q.e, q.eta, q.eta_sq
+    cubic_over_e = 3.0 * cos_f + 3.0 * e_cos_f * cos_f + e_cos_f * e_cos_f * cos_f
+    a1 = cubic_over_e + e * (1.0 + eta + eta_sq) / (1.0 + eta)
+    a2 = cubic_over_e + e
+    return (
+        0.5
+        * q.gamma2p
+        * (
+            (3.0 * q.cos_sq - 1.0) * a1
+            + 3.0 * q.sin_sq * a2 * q.cos_2u
+            - eta_sq * q.sin_sq * (3.0 * q.cos_2u_m_f + q.cos_2u_p_f)
+        )
+    )
+
+
+def _b_term(q: _ShortPeriodArguments) -> NDArray[np.float64]:
+    """B = 2 (3c^2 - 1) (eta^2 (a/r)^2 + a/r + 1) sin f + 3 s^2 [(1 - eta^2 (a/r)^2 - a/r)
+    sin(2g + f) + (eta^2 (a/r)^2 + a/r + 1/3) sin(2g + 3f)]."""
+    r_term = q.eta_sq * q.a_over_r**2 + q.a_over_r
+    return 2.0 * (3.0 * q.cos_sq - 1.0) * (r_term + 1.0) * q.sin_f + 3.0 * q.sin_sq * (
+        (1.0 - r_term) * q.sin_2u_m_f + (r_term + 1.0 / 3.0) * q.sin_2u_p_f
+    )
+
+
+def _c_parts(q: _ShortPeriodArguments) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The two parts of C = 6 (5c^2 - 1) (f - l + e sin f) + (3 - 5c^2) [3 sin(2g + 2f)
+    + 3 e sin(2g + f) + e sin(2g + 3f)]: f - l + e sin f and the bracket (dh is made of
+    the same two)."""
+    centre_plus = q.centre + q.e_sin_f
+    harmonics = 3.0 * q.sin_2u + q.e * (3.0 * q.sin_2u_m_f + q.sin_2u_p_f)
+    return centre_plus, harmonics
 
 
 def _mean_to_osculating_lambda(
