@@ -30,11 +30,13 @@ at every step and at the end point: heat rate ``k_Q sqrt(rho) V^n``, normal load
 Compiled with numba's ``error_model="numpy"``: a division by zero gives inf or nan
 (the step's finiteness check then ends the flight ``DIVERGED``) instead of a Python
 exception, which spares a zero test on every division: 40 % of a flight's time
-(benchmarks/mission.py, issue 20). Inside the step loop no array crosses a call: the
+(benchmarks/mission.py). Inside the step loop no array crosses a call: the
 state and the stages are scalars and the parameters and tables travel as one packed
 array (:func:`pack`), because numba counts references (atomic operations) to every
 array a compiled function receives; with the state, the stages and six tables as
-arrays those counts were half of a flight's time (perf, issue 20).
+arrays those counts were half of a flight's time (measured with perf). The history
+row is written by a helper numba inlines (``inline="always"``), so the history array
+does not cross a call either.
 """
 
 from __future__ import annotations
@@ -162,7 +164,7 @@ def _wrap(angle: float) -> float:
     shifted = angle + math.pi
     if 0.0 <= shifted < TWO_PI:
         # The modulo would return ``shifted`` itself (exact): skip its library call, a
-        # few % of a flight (issue 20). The same result as the kernel's, bit for bit.
+        # few % of a flight. The same result as the kernel's, bit for bit.
         return shifted - math.pi
     return _wrap_to_pi(angle)
 
@@ -171,7 +173,7 @@ def _wrap(angle: float) -> float:
 # (``H_*``), then the tables: lift and drag coefficient matrices row by row, the Mach and
 # alpha nodes, the log-density and speed-of-sound tables. One array instead of a
 # parameter vector and six tables: numba counts references to every array a function
-# receives, and those atomic counts were half of a flight's time (issue 20).
+# receives, and those atomic counts were half of a flight's time.
 H_ROWS, H_COLS, H_MACH, H_ATM, N_HEADER = range(5)
 
 
@@ -308,7 +310,7 @@ def _shifted(c: float, s: float, angle: float, start: float) -> tuple[float, flo
     """cos and sin of ``angle`` from those of a nearby ``start`` (c, s): angle addition
     with the increment's Taylor series to the 9th power (truncation below 1e-19 for
     increments up to 0.05 rad, a stage's are < 0.01); a far angle is computed directly.
-    Within an RK4 step this replaces 12 of 16 cosine-sine pairs (issue 20)."""
+    Within an RK4 step this replaces 12 of 16 cosine-sine pairs."""
     d = angle - start
     if abs(d) > _SHIFT_MAX_RAD:
         return math.cos(angle), math.sin(angle)
@@ -482,6 +484,160 @@ def _raised(
     return q_max, q_t, n_max, n_t, p_max, p_t
 
 
+# A state of the flight loop: radius, longitude, latitude, speed, flight-path angle, heading.
+State = tuple[float, float, float, float, float, float]
+
+
+@njit(cache=True, error_model="numpy")
+def _first_bank_sign(x: np.ndarray, m: np.ndarray) -> float:
+    """The bank sign at the start: the configured one, or for a guided entry the one that
+    turns the heading towards the landing site."""
+    sign = m[P_BANK_SIGN]
+    if m[P_GUIDED] > 0.5:
+        _, bearing = range_and_bearing(x[2], x[1], m[P_TARGET_LAT], m[P_TARGET_LON])
+        sign = -1.0 if _wrap(x[5] - bearing) > 0.0 else 1.0
+    return sign
+
+
+@njit(cache=True, error_model="numpy")
+def _guided_bank_sign(
+    sign: float, reversals: int, psi: float, bearing: float, togo: float, m: np.ndarray
+) -> tuple[float, int]:
+    """The bank sign and reversal count after the corridor test: the sign reverses when the
+    heading error to the site leaves the corridor, which narrows with the range to go."""
+    frac = min(togo / m[P_CORRIDOR_RANGE], 1.0)
+    corridor = m[P_CORRIDOR_MIN] + (m[P_CORRIDOR_MAX] - m[P_CORRIDOR_MIN]) * frac
+    error = _wrap(psi - bearing)
+    if error > corridor and sign > 0.0:
+        return -1.0, reversals + 1
+    if error < -corridor and sign < 0.0:
+        return 1.0, reversals + 1
+    return sign, reversals
+
+
+@njit(cache=True, error_model="numpy")
+def _rk4_step(
+    state: State, lift: float, drag: float, sign: float, start: StepStart, dt: float, m: np.ndarray
+) -> State:
+    """One RK4 step from ``state``, whose aerodynamics (``lift``, ``drag``) and angles'
+    cosines and sines (``start``) are known; the bank sign is held over the step."""
+    r, lon, lat, v, gamma, psi = state
+    mu, omega = m[P_MU], m[P_OMEGA]
+    k1 = point_mass_rates_trig(
+        r, v, start[4], start[5], start[6], start[7], start[8], start[9],
+        start[10], sign * start[11], lift, drag, mu / (r * r), omega,
+    )  # fmt: skip
+    h = 0.5 * dt
+    s2 = (r + h * k1[0], lat + h * k1[2], v + h * k1[3], gamma + h * k1[4], psi + h * k1[5])
+    a2 = _aero_packed(s2[0], s2[2], m)
+    k2 = _stage(s2, a2, _bank_magnitude(s2[2], m), sign, mu, omega, start)
+    s3 = (r + h * k2[0], lat + h * k2[2], v + h * k2[3], gamma + h * k2[4], psi + h * k2[5])
+    a3 = _aero_packed(s3[0], s3[2], m)
+    k3 = _stage(s3, a3, _bank_magnitude(s3[2], m), sign, mu, omega, start)
+    s4 = (
+        r + dt * k3[0], lat + dt * k3[2], v + dt * k3[3], gamma + dt * k3[4],
+        psi + dt * k3[5],
+    )  # fmt: skip
+    a4 = _aero_packed(s4[0], s4[2], m)
+    k4 = _stage(s4, a4, _bank_magnitude(s4[2], m), sign, mu, omega, start)
+    w = dt / 6.0
+    return (
+        r + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+        lon + w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+        lat + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
+        v + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
+        gamma + w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4]),
+        psi + w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5]),
+    )
+
+
+# The status of a step after which the flight goes on (:func:`_advanced`).
+_FLYING = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _advanced(
+    state: State, new: State, t: float, dt: float, m: np.ndarray
+) -> tuple[int, State, float]:
+    """The status, state and time [s] after the step from ``state`` at ``t`` to ``new``:
+    ``DIVERGED`` (the step's start kept) on a non-finite value, ``TERMINAL`` at the
+    terminal speed (interpolated within the step), ``CRASHED`` at the ground, ``SKIPPED``
+    above the skip radius and climbing, else :data:`_FLYING`."""
+    finite = True
+    for value in new:
+        finite = finite and math.isfinite(value)
+    if not finite:
+        return DIVERGED, state, t
+    if new[3] <= m[P_V_END]:
+        at_end, f = _at_terminal_speed(state, new, m[P_V_END])
+        return TERMINAL, at_end, t + f * dt
+    t += dt
+    if new[0] <= m[P_RADIUS]:
+        return CRASHED, new, t
+    if new[0] > m[P_SKIP_RADIUS] and new[4] > 0.0:
+        return SKIPPED, new, t
+    return _FLYING, new, t
+
+
+@njit(cache=True, error_model="numpy")
+def _at_terminal_speed(state: State, new: State, v_end: float) -> tuple[State, float]:
+    """The state where the speed crosses ``v_end`` within the step from ``state`` to
+    ``new`` (linear interpolation), and the step's fraction there."""
+    r, lon, lat, v, gamma, psi = state
+    f = (v - v_end) / (v - new[3])
+    return (
+        r + f * (new[0] - r),
+        lon + f * (new[1] - lon),
+        lat + f * (new[2] - lat),
+        v + f * (new[3] - v),
+        gamma + f * (new[4] - gamma),
+        psi + f * (new[5] - psi),
+    ), f
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_row(
+    history: np.ndarray,
+    n: int,
+    t: float,
+    state: State,
+    path: tuple[float, float, float, float, float, float, float, float],
+) -> None:
+    """Row ``n`` of the history (:data:`HISTORY_COLUMNS`): the time, the state, then the
+    angle of attack, bank, Mach, density, heat rate, load, dynamic pressure, range to go."""
+    history[n, 0] = t
+    history[n, 1], history[n, 2], history[n, 3] = state[0], state[1], state[2]
+    history[n, 4], history[n, 5], history[n, 6] = state[3], state[4], state[5]
+    for k in range(8):
+        history[n, 7 + k] = path[k]
+
+
+@njit(cache=True, error_model="numpy")
+def _end_point(
+    history: np.ndarray,
+    n: int,
+    record: bool,
+    t: float,
+    state: State,
+    sign: float,
+    maxima: tuple[float, float, float, float, float, float],
+    m: np.ndarray,
+) -> tuple[tuple[float, float, float, float, float, float], int]:
+    """The end point (e.g. interpolated to the terminal speed) counted for the maxima
+    too, and recorded: the maxima and the number of history rows."""
+    r, lon, lat, v, _, _ = state
+    lift, drag, alpha, mach, rho = _aero_packed(r, v, m)
+    heat, load, qdyn = _path_of(v, lift, drag, alpha, rho, m)
+    maxima = _raised(maxima, t, heat, load, qdyn)
+    if record:
+        angle, _ = range_and_bearing(lat, lon, m[P_TARGET_LAT], m[P_TARGET_LON])
+        sigma = sign * _bank_magnitude(v, m)
+        togo = angle * m[P_RADIUS]
+        _record_row(history, n, t, state, (alpha, sigma, mach, rho, heat, load, qdyn, togo))
+        n += 1
+    return maxima, n
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def fly(
     x0: np.ndarray,
@@ -496,26 +652,20 @@ def fly(
     """
     m = pack(p, tables)
     dt = m[P_STEP]
-    n_max = int(m[P_MAX_TIME] / dt) + 2
-    history = np.zeros((n_max if record else 1, 15))
+    history = np.zeros((int(m[P_MAX_TIME] / dt) + 2 if record else 1, 15))
     maxima = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     max_bank = 0.0
     x = x0.copy()
     t = 0.0
-    sign = m[P_BANK_SIGN]
+    sign = _first_bank_sign(x, m)
     guided = m[P_GUIDED] > 0.5
     site_lat, site_lon = m[P_TARGET_LAT], m[P_TARGET_LON]
-    if guided:
-        _, bearing = range_and_bearing(x[2], x[1], site_lat, site_lon)
-        sign = -1.0 if _wrap(x[5] - bearing) > 0.0 else 1.0
-    reversals = 0
-    n = 0
-    status = TIME_LIMIT
+    reversals, n, status = 0, 0, TIME_LIMIT
     cos_site, sin_site = math.cos(site_lat), math.sin(site_lat)
-    mu, omega = m[P_MU], m[P_OMEGA]
     # The state and the stages as scalars: no array crosses a call in the loop.
-    r, lon, lat, v, gamma, psi = x[0], x[1], x[2], x[3], x[4], x[5]
+    state = (x[0], x[1], x[2], x[3], x[4], x[5])
     while t < m[P_MAX_TIME]:
+        r, lon, lat, v, gamma, psi = state
         magnitude = _bank_magnitude(v, m)
         start = _start_of_step(lat, gamma, psi, magnitude)
         angle, bearing = _range_and_bearing_trig(
@@ -523,15 +673,7 @@ def fly(
         )
         togo = angle * m[P_RADIUS]
         if guided:
-            frac = min(togo / m[P_CORRIDOR_RANGE], 1.0)
-            corridor = m[P_CORRIDOR_MIN] + (m[P_CORRIDOR_MAX] - m[P_CORRIDOR_MIN]) * frac
-            error = _wrap(psi - bearing)
-            if error > corridor and sign > 0.0:
-                sign = -1.0
-                reversals += 1
-            elif error < -corridor and sign < 0.0:
-                sign = 1.0
-                reversals += 1
+            sign, reversals = _guided_bank_sign(sign, reversals, psi, bearing, togo, m)
         sigma = sign * magnitude
         # One aerodynamic evaluation at x serves the path quantities and the first stage.
         lift, drag, alpha, mach, rho = _aero_packed(r, v, m)
@@ -539,87 +681,15 @@ def fly(
         maxima = _raised(maxima, t, heat, load, qdyn)
         max_bank = max(max_bank, abs(sigma))
         if record:
-            history[n, 0] = t
-            history[n, 1], history[n, 2], history[n, 3] = r, lon, lat
-            history[n, 4], history[n, 5], history[n, 6] = v, gamma, psi
-            history[n, 7] = alpha
-            history[n, 8] = sigma
-            history[n, 9] = mach
-            history[n, 10] = rho
-            history[n, 11] = heat
-            history[n, 12] = load
-            history[n, 13] = qdyn
-            history[n, 14] = togo
+            _record_row(history, n, t, state, (alpha, sigma, mach, rho, heat, load, qdyn, togo))
         n += 1
-        k1 = point_mass_rates_trig(
-            r, v, start[4], start[5], start[6], start[7], start[8], start[9],
-            start[10], sign * start[11], lift, drag, mu / (r * r), omega,
-        )  # fmt: skip
-        h = 0.5 * dt
-        s2 = (r + h * k1[0], lat + h * k1[2], v + h * k1[3], gamma + h * k1[4], psi + h * k1[5])
-        a2 = _aero_packed(s2[0], s2[2], m)
-        k2 = _stage(s2, a2, _bank_magnitude(s2[2], m), sign, mu, omega, start)
-        s3 = (r + h * k2[0], lat + h * k2[2], v + h * k2[3], gamma + h * k2[4], psi + h * k2[5])
-        a3 = _aero_packed(s3[0], s3[2], m)
-        k3 = _stage(s3, a3, _bank_magnitude(s3[2], m), sign, mu, omega, start)
-        s4 = (
-            r + dt * k3[0], lat + dt * k3[2], v + dt * k3[3], gamma + dt * k3[4],
-            psi + dt * k3[5],
-        )  # fmt: skip
-        a4 = _aero_packed(s4[0], s4[2], m)
-        k4 = _stage(s4, a4, _bank_magnitude(s4[2], m), sign, mu, omega, start)
-        w = dt / 6.0
-        new = (
-            r + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
-            lon + w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
-            lat + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
-            v + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
-            gamma + w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4]),
-            psi + w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5]),
-        )
-        finite = True
-        for value in new:
-            finite = finite and math.isfinite(value)
-        if not finite:
-            status = DIVERGED
+        new = _rk4_step(state, lift, drag, sign, start, dt, m)
+        ended, state, t = _advanced(state, new, t, dt, m)
+        if ended != _FLYING:
+            status = ended
             break
-        if new[3] <= m[P_V_END]:
-            f = (v - m[P_V_END]) / (v - new[3])
-            r, lon, lat = r + f * (new[0] - r), lon + f * (new[1] - lon), lat + f * (new[2] - lat)
-            v, gamma, psi = (
-                v + f * (new[3] - v),
-                gamma + f * (new[4] - gamma),
-                psi + f * (new[5] - psi),
-            )
-            t += f * dt
-            status = TERMINAL
-            break
-        r, lon, lat, v, gamma, psi = new
-        t += dt
-        if r <= m[P_RADIUS]:
-            status = CRASHED
-            break
-        if r > m[P_SKIP_RADIUS] and gamma > 0.0:
-            status = SKIPPED
-            break
-    x[0], x[1], x[2], x[3], x[4], x[5] = r, lon, lat, v, gamma, psi
-    # The end point (e.g. interpolated to the terminal speed) counts for the maxima too.
-    lift, drag, alpha, mach, rho = _aero_packed(r, v, m)
-    heat, load, qdyn = _path_of(v, lift, drag, alpha, rho, m)
-    maxima = _raised(maxima, t, heat, load, qdyn)
-    if record:
-        history[n, 0] = t
-        history[n, 1:7] = x
-        angle, _ = range_and_bearing(lat, lon, site_lat, site_lon)
-        history[n, 7] = alpha
-        history[n, 8] = sign * _bank_magnitude(v, m)
-        history[n, 9] = mach
-        history[n, 10] = rho
-        history[n, 11] = heat
-        history[n, 12] = load
-        history[n, 13] = qdyn
-        history[n, 14] = angle * m[P_RADIUS]
-        n += 1
+    x[0], x[1], x[2], x[3], x[4], x[5] = state
+    maxima, n = _end_point(history, n, record, t, state, sign, maxima, m)
     out = np.empty(7)
     out[:6] = maxima
     out[6] = max_bank
