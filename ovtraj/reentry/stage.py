@@ -17,11 +17,12 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.astro.angles import wrap_to_two_pi
+from ovtraj.config.reentry import ReentryLimitsConfig
 from ovtraj.deadline import Deadline
 from ovtraj.reentry.dynamics import HISTORY_COLUMNS, STATUS_TEXT
 from ovtraj.reentry.guidance import BankGuidance, Limits, Shot, unit_bounds
 from ovtraj.reentry.inputs import ReentryInput
-from ovtraj.reentry.model import EntryModel
+from ovtraj.reentry.model import EntryModel, Flight
 from ovtraj.reentry.result import ReentryResult
 
 
@@ -100,50 +101,16 @@ def _result(
     wall_time_s: float,
     time_limit: str | None = None,
 ) -> ReentryResult:
-    s = inp.settings
+    """The stage's result of the final ``shot``: its flags and reasons, terminal state,
+    path maxima and margins, and the guidance's counts."""
     flight = shot.flight
     x = flight.state
-    earth = inp.earth
-    altitude = float(x[0] - earth.radius)
-    limits = s.limits
-    margins = {
-        "heat": 1.0 - flight.max_heat_rate_w_m2 / (limits.max_heat_rate_kw_m2 * 1e3),
-        "load": 1.0 - flight.max_load_g / limits.max_load_g,
-        "q": 1.0 - flight.max_dynamic_pressure_pa / (limits.max_dynamic_pressure_kpa * 1e3),
-        "bank": 1.0 - flight.max_bank_rad / math.radians(limits.max_bank_deg),
-    }
-    flags, reasons = [], []
-    if time_limit is not None:
-        flags.append("time_limit")
-        reasons.append(f"guidance stopped: {time_limit}")
-    if shot.newton_exhausted:
-        flags.append("iteration_limit")
-        reasons.append(
-            f"reentry.guidance.newton_iterations = {s.guidance.newton_iterations} reached "
-            f"with the range error {abs(shot.range_error_m) / 1e3:.3g} km above "
-            f"newton_tolerance_km = {s.guidance.newton_tolerance_km:g}"
-        )
-    if not flight.reached:
-        flags.append("terminal_not_reached")
-        reasons.append(STATUS_TEXT[flight.status])
-    if shot.miss_m > s.terminal.miss_tolerance_km * 1e3:
-        flags.append("outside_footprint")
-        reasons.append(
-            f"the landing site is outside the footprint: the best trajectory ends "
-            f"{shot.miss_m / 1e3:.1f} km from it (tolerance {s.terminal.miss_tolerance_km:g} km)"
-        )
-    for name, key in (("heat rate", "heat"), ("load", "load"), ("dynamic pressure", "q")):
-        if margins[key] < 0.0:
-            flags.append(f"{key}_limit")
-            reasons.append(f"{name} over its limit by {-100 * margins[key]:.1f} %")
-    if flight.reached and abs(altitude / 1e3 - s.terminal.altitude_km) > (
-        s.terminal.altitude_tolerance_km
-    ):
-        flags.append("terminal_altitude")
-        reasons.append(
-            f"terminal altitude {altitude / 1e3:.1f} km outside "
-            f"{s.terminal.altitude_km:g} +- {s.terminal.altitude_tolerance_km:g} km"
-        )
+    altitude = float(x[0] - inp.earth.radius)
+    margins = _margins(flight, inp.settings.limits)
+    flags, reasons = _stop_flags(inp, shot, time_limit)
+    for flag, reason in _limit_flags(inp, shot, margins, altitude):
+        flags.append(flag)
+        reasons.append(reason)
     feasible = not flags
     return ReentryResult(
         feasible=feasible,
@@ -178,6 +145,70 @@ def _result(
         wall_time_s=wall_time_s,
         trajectory=trajectory_table(inp, flight.history),
     )
+
+
+def _margins(flight: Flight, limits: ReentryLimitsConfig) -> dict[str, float]:
+    """Each path maximum's margin: 1 - maximum / limit (negative: over the limit)."""
+    return {
+        "heat": 1.0 - flight.max_heat_rate_w_m2 / (limits.max_heat_rate_kw_m2 * 1e3),
+        "load": 1.0 - flight.max_load_g / limits.max_load_g,
+        "q": 1.0 - flight.max_dynamic_pressure_pa / (limits.max_dynamic_pressure_kpa * 1e3),
+        "bank": 1.0 - flight.max_bank_rad / math.radians(limits.max_bank_deg),
+    }
+
+
+def _stop_flags(
+    inp: ReentryInput, shot: Shot, time_limit: str | None
+) -> tuple[list[str], list[str]]:
+    """The flags and reasons of a guidance stopped by a limit or a flight that did not
+    reach the terminal speed."""
+    s = inp.settings
+    flags, reasons = [], []
+    if time_limit is not None:
+        flags.append("time_limit")
+        reasons.append(f"guidance stopped: {time_limit}")
+    if shot.newton_exhausted:
+        flags.append("iteration_limit")
+        reasons.append(
+            f"reentry.guidance.newton_iterations = {s.guidance.newton_iterations} reached "
+            f"with the range error {abs(shot.range_error_m) / 1e3:.3g} km above "
+            f"newton_tolerance_km = {s.guidance.newton_tolerance_km:g}"
+        )
+    if not shot.flight.reached:
+        flags.append("terminal_not_reached")
+        reasons.append(STATUS_TEXT[shot.flight.status])
+    return flags, reasons
+
+
+def _limit_flags(
+    inp: ReentryInput, shot: Shot, margins: dict[str, float], altitude_m: float
+) -> list[tuple[str, str]]:
+    """The flags and reasons of the landing-site miss, the path limits and the terminal
+    altitude, in that order."""
+    terminal = inp.settings.terminal
+    found = []
+    if shot.miss_m > terminal.miss_tolerance_km * 1e3:
+        found.append(
+            (
+                "outside_footprint",
+                f"the landing site is outside the footprint: the best trajectory ends "
+                f"{shot.miss_m / 1e3:.1f} km from it (tolerance {terminal.miss_tolerance_km:g} km)",
+            )
+        )
+    for name, key in (("heat rate", "heat"), ("load", "load"), ("dynamic pressure", "q")):
+        if margins[key] < 0.0:
+            found.append((f"{key}_limit", f"{name} over its limit by {-100 * margins[key]:.1f} %"))
+    if shot.flight.reached and abs(altitude_m / 1e3 - terminal.altitude_km) > (
+        terminal.altitude_tolerance_km
+    ):
+        found.append(
+            (
+                "terminal_altitude",
+                f"terminal altitude {altitude_m / 1e3:.1f} km outside "
+                f"{terminal.altitude_km:g} +- {terminal.altitude_tolerance_km:g} km",
+            )
+        )
+    return found
 
 
 def trajectory_table(inp: ReentryInput, history: np.ndarray | None) -> pd.DataFrame:
