@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -89,8 +90,6 @@ def forecast_passes(
     time_tolerance_s: float,
 ) -> Forecast:
     """Propagate over ``[0, horizon_s]`` and list the passes by the entry point."""
-    ctx = propagator.context
-    radius = propagator.earth.radius
     reach = highest_latitude_rad(state0)
     result = propagator.propagate(
         state0,
@@ -111,33 +110,9 @@ def forecast_passes(
         )
     r0 = float(np.linalg.norm(state0[:3]))
     period = float(orbital_period(r0, mu=propagator.earth.mu))
-
-    def distance(t: float) -> float:
-        lat, lon = subsatellite_point(
-            result.state_at(t), t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
-        )
-        return float(
-            great_circle_distance(lat, lon, entry.latitude_rad, entry.longitude_rad, radius=radius)
-        )
-
-    # Every crossing's sub-satellite point and distance in one array call: a long horizon
-    # has ~100 crossings, and one-point calls were half the forecast's time.
-    hit_states = np.array([hit.state for hit in result.hits]).reshape(-1, 6)
-    hit_times = np.array([hit.t for hit in result.hits])
-    lats_c, lons_c = subsatellite_point(
-        hit_states, hit_times, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
-    )
-    distances_c = great_circle_distance(
-        lats_c, lons_c, entry.latitude_rad, entry.longitude_rad, radius=radius
-    )
+    track = _GroundTrack(propagator, result, entry)
     passes = []
-    for hit, lat_c, lon_c, d_c in zip(
-        result.hits,
-        np.atleast_1d(lats_c),
-        np.atleast_1d(lons_c),
-        np.atleast_1d(distances_c),
-        strict=True,
-    ):
+    for hit, lat_c, lon_c, d_c in zip(result.hits, *track.crossings(), strict=True):
         lat_c, lon_c = float(lat_c), float(lon_c)
         northbound = bool(hit.state[5] > 0.0)
         through = entry.contains(lat_c, lon_c) and entry.accepts_direction(northbound)
@@ -145,14 +120,7 @@ def forecast_passes(
         if through:  # refine only the passes that matter: the others keep the crossing
             lo = max(0.0, hit.t - 0.25 * period)
             hi = min(horizon_s, hit.t + 0.25 * period)
-            best = minimize_scalar(
-                distance, bounds=(lo, hi), method="bounded", options={"xatol": time_tolerance_s}
-            )
-            t_near, d_near = float(best.x), float(best.fun)
-            state = result.state_at(t_near)
-            lat, lon = subsatellite_point(
-                state, t_near, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, radius
-            )
+            t_near, state, d_near, lat, lon = track.nearest(lo, hi, time_tolerance_s)
         passes.append(
             TrackPass(
                 t_s=t_near,
@@ -166,14 +134,74 @@ def forecast_passes(
                 state=np.array(state, dtype=float),
             )
         )
-    reason = None
-    if not any(p.in_region for p in passes):
-        reason = (
-            f"no {entry.pass_direction} pass of the ground track crossing the entry latitude "
-            "inside the entry region "
-            f"within the {horizon_s / S_PER_HOUR:g} h horizon "
-            f"({len(passes)} crossings of the entry latitude, nearest "
-            f"{min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
-            " km)"
+    return Forecast(passes, result, _no_pass_reason(passes, entry, horizon_s))
+
+
+class _GroundTrack:
+    """The forecast's sub-satellite points and their great-circle distances to the entry
+    point [m]."""
+
+    def __init__(
+        self, propagator: OrbitPropagator, result: PropagationResult, entry: EntryRegion
+    ) -> None:
+        self.ctx = propagator.context
+        self.radius = propagator.earth.radius
+        self.result = result
+        self.entry = entry
+
+    def point(self, state: np.ndarray, t: float | np.ndarray) -> tuple[Any, Any]:
+        """Geocentric latitude and longitude [rad] of ``state`` at ``t`` [s]."""
+        ctx = self.ctx
+        return subsatellite_point(
+            state, t, ctx.earth_angle0_rad, ctx.rotation_rate_rad_s, self.radius
         )
-    return Forecast(passes, result, reason)
+
+    def distance_to_entry(self, lat: Any, lon: Any) -> Any:
+        entry = self.entry
+        return great_circle_distance(
+            lat, lon, entry.latitude_rad, entry.longitude_rad, radius=self.radius
+        )
+
+    def crossings(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Latitude, longitude and distance of every crossing of the entry latitude.
+
+        In one array call: a long horizon has ~100 crossings, and one-point calls were half
+        the forecast's time."""
+        hits = self.result.hits
+        hit_states = np.array([hit.state for hit in hits]).reshape(-1, 6)
+        hit_times = np.array([hit.t for hit in hits])
+        lats_c, lons_c = self.point(hit_states, hit_times)
+        distances_c = self.distance_to_entry(lats_c, lons_c)
+        return np.atleast_1d(lats_c), np.atleast_1d(lons_c), np.atleast_1d(distances_c)
+
+    def nearest(
+        self, lo: float, hi: float, time_tolerance_s: float
+    ) -> tuple[float, np.ndarray, float, Any, Any]:
+        """The nearest approach to the entry point within ``[lo, hi]`` [s]: its time,
+        state, distance [m] and sub-satellite point."""
+
+        def distance(t: float) -> float:
+            lat, lon = self.point(self.result.state_at(t), t)
+            return float(self.distance_to_entry(lat, lon))
+
+        best = minimize_scalar(
+            distance, bounds=(lo, hi), method="bounded", options={"xatol": time_tolerance_s}
+        )
+        t_near, d_near = float(best.x), float(best.fun)
+        state = self.result.state_at(t_near)
+        lat, lon = self.point(state, t_near)
+        return t_near, state, d_near, lat, lon
+
+
+def _no_pass_reason(passes: list[TrackPass], entry: EntryRegion, horizon_s: float) -> str | None:
+    """Why no pass is in the region (None when one is)."""
+    if any(p.in_region for p in passes):
+        return None
+    return (
+        f"no {entry.pass_direction} pass of the ground track crossing the entry latitude "
+        "inside the entry region "
+        f"within the {horizon_s / S_PER_HOUR:g} h horizon "
+        f"({len(passes)} crossings of the entry latitude, nearest "
+        f"{min((p.distance_m for p in passes), default=math.inf) / 1e3:.0f}"
+        " km)"
+    )
