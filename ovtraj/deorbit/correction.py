@@ -202,69 +202,23 @@ def correct_burn(
     the limit (the stage does not accept such a correction).
     """
     deadline = deadline or Deadline.unlimited()
+    problem = _ScaledBurn(model, burn_t0_s, dv_max_mps, settings)
     ts, vs = settings.time_scale_s, settings.dv_scale_mps
     lo_t = max(-settings.burn_window_s, t_min_s - burn_t0_s) / ts
     hi_t = min(settings.burn_window_s, t_max_s - burn_t0_s) / ts
     bound_v = settings.impulse_bound_factor * dv_max_mps / vs
     bounds = [(lo_t, hi_t)] + [(-bound_v, bound_v)] * 3
-    radius = model.entry_radius_m
-    cache: dict[bytes, NDArray] = {}
-
-    def unscale(z: NDArray) -> tuple[float, NDArray]:
-        return burn_t0_s + float(z[0]) * ts, np.asarray(z[1:], dtype=float) * vs
-
-    def values(z: NDArray) -> NDArray:
-        key = np.asarray(z, dtype=float).tobytes()
-        if key not in cache:
-            t, dv = unscale(z)
-            shot = model.shoot(t, dv)
-            cache[key] = constraint_values(shot, model.entry, radius, dv_max_mps, vs)
-        return cache[key]
-
-    def jacobian(z: NDArray) -> NDArray:
-        h = settings.finite_difference_step
-        z = np.asarray(z, dtype=float)
-        columns = []
-        for k in range(len(z)):
-            step = np.zeros_like(z)
-            step[k] = h
-            columns.append((values(z + step) - values(z)) / h)
-        jac = np.array(columns).T
-        jac[6] = np.r_[0.0, -2.0 * z[1:]]  # impulse limit: exact
-        return jac
-
     z0 = np.r_[0.0, np.asarray(dv0_rsw_mps, dtype=float) / vs]
     z0 = np.clip(z0, [b[0] for b in bounds], [b[1] for b in bounds])
-    try:
-        with np.errstate(all="ignore"):
-            result = minimize(
-                lambda z: float(z[1:] @ z[1:]),
-                z0,
-                jac=lambda z: np.r_[0.0, 2.0 * z[1:]],
-                method="SLSQP",
-                bounds=bounds,
-                constraints=[{"type": "ineq", "fun": values, "jac": jacobian}],
-                options={"maxiter": settings.max_iterations, "ftol": settings.ftol},
-                callback=lambda *_: deadline.stop_if_expired(),
-            )
-        z, success, iterations, message = (
-            result.x,
-            bool(result.success),
-            int(result.nit),
-            str(result.message),
-        )
-        status = int(result.status)
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
-        z, success, iterations, status = z0, False, 0, -1
-        message = f"numerical failure: {type(err).__name__}: {err}"
+    z, success, iterations, message, status = _slsqp(problem, z0, bounds, settings, deadline)
     limit = None
     if deadline.expired():
         limit = deadline.reason(iterations, "SLSQP iterations")
     elif status == _SLSQP_ITERATION_LIMIT:
         limit = f"deorbit.solver.max_iterations = {settings.max_iterations} reached"
-    t, dv = unscale(z)
+    t, dv = problem.unscale(z)
     shot = model.shoot(t, dv)
-    final = constraint_values(shot, model.entry, radius, dv_max_mps, vs)
+    final = constraint_values(shot, model.entry, model.entry_radius_m, dv_max_mps, vs)
     violation = float(max(0.0, -float(np.min(final))))
     return Correction(
         shot=shot,
@@ -275,6 +229,89 @@ def correct_burn(
         max_violation=violation,
         limit=limit,
     )
+
+
+class _ScaledBurn:
+    """The burn's unknowns scaled for SLSQP, ``z = (dt / time_scale, dv / dv_scale)``
+    around ``burn_t0_s``, and its constraints (cached per point) with their
+    forward-difference Jacobian."""
+
+    def __init__(
+        self,
+        model: DescentModel,
+        burn_t0_s: float,
+        dv_max_mps: float,
+        settings: DeorbitSolverConfig,
+    ) -> None:
+        self.model = model
+        self.burn_t0_s = burn_t0_s
+        self.dv_max_mps = dv_max_mps
+        self.settings = settings
+        self._cache: dict[bytes, NDArray] = {}
+
+    def unscale(self, z: NDArray) -> tuple[float, NDArray]:
+        """The burn epoch [s] and impulse (RSW, m/s) of ``z``."""
+        s = self.settings
+        dv = np.asarray(z[1:], dtype=float) * s.dv_scale_mps
+        return self.burn_t0_s + float(z[0]) * s.time_scale_s, dv
+
+    def values(self, z: NDArray) -> NDArray:
+        key = np.asarray(z, dtype=float).tobytes()
+        if key not in self._cache:
+            t, dv = self.unscale(z)
+            shot = self.model.shoot(t, dv)
+            self._cache[key] = constraint_values(
+                shot,
+                self.model.entry,
+                self.model.entry_radius_m,
+                self.dv_max_mps,
+                self.settings.dv_scale_mps,
+            )
+        return self._cache[key]
+
+    def jacobian(self, z: NDArray) -> NDArray:
+        h = self.settings.finite_difference_step
+        z = np.asarray(z, dtype=float)
+        columns = []
+        for k in range(len(z)):
+            step = np.zeros_like(z)
+            step[k] = h
+            columns.append((self.values(z + step) - self.values(z)) / h)
+        jac = np.array(columns).T
+        jac[6] = np.r_[0.0, -2.0 * z[1:]]  # impulse limit: exact
+        return jac
+
+
+def _slsqp(
+    problem: _ScaledBurn,
+    z0: NDArray,
+    bounds: list[tuple[float, float]],
+    settings: DeorbitSolverConfig,
+    deadline: Deadline,
+) -> tuple[NDArray, bool, int, str, int]:
+    """The least squared impulse from ``z0`` within the constraints: the solution, success,
+    iterations, message and SLSQP status (-1, ``z0`` kept, on a numerical failure)."""
+    try:
+        with np.errstate(all="ignore"):
+            result = minimize(
+                lambda z: float(z[1:] @ z[1:]),
+                z0,
+                jac=lambda z: np.r_[0.0, 2.0 * z[1:]],
+                method="SLSQP",
+                bounds=bounds,
+                constraints=[{"type": "ineq", "fun": problem.values, "jac": problem.jacobian}],
+                options={"maxiter": settings.max_iterations, "ftol": settings.ftol},
+                callback=lambda *_: deadline.stop_if_expired(),
+            )
+        return (
+            result.x,
+            bool(result.success),
+            int(result.nit),
+            str(result.message),
+            int(result.status),
+        )
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:
+        return z0, False, 0, f"numerical failure: {type(err).__name__}: {err}", -1
 
 
 # scipy's SLSQP status at ``maxiter``.
