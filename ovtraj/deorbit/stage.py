@@ -110,9 +110,8 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     candidates = forecast.in_region
     if not candidates:
         return DeorbitResult(False, forecast.reason, inp.epoch, wall_time_s=_since(start))
-    entry = inp.entry
     try:
-        shallowest = burn_estimate(inp, candidates[0].state, entry.fpa_max_rad)
+        shallowest = burn_estimate(inp, candidates[0].state, inp.entry.fpa_max_rad)
     except ValueError as err:
         return DeorbitResult(False, str(err), inp.epoch, wall_time_s=_since(start))
     if shallowest.dv_mps > inp.max_impulse_mps * inp.solver.estimate_margin:
@@ -120,7 +119,7 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
             False,
             f"impulse limit {inp.max_impulse_mps:g} m/s is below the "
             f"{shallowest.dv_mps:.1f} m/s the shallowest allowed entry angle "
-            f"({math.degrees(entry.fpa_max_rad):g} deg) needs (two-body estimate)",
+            f"({math.degrees(inp.entry.fpa_max_rad):g} deg) needs (two-body estimate)",
             inp.epoch,
             passes_in_region=len(candidates),
             wall_time_s=_since(start),
@@ -128,56 +127,15 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
     r0 = float(np.linalg.norm(inp.state0[:3]))
     period = float(orbital_period(r0, mu=inp.earth.mu))
     model = DescentModel(
-        propagator, forecast.trajectory, entry, inp.max_descent_revolutions * period
+        propagator, forecast.trajectory, inp.entry, inp.max_descent_revolutions * period
     )
-    tried, reasons = 0, []
-    Option = tuple[Correction, TrackPass, TangentialDeorbit]
-    best: Option | None = None  # the least violation
-    chosen: Option | None = None  # accepted within the cost bound
-    for track_pass in candidates:
-        if tried >= inp.solver.max_passes:
-            break
-        if deadline.expired():
-            reasons.append(deadline.reason(tried, "passes"))
-            break
-        estimate = burn_estimate(inp, track_pass.state, entry.fpa_target_rad)
-        burn_t0 = first_burn_time_s(track_pass, estimate)
-        if burn_t0 + inp.solver.burn_window_s < 0.0:
-            reasons.append(f"pass at {track_pass.t_s:.0f} s: the burn would precede the epoch")
-            continue
-        tried += 1
-        correction = correct_burn(
-            model,
-            burn_t0,
-            np.array([0.0, -estimate.dv_mps, 0.0]),
-            dv_max_mps=inp.max_impulse_mps,
-            t_min_s=0.0,
-            t_max_s=inp.horizon_s,
-            settings=inp.solver,
-            deadline=deadline,
-        )
-        if best is None or correction.max_violation < best[0].max_violation:
-            best = (correction, track_pass, estimate)
-        if _accepted(correction, inp):
-            impulse = float(np.linalg.norm(correction.shot.dv_rsw_mps))
-            bound = pass_cost_bound_mps(inp, track_pass)
-            if impulse <= bound:
-                chosen = (correction, track_pass, estimate)
-                break
-            reasons.append(
-                f"pass at {track_pass.t_s:.0f} s: met by {impulse:.2f} m/s, above the "
-                f"{bound:.2f} m/s of deorbit.solver.pass_cost_margin_mps"
-            )
-            continue
-        reasons.append(f"pass at {track_pass.t_s:.0f} s: {_failure(correction, inp)}")
-        if correction.limit is not None and deadline.reached:
-            break
-    if best is None:
-        reason = "; ".join(reasons) or "no pass could be tried"
+    search = _PassSearch(inp, model, deadline)
+    search.run(candidates)
+    if search.best is None:
+        reason = "; ".join(search.reasons) or "no pass could be tried"
         return DeorbitResult(False, reason, inp.epoch, wall_time_s=_since(start))
-    correction, track_pass, estimate = chosen or best
-    feasible = chosen is not None
-    reason = None if feasible else "; ".join(reasons)
+    correction, track_pass, estimate = search.chosen or search.best
+    feasible = search.chosen is not None
     return _result(
         inp,
         propagator,
@@ -186,12 +144,86 @@ def solve_deorbit(inp: DeorbitInput) -> DeorbitResult:
         track_pass,
         estimate,
         feasible=feasible,
-        reason=reason,
+        reason=None if feasible else "; ".join(search.reasons),
         passes_in_region=len(candidates),
-        passes_tried=tried,
+        passes_tried=search.tried,
         propagations=model.propagations + 1,
         wall_time_s=_since(start),
     )
+
+
+# A pass's corrected burn, the pass and its two-body estimate.
+_Option = tuple[Correction, TrackPass, TangentialDeorbit]
+
+
+class _PassSearch:
+    """The passes tried in turn (module notes, 2-4): the first met within the cost bound
+    is ``chosen``; ``best`` is the least violation of all; ``reasons`` say why each pass
+    passed over was."""
+
+    def __init__(self, inp: DeorbitInput, model: DescentModel, deadline: Deadline) -> None:
+        self.inp = inp
+        self.model = model
+        self.deadline = deadline
+        self.tried = 0
+        self.reasons: list[str] = []
+        self.best: _Option | None = None  # the least violation
+        self.chosen: _Option | None = None  # accepted within the cost bound
+
+    def run(self, candidates: list[TrackPass]) -> None:
+        inp, deadline = self.inp, self.deadline
+        for track_pass in candidates:
+            if self.tried >= inp.solver.max_passes:
+                break
+            if deadline.expired():
+                self.reasons.append(deadline.reason(self.tried, "passes"))
+                break
+            estimate = burn_estimate(inp, track_pass.state, inp.entry.fpa_target_rad)
+            burn_t0 = first_burn_time_s(track_pass, estimate)
+            if burn_t0 + inp.solver.burn_window_s < 0.0:
+                self.reasons.append(
+                    f"pass at {track_pass.t_s:.0f} s: the burn would precede the epoch"
+                )
+                continue
+            self.tried += 1
+            correction = self._correct(burn_t0, estimate)
+            if self.best is None or correction.max_violation < self.best[0].max_violation:
+                self.best = (correction, track_pass, estimate)
+            if _accepted(correction, inp):
+                if self._within_cost(correction, track_pass):
+                    self.chosen = (correction, track_pass, estimate)
+                    break
+                continue
+            self.reasons.append(f"pass at {track_pass.t_s:.0f} s: {_failure(correction, inp)}")
+            if correction.limit is not None and deadline.reached:
+                break
+
+    def _correct(self, burn_t0: float, estimate: TangentialDeorbit) -> Correction:
+        """SLSQP from the two-body estimate: a retrograde impulse at ``burn_t0`` [s]."""
+        inp = self.inp
+        return correct_burn(
+            self.model,
+            burn_t0,
+            np.array([0.0, -estimate.dv_mps, 0.0]),
+            dv_max_mps=inp.max_impulse_mps,
+            t_min_s=0.0,
+            t_max_s=inp.horizon_s,
+            settings=inp.solver,
+            deadline=self.deadline,
+        )
+
+    def _within_cost(self, correction: Correction, track_pass: TrackPass) -> bool:
+        """Whether the accepted ``correction`` lies within the pass's cost bound; if not,
+        the reason is kept."""
+        impulse = float(np.linalg.norm(correction.shot.dv_rsw_mps))
+        bound = pass_cost_bound_mps(self.inp, track_pass)
+        if impulse <= bound:
+            return True
+        self.reasons.append(
+            f"pass at {track_pass.t_s:.0f} s: met by {impulse:.2f} m/s, above the "
+            f"{bound:.2f} m/s of deorbit.solver.pass_cost_margin_mps"
+        )
+        return False
 
 
 def _since(start: float) -> float:
