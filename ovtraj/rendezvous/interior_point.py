@@ -11,7 +11,7 @@ large-scale nonlinear programming", SIAM J. Optim. 9 (1999) 877-900), written fo
 dense problems of ~5 variables, where scipy's sparse-operator machinery (linear
 operators, projections, projected CG) cost more than the propagations it drove: on
 the mission chain's correction problems this solver takes half the iterations and
-~3.4x less time for the same optima (issue 20, ``benchmarks/interior_point.py``; its
+~3.4x less time for the same optima (``benchmarks/interior_point.py``; its
 arithmetic per iteration runs in numba kernels, the loop around the caller's
 evaluations in Python):
 
@@ -448,89 +448,187 @@ def minimize_interior_point(
     """
     deadline = deadline or Deadline.unlimited()
     bounds = _Bounds(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
-    x = np.asarray(x0, dtype=float).copy()
-    n, k = x.size, bounds.offset.size
-    # Slack variables s = h(x) > 0 carry the barrier; the trust region is scaled by them
-    # (the step in s is S times the scaled step), so a bound that is nearly active only
-    # shortens the step of its own slack.
-    slack = np.maximum(bounds(x), _MIN_SLACK)
+    point = _Iterate(evaluate, bounds, np.asarray(x0, dtype=float).copy())
     mu = barrier_parameter
     mu_floor = tol / 10.0
     radius = trust_radius
-    f, g, c, jac = evaluate(x)
-    m = c.size
-
-    bound_matrix, offset = bounds.matrix, bounds.offset
     penalty = 0.0
-    multipliers = np.zeros(m + k)
     iteration = 0
-    # The Jacobian's factors at (x, s) and the least-squares multipliers, after each
-    # accepted step; the numeric work is compiled (~35 iterations a mission evaluation).
     try:
-        matrix, span, null, r, independent = _factor(jac, bound_matrix, slack)
-        if independent:
-            multipliers = _least_squares_multipliers(span, r, g, k, mu)
+        independent = point.factor(mu)
         while independent:
-            residual = _residuals(c, x, slack, bound_matrix, offset)
-            error = _kkt_error(g, jac, bound_matrix, residual, slack, multipliers, 0.0)
-            if error <= tol:
-                return InteriorPointResult(x, multipliers[:m], iteration, CONVERGED, error)
-            if radius < tol * _STEP_TOLERANCE_FACTOR:
-                return InteriorPointResult(x, multipliers[:m], iteration, STEP_TOLERANCE, error)
-            if iteration >= max_iterations:
-                return InteriorPointResult(x, multipliers[:m], iteration, ITERATION_LIMIT, error)
-            if deadline.expired():
-                return InteriorPointResult(x, multipliers[:m], iteration, TIME_LIMIT, error)
-            while (
-                mu > mu_floor
-                and _kkt_error(g, jac, bound_matrix, residual, slack, multipliers, mu)
-                <= _KAPPA_EPS * mu
-            ):
-                mu = max(mu_floor, min(_KAPPA_MU * mu, mu**_THETA_MU))
-                multipliers = _least_squares_multipliers(span, r, g, k, mu)
+            residual = point.residual()
+            error = point.kkt_error(residual, 0.0)
+            status = _stop_status(error, radius, iteration, tol, max_iterations, deadline)
+            if status is not None:
+                return point.result(iteration, status, error)
+            mu = point.lowered_barrier(residual, mu, mu_floor)
             tau = max(_TAU_MIN, 1.0 - mu)
             iteration += 1
 
-            hessian = np.asarray(lagrangian_hessian(x, multipliers[:m]), dtype=float)
-            step, predicted, penalty = _propose(
-                g, hessian, residual, matrix, span, null, r, mu, radius, tau, penalty
+            hessian = np.asarray(
+                lagrangian_hessian(point.x, point.equality_multipliers), dtype=float
             )
-            current = _merit(f, slack, residual, mu, penalty)
-
-            accepted = None
-            for attempt in range(2):
-                trial_x, trial_s = x + step[:n], slack * (1.0 + step[n:])
-                trial = _try(evaluate, trial_x)
-                if trial is None:
-                    break
-                trial_residual = _residuals(trial[2], trial_x, trial_s, bound_matrix, offset)
-                ratio = _ratio(
-                    current, _merit(trial[0], trial_s, trial_residual, mu, penalty), predicted
-                )
-                if ratio >= _ETA:
-                    accepted = trial_x, trial_s, trial, ratio
-                    break
-                if attempt == 1:
-                    break
-                # Second-order correction: back onto the constraints' curvature.
-                corrected = step + _least_norm(span, r, -trial_residual)
-                if float(np.linalg.norm(corrected)) > 2.0 * radius:
-                    break
-                step = corrected * _fraction_to_boundary(corrected[n:], tau)
+            accepted, step, penalty = point.step(hessian, residual, mu, radius, tau, penalty)
             step_norm = float(np.linalg.norm(step))
             if accepted is None:
                 radius = _SHRINK * step_norm if step_norm > 0.0 else _SHRINK * radius
                 continue
-            x, slack, (f, g, c, jac), ratio = accepted
-            if ratio >= _GOOD_RATIO:
+            if point.accept(accepted) >= _GOOD_RATIO:
                 radius = min(max(radius, 2.0 * step_norm), _MAX_RADIUS)
-            matrix, span, null, r, independent = _factor(jac, bound_matrix, slack)
-            if independent:
-                multipliers = _least_squares_multipliers(span, r, g, k, mu)
+            independent = point.factor(mu)
     except np.linalg.LinAlgError:
         pass  # an eigen- or linear solve failed: as dependent constraints
     # Dependent constraints (a rank-deficient Jacobian): no step is defined.
-    return InteriorPointResult(x, multipliers[:m], iteration, SINGULAR, math.nan)
+    return point.result(iteration, SINGULAR, math.nan)
+
+
+def _stop_status(
+    error: float, radius: float, iteration: int, tol: float, max_iterations: int, deadline: Deadline
+) -> str | None:
+    """Why the iterations stop here (the deadline asked last), or None to go on."""
+    if error <= tol:
+        return CONVERGED
+    if radius < tol * _STEP_TOLERANCE_FACTOR:
+        return STEP_TOLERANCE
+    if iteration >= max_iterations:
+        return ITERATION_LIMIT
+    if deadline.expired():
+        return TIME_LIMIT
+    return None
+
+
+# A trial point: x, the slacks, the evaluation there and its reduction ratio.
+_Trial = tuple[np.ndarray, np.ndarray, Evaluation, float]
+
+
+class _Iterate:
+    """The current point of :func:`minimize_interior_point`: ``x`` and the slacks ``s = h(x)
+    > 0`` carrying the barrier, its evaluation, the factors of the scaled constraint
+    Jacobian and the least-squares multipliers (updated after each accepted step; the
+    numeric work is compiled, ~35 iterations a mission evaluation)."""
+
+    def __init__(
+        self, evaluate: Callable[[np.ndarray], Evaluation], bounds: _Bounds, x: np.ndarray
+    ) -> None:
+        self.evaluate = evaluate
+        self.bound_matrix, self.offset = bounds.matrix, bounds.offset
+        self.x = x
+        self.n, self.k = x.size, bounds.offset.size
+        # The trust region is scaled by the slacks (the step in s is S times the scaled
+        # step), so a bound that is nearly active only shortens the step of its own slack.
+        self.slack = np.maximum(bounds(x), _MIN_SLACK)
+        self.f, self.g, self.c, self.jac = evaluate(x)
+        self.m = self.c.size
+        self.multipliers = np.zeros(self.m + self.k)
+
+    @property
+    def equality_multipliers(self) -> np.ndarray:
+        return self.multipliers[: self.m]
+
+    def result(self, iteration: int, status: str, error: float) -> InteriorPointResult:
+        return InteriorPointResult(self.x, self.equality_multipliers, iteration, status, error)
+
+    def factor(self, mu: float) -> bool:
+        """Factor the Jacobian at (x, s); when its rows are independent (returned), the
+        multipliers follow for the barrier parameter ``mu``."""
+        self.matrix, self.span, self.null, self.r, independent = _factor(
+            self.jac, self.bound_matrix, self.slack
+        )
+        if independent:
+            self.multipliers = _least_squares_multipliers(self.span, self.r, self.g, self.k, mu)
+        return independent
+
+    def residual(self) -> np.ndarray:
+        return _residuals(self.c, self.x, self.slack, self.bound_matrix, self.offset)
+
+    def kkt_error(self, residual: np.ndarray, mu: float) -> float:
+        return _kkt_error(
+            self.g, self.jac, self.bound_matrix, residual, self.slack, self.multipliers, mu
+        )
+
+    def lowered_barrier(self, residual: np.ndarray, mu: float, mu_floor: float) -> float:
+        """The barrier parameter lowered while its subproblem is solved to kappa_eps * mu
+        (the multipliers follow each value)."""
+        while mu > mu_floor and self.kkt_error(residual, mu) <= _KAPPA_EPS * mu:
+            mu = max(mu_floor, min(_KAPPA_MU * mu, mu**_THETA_MU))
+            self.multipliers = _least_squares_multipliers(self.span, self.r, self.g, self.k, mu)
+        return mu
+
+    def step(
+        self,
+        hessian: np.ndarray,
+        residual: np.ndarray,
+        mu: float,
+        radius: float,
+        tau: float,
+        penalty: float,
+    ) -> tuple[_Trial | None, np.ndarray, float]:
+        """A step from the point within ``radius``: the trial point if accepted (else None),
+        the step last tried, and the penalty parameter of the merit function."""
+        step, predicted, penalty = _propose(
+            self.g,
+            hessian,
+            residual,
+            self.matrix,
+            self.span,
+            self.null,
+            self.r,
+            mu,
+            radius,
+            tau,
+            penalty,
+        )
+        current = _merit(self.f, self.slack, residual, mu, penalty)
+        accepted, step = self._trial(
+            step,
+            current=current,
+            predicted=predicted,
+            mu=mu,
+            penalty=penalty,
+            tau=tau,
+            radius=radius,
+        )
+        return accepted, step, penalty
+
+    def _trial(
+        self,
+        step: np.ndarray,
+        *,
+        current: float,
+        predicted: float,
+        mu: float,
+        penalty: float,
+        tau: float,
+        radius: float,
+    ) -> tuple[_Trial | None, np.ndarray]:
+        """The step's trial point if its merit falls enough, after at most one second-order
+        correction, and the step last tried."""
+        n = self.n
+        for attempt in range(2):
+            trial_x, trial_s = self.x + step[:n], self.slack * (1.0 + step[n:])
+            trial = _try(self.evaluate, trial_x)
+            if trial is None:
+                break
+            trial_residual = _residuals(trial[2], trial_x, trial_s, self.bound_matrix, self.offset)
+            ratio = _ratio(
+                current, _merit(trial[0], trial_s, trial_residual, mu, penalty), predicted
+            )
+            if ratio >= _ETA:
+                return (trial_x, trial_s, trial, ratio), step
+            if attempt == 1:
+                break
+            # Second-order correction: back onto the constraints' curvature.
+            corrected = step + _least_norm(self.span, self.r, -trial_residual)
+            if float(np.linalg.norm(corrected)) > 2.0 * radius:
+                break
+            step = corrected * _fraction_to_boundary(corrected[n:], tau)
+        return None, step
+
+    def accept(self, trial: _Trial) -> float:
+        """Move to the trial point; returns its reduction ratio."""
+        self.x, self.slack, (self.f, self.g, self.c, self.jac), ratio = trial
+        return ratio
 
 
 def _try(evaluate: Callable[[np.ndarray], Evaluation], x: np.ndarray) -> Evaluation | None:
