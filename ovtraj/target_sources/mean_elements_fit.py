@@ -136,36 +136,14 @@ def fit_target(
     by ``fit_max_iterations`` or ``fit_time_limit_s`` is returned unconverged with the
     limit in ``reason``.
     """
-    age_days = epoch.seconds_since(source.epoch) / SECONDS_PER_DAY
-    if abs(age_days) > settings.max_age_days:
-        warnings.warn(
-            StaleElementSetWarning(
-                f"stale element set: {source.label()} of {source.epoch.iso()} is "
-                f"{abs(age_days):.1f} days from the epoch {epoch.iso()} "
-                f"({_SETTINGS}.max_age_days = {settings.max_age_days:g})"
-            ),
-            stacklevel=2,
-        )
+    _warn_if_stale(source, epoch, settings)
     span_s = settings.fit_span_h * _SECONDS_PER_HOUR
     t = _sample_times(span_s, settings.fit_step_s)
     r_ref, v_ref = sgp4_eci(source, epoch, t, omega=earth.omega)
-    start = np.r_[r_ref[0], v_ref[0]]
-    r_scale = float(np.linalg.norm(r_ref[0]))
-    scale = np.r_[np.full(3, r_scale), np.full(3, np.linalg.norm(v_ref[0]))]
-    propagator = OrbitPropagator(earth, tol=tol)  # compiled once per thread and tolerance
-
-    def positions(z: np.ndarray) -> np.ndarray:
-        try:
-            return propagator.propagate_grid(start + z * scale, 0.0, t)[:, :3]
-        except RuntimeError as err:
-            raise ConfigError([f"the fit to SGP4 of {source.label()} failed: {err}"]) from None
-
-    def residuals(z: np.ndarray) -> np.ndarray:
-        return ((positions(z) - r_ref) / r_scale).ravel()
-
+    positions = _FittedPositions(source, r_ref, v_ref, t, OrbitPropagator(earth, tol=tol))
     deadline = Deadline(settings.fit_time_limit_s, f"{_SETTINGS}.fit_time_limit_s")
     solution = least_squares(
-        residuals,
+        positions.residuals,
         np.zeros(6),
         method="trf",
         diff_step=math.sqrt(tol),
@@ -177,7 +155,7 @@ def fit_target(
         reason = deadline.reason(int(solution.nfev), "evaluations")
     elif solution.status == 0:
         reason = f"{_SETTINGS}.fit_max_iterations = {settings.fit_max_iterations} reached"
-    state = start + solution.x * scale
+    state = positions.state(solution.x)
     errors = np.linalg.norm(positions(solution.x) - r_ref, axis=1)
     mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
     coe = nonsingular_to_classical(mean)
@@ -195,13 +173,68 @@ def fit_target(
         converged=reason is None,
         reason=reason,
     )
+    _warn_if_poor(fit, settings)
+    return fit
+
+
+class _FittedPositions:
+    """The J2 positions [m] at the sample times ``t`` [s] of the state ``start + z * scale``,
+    ``start`` SGP4's state at the epoch and ``scale`` (|r0|, |v0|) (module notes), and
+    their residuals from SGP4's positions ``r_ref``."""
+
+    def __init__(
+        self,
+        source: SourceElements,
+        r_ref: np.ndarray,
+        v_ref: np.ndarray,
+        t: np.ndarray,
+        propagator: OrbitPropagator,
+    ) -> None:
+        self.source = source
+        self.r_ref = r_ref
+        self.t = t
+        self.start = np.r_[r_ref[0], v_ref[0]]
+        self.r_scale = float(np.linalg.norm(r_ref[0]))
+        self.scale = np.r_[np.full(3, self.r_scale), np.full(3, np.linalg.norm(v_ref[0]))]
+        self.propagator = propagator  # compiled once per thread and tolerance
+
+    def state(self, z: np.ndarray) -> np.ndarray:
+        return self.start + z * self.scale
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        try:
+            return self.propagator.propagate_grid(self.state(z), 0.0, self.t)[:, :3]
+        except RuntimeError as err:
+            raise ConfigError([f"the fit to SGP4 of {self.source.label()} failed: {err}"]) from None
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        return ((self(z) - self.r_ref) / self.r_scale).ravel()
+
+
+def _warn_if_stale(source: SourceElements, epoch: Epoch, settings: TargetSourceSettings) -> None:
+    """Warn (at :func:`fit_target`'s caller) when the element set's epoch lies more than
+    ``max_age_days`` from the fit epoch."""
+    age_days = epoch.seconds_since(source.epoch) / SECONDS_PER_DAY
+    if abs(age_days) > settings.max_age_days:
+        warnings.warn(
+            StaleElementSetWarning(
+                f"stale element set: {source.label()} of {source.epoch.iso()} is "
+                f"{abs(age_days):.1f} days from the epoch {epoch.iso()} "
+                f"({_SETTINGS}.max_age_days = {settings.max_age_days:g})"
+            ),
+            stacklevel=3,
+        )
+
+
+def _warn_if_poor(fit: TargetFit, settings: TargetSourceSettings) -> None:
+    """Warn (at :func:`fit_target`'s caller) when the fit misses SGP4 by more than
+    ``fit_warning_km`` somewhere in the span."""
     if fit.max_error_m > settings.fit_warning_km * _KM:
         warnings.warn(
             PoorTargetFitWarning(
-                f"poor fit: the J2 orbit misses SGP4 of {source.label()} by up to "
-                f"{fit.max_error_m / _KM:.1f} km over {span_s / _SECONDS_PER_HOUR:g} h "
+                f"poor fit: the J2 orbit misses SGP4 of {fit.source.label()} by up to "
+                f"{fit.max_error_m / _KM:.1f} km over {fit.span_s / _SECONDS_PER_HOUR:g} h "
                 f"({_SETTINGS}.fit_warning_km = {settings.fit_warning_km:g}); drag dominated?"
             ),
-            stacklevel=2,
+            stacklevel=3,
         )
-    return fit
