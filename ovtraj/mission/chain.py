@@ -432,27 +432,59 @@ def _run(
     record: MissionRecord,
     solved: SolvedLaunch | None = None,
 ) -> None:
-    scenario = ctx.scenario
-    # 2. launch from the fit (or the solved launch)
+    """The stages in turn (module notes, 2-6) and the totals; a stage that fails raises
+    :class:`_StageFailed`."""
+    leg = _launch(ctx, design, record, solved)
+    common = rendezvous_settings(ctx.scenario)
+    rdv = _rendezvous(ctx, leg, record, common)
+    transfer = _transfer(ctx, design, rdv, record, common)
+    deorbit = _deorbit(ctx, transfer, record)
+    reentry = _reentry(ctx, deorbit, record)
+    t_terminal = transfer.arrival_time_s + deorbit.entry_t_s + reentry.flight_time_s
+    record.t_total_s = t_terminal - leg.drop_time_s
+    record.dv_total_mps = rdv.dv_total_mps + transfer.dv_total_mps + deorbit.dv_mps
+    record.m_load_kg = leg.payload_kg
+
+
+def _launch(
+    ctx: MissionContext, design: MissionDesign, record: MissionRecord, solved: SolvedLaunch | None
+) -> LaunchLeg:
+    """2. The launch from the fit (or the solved launch)."""
     leg = _launch_leg(ctx, design, solved)
-    t_ins, t_drop, parked = leg.insertion_time_s, leg.drop_time_s, leg.insertion_state
     record.results.launch = leg
     record.stages["launch"] = LAUNCH_ROW.row(LaunchOnDay(leg, design, ctx.day))
     _lap(record, "launch")
-    # 3. rendezvous
-    common = rendezvous_settings(scenario)
+    return leg
+
+
+def _rendezvous(
+    ctx: MissionContext, leg: LaunchLeg, record: MissionRecord, common: dict[str, Any]
+) -> RendezvousResult:
+    """3. The rendezvous with the target from the insertion."""
+    t_ins = leg.insertion_time_s
     rdv = solve_rendezvous(
         RendezvousInput(
             epoch=ctx.day,
             t0_s=t_ins,
-            chaser_state=parked,
+            chaser_state=leg.insertion_state,
             target_state=ctx.target_at(t_ins),
             target_coast=ctx.target_ephemeris,
             **common,
         )
     )
-    _keep(record, "rendezvous", rdv.to_row(), rdv.trajectory, rdv.feasible, rdv.reason, rdv)
-    # 4. stay, separation, transfer to the preparation orbit
+    _keep(record, "rendezvous", rdv)
+    return rdv
+
+
+def _transfer(
+    ctx: MissionContext,
+    design: MissionDesign,
+    rdv: RendezvousResult,
+    record: MissionRecord,
+    common: dict[str, Any],
+) -> RendezvousResult:
+    """4. The stay, the separation and the transfer to the preparation orbit."""
+    scenario = ctx.scenario
     t_sep = rdv.arrival_time_s + 3600.0 * (scenario.mission.stay_h + design.separation_delay_h)
     docked = ctx.propagate(rdv.final_state, rdv.arrival_time_s, t_sep, "transfer")
     transfer = circular_transfer(
@@ -465,64 +497,43 @@ def _run(
             **common,
         )
     )
-    _keep(
-        record,
-        "transfer",
-        transfer.to_row(),
-        transfer.trajectory,
-        transfer.feasible,
-        transfer.reason,
-        transfer,
-    )
-    # 5. deorbit from the end of the transfer
-    t_prep = transfer.arrival_time_s
+    _keep(record, "transfer", transfer)
+    return transfer
+
+
+def _deorbit(
+    ctx: MissionContext, transfer: RendezvousResult, record: MissionRecord
+) -> DeorbitResult:
+    """5. The deorbit from the end of the transfer."""
     deorbit = solve_deorbit(
-        deorbit_input(scenario, state0=transfer.final_state, epoch=ctx.day.plus_seconds(t_prep))
+        deorbit_input(
+            ctx.scenario,
+            state0=transfer.final_state,
+            epoch=ctx.day.plus_seconds(transfer.arrival_time_s),
+        )
     )
-    _keep(
-        record,
-        "deorbit",
-        deorbit.to_row(),
-        deorbit.trajectory,
-        deorbit.feasible,
-        deorbit.reason,
-        deorbit,
-    )
-    # 6. reentry from the deorbit's entry state
+    _keep(record, "deorbit", deorbit)
+    return deorbit
+
+
+def _reentry(ctx: MissionContext, deorbit: DeorbitResult, record: MissionRecord) -> ReentryResult:
+    """6. The reentry from the deorbit's entry state."""
     entry = entry_state(deorbit)
     record.results.entry = entry
-    reentry = solve_reentry(reentry_input(scenario, entry=entry))
-    _keep(
-        record,
-        "reentry",
-        reentry.to_row(),
-        reentry.trajectory,
-        reentry.feasible,
-        reentry.reason,
-        reentry,
-    )
-    # totals
-    t_terminal = t_prep + deorbit.entry_t_s + reentry.flight_time_s
-    record.t_total_s = t_terminal - t_drop
-    record.dv_total_mps = rdv.dv_total_mps + transfer.dv_total_mps + deorbit.dv_mps
-    record.m_load_kg = leg.payload_kg
+    reentry = solve_reentry(reentry_input(ctx.scenario, entry=entry))
+    _keep(record, "reentry", reentry)
+    return reentry
 
 
-def _keep(
-    record: MissionRecord,
-    stage: str,
-    row: dict[str, Any],
-    trajectory: pd.DataFrame,
-    feasible: bool,
-    reason: str | None,
-    result: Any = None,
-) -> None:
-    record.stages[stage] = row
+def _keep(record: MissionRecord, stage: str, result: Any) -> None:
+    """The stage's row, typed result and trajectory into the record, and its lap; raises
+    :class:`_StageFailed` when the stage is infeasible."""
+    record.stages[stage] = result.to_row()
     setattr(record.results, stage, result)
-    record.trajectories[stage] = trajectory
+    record.trajectories[stage] = result.trajectory
     _lap(record, stage)
-    if not feasible:
-        raise _StageFailed(stage, reason or "infeasible")
+    if not result.feasible:
+        raise _StageFailed(stage, result.reason or "infeasible")
 
 
 def _lap(record: MissionRecord, stage: str) -> None:
