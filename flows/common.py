@@ -267,70 +267,104 @@ def run_batches(
     the batches not started are cancelled and :class:`FlowDeadline` is raised. On a Dask
     cluster left with no worker for ``dask.no_worker_timeout_s``, :class:`ClusterError`.
     """
-    logger = get_run_logger()
     client = _dask_client(runner)
     no_worker = ORCHESTRATION.dask.no_worker_timeout_s
-    finished = threading.Event()
-    pending: dict[Any, int] = {}
-    refreshed: set[int] = set()
-    failures: dict[int, str] = {}
-    summaries: dict[int, dict[str, Any]] = {}
-
-    def submit(k: int, refresh: bool) -> None:
-        chosen = task.with_options(refresh_cache=True) if refresh else task
-        future = runner.submit(chosen, parameters[k])
-        future.wrapped_future.add_done_callback(lambda _: finished.set())
-        pending[future] = k
-
+    tasks = _BatchTasks(runner, task, parameters, stored, describe)
     for k in parameters:
-        submit(k, False)
+        tasks.submit(k)
     workers_gone_since: float | None = None
-    while pending:
+    while tasks.pending:
         now = time.monotonic()
         if now >= deadline:
-            for future in pending:
-                future.wrapped_future.cancel()
+            tasks.cancel()
             raise FlowDeadline(
-                f"{len(pending)} batch(es) still running when the flow's limit passed "
+                f"{len(tasks.pending)} batch(es) still running when the flow's limit passed "
                 f"({limit}); the stored batches are kept, a new flow run resumes"
             )
         wait = deadline - now if client is None else min(deadline - now, no_worker / 10)
-        finished.wait(timeout=wait)
-        finished.clear()
+        tasks.finished.wait(timeout=wait)
+        tasks.finished.clear()
         if client is not None:
-            if count_workers(client) > 0:
-                workers_gone_since = None
-            elif workers_gone_since is None:
-                workers_gone_since = time.monotonic()
-            elif time.monotonic() - workers_gone_since >= no_worker:
-                for future in pending:
-                    future.wrapped_future.cancel()
-                raise ClusterError(
-                    f"the Dask cluster has had no worker for {no_worker:g} s "
-                    "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
-                    f"{len(pending)} batch(es) waiting: its workers died or left (a worker "
-                    "that cannot import ovtraj exits on its first task); see their logs"
-                )
-        for future in [f for f in pending if f.wrapped_future.done()]:
-            k = pending.pop(future)
+            workers_gone_since = _watch_workers(client, workers_gone_since, no_worker, tasks)
+        tasks.collect()
+    return tasks.failures, tasks.summaries
+
+
+class _BatchTasks:
+    """The batch tasks of :func:`run_batches` in flight: each pending task's batch, the
+    batches submitted again with a refreshed cache, the failures and the summaries;
+    ``finished`` is set whenever a task ends."""
+
+    def __init__(
+        self,
+        runner: Any,
+        task: Any,
+        parameters: dict[int, dict[str, Any]],
+        stored: Callable[[int], bool],
+        describe: Callable[[int, dict[str, Any]], str],
+    ) -> None:
+        self.logger = get_run_logger()
+        self.runner, self.task, self.parameters = runner, task, parameters
+        self.stored, self.describe = stored, describe
+        self.finished = threading.Event()
+        self.pending: dict[Any, int] = {}
+        self.refreshed: set[int] = set()
+        self.failures: dict[int, str] = {}
+        self.summaries: dict[int, dict[str, Any]] = {}
+
+    def submit(self, k: int, refresh: bool = False) -> None:
+        chosen = self.task.with_options(refresh_cache=True) if refresh else self.task
+        future = self.runner.submit(chosen, self.parameters[k])
+        future.wrapped_future.add_done_callback(lambda _: self.finished.set())
+        self.pending[future] = k
+
+    def cancel(self) -> None:
+        for future in self.pending:
+            future.wrapped_future.cancel()
+
+    def collect(self) -> None:
+        """Take in every task that has ended: its summary, its failure, or (a cached
+        result whose batch is not in the store) its batch submitted again, once."""
+        for future in [f for f in self.pending if f.wrapped_future.done()]:
+            k = self.pending.pop(future)
             try:
                 summary = future.result()
             except Exception as err:
-                failures[k] = f"{type(err).__name__}: {err}"
-                logger.error("batch %d failed: %s", k, failures[k])
+                self.failures[k] = f"{type(err).__name__}: {err}"
+                self.logger.error("batch %d failed: %s", k, self.failures[k])
                 continue
-            if not stored(k):
-                if k in refreshed:
-                    failures[k] = "its task completed but the batch is not in the store"
-                    logger.error("batch %d: %s", k, failures[k])
+            if not self.stored(k):
+                if k in self.refreshed:
+                    self.failures[k] = "its task completed but the batch is not in the store"
+                    self.logger.error("batch %d: %s", k, self.failures[k])
                     continue
-                logger.info("batch %d: cached result, but not in the store: computing it", k)
-                refreshed.add(k)
-                submit(k, True)
+                self.logger.info("batch %d: cached result, but not in the store: computing it", k)
+                self.refreshed.add(k)
+                self.submit(k, True)
                 continue
-            summaries[k] = summary
-            logger.info(describe(k, summary))
-    return failures, summaries
+            self.summaries[k] = summary
+            self.logger.info(self.describe(k, summary))
+
+
+def _watch_workers(
+    client: Any, since: float | None, no_worker: float, tasks: _BatchTasks
+) -> float | None:
+    """Since when (``time.monotonic()``) the Dask cluster has had no worker, None while it
+    has one; past ``no_worker`` seconds the pending tasks are cancelled and
+    :class:`ClusterError` raised."""
+    if count_workers(client) > 0:
+        return None
+    if since is None:
+        return time.monotonic()
+    if time.monotonic() - since >= no_worker:
+        tasks.cancel()
+        raise ClusterError(
+            f"the Dask cluster has had no worker for {no_worker:g} s "
+            "(configs/orchestration.yaml dask.no_worker_timeout_s) with "
+            f"{len(tasks.pending)} batch(es) waiting: its workers died or left (a worker "
+            "that cannot import ovtraj exits on its first task); see their logs"
+        )
+    return since
 
 
 # -- sync wrappers ------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Flow: a launch-window scan (``flows/window.py:window_flow``; issue 48, docs/window.md).
+"""Flow: a launch-window scan (``flows/window.py:window_flow``; docs/window.md).
 
 The library's one driver (:func:`ovtraj.window.scan.scan_window`, as ``ovtraj window``),
 with each launch day a task (``tasks/window.py``) on the flow's task runner
@@ -31,12 +31,11 @@ from prefect.futures import as_completed
 from flows.common import embedded_plots, label_flow_run, run_name, run_tags
 from flows.runners import task_runner
 from flows.verdict import run_from_command_line, verdict_state
-from ovtraj.paths import scenario_file
 from ovtraj.pipeline.pick import checked_pick
 from ovtraj.runs import RunStore
-from ovtraj.runs.runners import RunnerChoice, choose_runner
-from ovtraj.target_sources import load_scenario_with_target
-from ovtraj.window.records import window_verdict
+from ovtraj.runs.preparation import mission_scenario, runner_choice
+from ovtraj.runs.runners import RunnerChoice
+from ovtraj.window.records import WindowOutcome, window_verdict
 from ovtraj.window.report import window_rows
 from ovtraj.window.scan import DayJob, WindowRequest, scan_window, window_id
 from ovtraj.window.settings import load_window_settings
@@ -105,14 +104,9 @@ def window_flow(
     window with no planned day ends Failed either way. The window is stored and published first.
     """
     logger = get_run_logger()
-    path = scenario_file(config)
-    scenario = load_scenario_with_target(path, target)
-    if scenario.mission is None:
-        raise ValueError(f"{path}: the scenario has no mission section")
+    scenario = mission_scenario(config, target)
     pick = checked_pick(None, weights, max_time_h, max_dv_mps, min_payload_kg)
-    choice = choose_runner(scenario.mission.doe, runner, dask_address)
-    if workers is not None:
-        choice = RunnerChoice(choice.runner, workers, choice.dask_address)
+    choice = runner_choice(scenario.mission.doe, runner, dask_address, workers)
     run_store = RunStore.for_scenario(scenario, config, store)
     request = WindowRequest(days=days, samples=samples, seed=seed, pick=pick)
     code = code_version()
@@ -122,40 +116,10 @@ def window_flow(
     outcome = scan_window(
         scenario, request, run_store, code, TaskDays(choice), progress=logger.info
     )
-    rows = [
-        row | {"verdict": record["verdict"]}  # the day's pipeline's, as `ovtraj window --json`
-        for row, record in zip(
-            window_rows(outcome.records, outcome.best_day), outcome.records, strict=True
-        )
-    ]
-    create_table_artifact(
-        key="launch-window",
-        table=rows,
-        description=f"launch window {identity} of {scenario.name}: a row per launch day "
-        "(T_total [h], dV_total [m/s], M_load [kg] of the day's picked plan, its score, "
-        "its verification loop's verdict)",
-    )
-    best = outcome.best_day
+    rows = _day_rows(outcome)
     converged, verdict = window_verdict(outcome.records)
-    headline = (
-        verdict
-        if best is None
-        else f"best day {outcome.records[best]['date']} (day {best}), "
-        f"score {outcome.records[best]['score']:.4f}; {verdict}"
-    )
-    files = {name: str(path) for name, path in outcome.files.items()}
-    create_markdown_artifact(
-        key="launch-window-plot",
-        markdown="\n\n".join(
-            [
-                f"**{headline}**",
-                f"- page: `{files['window.html']}`",
-                *embedded_plots([outcome.files["window.png"], outcome.files["porkchop.png"]]),
-            ]
-        ),
-        description=f"launch window {identity} of {scenario.name}",
-    )
-    logger.info("%s; page %s", headline, files["window.html"])
+    _publish(outcome, rows, verdict, f"launch window {identity} of {scenario.name}")
+    best = outcome.best_day
     summary = {
         "window_id": identity,
         "reused": outcome.reused,
@@ -165,14 +129,53 @@ def window_flow(
         "best_date": None if best is None else outcome.records[best]["date"],
         "planned_days": outcome.planned_days,
         "rows": rows,
-        "files": files,
+        "files": {name: str(path) for name, path in outcome.files.items()},
     }
     return verdict_state(
-        summary,
-        verdict,
-        converged=converged,
-        require_converged=require_converged or best is None,
+        summary, verdict, converged=converged, require_converged=require_converged or best is None
     )
+
+
+def _day_rows(outcome: WindowOutcome) -> list[dict[str, Any]]:
+    """A row per launch day, with its pipeline's verdict (as ``ovtraj window --json``)."""
+    return [
+        row | {"verdict": record["verdict"]}
+        for row, record in zip(
+            window_rows(outcome.records, outcome.best_day), outcome.records, strict=True
+        )
+    ]
+
+
+def _publish(outcome: WindowOutcome, rows: list[dict[str, Any]], verdict: str, title: str) -> None:
+    """The days' table and the window's headline, page and plots as artifacts; the
+    headline in the log."""
+    create_table_artifact(
+        key="launch-window",
+        table=rows,
+        description=f"{title}: a row per launch day "
+        "(T_total [h], dV_total [m/s], M_load [kg] of the day's picked plan, its score, "
+        "its verification loop's verdict)",
+    )
+    best = outcome.best_day
+    headline = (
+        verdict
+        if best is None
+        else f"best day {outcome.records[best]['date']} (day {best}), "
+        f"score {outcome.records[best]['score']:.4f}; {verdict}"
+    )
+    page = str(outcome.files["window.html"])
+    create_markdown_artifact(
+        key="launch-window-plot",
+        markdown="\n\n".join(
+            [
+                f"**{headline}**",
+                f"- page: `{page}`",
+                *embedded_plots([outcome.files["window.png"], outcome.files["porkchop.png"]]),
+            ]
+        ),
+        description=title,
+    )
+    get_run_logger().info("%s; page %s", headline, page)
 
 
 if __name__ == "__main__":

@@ -3,8 +3,10 @@
 exit code.
 
 The family modules import at module level only what ``ovtraj --help`` loads anyway
-(pandas through the result records, the config models); a solver, the run store or the
-pipeline loads inside the command that uses it.
+(pandas through the result records, the config models, a few small modules); a solver,
+the run store or the pipeline loads inside the command that uses it. What two modules
+share is a public name (``common.py``, or the family module it belongs to): no module
+imports another's underscore name. tests/test_cli_imports.py checks both rules.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """What every ``ovtraj`` command shares: the typer app and its callback (``--version``,
 ``--quiet``, ``--verbose``), the options several command families take (the scenario,
 ``--json``, ``--target``, ``--store``), the old spellings of renamed options
-(:func:`renamed_options`), loading the scenario, and printing a result (a table of
-labelled rows, or one JSON object on one line)."""
+(:func:`renamed_options`), loading the scenario and the run store, a refusal as one line
+and an exit code (:func:`exits_on`), and printing a result (a table of labelled rows, a
+rich table on :func:`table_console`, or one JSON object on one line)."""
 
 from __future__ import annotations
 

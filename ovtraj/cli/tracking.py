@@ -269,7 +269,13 @@ def history(
             }
         )
         return
-    title = f"re-plans of {shown_text(name)}"
+    table_console().print(_history_table(rows, f"re-plans of {shown_text(name)}"))
+    typer.echo(f"plot: {written}")
+
+
+def _history_table(rows: Any, title: str) -> Table:
+    """A row per plan of the history: its element set, ids, code version, launch epoch and
+    figures, each in its unit."""
     table = Table(title=title, title_justify="left", box=None, pad_edge=False)
     columns = (
         "element set (UTC)",
@@ -300,8 +306,7 @@ def history(
             quantity(r.mc_landing_miss_p95_m, "m"),
             quantity(r.mc_dv_margin_p95_mps, "m/s"),
         )
-    table_console().print(table)
-    typer.echo(f"plot: {written}")
+    return table
 
 
 @app.command()
