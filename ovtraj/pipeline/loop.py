@@ -1,4 +1,4 @@
-"""Surrogates, NSGA-II, verification with the real chain and infill (issue 7).
+"""Surrogates, NSGA-II, verification with the real chain and infill.
 
 For a DoE run, round after round:
 
@@ -32,11 +32,12 @@ and infill): real values only, each row saying where it comes from. Outputs go t
 ``verification.parquet`` (each verified point: predicted, real, errors),
 ``pipeline.json``, ``front.png`` and the last round's views: its surrogates' parity plots
 (``parity-*.png``) and its surrogate front (``surrogate-front.png``). The rounds store
-their fits and fronts without plots (``views=False``): plots are drawn once, at the end
-(issue 21). The pipeline id hashes the DoE run, the
-surrogate, optimisation and verification settings and the code version; every step
-is deterministic, so running it again reuses the stored child runs (no simulation)
-and must give the same front; a different result is refused, never written over.
+their fits and fronts without plots (``views=False``): plots are drawn once, at the end,
+where they cost one round's drawing instead of every round's. The pipeline id hashes the
+DoE run, the surrogate, optimisation and verification settings and the code version;
+every step is deterministic, so running it again reuses the stored child runs (no
+simulation) and must give the same front; a different result is refused, never written
+over.
 """
 
 from __future__ import annotations
@@ -240,38 +241,53 @@ def run_pipeline(
     say = progress or logger.info  # a line per iteration: the callback's, else the log's
     verify = scenario.mission.verify
     normalisation = Normalisation.mission(scenario.mission.optimize)
-    span = normalisation.span()
-    names = normalisation.names
-    run, spent, rows, iterations = doe_run, 0, [], []
-    stop = "max_iterations"
-    kept: dict[str, Any] | None = None  # the first fit's models (surrogate.selection)
-    last: tuple[FitOutcome, FrontOutcome, Run] | None = None  # the last round's models
-    parity: Callable[[], list[bytes]] | None = None  # its parity plots, begun early
-    real = real_hypervolume(run, normalisation)  # of the current run's real front
-    promising = verify.promise_tolerance is not None
+    loop = _Rounds(scenario, store, code, steps, say, normalisation, doe_run)
+    loop.real = real_hypervolume(doe_run, normalisation)  # of the current run's real front
     # By promise, the surrogates fitted after the last round's verification get their say.
-    rounds = verify.max_iterations + (1 if promising else 0)
+    rounds = verify.max_iterations + (1 if loop.promising else 0)
     for iteration in range(1, rounds + 1):
-        data = training_data(run)
-        fit = steps.fit(run, data, scenario, code, candidates=kept, views=False)
-        settings = scenario.mission.surrogate
-        if kept is None and settings.selection == "first_fit":
-            kept = dict(fit.surrogates.selected)
-        elif kept is None and settings.selection == "shortlist":
-            kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
-        # Only the last round's parity plots are kept: begin them on the pool only in a
-        # round that is surely the last (a round that stops early has them drawn at the
-        # end), so that no round's evaluations queue behind plots that are thrown away.
-        surely_last = iteration == rounds or verify.budget - spent <= 0
-        parity = None
-        if steps.predraw is not None and surely_last:
-            parity = steps.predraw(parity_views(fit.surrogates))
-        previous = last[1] if last is not None else None
-        outcome = steps.front(run, fit, scenario, code, views=False, previous=previous)
-        front, last = outcome.front, (fit, outcome, run)
+        stop = loop.round(iteration, rounds)
+        if stop is not None:
+            loop.stop = stop
+            break
+    return _finish(scenario, doe_run, loop)
+
+
+@dataclass
+class _Rounds:
+    """The rounds of :func:`run_pipeline` and what they carry from one to the next: the
+    current run, the real evaluations spent, the verified points and each round's record,
+    the models kept from the first fit (``surrogate.selection``), the last round's fit and
+    front and its parity plots begun early, and the current run's real hypervolume."""
+
+    scenario: Scenario
+    store: RunStore
+    code: str
+    steps: PipelineSteps
+    say: Callable[[str], None]
+    normalisation: Normalisation
+    run: Run
+    spent: int = 0
+    rows: list[pd.DataFrame] = field(default_factory=list)
+    iterations: list[dict[str, Any]] = field(default_factory=list)
+    stop: str = "max_iterations"
+    kept: dict[str, Any] | None = None
+    last: tuple[FitOutcome, FrontOutcome, Run] | None = None
+    parity: Callable[[], list[bytes]] | None = None
+    real: float = 0.0
+
+    @property
+    def promising(self) -> bool:
+        return self.scenario.mission.verify.promise_tolerance is not None
+
+    def round(self, iteration: int, rounds: int) -> str | None:
+        """Fit, front, then verify its picks; the reason to stop, or None to go on."""
+        verify = self.scenario.mission.verify
+        data, fit, outcome = self._fit_and_front(iteration, rounds)
+        front = outcome.front
         record = {
             "iteration": iteration,
-            "run_id": run.id,
+            "run_id": self.run.id,
             "samples": len(data),
             "feasible": int(data.feasible.sum()),
             "fit_id": fit.fit_id,
@@ -280,102 +296,121 @@ def run_pipeline(
             "surrogate_front_points": len(front),
             "surrogate_hypervolume": front.hypervolume,
         }
-        iterations.append(record)
-        promise = _promise(scenario, front, data) if promising else None
+        self.iterations.append(record)
+        promise = _promise(self.scenario, front, data) if self.promising else None
         record["promised_gain"] = promise
-        say(
+        self.say(
             f"iteration {iteration}: {len(data)} samples ({record['feasible']} feasible), "
             f"surrogate front {len(front)} points, hypervolume {front.hypervolume:.4f}"
             + ("" if promise is None else f", promising {promise:.2%} over the verified front")
         )
         if len(front) == 0:
-            stop = "empty surrogate front"
-            break
-        if promise is not None and spent > 0 and promise < verify.promise_tolerance:
-            stop = "converged"
-            break
+            return "empty surrogate front"
+        if promise is not None and self.spent > 0 and promise < verify.promise_tolerance:
+            return "converged"
         if iteration > verify.max_iterations:
-            break  # the check after the last round's verification
-        remaining = verify.budget - spent
+            return "max_iterations"  # the check after the last round's verification
+        remaining = verify.budget - self.spent
         if remaining <= 0:
-            stop = "budget"
-            break
-        picks = _picks(scenario, front, data, min(verify.points_per_iteration, remaining))
+            return "budget"
+        picks = _picks(self.scenario, front, data, min(verify.points_per_iteration, remaining))
         if not picks:
-            stop = "front already evaluated"
-            break
+            return "front already evaluated"
+        verified, gain = self._verify(iteration, front, picks, record)
+        if self.promising:
+            return None  # the next fit says whether the front is reached
+        return self._judged(verified, gain)
+
+    def _fit_and_front(
+        self, iteration: int, rounds: int
+    ) -> tuple[TrainingData, FitOutcome, FrontOutcome]:
+        """The round's fit on every evaluated sample and its NSGA-II front, warm from the
+        last round's; the models to keep after the first fit; the parity plots begun."""
+        scenario, steps, verify = self.scenario, self.steps, self.scenario.mission.verify
+        data = training_data(self.run)
+        fit = steps.fit(self.run, data, scenario, self.code, candidates=self.kept, views=False)
+        settings = scenario.mission.surrogate
+        if self.kept is None and settings.selection == "first_fit":
+            self.kept = dict(fit.surrogates.selected)
+        elif self.kept is None and settings.selection == "shortlist":
+            self.kept = shortlist(fit.surrogates.validation, settings.shortlist_size)
+        # Only the last round's parity plots are kept: begin them on the pool only in a
+        # round that is surely the last (a round that stops early has them drawn at the
+        # end), so that no round's evaluations queue behind plots that are thrown away.
+        surely_last = iteration == rounds or verify.budget - self.spent <= 0
+        self.parity = None
+        if steps.predraw is not None and surely_last:
+            self.parity = steps.predraw(parity_views(fit.surrogates))
+        previous = self.last[1] if self.last is not None else None
+        outcome = steps.front(self.run, fit, scenario, self.code, views=False, previous=previous)
+        self.last = (fit, outcome, self.run)
+        return data, fit, outcome
+
+    def _verify(
+        self, iteration: int, front: Any, picks: list[int], record: dict[str, Any]
+    ) -> tuple[pd.DataFrame, float | None]:
+        """The picks evaluated with the real chain in a child run, compared with their
+        predictions; the child becomes the current run. Returns the comparison and the
+        relative gain of the real front's hypervolume (None when there was no front)."""
+        verify = self.scenario.mission.verify
         chosen = front.designs.iloc[picks].reset_index(drop=True)
         child = extend_run(
-            scenario,
-            run,
+            self.scenario,
+            self.run,
             chosen,
-            seed=int(run.manifest.get("seed", 0)),
-            code=code,
-            store=store,
+            seed=int(self.run.manifest.get("seed", 0)),
+            code=self.code,
+            store=self.store,
             origin=f"infill {iteration}",
         )
-        child = steps.evaluate(child)
-        known = set(run.samples()["sample_id"].tolist())
+        child = self.steps.evaluate(child)
+        known = set(self.run.samples()["sample_id"].tolist())
         new_ids = np.array([s for s in child.samples()["sample_id"] if s not in known])
-        spent += len(picks)
+        self.spent += len(picks)
+        names, span = self.normalisation.names, self.normalisation.span()
         verified = _compare(child, new_ids, front, picks, names, span, iteration)
-        rows.append(verified)
+        self.rows.append(verified)
         worst = float(verified["max_error"].max())
         record.update(verified_points=len(picks), max_error=worst, infill_run=child.id)
         feasible = int(verified["real_feasible"].sum())
-        if promising:
-            # The errors are reported; the next fit's promise decides.
-            say(
-                f"  verified {len(picks)} front points in run {child.id}: {feasible} feasible, "
-                f"largest error {_largest(verified):.1%} of the objective span"
-            )
+        said = f"  verified {len(picks)} front points in run {child.id}: {feasible} feasible, "
+        if self.promising:  # the errors are reported; the next fit's promise decides
+            self.say(said + f"largest error {_largest(verified):.1%} of the objective span")
         else:
-            say(
-                f"  verified {len(picks)} front points in run {child.id}: {feasible} feasible, "
-                f"largest error {worst:.1%} of the objective span (tolerance "
+            self.say(
+                said + f"largest error {worst:.1%} of the objective span (tolerance "
                 f"{verify.tolerance:.1%}; an infeasible point counts 100 %)"
             )
-        after = real_hypervolume(child, normalisation)
-        # Relative gain of the real front in this round; none when there was no front.
-        gain = (after - real) / real if real > 0 else None
-        real = after
+        after = real_hypervolume(child, self.normalisation)
+        gain = (after - self.real) / self.real if self.real > 0 else None
+        self.real = after
         record.update(real_hypervolume=after, hypervolume_gain=gain)
-        run = child
-        if promising:
-            continue  # the next fit says whether the front is reached
+        self.run = child
+        return verified, gain
+
+    def _judged(self, verified: pd.DataFrame, gain: float | None) -> str | None:
+        """Without a promise tolerance: converged when every pick is feasible and within
+        ``verify.tolerance`` (and the front stable, with a hypervolume tolerance), or
+        stopped on a stable front; None to go on."""
+        verify = self.scenario.mission.verify
+        worst = float(verified["max_error"].max())
         accurate = bool(verified["real_feasible"].all()) and worst < verify.tolerance
         tolerance = verify.hypervolume_tolerance
         stable = tolerance is not None and gain is not None and gain < tolerance
         # Accurate predictions at the picks do not make a front: with smooth objectives the
         # first round's six picks are within tolerance while the verified front still gains
-        # from infill (issue 43: 38 of 48 benchmark seeds stopped after one round, at 18
-        # evaluations, with hypervolume ratios of a median 0.987 against the direct method's).
-        # With a hypervolume tolerance, "converged" needs the front stable too.
+        # from infill (in the benchmark, 38 of 48 seeds stopped after one round, at 18
+        # evaluations, with hypervolume ratios of a median 0.987 against the direct
+        # method's). With a hypervolume tolerance, "converged" needs the front stable too.
         if accurate and (tolerance is None or stable):
-            stop = "converged"
-            break
+            return "converged"
         if stable:
-            say(
+            self.say(
                 f"  the verified front's hypervolume rose by {gain:.2%} "
                 f"(hypervolume_tolerance {tolerance:.2%}): front stable"
             )
-            stop = "front stable"
-            break
-    return _finish(
-        scenario,
-        doe_run,
-        run,
-        code,
-        normalisation,
-        rows,
-        iterations,
-        stop,
-        spent,
-        say,
-        last,
-        steps.draw,
-        parity,
-    )
+            return "front stable"
+        return None
 
 
 def _largest(verified: pd.DataFrame) -> float:
@@ -450,40 +485,52 @@ def _compare(
     return frame
 
 
-def _finish(
-    scenario: Scenario,
-    doe_run: Run,
-    run: Run,
-    code: str,
-    normalisation: Normalisation,
-    rows: list[pd.DataFrame],
-    iterations: list[dict[str, Any]],
-    stop: str,
-    spent: int,
-    say: Callable[[str], None],
-    last: tuple[FitOutcome, FrontOutcome, Run] | None,
-    draw: Draw,
-    parity: Callable[[], list[bytes]] | None = None,
-) -> PipelineResult:
-    pid = pipeline_id(doe_run, scenario, code)
+def _finish(scenario: Scenario, doe_run: Run, loop: _Rounds) -> PipelineResult:
+    """The verified front of every feasible real evaluation and the verification table,
+    stored with the summary and the views in the DoE run's ``pipeline/<pipeline_id>/``."""
+    run, normalisation = loop.run, loop.normalisation
+    pid = pipeline_id(doe_run, scenario, loop.code)
     directory = doe_run.directory / "pipeline" / pid
     verification = (
-        table_from_frame(pd.concat(rows, ignore_index=True), VERIFICATION_SCHEMA, "verification")
-        if rows
+        table_from_frame(
+            pd.concat(loop.rows, ignore_index=True), VERIFICATION_SCHEMA, "verification"
+        )
+        if loop.rows
         else VERIFICATION_SCHEMA.empty_table()
     )
     front = table_from_frame(
         verified_front(run, normalisation, verification.to_pandas()), FRONT_SCHEMA, "front"
     )
+    summary = _summary(scenario, doe_run, loop, pid, front)
+    totals = run.totals()
+
+    def views() -> list[Path]:
+        return _result_views(scenario, doe_run, pid, front, totals, loop, directory)
+
+    _store(directory, front, verification, summary, views)
+    hv = summary["hypervolume"]
+    loop.say(f"verified front: {front.num_rows} points, hypervolume {hv:.4f} ({loop.stop})")
+    return PipelineResult(
+        pid, directory, doe_run.id, run.id, front.to_pandas(), verification.to_pandas(), summary
+    )
+
+
+def _summary(
+    scenario: Scenario, doe_run: Run, loop: _Rounds, pid: str, front: Any
+) -> dict[str, Any]:
+    """``pipeline.json``: the runs, why the loop stopped, the real evaluations spent, the
+    verified front's hypervolume (and the direct reference front's, when there is one)
+    and each round's record."""
+    normalisation = loop.normalisation
     summary = {
         "pipeline_id": pid,
         "doe_run": doe_run.id,
-        "final_run": run.id,
+        "final_run": loop.run.id,
         "scenario": scenario.name,
-        "code": code,
-        "stop_reason": stop,
-        "converged": stop in CONVERGED,
-        "real_evaluations": {"doe": len(doe_run.samples()), "infill": spent},
+        "code": loop.code,
+        "stop_reason": loop.stop,
+        "converged": loop.stop in CONVERGED,
+        "real_evaluations": {"doe": len(doe_run.samples()), "infill": loop.spent},
         "front_points": front.num_rows,
         "hypervolume": hypervolume(
             normalisation.normalise(
@@ -492,7 +539,7 @@ def _finish(
         ),
         "reference_point": normalisation.reference.tolist(),
         "ideal_point": normalisation.ideal.tolist(),
-        "iterations": iterations,
+        "iterations": loop.iterations,
     }
     reference = reference_for(scenario)
     if reference is not None:
@@ -500,44 +547,48 @@ def _finish(
         summary["reference_hypervolume"] = reference.hypervolume
         summary["reference_evaluations"] = int(reference.meta["evaluations"])
         summary["reference_ratio"] = summary["hypervolume"] / reference.hypervolume
-    totals = run.totals()
+    return summary
 
-    def views() -> list[Path]:
-        """front.png (verified), then the last round's parity plots and surrogate front."""
-        from ovtraj.plots.front import front_figure
 
-        jobs = [
-            View(
-                "front.png",
-                front_figure,
-                (normalisation,),
-                {
-                    "samples": totals[totals["feasible"].astype(bool)],
-                    "verified": front.to_pandas(),
-                    "title": f"verified front of DoE run {doe_run.id} (pipeline {pid})",
-                    "scenario": scenario.name,
-                    "date": f"epoch {scenario.epoch_utc}",
-                },
-            )
-        ]
-        if last is None:
-            return draw(jobs, directory)
-        fitted, surrogate, fitted_run = last
-        title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
-        jobs.append(front_view("surrogate-front.png", surrogate.front, fitted_run, scenario, title))
-        plots = parity_views(fitted.surrogates)
-        if parity is None:
-            # front.png, the parity plots, the surrogate front: the order they are listed in
-            return draw([jobs[0], *plots, jobs[1]], directory)
-        front_path, surrogate_path = draw(jobs, directory)
-        return [front_path, *write_views(plots, parity(), directory), surrogate_path]
+def _result_views(
+    scenario: Scenario,
+    doe_run: Run,
+    pid: str,
+    front: Any,
+    totals: pd.DataFrame,
+    loop: _Rounds,
+    directory: Path,
+) -> list[Path]:
+    """front.png (verified), then the last round's parity plots and surrogate front,
+    drawn into ``directory`` (the parity plots begun early are written as they are)."""
+    from ovtraj.plots.front import front_figure
 
-    _store(directory, front, verification, summary, views)
-    hv = summary["hypervolume"]
-    say(f"verified front: {front.num_rows} points, hypervolume {hv:.4f} ({stop})")
-    return PipelineResult(
-        pid, directory, doe_run.id, run.id, front.to_pandas(), verification.to_pandas(), summary
-    )
+    jobs = [
+        View(
+            "front.png",
+            front_figure,
+            (loop.normalisation,),
+            {
+                "samples": totals[totals["feasible"].astype(bool)],
+                "verified": front.to_pandas(),
+                "title": f"verified front of DoE run {doe_run.id} (pipeline {pid})",
+                "scenario": scenario.name,
+                "date": f"epoch {scenario.epoch_utc}",
+            },
+        )
+    ]
+    draw = loop.steps.draw
+    if loop.last is None:
+        return draw(jobs, directory)
+    fitted, surrogate, fitted_run = loop.last
+    title = f"last surrogate front {surrogate.front_id} (run {fitted_run.id})"
+    jobs.append(front_view("surrogate-front.png", surrogate.front, fitted_run, scenario, title))
+    plots = parity_views(fitted.surrogates)
+    if loop.parity is None:
+        # front.png, the parity plots, the surrogate front: the order they are listed in
+        return draw([jobs[0], *plots, jobs[1]], directory)
+    front_path, surrogate_path = draw(jobs, directory)
+    return [front_path, *write_views(plots, loop.parity(), directory), surrogate_path]
 
 
 # Stop reasons that count as converged: the surrogates agree with the chain on the front,
