@@ -1,4 +1,5 @@
-"""Prefect task results as plain JSON, read only when they are (issue 44).
+"""Prefect task results as plain JSON, read only when they are: a shared result folder
+never makes a worker run code it names.
 
 A task's persisted result holds what the task returned: ids, paths and small summaries
 (the data itself is in the run store). Prefect's default serializer is cloudpickle, and
