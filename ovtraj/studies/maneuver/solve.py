@@ -157,14 +157,7 @@ def solve_maneuver(
     plan = model.evaluate(search.x[None, :])
     feasible = bool(plan.ok[0]) and float(plan.violation[0]) <= 0.0
     run_finite = problem.finite.enabled if finite is None else finite
-
-    imp_dr = imp_dv = None
-    if plan.ok[0]:
-        state, goal = reflight_impulses(problem, plan)
-        imp_dr = float(np.linalg.norm(state[:3] - goal[:3]))
-        if problem.end_condition != "interception":
-            imp_dv = float(np.linalg.norm(state[3:] - goal[3:]))
-
+    imp_dr, imp_dv = _impulsive_errors(problem, plan)
     reason = "" if feasible else _violation_reason(problem, plan)
     if search.limit is not None:
         reason = f"search stopped: {search.limit}" + (f"; {reason}" if reason else "")
@@ -177,9 +170,73 @@ def solve_maneuver(
         if not fin.converged:
             reason = fin.message
     converged = feasible and search.limit is None and (fin is None or fin.converged)
-
     tof_imp = float(plan.time_of_flight[0]) if plan.ok[0] else None
+    return ManeuverResult(
+        name=problem.name,
+        end_condition=problem.end_condition,
+        objective=problem.objective,
+        dynamics="j2" if problem.j2 else "two_body",
+        n_impulses=problem.n_impulses,
+        optimizer=method or problem.optimizer.method,
+        seed=problem.optimizer.seed if seed is None else seed,
+        converged=converged,
+        reason=reason,
+        impulsive_time_of_flight_s=tof_imp,
+        **_impulse_fields(problem, plan, search),
+        impulsive_position_error_m=imp_dr,
+        impulsive_velocity_error_mps=imp_dv,
+        **_finite_fields(problem, fin, tof_imp, imp_dr, imp_dv),
+        generations=search.generations,
+        evaluations=search.evaluations,
+        search_time_s=search.wall_time_s,
+        wall_time_s=time.perf_counter() - start,
+        history=search.history,
+    )
+
+
+def _impulsive_errors(
+    problem: ManeuverProblem, plan: PlanBatch
+) -> tuple[float | None, float | None]:
+    """Position [m] and (but for an interception) velocity [m/s] errors of the best plan
+    flown again impulse by impulse; None when its last leg could not be solved."""
+    imp_dr = imp_dv = None
+    if plan.ok[0]:
+        state, goal = reflight_impulses(problem, plan)
+        imp_dr = float(np.linalg.norm(state[:3] - goal[:3]))
+        if problem.end_condition != "interception":
+            imp_dv = float(np.linalg.norm(state[3:] - goal[3:]))
+    return imp_dr, imp_dv
+
+
+def _impulse_fields(problem: ManeuverProblem, plan: PlanBatch, search: DEResult) -> dict:
+    """The result's figures of the impulse plan: epochs, impulses, budget, constraints."""
     norms = np.linalg.norm(plan.dv[0], axis=1)
+    return {
+        "impulse_epochs_s": [float(t) for t in plan.epochs[0]],
+        "impulse_dv_mps": [float(v) for v in norms],
+        "impulse_vectors_eci_mps": [[float(c) for c in v] for v in plan.dv[0]],
+        "total_dv_mps": float(plan.total_dv[0]),
+        "dv_budget_mps": problem.dv_budget_mps,
+        "dv_capacity_mps": problem.dv_capacity_mps,
+        "dv_limit_mps": problem.dv_limit_mps,
+        "impulse_burn_time_s": float(plan.burn_time[0]),
+        "max_burn_time_s": problem.max_burn_time_s,
+        "constraint_violation": float(plan.violation[0]) if plan.ok[0] else search.violation,
+        "constraints": {
+            name: float(v) for name, v in zip(CONSTRAINT_NAMES, plan.constraints[0], strict=True)
+        },
+    }
+
+
+def _finite_fields(
+    problem: ManeuverProblem,
+    fin: FiniteBurnResult | None,
+    tof_imp: float | None,
+    imp_dr: float | None,
+    imp_dv: float | None,
+) -> dict:
+    """The result's figures of the finite burns; where none were flown, the impulse
+    plan's time of flight and errors and no burns."""
     burns = [
         BurnReport(
             start_s=b.start_s,
@@ -191,51 +248,23 @@ def solve_maneuver(
         )
         for b in (fin.burns if fin is not None else ())
     ]
-    return ManeuverResult(
-        name=problem.name,
-        end_condition=problem.end_condition,
-        objective=problem.objective,
-        dynamics="j2" if problem.j2 else "two_body",
-        finite_dynamics=problem.finite.dynamics if fin is not None else None,
-        n_impulses=problem.n_impulses,
-        optimizer=method or problem.optimizer.method,
-        seed=problem.optimizer.seed if seed is None else seed,
-        converged=converged,
-        reason=reason,
-        time_of_flight_s=fin.time_of_flight_s if fin is not None else tof_imp,
-        impulsive_time_of_flight_s=tof_imp,
-        impulse_epochs_s=[float(t) for t in plan.epochs[0]],
-        impulse_dv_mps=[float(v) for v in norms],
-        impulse_vectors_eci_mps=[[float(c) for c in v] for v in plan.dv[0]],
-        total_dv_mps=float(plan.total_dv[0]),
-        dv_budget_mps=problem.dv_budget_mps,
-        dv_capacity_mps=problem.dv_capacity_mps,
-        dv_limit_mps=problem.dv_limit_mps,
-        impulse_burn_time_s=float(plan.burn_time[0]),
-        max_burn_time_s=problem.max_burn_time_s,
-        constraint_violation=float(plan.violation[0]) if plan.ok[0] else search.violation,
-        constraints={
-            name: float(v) for name, v in zip(CONSTRAINT_NAMES, plan.constraints[0], strict=True)
-        },
-        impulsive_position_error_m=imp_dr,
-        impulsive_velocity_error_mps=imp_dv,
-        burns=burns,
-        finite_total_dv_mps=sum(b.dv_mps for b in burns) if fin is not None else None,
-        total_burn_time_s=fin.total_burn_time_s if fin is not None else None,
-        final_mass_kg=burns[-1].mass_after_kg if burns else None,
-        final_position_error_m=fin.final_position_error_m if fin is not None else imp_dr,
-        final_velocity_error_mps=fin.final_velocity_error_mps if fin is not None else imp_dv,
-        relative_speed_mps=fin.relative_speed_mps if fin is not None else None,
-        conversion_position_error_m=fin.initial_position_error_m if fin is not None else None,
-        conversion_velocity_error_mps=fin.initial_velocity_error_mps if fin is not None else None,
-        final_state_eci=[float(c) for c in fin.final_state] if fin is not None else None,
-        goal_state_eci=[float(c) for c in fin.goal_state] if fin is not None else None,
-        generations=search.generations,
-        evaluations=search.evaluations,
-        search_time_s=search.wall_time_s,
-        finite_iterations=fin.iterations if fin is not None else None,
-        finite_flights=fin.flights if fin is not None else None,
-        finite_time_s=fin.wall_time_s if fin is not None else None,
-        wall_time_s=time.perf_counter() - start,
-        history=search.history,
-    )
+    return {
+        "finite_dynamics": problem.finite.dynamics if fin is not None else None,
+        "time_of_flight_s": fin.time_of_flight_s if fin is not None else tof_imp,
+        "burns": burns,
+        "finite_total_dv_mps": sum(b.dv_mps for b in burns) if fin is not None else None,
+        "total_burn_time_s": fin.total_burn_time_s if fin is not None else None,
+        "final_mass_kg": burns[-1].mass_after_kg if burns else None,
+        "final_position_error_m": fin.final_position_error_m if fin is not None else imp_dr,
+        "final_velocity_error_mps": fin.final_velocity_error_mps if fin is not None else imp_dv,
+        "relative_speed_mps": fin.relative_speed_mps if fin is not None else None,
+        "conversion_position_error_m": fin.initial_position_error_m if fin is not None else None,
+        "conversion_velocity_error_mps": fin.initial_velocity_error_mps
+        if fin is not None
+        else None,
+        "final_state_eci": [float(c) for c in fin.final_state] if fin is not None else None,
+        "goal_state_eci": [float(c) for c in fin.goal_state] if fin is not None else None,
+        "finite_iterations": fin.iterations if fin is not None else None,
+        "finite_flights": fin.flights if fin is not None else None,
+        "finite_time_s": fin.wall_time_s if fin is not None else None,
+    }
