@@ -135,46 +135,23 @@ def improved_de(
     c = _violation(cons)
     evaluations = population
     history: list[tuple[int, float, float]] = []
-    best_f = np.inf
-    stall = 0
-    rows = np.arange(population)
+    stall = _Stall(stall_generations, stall_tolerance)
     generation = 0
     while generation < generations:
         if deadline.expired():
             break
         generation += 1
-        # Three distinct partners per individual, none of them the individual itself.
-        keys = rng.random((population, population))
-        keys[rows, rows] = np.inf
-        partners = np.argpartition(keys, 3, axis=1)[:, :3]
-        r1, r2, r3 = partners[:, 0], partners[:, 1], partners[:, 2]
-        mutant = pop[r1] + scale_factor * (pop[r2] - pop[r3])  # eq. 8
-        cross = rng.random((population, d)) < crossover_probability
-        cross[rows, rng.integers(0, d, population)] = True
-        trial = np.where(cross, mutant, pop)  # eqs. 8-9
-        outside = (trial < lower) | (trial > upper)
-        redraw = lower + rng.random((population, d)) * span
-        trial = np.where(outside, redraw, trial)  # eq. 10
+        trial = _trials(rng, pop, lower, upper, scale_factor, crossover_probability)
         f_trial, cons_trial = evaluate(trial)
         c_trial = _violation(cons_trial)
         evaluations += population
         take = _better(f_trial, c_trial, f, c, accept_equal)  # eq. 11
-        pop[take], f[take], c[take], cons[take] = (
-            trial[take],
-            f_trial[take],
-            c_trial[take],
-            cons_trial[take],
-        )
+        _replace(take, (pop, f, c, cons), (trial, f_trial, c_trial, cons_trial))
         feasible = c <= 0.0
         gen_best = float(np.min(f[feasible])) if np.any(feasible) else np.inf
         history.append((evaluations, gen_best, float(np.min(c))))
-        if stall_generations > 0:
-            improved = gen_best < best_f - stall_tolerance
-            stall = 0 if improved or not np.isfinite(gen_best) else stall + 1
-            if stall >= stall_generations:
-                best_f = min(best_f, gen_best)
-                break
-        best_f = min(best_f, gen_best)
+        if stall.stalled(gen_best):
+            break
     i = _best_index(f, c)
     return DEResult(
         x=pop[i].copy(),
@@ -187,6 +164,67 @@ def improved_de(
         history=history,
         limit=deadline.reason(generation, "generations") if deadline.reached else None,
     )
+
+
+def _replace(
+    take: NDArray[np.bool_],
+    parents: tuple[NDArray[np.float64], ...],
+    trials: tuple[NDArray[np.float64], ...],
+) -> None:
+    """The winning trials' rows replace their parents' (decision vectors, objectives,
+    violations, constraints), in place."""
+    for parent, trial in zip(parents, trials, strict=True):
+        parent[take] = trial[take]
+
+
+class _Stall:
+    """The optional stop: the best feasible objective has not improved by more than
+    ``tolerance`` for ``generations`` generations in a row (0: never stop)."""
+
+    def __init__(self, generations: int, tolerance: float) -> None:
+        self.generations = generations
+        self.tolerance = tolerance
+        self.best = np.inf
+        self.count = 0
+
+    def stalled(self, gen_best: float) -> bool:
+        """Count this generation's best; True when the search should stop."""
+        if self.generations > 0:
+            improved = gen_best < self.best - self.tolerance
+            self.count = 0 if improved or not np.isfinite(gen_best) else self.count + 1
+            if self.count >= self.generations:
+                self.best = min(self.best, gen_best)
+                return True
+        self.best = min(self.best, gen_best)
+        return False
+
+
+def _trials(
+    rng: np.random.Generator,
+    pop: NDArray[np.float64],
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+    scale_factor: float,
+    crossover_probability: float,
+) -> NDArray[np.float64]:
+    """A trial per individual: mutation and crossover (eqs. 8-9), components outside the
+    bounds drawn again inside them (eq. 10). The random draws in a fixed order (the
+    partners, the crossover, j_rand, the redraws) keep a seeded run reproducible."""
+    population, d = pop.shape
+    rows = np.arange(population)
+    span = upper - lower
+    # Three distinct partners per individual, none of them the individual itself.
+    keys = rng.random((population, population))
+    keys[rows, rows] = np.inf
+    partners = np.argpartition(keys, 3, axis=1)[:, :3]
+    r1, r2, r3 = partners[:, 0], partners[:, 1], partners[:, 2]
+    mutant = pop[r1] + scale_factor * (pop[r2] - pop[r3])  # eq. 8
+    cross = rng.random((population, d)) < crossover_probability
+    cross[rows, rng.integers(0, d, population)] = True
+    trial = np.where(cross, mutant, pop)  # eqs. 8-9
+    outside = (trial < lower) | (trial > upper)
+    redraw = lower + rng.random((population, d)) * span
+    return np.where(outside, redraw, trial)  # eq. 10
 
 
 class _Cached:
