@@ -8,8 +8,10 @@
    seed prescribes. Burns that would overlap are pushed back to start when the
    previous one ends (impulses a fraction of a second apart become one continuous
    burn with a change of direction).
-2. **Re-optimisation.** The seed re-optimises the equivalent impulses with its IDE;
-   issue 9 asks for a gradient method: scipy's SLSQP (Kraft 1988) on the variables
+2. **Re-optimisation.** The seed re-optimises the equivalent impulses with its IDE; a
+   gradient method does it here, from the converted burns (already close to the
+   optimum, and the flight is smooth in every variable): scipy's SLSQP (Kraft 1988) on
+   the variables
 
    * each burn's duration, and its direction ``u = (u0 + a e1 + b e2) / |...|`` by two
      angles (``u0`` the impulse direction, ``e1``, ``e2`` normal to it: regular at
@@ -43,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
+from scipy.optimize import OptimizeResult, minimize
 
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
 from ovtraj.astro.rocket import burn_durations
@@ -341,52 +343,14 @@ class FiniteBurnSolver:
         return z, steps
 
     def solve(self) -> FiniteBurnResult:
+        """SLSQP from the converted burns, then the polish (module notes, steps 2-3)."""
         start_time = time.perf_counter()
         cfg = self.cfg
         self.deadline = Deadline(cfg.time_limit_s, "finite_burn.time_limit_s")
         z0 = self.pack(self.initial_burns, self.tof0)
         dr0, dv0, _ = self.errors(z0)
         g_mat, g_const = self.linear_inequalities()
-        if self.p.objective == "min_time":
-            obj_grad = np.zeros(self.n_vars)
-            obj_grad[self.tf_index] = 1.0
-        else:
-            obj_grad = np.zeros(self.n_vars)
-            obj_grad[self.duration_index] = 1.0
-        constraints = [
-            {"type": "eq", "fun": self.residuals, "jac": self.jacobian},
-            {
-                "type": "ineq",
-                "fun": lambda z: g_mat @ z + g_const,
-                "jac": lambda z: g_mat,
-            },
-        ]
-        history: list[tuple[float, float]] = []
-
-        def stalled(z: NDArray[np.float64]) -> None:
-            self.deadline.stop_if_expired()
-            if cfg.stall_iterations <= 0:
-                return
-            # SLSQP reaches the optimal t_f within a few iterations and then creeps along
-            # the constraints for many more; once the objective has stopped moving and the
-            # end condition holds to a scaled unit, the Gauss-Newton polish finishes faster.
-            history.append((float(obj_grad @ z), float(np.max(np.abs(self.residuals(z))))))
-            recent = history[-cfg.stall_iterations - 1 :]
-            if len(recent) > cfg.stall_iterations and recent[-1][1] <= 1.0:
-                spread = max(h[0] for h in recent) - min(h[0] for h in recent)
-                if spread * cfg.time_scale_s <= cfg.stall_tolerance_s:
-                    raise StopIteration
-
-        res = minimize(
-            lambda z: float(obj_grad @ z),
-            z0,
-            jac=lambda z: obj_grad,
-            method="SLSQP",
-            bounds=self.bounds(),
-            constraints=constraints,
-            options={"maxiter": cfg.max_iterations, "ftol": cfg.optimality_tolerance},
-            callback=stalled,
-        )
+        res = self._slsqp(z0, g_mat, g_const)
         z = np.asarray(res.x, dtype=float)
         message = str(res.message)
         iterations = int(res.nit)
@@ -424,4 +388,57 @@ class FiniteBurnSolver:
             iterations=iterations,
             flights=self.flights,
             wall_time_s=time.perf_counter() - start_time,
+        )
+
+    def _objective_gradient(self) -> NDArray[np.float64]:
+        """The (linear) objective's gradient: t_f for minimum time, else the total
+        burning time."""
+        if self.p.objective == "min_time":
+            obj_grad = np.zeros(self.n_vars)
+            obj_grad[self.tf_index] = 1.0
+        else:
+            obj_grad = np.zeros(self.n_vars)
+            obj_grad[self.duration_index] = 1.0
+        return obj_grad
+
+    def _slsqp(
+        self, z0: NDArray[np.float64], g_mat: NDArray[np.float64], g_const: NDArray[np.float64]
+    ) -> OptimizeResult:
+        """SLSQP on the end condition (equalities) and the linear inequalities, stopped at
+        the deadline or once the objective has stalled (module notes, step 2)."""
+        cfg = self.cfg
+        obj_grad = self._objective_gradient()
+        constraints = [
+            {"type": "eq", "fun": self.residuals, "jac": self.jacobian},
+            {
+                "type": "ineq",
+                "fun": lambda z: g_mat @ z + g_const,
+                "jac": lambda z: g_mat,
+            },
+        ]
+        history: list[tuple[float, float]] = []
+
+        def stalled(z: NDArray[np.float64]) -> None:
+            self.deadline.stop_if_expired()
+            if cfg.stall_iterations <= 0:
+                return
+            # SLSQP reaches the optimal t_f within a few iterations and then creeps along
+            # the constraints for many more; once the objective has stopped moving and the
+            # end condition holds to a scaled unit, the Gauss-Newton polish finishes faster.
+            history.append((float(obj_grad @ z), float(np.max(np.abs(self.residuals(z))))))
+            recent = history[-cfg.stall_iterations - 1 :]
+            if len(recent) > cfg.stall_iterations and recent[-1][1] <= 1.0:
+                spread = max(h[0] for h in recent) - min(h[0] for h in recent)
+                if spread * cfg.time_scale_s <= cfg.stall_tolerance_s:
+                    raise StopIteration
+
+        return minimize(
+            lambda z: float(obj_grad @ z),
+            z0,
+            jac=lambda z: obj_grad,
+            method="SLSQP",
+            bounds=self.bounds(),
+            constraints=constraints,
+            options={"maxiter": cfg.max_iterations, "ftol": cfg.optimality_tolerance},
+            callback=stalled,
         )
