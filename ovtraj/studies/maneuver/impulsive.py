@@ -186,38 +186,12 @@ class ImpulsiveModel:
         x = np.atleast_2d(np.asarray(x, dtype=float))
         s = len(x)
         self.evaluations += s
-        m, k, n = p.n_free_impulses, p.n_fractions, p.n_impulses
-        free = x[:, : 3 * m].reshape(s, m, 3)
-        fractions = np.sort(x[:, 3 * m : 3 * m + k], axis=1)
+        m, n = p.n_free_impulses, p.n_impulses
         tof = x[:, p.tof_index]
         u_f = x[:, -1] if p.has_final_latitude else None
-
-        epochs = np.zeros((s, n))
-        epochs[:, 1 : 1 + k] = fractions * tof[:, None]
-        if p.end_condition != "interception":
-            epochs[:, n - 1] = tof
+        epochs = self._epochs(x, tof)
         dv = np.zeros((s, n, 3))
-
-        state = np.tile(p.chaser_state, (s, 1))
-        min_radius = np.linalg.norm(state[:, :3], axis=1)
-        for j in range(m):
-            if j > 0:
-                start = state
-                state = self._coast(start, epochs[:, j - 1], epochs[:, j])
-                duration = epochs[:, j] - epochs[:, j - 1]
-                min_radius = np.fmin(min_radius, self._arc_min_radius(start, state, duration))
-            impulse = free[:, j]
-            if p.impulse_frame == "rsw":
-                impulse = rsw_to_eci(impulse, state[:, :3], state[:, 3:])
-            dv[:, j] = impulse
-            state = state.copy()
-            state[:, 3:] += impulse
-        # Coast to the departure of the last leg (impulse m, the (m+1)-th).
-        if m > 0:
-            start = state
-            state = self._coast(start, epochs[:, m - 1], epochs[:, m])
-            duration = epochs[:, m] - epochs[:, m - 1]
-            min_radius = np.fmin(min_radius, self._arc_min_radius(start, state, duration))
+        state, min_radius = self._free_impulses(x, epochs, dv)
         t_dep = epochs[:, m]
         goal = self.goal_states(tof, u_f)
         v1, arrival, ok = self._last_leg(state, t_dep, tof, goal[:, :3])
@@ -233,17 +207,7 @@ class ImpulsiveModel:
         total = np.sum(norms, axis=1)
         durations, _ = burn_durations(norms, p.initial_mass_kg, p.thrust_n, p.isp_n_s_kg)
         burn_time = np.sum(durations, axis=1)
-
-        constraints = np.zeros((s, len(CONSTRAINT_NAMES)))
-        constraints[:, 0] = (total - p.dv_limit_mps) / p.dv_limit_mps
-        if p.burn_time_limit:
-            constraints[:, 1] = (burn_time - p.max_burn_time_s) / p.max_burn_time_s
-        else:
-            constraints[:, 1] = -1.0
-        constraints[:, 2] = (p.min_radius_m - min_radius) / p.min_radius_m
-        constraints[:, 3] = -1.0
-        constraints[~ok] = [-1.0, -1.0, -1.0, _FAILURE]
-
+        constraints = self._constraints(total, burn_time, min_radius, ok)
         if p.objective == "min_time":
             objective = tof.copy()
         else:
@@ -263,3 +227,67 @@ class ImpulsiveModel:
             arrival=arrival,
             goal=goal,
         )
+
+    def _epochs(self, x: NDArray[np.float64], tof: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(S, n) impulse epochs: the first at 0, the middle ones at their (sorted)
+        fractions of the time of flight, the last at t_f unless the end is an
+        interception."""
+        p = self.p
+        k, n = p.n_fractions, p.n_impulses
+        m = p.n_free_impulses
+        fractions = np.sort(x[:, 3 * m : 3 * m + k], axis=1)
+        epochs = np.zeros((len(x), n))
+        epochs[:, 1 : 1 + k] = fractions * tof[:, None]
+        if p.end_condition != "interception":
+            epochs[:, n - 1] = tof
+        return epochs
+
+    def _free_impulses(
+        self, x: NDArray[np.float64], epochs: NDArray[np.float64], dv: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Fly the free impulses (written into ``dv``) and the coasts between them up to
+        the departure of the last leg (impulse m, the (m+1)-th): the state there and the
+        lowest radius so far."""
+        p = self.p
+        s, m = len(x), p.n_free_impulses
+        free = x[:, : 3 * m].reshape(s, m, 3)
+        state = np.tile(p.chaser_state, (s, 1))
+        min_radius = np.linalg.norm(state[:, :3], axis=1)
+        for j in range(m):
+            if j > 0:
+                start = state
+                state = self._coast(start, epochs[:, j - 1], epochs[:, j])
+                duration = epochs[:, j] - epochs[:, j - 1]
+                min_radius = np.fmin(min_radius, self._arc_min_radius(start, state, duration))
+            impulse = free[:, j]
+            if p.impulse_frame == "rsw":
+                impulse = rsw_to_eci(impulse, state[:, :3], state[:, 3:])
+            dv[:, j] = impulse
+            state = state.copy()
+            state[:, 3:] += impulse
+        if m > 0:
+            start = state
+            state = self._coast(start, epochs[:, m - 1], epochs[:, m])
+            duration = epochs[:, m] - epochs[:, m - 1]
+            min_radius = np.fmin(min_radius, self._arc_min_radius(start, state, duration))
+        return state, min_radius
+
+    def _constraints(
+        self,
+        total: NDArray[np.float64],
+        burn_time: NDArray[np.float64],
+        min_radius: NDArray[np.float64],
+        ok: NDArray[np.bool_],
+    ) -> NDArray[np.float64]:
+        """(S, 4) normalised constraints of :data:`CONSTRAINT_NAMES` (module notes)."""
+        p = self.p
+        constraints = np.zeros((len(total), len(CONSTRAINT_NAMES)))
+        constraints[:, 0] = (total - p.dv_limit_mps) / p.dv_limit_mps
+        if p.burn_time_limit:
+            constraints[:, 1] = (burn_time - p.max_burn_time_s) / p.max_burn_time_s
+        else:
+            constraints[:, 1] = -1.0
+        constraints[:, 2] = (p.min_radius_m - min_radius) / p.min_radius_m
+        constraints[:, 3] = -1.0
+        constraints[~ok] = [-1.0, -1.0, -1.0, _FAILURE]
+        return constraints
