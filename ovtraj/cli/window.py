@@ -41,7 +41,6 @@ from ovtraj.formatting import quantity
 from ovtraj.paths import scenario_file
 from ovtraj.store.files import StoreError
 from ovtraj.version import code_version
-from ovtraj.window.settings import load_window_settings
 
 if TYPE_CHECKING:  # the runners load the numerics: imported when run
     from ovtraj.runs.runners import RunnerChoice
@@ -130,6 +129,9 @@ def window(
 
 def _check_days(days: int) -> None:
     """``--days`` within 1..configs/window.yaml ``max_days``, else one line, exit 2."""
+    # Here: the settings' model costs ~8 ms that `ovtraj --help` does without.
+    from ovtraj.window.settings import load_window_settings
+
     limit = load_window_settings().max_days
     if not 1 <= days <= limit:
         shown = f"must lie in 1..{limit} (configs/window.yaml max_days)"
