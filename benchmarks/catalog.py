@@ -1,5 +1,5 @@
 """The store's catalog on a synthetic store of 10,000 runs: refresh, read, query and the
-``ovtraj runs`` commands, side by side in one process (issue 46).
+``ovtraj runs`` commands, side by side in one process.
 
 The store (a temporary folder) holds ``--runs`` runs in families of ``--family-size``: one
 night's re-plan of one of four targets, a DoE run and its infill runs (``parent``,
@@ -24,14 +24,14 @@ at a time; every ``--tag-every``-th plan is tagged. It is made from real parts:
 Measured (medians; the machine is shared and noisy): ``refresh(root, rebuild=True)`` (the
 catalog from the documents alone: ``ovtraj catalog --rebuild``), ``refresh(root)`` with
 nothing changed (the check every command does first) and after one new run, reading the
-catalog file alone (its digest checked), ``query(frame, where)`` for the issue's example
+catalog file alone (its digest checked), ``query(frame, where)`` for the example question
 ("every plan for target X since Monday with dV_total above 220 m/s") and a query of runs,
 and ``ovtraj runs --store ROOT`` and ``ovtraj runs --store ROOT --where ...`` as a user runs
 them (the ``ovtraj`` next to this Python, output to a pipe, wall time). Two commands show
 what they spend before any work on the store: ``ovtraj --help`` (the command line's
 start-up) and ``ovtraj runs`` on an empty store (its start-up and its own imports).
 
-Goals (issue 46): a query over 10,000 runs under 1 s; ``ovtraj runs`` under 2 s on it.
+Goals: a query over 10,000 runs under 1 s; ``ovtraj runs`` under 2 s on it.
 
 Run: ``python benchmarks/catalog.py [--runs 10000] [--family-size 4] [--tag-every 10]
 [--repeats 3] [--json]``; ``--repeats`` for the rebuild and the commands (the fast
@@ -75,12 +75,16 @@ from ovtraj.store.records import json_text
 from ovtraj.store.seals import sealed
 from ovtraj.target_sources import load_scenario
 from ovtraj.tracking import catalog
-from ovtraj.tracking.catalog import query, refresh
+from ovtraj.tracking.catalog import refresh
+from ovtraj.tracking.catalog_query import query
+from ovtraj.tracking.catalog_rows import plan_id
+from ovtraj.tracking.catalog_schema import CATALOG_DIR, KINDS
+from ovtraj.tracking.catalog_tags import TAGS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
-QUERY_GOAL_S = 1.0  # issue 46: a query over 10,000 runs
-RUNS_COMMAND_GOAL_S = 2.0  # issue 46: `ovtraj runs` on them
+QUERY_GOAL_S = 1.0  # a query over 10,000 runs
+RUNS_COMMAND_GOAL_S = 2.0  # `ovtraj runs` on them
 FAST_REPEATS = 5  # the in-process figures of milliseconds
 TEMPLATE_SAMPLES = 2  # the template run's DoE (evaluated once)
 CREATE_SAMPLE_RUNS = 10  # runs made by RunStore.create to show its cost per run
@@ -93,7 +97,7 @@ TARGETS = (
 )
 LAST_NIGHT = datetime.datetime(2026, 12, 6, tzinfo=datetime.UTC)  # a Sunday: a whole week
 CODE_VERSION_NIGHTS = 60  # a new code version every this many nights
-DV_LIMIT_MPS = 220.0  # the issue's example query
+DV_LIMIT_MPS = 220.0  # the example question's limit
 
 
 def _iso(moment: datetime.datetime) -> str:
@@ -290,11 +294,11 @@ class Builder:
         _put(marker, _json_bytes(sealed(marker, document)))
         self.plans += 1
         if self.tag_every and self.plans % self.tag_every == 0:
-            self._tag(catalog.plan_id(json.loads(payload)))
+            self._tag(plan_id(json.loads(payload)))
 
     def _tag(self, item_id: str) -> None:
         """As ``ovtraj tag ID reviewed=yes`` writes it (ovtraj.tracking.catalog.set_tags)."""
-        folder = self.root / catalog.CATALOG_DIR / catalog.TAGS_DIR
+        folder = self.root / CATALOG_DIR / TAGS_DIR
         folder.mkdir(parents=True, exist_ok=True)
         document = {"id": item_id, "tags": {"reviewed": "yes"}}
         _put(folder / f"{item_id}.json", json.dumps(document, indent=1).encode())
@@ -319,7 +323,7 @@ def _predicates(nights: int) -> dict[str, str]:
     monday = last - datetime.timedelta(days=last.weekday())
     month = LAST_NIGHT - datetime.timedelta(days=min(30, nights - 1), hours=12)
     return {
-        # the issue's example: every plan for target X since Monday with dV_total above 220
+        # the example question: every plan for target X since Monday with dV_total above 220
         "plans": f"kind = 'plan' AND target = '{TARGETS[0]}' AND created_utc >= '{monday}' "
         f"AND dv_total_mps > {DV_LIMIT_MPS:g}",
         "runs": f"kind = 'run' AND target = '{TARGETS[1]}' AND status = 'complete' "
@@ -357,7 +361,7 @@ def main() -> None:
         found = refresh(root)
         assert not found.written, "an unchanged store rewrote its catalog"
         frame = found.frame
-        catalog_bytes = (root / catalog.CATALOG_DIR / catalog.CATALOG_FILE).stat().st_size
+        catalog_bytes = (root / CATALOG_DIR / catalog.CATALOG_FILE).stat().st_size
         read_s = _median(lambda: catalog._read(root), FAST_REPEATS)
         where = _predicates(nights)
         query_s = {k: _median(lambda w=w: query(frame, w), FAST_REPEATS) for k, w in where.items()}
@@ -380,7 +384,7 @@ def main() -> None:
 
         new_run_s = _median(one_more_run, FAST_REPEATS)  # last: the store grows by 5 runs
     rows = len(frame)
-    by_kind = {kind: int((frame["kind"] == kind).sum()) for kind in catalog.KINDS}
+    by_kind = {kind: int((frame["kind"] == kind).sum()) for kind in KINDS}
     errors = int(frame["error"].notna().sum())
     ratios = {
         "query_plans": round(query_s["plans"] / QUERY_GOAL_S, 4),

@@ -51,7 +51,8 @@ from ovtraj.pipeline.prepare import PipelineInputs, prepare_pipeline
 from ovtraj.plots.history import history_plot
 from ovtraj.runs import RunStore
 from ovtraj.store.records import plain
-from ovtraj.tracking.catalog import plan_file, plan_id, plan_values, refresh, set_tags
+from ovtraj.tracking.catalog import refresh, set_tags
+from ovtraj.tracking.catalog_rows import plan_file, plan_id, plan_values
 from ovtraj.tracking.history import history, previous_plan
 from ovtraj.tracking.keys import history_key
 from tasks.common import code_version

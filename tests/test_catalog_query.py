@@ -1,7 +1,7 @@
 """The catalog's SQL predicate (``ovtraj runs --where``): one expression, never a second
 statement; DuckDB's memory and thread limits and the process's address space bound it;
 every failure one line naming ``--where``. The table is a real catalog frame of
-:data:`ovtraj.tracking.catalog.SCHEMA` queried by DuckDB itself."""
+:data:`ovtraj.tracking.catalog_schema.SCHEMA` queried by DuckDB itself."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import resource
 import pandas as pd
 import pytest
 
-from ovtraj.tracking.catalog import SCHEMA, catalog_settings, query
+from ovtraj.tracking.catalog_query import query
+from ovtraj.tracking.catalog_schema import SCHEMA, catalog_settings
 
 
 @pytest.fixture

@@ -29,7 +29,7 @@ from ovtraj.paths import config_path
 from ovtraj.plots.render import png_bytes
 from ovtraj.runs.plan_monte_carlo import PICTURES, monte_carlo_figures
 from ovtraj.store.environment_block import unstamped
-from ovtraj.tracking.catalog import plan_id
+from ovtraj.tracking.catalog_rows import plan_id
 from tests.conftest import replan_nights
 
 # minutes: the session's re-plan nights (shared), then flights

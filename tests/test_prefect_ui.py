@@ -1,4 +1,4 @@
-"""The Prefect UI shows the flows' plots themselves (issue 24, point 6).
+"""The Prefect UI shows the flows' plots themselves.
 
 A tiny flow run calls the flows' publishing functions (``flows/pipeline.py:_publish``,
 ``flows/surrogate.py:publish_validation``) on a front plot drawn by the project's plot
@@ -16,7 +16,7 @@ its helpers (a free port of 127.0.0.1, its own ``PREFECT_HOME``, no analytics, n
 UI's static build copied into a temporary folder (not into the installed package).
 Skipped only when ``chromium`` is not installed (``.ci/run`` installs it).
 
-The re-plan history (issue 46): the session's three nightly re-plans of the default target
+The re-plan history: the session's three nightly re-plans of the default target
 (tests/conftest.py:replan_nights: element sets a day apart from ``tools/example_tle.py``,
 each a launch fit and a pipeline run by the ``ovtraj`` command into one store); a flow run
 then calls ``flows/pipeline.py:_publish_history`` on the last plan. The table artifact
@@ -334,7 +334,7 @@ def test_the_history_artifacts_hold_every_replan_and_link_the_previous_plan(
     """The history is the nights' plans, oldest element set first, with their own
     figures; the artifacts show it and link the previous plan."""
     from ovtraj.mission.plan_store import read_plan
-    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.catalog_rows import plan_id
 
     rows, table = history_published.rows, history_published.table
     plans = [read_plan(path).to_dict() for path in replans.plans]

@@ -1,4 +1,4 @@
-"""The re-plan (issue 18, point 4): a target source as a parameter, runs that share samples."""
+"""The re-plan: a target source as a parameter, runs that share samples."""
 
 from __future__ import annotations
 

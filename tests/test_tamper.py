@@ -1,4 +1,4 @@
-"""Tamper evidence (issue 44, row 4): HMAC seals on manifests and markers under a key
+"""Tamper evidence: HMAC seals on manifests and markers under a key
 kept outside the store (``OVTRAJ_STORE_KEY``, :mod:`ovtraj.store.seals`).
 
 An attacker who can write the store but has no key rewrites a totals file and its batch
@@ -330,7 +330,8 @@ def test_a_catalog_built_without_the_key_is_not_trusted_with_it(tmp_path, scenar
 def test_tag_files_are_sealed_and_a_forged_or_foreign_one_is_not_shown(
     tmp_path, scenario, monkeypatch
 ):
-    from ovtraj.tracking.catalog import read_tags, refresh, set_tags
+    from ovtraj.tracking.catalog import refresh, set_tags
+    from ovtraj.tracking.catalog_tags import read_tags
 
     monkeypatch.setenv(STORE_KEY_ENV, KEY_A)
     store = tmp_path / "runs"
@@ -374,7 +375,7 @@ def test_an_id_read_from_a_stored_document_is_checked_before_it_is_shown(
 def test_a_forged_export_record_names_no_file_to_hash(tmp_path, monkeypatch, caplog):
     """The export record beside the catalog is sealed: one rewritten without the key to
     name another file (lineage would hash it and print its digest) lists no export."""
-    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.catalog_rows import plan_id
     from ovtraj.tracking.lineage import _export_links, record_export
 
     monkeypatch.setenv(STORE_KEY_ENV, KEY_A)

@@ -1,4 +1,4 @@
-"""The re-plan history (issue 46): diff, history, catalog, tags and lineage on real re-plans.
+"""The re-plan history: diff, history, catalog, tags and lineage on real re-plans.
 
 Three nights of a drifting target: ``tools/example_tle.py --nights 3`` propagates the
 default scenario's orbit with the project's J2 propagator and writes it as TLEs a day
@@ -165,6 +165,60 @@ def test_the_rebuilt_catalog_equals_the_incremental_one(nights, tmp_path):
     pd.testing.assert_frame_equal(again.frame, rebuilt.frame)
     done = _invoke("catalog", "--rebuild", "--store", str(store))
     assert done.exit_code == 0 and str(path) in done.stdout
+
+
+def _pipeline_runs(store: Path, source: dict) -> set[str]:
+    """The runs a stored pipeline result was made from, as its summary names them."""
+    summary_file = store / source["doe_run"] / "pipeline" / source["pipeline_id"] / "pipeline.json"
+    summary = json.loads(summary_file.read_text(encoding="utf-8"))
+    rounds = summary["iterations"]
+    found = {summary["doe_run"], summary["final_run"], *(r["run_id"] for r in rounds)}
+    return found | {r["infill_run"] for r in rounds if r.get("infill_run")}
+
+
+def test_writing_a_plan_refreshes_only_the_catalog_rows_it_changes(nights, tmp_path, monkeypatch):
+    """``ovtraj plan`` (another point of the last night's front) brings up to date the catalog
+    rows of the plan and of what it references, no other: the first night's DoE run, its
+    manifest now corrupt, is not read and keeps its row, which a full refresh replaces by
+    an error row. With the manifest restored, the catalog the plan left equals the one
+    rebuilt from the documents alone."""
+    from ovtraj.tracking import catalog_sources
+    from ovtraj.tracking.catalog import refresh, refresh_entries
+    from ovtraj.tracking.catalog_rows import plan_id
+
+    store = tmp_path / "runs"
+    shutil.copytree(nights["store"], store)
+    catalog = refresh(store)  # the copies' stamps recorded: the catalog is the store's
+    last = json.loads(nights["plans"][-1].read_text(encoding="utf-8"))["source"]
+    unrelated = json.loads(nights["plans"][0].read_text(encoding="utf-8"))["source"]["doe_run"]
+    family = _pipeline_runs(store, last)
+    assert unrelated not in family
+    manifest = store / unrelated / "manifest.json"
+    kept, before = manifest.read_bytes(), catalog.item(unrelated)
+    manifest.write_bytes(b"{")  # its stamp changed too: a full refresh reads it again
+    read: list[Path] = []
+    real = catalog_sources.read_bytes
+    monkeypatch.setattr(
+        catalog_sources,
+        "read_bytes",
+        lambda path, *a: read.append(Path(str(path))) or real(path, *a),
+    )
+    pick = (last["front_index"] + 1) % catalog.item(last["pipeline_id"])["front_points"]
+    planned = _json("plan", last["doe_run"], "--pick", str(pick), "--store", str(store))
+    monkeypatch.undo()
+    plan = json.loads(Path(planned["plan_json"]).read_text(encoding="utf-8"))
+    assert plan["source"]["front_index"] == pick and plan_id(plan) not in set(catalog.frame["id"])
+    assert read and all(p.relative_to(store).parts[0] in family for p in read), read
+    incremental = refresh_entries(store, [])
+    assert not incremental.written and incremental.item(unrelated).equals(before)
+    row = incremental.item(plan_id(plan))
+    assert (
+        row["kind"] == "plan" and row["error"] is None and row["pipeline_id"] == last["pipeline_id"]
+    )
+    assert "manifest" in refresh(store).item(unrelated)["error"]  # a full refresh reads it
+    manifest.write_bytes(kept)
+    rebuilt = refresh(store, rebuild=True)
+    pd.testing.assert_frame_equal(incremental.frame, rebuilt.frame)
 
 
 def test_runs_where_queries_the_catalog_with_sql(nights):

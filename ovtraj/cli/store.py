@@ -172,7 +172,9 @@ def runs(
     their own.
 
     Example: `ovtraj runs --where "kind = 'plan' AND dv_total_mps > 220"`"""
-    from ovtraj.tracking.catalog import catalog_settings, query, refresh
+    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.catalog_query import query
+    from ovtraj.tracking.catalog_schema import catalog_settings
 
     root = store_location(store_root)
     try:

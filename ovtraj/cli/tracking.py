@@ -52,13 +52,13 @@ def _stored_path(store: Any, catalog: Any, path: Any, field: str) -> Any:
 
 def _stored_plan(store: Any, catalog: Any, row: Any) -> Path:
     """The plan file of a catalog row, inside the store (:func:`_stored_path`)."""
-    from ovtraj.tracking.catalog import plan_file
+    from ovtraj.tracking.catalog_rows import plan_file
 
     return Path(str(_stored_path(store, catalog, plan_file(store.root, row["source"]), "source")))
 
 
 def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label: str) -> _Item:
-    from ovtraj.tracking.catalog import plan_id
+    from ovtraj.tracking.catalog_rows import plan_id
     from ovtraj.tracking.figures import monte_carlo_figures, plan_figures
 
     figures = plan_figures(plan)
@@ -70,7 +70,7 @@ def _plan_item(store: Any, catalog: Any, path: Path, plan: dict[str, Any], label
     ].sort_values(["created_utc", "id"])
     if len(runs):
         from ovtraj.mission.montecarlo_store import PlanMonteCarloRun
-        from ovtraj.tracking.catalog import checked_id
+        from ovtraj.tracking.catalog_schema import checked_id
 
         run_id = checked_id(runs.iloc[-1]["id"], f"{catalog.path}: id")
         summary_path = _stored_path(store, catalog, store.root / run_id / "summary.json", "id")
@@ -241,7 +241,8 @@ def history(
 
     Example: `ovtraj history --target-name 'ISS-like space target' --out trend.png`"""
     from ovtraj.plots.history import history_plot
-    from ovtraj.tracking.catalog import CATALOG_DIR, refresh
+    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.catalog_schema import CATALOG_DIR
     from ovtraj.tracking.history import history as history_rows
 
     root = store_location(store_root)
@@ -359,7 +360,8 @@ def tag(
     files never change); with no KEY=VALUE, print its tags.
 
     Example: `ovtraj tag 3b8ebf38684e45f1 campaign=december --remove draft`"""
-    from ovtraj.tracking.catalog import read_tags, refresh, set_tags
+    from ovtraj.tracking.catalog import refresh, set_tags
+    from ovtraj.tracking.catalog_tags import read_tags
 
     root = store_location(store_root)
     try:

@@ -212,7 +212,7 @@ def export_plan(
     plan_id: str | None = None,
 ) -> tuple[Path, FlightReport | None]:
     """Write the plan's ``fmt`` (``"oem"`` or ``"opm"``) message to ``out``; ``plan_id``
-    (the store's id of the plan, :func:`ovtraj.tracking.catalog.plan_id`) is named in a
+    (the store's id of the plan, :func:`ovtraj.tracking.catalog_rows.plan_id`) is named in a
     ``COMMENT ovtraj plan <id>`` line, so that ``ovtraj lineage`` finds the plan again.
 
     Returns the path and, for the OEM, the replay that produced the trajectory. A file

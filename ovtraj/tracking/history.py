@@ -14,7 +14,8 @@ from typing import Any
 import pandas as pd
 
 from ovtraj.store.files import json_data
-from ovtraj.tracking.catalog import Catalog, checked_id
+from ovtraj.tracking.catalog import Catalog
+from ovtraj.tracking.catalog_schema import checked_id
 
 __all__ = ["HISTORY_COLUMNS", "history", "previous_plan"]
 
@@ -87,7 +88,7 @@ def history(
 def previous_plan(catalog: Catalog, plan: dict[str, Any]) -> pd.Series | None:
     """The plan of the same target planned before ``plan`` (the history's row before the
     first row of another pipeline that ``plan`` would take), None when it is the first."""
-    from ovtraj.tracking.catalog import plan_values
+    from ovtraj.tracking.catalog_rows import plan_values
 
     values = plan_values(plan)
     rows = history(catalog, target=values["target"])

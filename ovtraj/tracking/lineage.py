@@ -24,7 +24,8 @@ from ovtraj.store.files import Digest, StoreError, file_digest, read_json
 from ovtraj.store.layout import PIPELINE_DIR, PIPELINE_MARKER, PLAN_MARKER_SUFFIX, PLANS_DIR
 from ovtraj.store.products import Product
 from ovtraj.store.seals import read_authenticated, write_sealed
-from ovtraj.tracking.catalog import CATALOG_DIR, plan_id
+from ovtraj.tracking.catalog_rows import plan_id
+from ovtraj.tracking.catalog_schema import CATALOG_DIR
 from ovtraj.tracking.figures import element_set_epoch
 
 logger = logging.getLogger(__name__)
@@ -191,40 +192,14 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
     """The chain of a plan (its parsed JSON and, when stored, its file), each link checked;
     an id the plan or a stored document gives that is not an id of the store is a
     :class:`StoreError` naming the file and the field, raised before anything is read."""
-    links: list[Link] = []
     source = plan.get("source") or {}
     origin = f"{printable(str(plan_path))}: source" if plan_path is not None else "plan source"
     ids = _stored_ids(store, source, ("doe_run", "pipeline_id"), origin)
-    scenario = plan.get("scenario") or {}
-    target = scenario.get("target") or {}
-    element_set = {k: target[k] for k in ("tle", "omm", "orbit") if k in target}
-    kind = "tle" if "tle" in target else "omm" if "omm" in target else "hand-typed orbit"
-    links.append(
-        Link(
-            "element set",
-            f"{kind}, epoch {element_set_epoch(scenario)}",
-            None,
-            content_id(element_set),
-            OK,
-            "inline in the plan and in the DoE run's config.json",
-        )
-    )
     doe_id, pipeline_id = ids["doe_run"], ids["pipeline_id"]
-    config: dict[str, Any] | None = None
-    if doe_id and (store.root / doe_id / "manifest.json").is_file():
-        try:
-            config = Run(store.root / doe_id).config
-        except StoreError as err:
-            links.append(Link("launch fit", "-", None, None, FAILED, str(err)))
-    if config is not None:
-        links.append(_launch_fit_link(config))
-    elif doe_id:
-        links.append(Link("launch fit", "-", None, None, MISSING, "the DoE run is not stored"))
-    if doe_id:
-        links.append(_run_link(store, "DoE run", doe_id, f"{origin}.doe_run"))
-    summary: dict[str, Any] = {}
+    links = [_element_set_link(plan), *_doe_links(store, doe_id, origin)]
     pipeline_dir = store.root / str(doe_id) / PIPELINE_DIR / str(pipeline_id)
     summary_file = pipeline_dir / PIPELINE_MARKER
+    summary: Any = {}
     if doe_id and pipeline_id:
         within_store(store.root, pipeline_dir, f"{origin}.pipeline_id")
     if doe_id and pipeline_id and summary_file.is_file():
@@ -232,6 +207,59 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
             summary = read_json(summary_file)
         except StoreError:
             summary = {}
+    links += _round_links(store, summary, summary_file)
+    if pipeline_id:
+        links.append(
+            _product_link(
+                "front (pipeline result)", str(pipeline_id), pipeline_dir, PIPELINE_MARKER
+            )
+        )
+    the_plan = plan_id(plan)
+    if plan_path is not None:
+        links.append(_plan_link(the_plan, plan_path))
+    return links + _export_links(store, the_plan)
+
+
+def _element_set_link(plan: dict[str, Any]) -> Link:
+    """The element set the plan was made from (inline in the plan: its digest)."""
+    scenario = plan.get("scenario") or {}
+    target = scenario.get("target") or {}
+    element_set = {k: target[k] for k in ("tle", "omm", "orbit") if k in target}
+    kind = "tle" if "tle" in target else "omm" if "omm" in target else "hand-typed orbit"
+    return Link(
+        "element set",
+        f"{kind}, epoch {element_set_epoch(scenario)}",
+        None,
+        content_id(element_set),
+        OK,
+        "inline in the plan and in the DoE run's config.json",
+    )
+
+
+def _doe_links(store: RunStore, doe_id: str | None, origin: str) -> list[Link]:
+    """The launch fit (found from the DoE run's config) and the DoE run; none without a DoE
+    run id. ``origin``: where the id was read (the plan file's source)."""
+    if not doe_id:
+        return []
+    links: list[Link] = []
+    config: dict[str, Any] | None = None
+    if (store.root / doe_id / "manifest.json").is_file():
+        try:
+            config = Run(store.root / doe_id).config
+        except StoreError as err:
+            links.append(Link("launch fit", "-", None, None, FAILED, str(err)))
+    if config is not None:
+        links.append(_launch_fit_link(config))
+    else:
+        links.append(Link("launch fit", "-", None, None, MISSING, "the DoE run is not stored"))
+    links.append(_run_link(store, "DoE run", doe_id, f"{origin}.doe_run"))
+    return links
+
+
+def _round_links(store: RunStore, summary: Any, summary_file: Any) -> list[Link]:
+    """The surrogate fit and the child run of each round of a pipeline result (its
+    ``summary``, read from ``summary_file``), their ids checked before any is followed."""
+    links: list[Link] = []
     iterations = summary.get("iterations", []) if isinstance(summary, dict) else []
     for k, step in enumerate(iterations if isinstance(iterations, list) else []):
         what = f"{printable(str(summary_file))}: iterations[{k}]"
@@ -246,45 +274,25 @@ def lineage(store: RunStore, plan: dict[str, Any], plan_path: Path | None) -> li
                 store.root / step["run_id"] / "surrogates" / fit_id,
                 f"{what}.fit_id",
             )
-            links.append(
-                _product_link(
-                    f"surrogates (round {step.get('iteration')})",
-                    step["fit_id"],
-                    fit_dir,
-                    "meta.json",
-                )
-            )
+            step_name = f"surrogates (round {step.get('iteration')})"
+            links.append(_product_link(step_name, step["fit_id"], fit_dir, "meta.json"))
         if child:
-            links.append(
-                _run_link(
-                    store,
-                    f"child run (round {step.get('iteration')})",
-                    child,
-                    f"{what}.infill_run",
-                )
-            )
-    if pipeline_id:
-        links.append(
-            _product_link(
-                "front (pipeline result)", str(pipeline_id), pipeline_dir, PIPELINE_MARKER
-            )
-        )
-    the_plan = plan_id(plan)
-    if plan_path is not None:
-        name = plan_path.name.rsplit(".", 1)[0]
-        marker = f"{name}{PLAN_MARKER_SUFFIX}"
-        if (plan_path.parent / marker).is_file():
-            links.append(_product_link("plan", the_plan, plan_path.parent, marker))
-        else:
-            links.append(
-                Link(
-                    "plan",
-                    the_plan,
-                    str(plan_path),
-                    file_digest(plan_path).sha256,
-                    OK,
-                    "a plan file outside the store: no marker to check it against",
-                )
-            )
-    links += _export_links(store, the_plan)
+            step_name = f"child run (round {step.get('iteration')})"
+            links.append(_run_link(store, step_name, child, f"{what}.infill_run"))
     return links
+
+
+def _plan_link(the_plan: str, plan_path: Path) -> Link:
+    """The plan file: checked against its marker when stored, else its digest alone."""
+    name = plan_path.name.rsplit(".", 1)[0]
+    marker = f"{name}{PLAN_MARKER_SUFFIX}"
+    if (plan_path.parent / marker).is_file():
+        return _product_link("plan", the_plan, plan_path.parent, marker)
+    return Link(
+        "plan",
+        the_plan,
+        str(plan_path),
+        file_digest(plan_path).sha256,
+        OK,
+        "a plan file outside the store: no marker to check it against",
+    )

@@ -1,5 +1,5 @@
 """The launch-window driver: one whole-mission pipeline per launch day, then the best day
-(issue 48; ``ovtraj window`` and ``flows/window.py`` call :func:`scan_window`).
+(``ovtraj window`` and ``flows/window.py`` call :func:`scan_window`).
 
 For a scenario and N days:
 
