@@ -1,4 +1,4 @@
-"""DoE scaling on a Dask cluster of real worker processes: one worker against two (issue 19).
+"""DoE scaling on a Dask cluster of real worker processes: one worker against two.
 
 A ``samples``-sample DoE of the default scenario runs through ``flows/doe.py:doe_flow``
 (``runner="dask"``: "flow"), and through what ``ovtraj run --runner dask`` does (the
@@ -19,10 +19,10 @@ reported; the VM is shared and noisy.
 - the evaluation medians on one and on two workers, and serially in this process (the
   library path, ``--serial-samples``), show whether a sample gets slower in parallel.
 
-Goals (issue 19): speed-up >= 1.7 on two workers, overhead < 10 %.
+Goals: speed-up >= 1.7 on two workers, overhead < 10 %.
 
 Batches of 64 by default: a task of 64 samples lasts ~5 s, as a batch of 32 did before
-issue 20 made the evaluation 1.9x faster. Each task run has a fixed cost of 0.2-0.5 s in
+the mission chain's evaluation was made 1.9x faster. Each task run has a fixed cost of 0.2-0.5 s in
 the worker (Prefect's settings and TLS contexts, docs/mission.md); with batches of 32 on
 the faster chain (~2.8 s tasks) the flow measured a speed-up of 1.62 and an overhead of
 10.7 %, the command 1.89 and 4.5 %.
@@ -57,8 +57,8 @@ os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 DASK = Path(sys.executable).with_name("dask")
-SPEEDUP_GOAL = 1.7  # issue 19: two workers at least 1.7x one
-OVERHEAD_GOAL = 0.10  # issue 19: orchestration under 10 % of the evaluation time
+SPEEDUP_GOAL = 1.7  # the scaling goal: two workers at least 1.7x one
+OVERHEAD_GOAL = 0.10  # the scaling goal: orchestration under 10 % of the evaluation time
 START_TIMEOUT_S = 120.0
 VIAS = ("flow", "command")  # the Prefect DoE flow; `ovtraj run --runner dask` (the library)
 
@@ -78,7 +78,7 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument(
         "--task-tags",
         action="store_true",
-        help="tag the batch task runs (as before issue 19's measurement: each asks the "
+        help="tag the batch task runs (the shipped flow does not: each tagged run asks the "
         "server for tag concurrency slots)",
     )
     parser.add_argument("--serial-samples", type=int, default=32)

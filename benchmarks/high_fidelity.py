@@ -1,4 +1,4 @@
-"""The high-fidelity force model (issue 47): its speed and the choices of
+"""The high-fidelity force model: its speed and the choices of
 ``configs/force_model.yaml``, measured side by side in one process.
 
 The shipped terms (``force_terms(default_force_model(), <shipped scenario>)``) from the
@@ -15,7 +15,7 @@ shadow is on: unbounded, its steps stride over the ~10-s penumbra and miss it).
    scipy adds rtol |y|, so positions and velocities are held relatively) whose error is
    within heyoka's, per configuration: gravity only (EGM2008 20x20), + drag, + Sun,
    + Moon, + SRP, all terms, and the chain's J2 field. Each term's cost is its row's time
-   less gravity's. Goal (issue 47): heyoka >= 100x faster than DOP853, the ratio of the
+   less gravity's. Goal: heyoka >= 100x faster than DOP853, the ratio of the
    J2 model whose scipy right-hand side is NumPy; here scipy calls compiled code, so the
    ratio is much smaller. DOP853 on NumPy right-hand sides (J2, and the 20x20 field by a
    Legendre recursion) is timed beside them.
@@ -75,7 +75,7 @@ DOP853_RTOLS = (1e-9, 1e-10, 1e-11, 1e-12, 1e-13)  # loosest first; the last is 
 SHADOW_MAX_STEP_S = 5.0
 REFERENCE_DEGREE = 70
 DEGREES = (2, 4, 8, 12, 16, 20, 30, 40)
-SPEEDUP_GOAL = 100.0  # issue 47: >= 100x DOP853 at equal accuracy, as for the J2 model
+SPEEDUP_GOAL = 100.0  # speed goal: >= 100x DOP853 at equal accuracy, as for the J2 model
 # The shipped 20x20's one-day truncation against 70x70: under 0.3 % of a day's drag at
 # 300 km (65 km), whose own uncertainty with a constant space weather is 10-30 %; 70x70
 # costs 36 times as much (configs/force_model.yaml, docs/high_fidelity.md, "Degree").
@@ -259,7 +259,7 @@ def equal_accuracy(
         "speedup": round(dop_ms / hy_ms, 3),
         "reference_check_m": miss(check, reference),
         "reference_check_max_step_s": None if math.isinf(check_step) else check_step,
-        # issue 47's check: the full model by DOP853 at 1e-12 within 1 m of heyoka's
+        # the force model's accuracy check: the full model by DOP853 at 1e-12 within 1 m of heyoka's
         "dop853_1e-12_vs_heyoka_m": next(r for r in tried if r["rtol"] == 1e-12)[
             "heyoka_difference_m"
         ],
@@ -310,7 +310,7 @@ def speed(
         "   term ms: the row's time less gravity's; effect m: the row's end against gravity "
         "only's; check m: DOP853 at rtol 1e-13 (steps <= "
         f"{SHADOW_MAX_STEP_S:g} s with the shadow) against the reference; "
-        "1e-12 vs heyoka m: DOP853 at 1e-12 (steps unbounded) against heyoka (issue 47: "
+        "1e-12 vs heyoka m: DOP853 at 1e-12 (steps unbounded) against heyoka (goal: "
         "<= 1 m a day)"
     )
     return rows, ends
@@ -435,7 +435,7 @@ def numpy_rhs(
     say,
 ) -> dict:
     """DOP853 on NumPy right-hand sides at the rtol of the compiled rows: the chain's J2
-    (``propagate_dop853``, the benchmark of issue 2) and the 20x20 field."""
+    (``propagate_dop853``, the reference of benchmarks/propagation.py) and the 20x20 field."""
     say()
     say("   DOP853 on a NumPy right-hand side, at the compiled rows' rtol (ms per day):")
     configs = breakdown_terms(terms)

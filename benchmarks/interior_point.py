@@ -1,4 +1,4 @@
-"""The J2 correction's interior point against scipy's trust-constr, side by side (issue 20).
+"""The J2 correction's interior point against scipy's trust-constr, side by side.
 
 Collects the correction problems the mission chain poses on the reference designs
 (``configs/mission_reference.yaml``: each design's rendezvous, solved from its two
@@ -6,14 +6,15 @@ starts, and its transfer), then solves every one of them in this process with
 
 1. ``ovtraj.rendezvous.interior_point`` (the shipped solver), and
 2. scipy's ``trust-constr`` with the same derivatives, tolerances, barrier parameter and
-   trust radius (the solver before issue 20; its call is kept here for the comparison),
+   trust radius (the solver the interior point replaced to make the mission chain faster;
+   its call is kept here for the comparison),
 
 alternating the two ``--repeats`` times. It prints, per solver, the median wall time
 of a correction (``correct_transfer``: start shots plus the solves), the summed
 iterations, and the largest difference of the optimum's total impulse and arrival
 epoch between the two; as its last line one JSON object with those figures and the
-speed-up; the goal is the same optimum within issue 20's equality tolerances
-(total impulse within 0.01 m/s, arrival within 1 s). ``--json`` prints only the JSON.
+speed-up; the goal is the same optimum within the equality tolerances the replacement had to
+meet (total impulse within 0.01 m/s, arrival within 1 s). ``--json`` prints only the JSON.
 """
 
 from __future__ import annotations
@@ -33,13 +34,13 @@ from ovtraj.deadline import Deadline
 from ovtraj.mission import evaluate, reference
 from ovtraj.rendezvous.interior_point import ITERATION_LIMIT, InteriorPointResult
 
-# Issue 20's equality tolerances: the two solvers must give the same optima.
+# The equality tolerances of the replacement: the two solvers must give the same optima.
 DV_GOAL_MPS = 0.01
 ARRIVAL_GOAL_S = 1.0
 
 
 def _trust_constr(transfer, start, problem) -> InteriorPointResult:
-    """The call the correction made before issue 20, its result in the new type."""
+    """The call the correction made before the interior point, its result in the new type."""
     scale = transfer.miss_scale
     constraint = NonlinearConstraint(
         lambda x: transfer.at(x).miss / scale,

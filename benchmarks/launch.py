@@ -3,7 +3,7 @@
 One full launch optimisation (genetic search, SLSQP, trust-constr) of the default
 launcher to a 200 km circular orbit at 28.5 deg, timed in this process, printed
 next to the published Pegasus XL figures of that class (from the launcher's
-``published_performance``). Goals (issue 3): payload within 20 % of the published
+``published_performance``). Goals: payload within 20 % of the published
 ~450 kg; one optimisation under 60 s.
 
 Run: ``python benchmarks/launch.py [--config FILE] [--json]``: a table, then one JSON
@@ -28,8 +28,8 @@ from ovtraj.launch import launch_input, solve_launch
 ROOT = Path(__file__).resolve().parents[1]
 ALTITUDE_KM = 200.0
 INCLINATION_DEG = 28.5
-PAYLOAD_GOAL = 0.20  # issue 3: within 20 % of the published figure
-TIME_GOAL_S = 60.0  # issue 3: one optimisation under 60 s
+PAYLOAD_GOAL = 0.20  # the launch fit's accuracy goal: within 20 % of the published figure
+TIME_GOAL_S = 60.0  # the launch fit's speed goal: one optimisation under 60 s
 
 
 def benchmark_scenario(config: Path = ROOT / "configs" / "scenario.yaml") -> dict:

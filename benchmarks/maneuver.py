@@ -1,4 +1,4 @@
-"""Issue 9: the seed's improved DE against scipy's DE on the published case, 20 seeds.
+"""The seed's improved DE against scipy's DE on the published case, 20 seeds.
 
 The impulsive stage of ``configs/cases/upper_stage_rendezvous.yaml`` (three impulses,
 minimum time, rendezvous, two-body, sum |dv| within eq. 14 and eq. 15 burn times within
@@ -45,7 +45,7 @@ from ovtraj.studies.maneuver.solve import population_size
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "configs" / "cases" / "upper_stage_rendezvous.yaml"
-SEEDS = 20  # issue 9
+SEEDS = 20  # the comparison's number of seeds
 SUCCESS_TOLERANCE_S = 1.0  # within 1 s of the best time of flight any run found
 # scipy's defaults for differential_evolution (scipy 1.17 documentation).
 SCIPY_DEFAULTS = {

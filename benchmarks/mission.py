@@ -1,4 +1,4 @@
-"""One whole-mission evaluation against the machine's speed reference (issue 20).
+"""One whole-mission evaluation against the machine's speed reference.
 
 Side by side in this process:
 
@@ -13,7 +13,7 @@ Side by side in this process:
    median of each stage's own time (``MissionRecord.stage_time_s``) over the designs
    that reach it.
 
-Goal (issue 20): ``ratio = median_eval_s / dop853_day_s <= 0.6``.
+Goal: ``ratio = median_eval_s / dop853_day_s <= 0.6``.
 
 Run: ``python benchmarks/mission.py [--repeats 3] [--json]``: ``--repeats`` evaluates the
 set that many times (each design's median is kept), with DOP853 days timed between the
@@ -34,7 +34,7 @@ from ovtraj.mission import STAGES, MissionContext, MissionDesign, evaluate, refe
 
 ROOT = Path(__file__).resolve().parents[1]
 DAY_S = 86400.0
-RATIO_GOAL = 0.6  # issue 20: one evaluation in at most 0.6 DOP853 days
+RATIO_GOAL = 0.6  # the chain's speed goal: one evaluation in at most 0.6 DOP853 days
 
 
 def _arguments() -> argparse.Namespace:

@@ -1,9 +1,9 @@
-"""Optimal entry: our pseudospectral solver against independent transcriptions (issues 8, 22).
+"""Optimal entry: our pseudospectral solver against independent transcriptions.
 
 Two peers, written here from scratch with CasADi and sharing no code with
 ``ovtraj.studies.optimal_entry`` (their own dynamics, atmosphere, nodes, guess):
 
-* **LGR on the same mesh** (issue 22): Legendre-Gauss-Radau collocation in time (nodes
+* **LGR on the same mesh**: Legendre-Gauss-Radau collocation in time (nodes
   from the roots of ``P_{n-1} + P_n``, a barycentric differentiation matrix), the whole
   NLP one SX graph for IPOPT, a straight-line guess. It poses each case from the same
   YAML file on the mesh ours is accepted on (the starting mesh, or ours' refined segment
@@ -11,7 +11,7 @@ Two peers, written here from scratch with CasADi and sharing no code with
   on the starting mesh, reported beside), for the published seed-001 case
   (``configs/cases/suborbital_return.yaml``) and Betts' shuttle maximum cross-range
   without and with its heating limit (``configs/cases/shuttle_crossrange*.yaml``).
-* **Hermite-Simpson** (issue 8, ``--hermite-simpson``): CasADi's ``Opti`` stack,
+* **Hermite-Simpson** (``--hermite-simpson``): CasADi's ``Opti`` stack,
   separated form (Betts, *Practical Methods for Optimal Control*, 2nd ed., 2010, sec.
   4.6.6), 150 intervals, on the seed case.
 
@@ -19,9 +19,9 @@ Ours is timed end to end (guess flight, NLP build and solve, mesh refinement, th
 re-flights that decide convergence), in the time formulation with LGR on the same
 mesh and in the configured formulation; the peers' time is their NLP build and solve.
 
-Goals (issue 22): ours no slower than the same-mesh peer on both problems, under 0.1 s
+Goals: ours no slower than the same-mesh peer on both problems, under 0.1 s
 on a ~50-node problem (the shuttle without its heating limit, accepted on its 10 x 5
-nodes); issue 8: objective within 0.1 %.
+nodes); against Hermite-Simpson, objective within 0.1 %.
 
 Run: ``python benchmarks/optimal_entry.py [--repeats 3] [--hermite-simpson] [--json]``:
 a table, then one JSON object as the last line (``--json``: only that).
@@ -46,8 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "configs" / "cases" / "suborbital_return.yaml"
 SHUTTLE = ROOT / "configs" / "cases" / "shuttle_crossrange_heating.yaml"
 SHUTTLE_FREE = ROOT / "configs" / "cases" / "shuttle_crossrange.yaml"  # no heating limit
-SPEED_GOAL_S = 0.1  # issue 22: under 0.1 s on a ~50-node problem (the shuttle's 10 x 5)
-NOMINAL_NODES = 50  # issue 22's "~50-node problem": collocation points of the accepted mesh
+SPEED_GOAL_S = 0.1  # speed goal: under 0.1 s on a ~50-node problem (the shuttle's 10 x 5)
+NOMINAL_NODES = 50  # the speed goal's "~50-node problem": collocation points of the accepted mesh
 _DEG = math.pi / 180.0
 # The LGR peer's own straight-line guesses: terminal state (h, lon, lat, V, gamma, psi),
 # controls (alpha, bank) [rad], final time [s], and the objective's order of magnitude.
@@ -68,8 +68,8 @@ PEER_GUESSES = {
 PEER_GUESSES[SHUTTLE_FREE] = PEER_GUESSES[SHUTTLE]
 US76 = ROOT / "configs" / "atmosphere_us76.yaml"
 EARTH = ROOT / "configs" / "earth.yaml"
-OBJECTIVE_GOAL = 0.001  # issue 8: objectives equal within 0.1 %
-TIME_GOAL_S = 2.0  # issue 8: our solve under 2 s
+OBJECTIVE_GOAL = 0.001  # against Hermite-Simpson: objectives equal within 0.1 %
+TIME_GOAL_S = 2.0  # against Hermite-Simpson: our solve under 2 s
 DEFAULT_INTERVALS = 150  # Hermite-Simpson intervals of the peer (300 control points)
 REPEATS = 3  # timed solves of ours (median); the first also warms up the imports
 # The peer's own starting point: a straight line in the states between the initial and

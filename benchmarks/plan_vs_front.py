@@ -1,4 +1,4 @@
-"""The front is flown as promised (issue 43): plans against their front points, smoothness
+"""The front is flown as promised: plans against their front points, smoothness
 and the rendezvous's cost, for the plane aimed at the rendezvous and the patent's plane.
 
 Side by side in this process, on the default scenario (``configs/scenario.yaml``) and its
@@ -21,11 +21,11 @@ launch fit:
 Each part runs for three chains: ``aimed`` (the shipped scenario: the launch target's
 osculating circular orbit, the plane aimed at the rendezvous), ``patent plane`` (the same
 insertion, the target's plane at insertion: ``mission.insertion.plane: launch``) and
-``before`` (no ``mission.insertion``: the chain and the plan before issue 43). The verified
+``before`` (no ``mission.insertion``: the chain and the plan without plane management). The verified
 fronts' best dV_total is compared between ``aimed`` and ``before`` at equal or better T_total
 and M_load.
 
-Goals (issue 43): every front point planned within 1 m/s, 60 s and 0.1 kg on seeds 2026,
+Goals: every front point planned within 1 m/s, 60 s and 0.1 kg on seeds 2026,
 2027 and 2028 (``aimed``); >= 90 % of >= 30 designs move < 0.5 m/s per 50 m; the rendezvous
 within 5 % of its Hohmann cost (median and p90).
 

@@ -3,8 +3,8 @@
 The default scenario's entry (the deorbit stage's default entry state) is guided to
 Kennedy's runway: golden-section search on the terminal bank with Newton on the
 entry bank inside. The first solve compiles (or loads from numba's cache) the
-entry dynamics; then repeated solves are timed in this process. Goal (issue 5):
-one guided solve under 200 ms after warm-up.
+entry dynamics; then repeated solves are timed in this process. Goal: one guided
+solve under 200 ms after warm-up.
 
 Run: ``python benchmarks/reentry.py [--json]``: a table, then one JSON object with the
 figures, the goal and the ratio as the last line (``--json``: only that).
@@ -24,7 +24,7 @@ from ovtraj.target_sources import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 REPEATS = 10
-GOAL_S = 0.200  # issue 5: under 200 ms after warm-up
+GOAL_S = 0.200  # the entry guidance's speed goal: under 200 ms after warm-up
 
 
 def main() -> None:

@@ -11,7 +11,7 @@ records are then written
 and the run is read back through the store's checked readers (size, SHA-256 and
 schema of every file) and, for comparison, by ``pyarrow.dataset`` with no check.
 
-Goal (issue 17): at most 100 kB per sample on the default settings.
+Goal: at most 100 kB per sample on the default settings.
 
 Run: ``python benchmarks/store.py [--samples N] [--json]``; the last line is one JSON
 object with the figures, the goal and the ratios.
@@ -38,7 +38,7 @@ from ovtraj.runs.schemas import DATASETS
 from ovtraj.target_sources import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-GOAL_BYTES_PER_SAMPLE = 100_000  # issue 17, default settings
+GOAL_BYTES_PER_SAMPLE = 100_000  # the store's size goal, default settings
 PROJECTED_SAMPLES = 10_000
 REPEATS = 5
 

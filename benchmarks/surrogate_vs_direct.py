@@ -1,4 +1,4 @@
-"""The surrogate pipeline against a direct NSGA-II on the real chain (issues 7, 21).
+"""The surrogate pipeline against a direct NSGA-II on the real chain.
 
 Both on the default scenario, on the same workers: one pool of ``--workers`` processes,
 spawned as ``ovtraj pipeline --runner processes`` spawns its pool, each process ready
@@ -24,7 +24,7 @@ wall time and the pipeline's stop reason; as the last line one JSON object with
 ``hypervolume_ratio`` (the worst seed's), ``evaluation_ratio`` (the largest),
 ``wall_ratio`` (the slowest pipeline over the direct method) and ``seeds``.
 
-Goals (issue 21): hypervolume_ratio >= 0.99, evaluation_ratio <= 0.05 (30 of 600),
+Goals: hypervolume_ratio >= 0.99, evaluation_ratio <= 0.05 (30 of 600),
 wall_ratio <= 0.25.
 
 Run: ``python benchmarks/surrogate_vs_direct.py [--seeds 2026 2027 2028] [--doe-samples 12]
