@@ -1,4 +1,4 @@
-"""Store the mission chain's reference values (issue 20): data/reference/mission_chain/.
+"""Store the mission chain's reference values: data/reference/mission_chain/.
 
 Evaluates the reference designs of ``configs/mission_reference.yaml`` with the shipped
 scenario and stores the totals, each stage's impulse and the landing miss, with the code
@@ -25,7 +25,7 @@ def main() -> None:
         reference.reference_directory(),
         frame,
         {
-            "what": "mission chain reference values (issue 20)",
+            "what": "mission chain reference values",
             "code_version": code_version(),
             "settings": settings.model_dump(mode="json"),
             "feasible": int(frame["feasible"].sum()),
