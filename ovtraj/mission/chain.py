@@ -56,8 +56,8 @@ from ovtraj.rendezvous.result import RendezvousInput, RendezvousResult, Transfer
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
 from ovtraj.store.records import BOOL, FLOAT, TEXT, Column, RowColumns
 from ovtraj.target_state import target_state
+from ovtraj.units import S_PER_DAY, S_PER_HOUR
 
-_DAY_S = 86400.0
 STAGES = ("launch", "rendezvous", "transfer", "deorbit", "reentry")
 DESIGN_NAMES = ("parking_altitude_km", "preparation_altitude_km", "separation_delay_h")
 
@@ -301,7 +301,7 @@ class MissionContext:
         target = rv_to_coe(self.target0[:3], self.target0[3:], mu=mu)
         period = float(orbital_period(target.a, mu=mu))
         horizon = (
-            _DAY_S + settings.max_wait_time_s + 2.0 * settings.burn_epoch_window_s + 2.0 * period
+            S_PER_DAY + settings.max_wait_time_s + 2.0 * settings.burn_epoch_window_s + 2.0 * period
         )
         result = self.propagator.propagate(self.target0, -self.target_offset_s, horizon, dense=True)
         if not result.ok:
@@ -485,7 +485,7 @@ def _transfer(
 ) -> RendezvousResult:
     """4. The stay, the separation and the transfer to the preparation orbit."""
     scenario = ctx.scenario
-    t_sep = rdv.arrival_time_s + 3600.0 * (scenario.mission.stay_h + design.separation_delay_h)
+    t_sep = rdv.arrival_time_s + S_PER_HOUR * (scenario.mission.stay_h + design.separation_delay_h)
     docked = ctx.propagate(rdv.final_state, rdv.arrival_time_s, t_sep, "transfer")
     transfer = circular_transfer(
         TransferInput(

@@ -15,6 +15,7 @@ from typing import Any
 
 from ovtraj.formatting import duration, number, utc
 from ovtraj.store.records import plain
+from ovtraj.units import M_PER_KM
 
 # The integrators every report names. The text is stored with each flight, so it stays as
 # it is: "this module's J2 right-hand side" is ovtraj.mission.replay_orbit's.
@@ -92,9 +93,6 @@ class FlightReport:
         return plain(asdict(self))
 
 
-_KM = 1e-3  # m -> km
-
-
 def _scaled(value: float | None, factor: float) -> float | None:
     return None if value is None else value * factor
 
@@ -121,7 +119,7 @@ def format_flight_report(report: FlightReport) -> str:
 
 def _where_lines(report: FlightReport) -> list[str]:
     """Where the flight went against the plan: insertion, landing, terminal state, entry."""
-    km = _KM
+    km = 1.0 / M_PER_KM  # m -> km
     lines = []
     if report.insertion:
         i = report.insertion

@@ -30,6 +30,7 @@ from ovtraj.config.body import BodyConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.errors import ConfigError
 from ovtraj.mission.flight_report import ReplayFailed
+from ovtraj.units import J2000_JD, S_PER_HOUR
 
 __all__ = [
     "FIDELITIES",
@@ -164,7 +165,7 @@ def high_fidelity_settings(
 def _date(jd: float) -> str:
     from datetime import UTC, datetime, timedelta
 
-    moment = datetime(2000, 1, 1, 12, tzinfo=UTC) + timedelta(days=jd - 2451545.0)
+    moment = datetime(2000, 1, 1, 12, tzinfo=UTC) + timedelta(days=jd - J2000_JD)
     return moment.date().isoformat()
 
 
@@ -303,7 +304,7 @@ def _fit_reference(
     if sources is None or not target.has_source:
         raise ConfigError(["target: a hand-typed orbit has no element set to fit"])
     limits = settings.target_fit
-    span_s = sources.fit_span_h * 3600.0
+    span_s = sources.fit_span_h * S_PER_HOUR
     times = np.arange(math.floor(span_s / sources.fit_step_s) + 1) * sources.fit_step_s
     elements = target.elements()
     r_ref, v_ref = sgp4_eci(elements, scenario.epoch, times, omega=scenario.earth.omega)

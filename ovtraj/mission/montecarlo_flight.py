@@ -29,13 +29,12 @@ raises out of a run.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.elements import orbital_period
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.dispersions import DispersionsConfig
@@ -68,6 +67,7 @@ from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.rendezvous.result import RendezvousInput, TransferInput
 from ovtraj.rendezvous.stage import circular_transfer, solve_rendezvous
 from ovtraj.target_state import target_state
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["fly_closed_loop", "fly_open_loop", "sky"]
 
@@ -330,7 +330,7 @@ class _ClosedLoop:
         dv = cut_off(self.estimate("deorbit", self.state), nominal, executed, scenario, self.config)
         self.burn("deorbit burn", dv)
         r0 = float(np.linalg.norm(self.state[:3]))
-        horizon = scenario.deorbit.max_descent_revolutions * TWO_PI * math.sqrt(r0**3 / earth.mu)
+        horizon = scenario.deorbit.max_descent_revolutions * float(orbital_period(r0, mu=earth.mu))
         state, t_entry, entered, _ = self.orbit.arc(
             self.state, self.t, self.t + horizon, floor_m=self.entry_altitude_m
         )
@@ -362,5 +362,5 @@ def sky(plan: MissionPlan, scenario: Scenario, force_model: ForceModelSettings |
         vehicle=vehicle,
         target_at=TargetTrack(target, target0, offset),
         fidelity="high",
-        retarget_interval_s=force_model.closed_loop.phasing_retarget_interval_h * 3600.0,
+        retarget_interval_s=force_model.closed_loop.phasing_retarget_interval_h * S_PER_HOUR,
     )

@@ -12,6 +12,7 @@ from typing import Any
 
 from ovtraj.mission.chain import MissionRecord
 from ovtraj.mission.plan import PlanError
+from ovtraj.units import S_PER_HOUR
 
 
 class PlanMismatch(PlanError):
@@ -29,7 +30,7 @@ class PlanMismatch(PlanError):
 # front tolerance's field.
 _PROMISED = (
     ("dv_total_mps", "dV_total", "m/s", 1.0, "dv_total_mps"),
-    ("t_total_s", "T_total", "h", 1.0 / 3600.0, "t_total_s"),
+    ("t_total_s", "T_total", "h", 1.0 / S_PER_HOUR, "t_total_s"),
     ("m_load_kg", "M_load", "kg", 1.0, "m_load_kg"),
 )
 # The stage figures that explain a difference of the totals: stage, row column, label, unit.

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.frames import ecef_to_eci_state, great_circle_distance, spherical_to_ecef_state
@@ -60,7 +60,7 @@ def relative_entry(state: np.ndarray, theta: float, omega: float, radius: float)
         ]
     )
     east = np.array([-math.sin(lon_inertial), math.cos(lon_inertial), 0.0])
-    heading = math.atan2(float(v_rel @ east), float(v_rel @ north)) % TWO_PI
+    heading = wrap_to_two_pi(math.atan2(float(v_rel @ east), float(v_rel @ north)))
     inertial_fpa = math.asin(float(r @ v) / (rn * float(np.linalg.norm(v))))
     return {
         "latitude_rad": lat,

@@ -15,8 +15,11 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ovtraj.astro.angles import TWO_PI
-from ovtraj.astro.elements import eccentricity_vector_from_dots, perigee_radius
+from ovtraj.astro.elements import (
+    eccentricity_vector_from_dots,
+    orbital_period,
+    perigee_radius,
+)
 from ovtraj.config import Scenario
 from ovtraj.mission.ephemeris import EphemerisRecorder
 from ovtraj.mission.flight_report import BurnReplay, FlightReport, LimitCheck, ReplayFailed
@@ -222,7 +225,7 @@ def descend(
     earth = scenario.earth
     entry_altitude_m = scenario.deorbit.entry.altitude_km * 1e3
     r0 = float(np.linalg.norm(state[:3]))
-    period = TWO_PI * math.sqrt(r0**3 / earth.mu)
+    period = float(orbital_period(r0, mu=earth.mu))
     horizon = scenario.deorbit.max_descent_revolutions * period
     state, t_entry, entered, _ = orbit.arc(
         state,
