@@ -250,11 +250,22 @@ LONG_MODULES = (
 )
 
 
+def measured_slow_tests() -> set[str]:
+    """The test ids tools/slow_tests.py chose from a measured run (tests/slow_tests.txt)."""
+    listing = REPO / "tests" / "slow_tests.txt"
+    lines = listing.read_text(encoding="utf-8").splitlines() if listing.is_file() else []
+    return {line.split("#")[0].strip() for line in lines if line.split("#")[0].strip()}
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     def rank(item: pytest.Item) -> int:
         name = item.path.name
         return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
 
+    slow = measured_slow_tests()
+    for item in items:
+        if item.nodeid in slow:
+            item.add_marker(pytest.mark.slow)
     items.sort(key=rank)  # stable: every module's own order is kept
 
 
