@@ -1,4 +1,4 @@
-"""Every script of ``benchmarks/`` run as the README runs it, on tiny settings (issue 45).
+"""Every script of ``benchmarks/`` run as the README runs it, on tiny settings.
 
 The project's rule for benchmarks: measured side by side in one process, a readable table,
 and as the last line one JSON object with the figures, the goals and the ratios; ``--json``

@@ -1,6 +1,6 @@
-"""Bounded inputs (issue 44): YAML anchors and aliases refused, config files read only
-if regular and within ``config_file_max_kib``, echoed values cut, ``--weights`` finite,
-and a DoE refused when the free disk is below its estimated size.
+"""Bounded inputs against hostile files and values: YAML anchors and aliases refused, config
+files read only if regular and within ``config_file_max_kib``, echoed values cut, ``--weights``
+finite, and a DoE refused when the free disk is below its estimated size.
 
 Real files, a real FIFO and ``/dev/zero``; the commands run in this process through
 :func:`ovtraj.cli.run_command` (the entry point's body), except the FIFO and

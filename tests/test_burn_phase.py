@@ -1,9 +1,9 @@
-"""The closed-form burn phase of the rendezvous (issue 21; ovtraj/pipeline/burn_phase.py).
+"""The closed-form burn phase of the rendezvous (ovtraj/pipeline/burn_phase.py).
 
 References: the rendezvous stage's own phasing, which refines the wait on the integrated
 J2 orbits (a second method), and the mission chain's rendezvous dV on the reference
-designs. The model describes the chain with the target's plane at insertion (before
-issue 43: ``mission.insertion: null``, the reference stored in
+designs. The model describes the chain with the target's plane at insertion (without
+plane management: ``mission.insertion: null``, the reference stored in
 ``data/reference/mission_chain_plane_at_launch/``), where the rendezvous pays for a
 0.44-0.45 deg plane difference according to where its burns fall; with the plane aimed at
 the rendezvous the cost no longer follows the burn phase (docs/rendezvous.md).

@@ -1,4 +1,4 @@
-"""Prefect-native caching (issue 19): one cache policy on every task, keyed on the inputs
+"""Prefect-native caching: one cache policy on every task, keyed on the inputs
 and the code version; the run store stays the source of truth.
 
 For every flow, an unchanged code version is served from the cache (or from the store,
@@ -223,7 +223,7 @@ def _counted(monkeypatch: pytest.MonkeyPatch) -> Counter:
 
 def _pipeline_work(monkeypatch: pytest.MonkeyPatch) -> Counter:
     """Count the mission flow's work beyond the batches: a surrogate fit, an NSGA-II run
-    (not a load of a stored one) and a plan written (issue 45: the flow runs the library's
+    (not a load of a stored one) and a plan written (the flow runs the library's
     driver, its fits and fronts stored in the run and reused by content)."""
     from ovtraj.pipeline import drive, steps
 
@@ -266,8 +266,9 @@ def test_surrogate_flow_recomputes_after_a_code_change_only(pipeline, monkeypatc
     run_id = pipeline["first"]["doe_run"]
     calls = _counted(monkeypatch)
     _set_code(monkeypatch, CODE_A)
-    # The mission flow's rounds stored their fits without plots (issue 21): the surrogate
-    # flow, which shows the parity plots, fits once with them, then is served.
+    # The mission flow's rounds stored their fits without plots (it draws only the last
+    # round's): the surrogate flow, which shows the parity plots, fits once with them, then
+    # is served.
     drawn = surrogate_flow(run_id, pipeline["config"], store)
     assert calls["fit_step"] == 1
     assert sorted(p.name for p in Path(drawn["directory"]).glob("parity-*.png"))

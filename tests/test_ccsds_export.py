@@ -1,4 +1,4 @@
-"""CCSDS export of a mission plan (issue 23): OEM and OPM read back by independent readers.
+"""CCSDS export of a mission plan: OEM and OPM read back by independent readers.
 
 * The OEM is read by the ``oem`` package (Brad Sease, MIT; it enforces the OEM's
   mandatory keywords and interpolates with the declared method), so a mistake in a
@@ -318,7 +318,7 @@ def test_export_faults_are_one_line_with_their_exit_code(plan, plan_file, tmp_pa
 
 def test_control_characters_never_reach_a_message_header(plan, plan_file, settings, tmp_path):
     """A newline in the originator wrote a header line of its own (``OBJECT_NAME =
-    FORGED`` after ``ORIGINATOR``; issue 44). Every text written into a message is
+    FORGED`` after ``ORIGINATOR``). Every text written into a message is
     printable ASCII (CCSDS 502.0-B-3, KVN) or refused naming its field, nothing written."""
     forged = tmp_path / "export.yaml"
     forged.write_text(

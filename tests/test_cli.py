@@ -175,7 +175,7 @@ def test_optimal_entry_unposable_config_exits_2_with_the_field(tmp_path):
 
 def test_optimal_entry_that_does_not_fly_exits_1_with_the_reason(tmp_path):
     """IPOPT succeeds on a coarse mesh whose controls do not fly to its end point: exit 1,
-    the reason printed (issue 22's false convergence), the histories still written."""
+    the reason printed (IPOPT's false convergence), the histories still written."""
     case = REPO / "configs" / "cases" / "shuttle_crossrange_heating.yaml"
     data = yaml.safe_load(case.read_text(encoding="utf-8"))
     data["transcription"]["max_refinements"] = 0
@@ -247,7 +247,7 @@ def test_deorbit_burn_bad_value_exits_2_naming_the_field(tmp_path):
 
 
 # --------------------------------------------------------------------------- #
-# issue 24: refused values, help with units and defaults, --json, -q, progress bars
+# usability: refused values, help with units and defaults, --json, -q, progress bars
 # --------------------------------------------------------------------------- #
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
 

@@ -1,4 +1,4 @@
-"""The command line against hostile identifiers, paths and numbers (issue 44).
+"""The command line against hostile identifiers, paths and numbers.
 
 Every command that takes a run id, a file or a number is given path-like ids
 (``../../x``, ``/etc/passwd``, ``a/b``), control characters (a newline, a terminal

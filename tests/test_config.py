@@ -121,7 +121,7 @@ def test_transfer_time_bounds_must_bracket_one(scenario_data):
 
 
 def test_a_scenario_never_names_a_dask_scheduler(scenario_data, monkeypatch):
-    """Issue 44: a shared scenario file naming a scheduler would make ``ovtraj run``
+    """A shared scenario file naming a scheduler would make ``ovtraj run``
     speak Dask's pickle protocol to it; the address comes from the command line, the flow
     or the environment only."""
     from ovtraj.runs.runners import DASK_ADDRESS_ENV, dask_address

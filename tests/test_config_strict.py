@@ -1,4 +1,4 @@
-"""Strict configuration inputs (issue 17, point 7): no bool for a number, YAML values that
+"""Strict configuration inputs: no bool for a number, YAML values that
 cannot be built, plausible bounds on physical inputs.
 
 Every config family is covered through its own loader; each refusal is one readable line

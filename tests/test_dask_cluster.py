@@ -1,4 +1,4 @@
-"""The DoE on an existing Dask cluster of real processes (issue 19).
+"""The DoE on an existing Dask cluster of real processes.
 
 A ``dask scheduler`` and two ``dask worker`` processes are started by this module on
 127.0.0.1, each in a folder of its own, without the checkout on their path (the
@@ -289,7 +289,7 @@ def test_the_pipeline_fits_and_draws_on_the_cluster_the_files_of_a_serial_run(cl
         command = [str(OVTRAJ), "pipeline", str(config), "--samples", "12", "--runner", runner]
         command.append("--allow-unconverged")  # one round of 2 points: the files, not the verdict
         environment = _environment()
-        if runner == "dask":  # named by the environment (issue 44: never by the scenario)
+        if runner == "dask":  # named by the environment, never by the scenario (a shared file)
             environment["OVTRAJ_DASK_ADDRESS"] = cluster.address
         done = subprocess.run(
             command,

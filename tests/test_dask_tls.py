@@ -1,4 +1,4 @@
-"""The DoE on a TLS-secured Dask cluster, as docs/mission.md shows it (issue 44).
+"""The DoE on a TLS-secured Dask cluster, as docs/mission.md shows it.
 
 Dask's protocol unpickles what the other side sends: a cluster reachable by others must
 authenticate both ends. A certificate authority, a scheduler certificate and a client

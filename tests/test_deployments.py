@@ -1,4 +1,4 @@
-"""Scheduled runs against a real Prefect server and a real process worker (issue 18).
+"""Scheduled runs against a real Prefect server and a real process worker.
 
 The module starts ``prefect server start`` as a subprocess on a free port of 127.0.0.1,
 with its own ``PREFECT_HOME`` in a temporary folder (database, profiles, results), no

@@ -1,4 +1,4 @@
-"""The high-fidelity force model (issue 47), each term against an independent evaluation.
+"""The high-fidelity force model, each term against an independent evaluation.
 
 The library's terms are evaluated by :class:`ovtraj.astro.forces.propagator.AccelerationFunction`
 (the compiled expressions the integrator flies) at sample states and times, and compared with:

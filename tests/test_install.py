@@ -1,4 +1,4 @@
-"""The wheel's contents and a ``--no-deps`` install of it (issue 18), used from elsewhere.
+"""The wheel's contents and a ``--no-deps`` install of it, used from elsewhere.
 
 The wheel is built from a copy of the working tree, installed without its
 dependencies into a new virtual environment that sees this one's packages (a path
@@ -8,7 +8,7 @@ to the workspace, and nothing is written inside the installed package.
 
 It does not check the dependencies: the venv borrows this one's packages, the dev extra
 included, so a runtime dependency missing from pyproject.toml goes unseen here (pyerfa
-did, issue 44). tests/test_user_install.py installs as README command 1 does, every
+once did). tests/test_user_install.py installs as README command 1 does, every
 dependency resolved by pip, and runs each command of the README's "Use" section.
 """
 

@@ -176,7 +176,7 @@ def test_stored_grid_point_is_what_the_task_computes(grid_rows, scenario):
 
 
 def test_a_fit_travels_as_its_coefficients_and_predicts_the_same():
-    """What a DoE batch carries to a worker with no fit on its disk (issue 19)."""
+    """What a DoE batch carries to a worker with no fit on its disk."""
     reference = LaunchFit.load(REFERENCE)
     carried = LaunchFit.from_dict(json.loads(json.dumps(reference.to_dict())))
     low, high = reference.altitude_range_km

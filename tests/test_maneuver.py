@@ -1,4 +1,4 @@
-"""Quick orbit manoeuvre of an upper stage (issue 9, seed 003).
+"""Quick orbit manoeuvre of an upper stage (seed 003).
 
 Small DE populations and generation counts come from the config (overridden here);
 every reference figure is computed independently in the test (closed forms, a Lambert
@@ -35,7 +35,7 @@ from ovtraj.studies.maneuver.thrust import Burn, fly
 from tests.conftest import REPO
 
 CASE = REPO / "configs" / "cases" / "upper_stage_rendezvous.yaml"
-# Keys `ovtraj maneuver --json` must carry (issue 9).
+# Keys `ovtraj maneuver --json` must carry.
 MANEUVER_KEYS = {
     "time_of_flight_s",
     "impulse_epochs_s",

@@ -1,4 +1,4 @@
-"""The whole-mission chain (issue 6): stages composed, totals from the stages' own rows."""
+"""The whole-mission chain: stages composed, totals from the stages' own rows."""
 
 from __future__ import annotations
 

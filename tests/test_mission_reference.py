@@ -1,4 +1,4 @@
-"""The mission chain gives the results it gave before the speed work (issue 20).
+"""The mission chain gives the results it gave before the speed work.
 
 The reference values were stored from main before any change to the chain's speed
 (``tools/mission_reference.py``, ``data/reference/mission_chain/``, the code version in

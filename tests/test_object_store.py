@@ -1,4 +1,4 @@
-"""The run store on object storage (issue 19, point 2), against a real S3 API server.
+"""The run store on object storage, against a real S3 API server.
 
 ``moto_server -H 127.0.0.1 -p PORT`` (moto's server mode) is started by the module and
 stopped by its PID; the ``ovtraj`` command runs in subprocesses with the standard

@@ -1,4 +1,4 @@
-"""A long lifting entry from near-orbital speed, posed by YAML alone (issue 22).
+"""A long lifting entry from near-orbital speed, posed by YAML alone.
 
 Betts' Space Shuttle maximum cross-range problem (*Practical Methods for Optimal
 Control*, 2nd ed., SIAM 2010, sec. 6.1), with and without its heating limit: the

@@ -1,4 +1,4 @@
-"""NSGA-II, the hypervolume, the infill picks and the front pick (issue 7).
+"""NSGA-II, the hypervolume, the infill picks and the front pick.
 
 References: closed-form hypervolumes of boxes; a bi-objective problem whose Pareto set
 is known in closed form (the segment between the two objectives' minimisers, for any

@@ -1,4 +1,4 @@
-"""``flows/pipeline.py:mission_flow`` under a temporary Prefect server (issue 7).
+"""``flows/pipeline.py:mission_flow`` under a temporary Prefect server.
 
 A 12-sample DoE, two verification rounds of 3 front points, the plan: the verified
 front's values must be the real chain's and the artifacts published. (That a second
@@ -103,7 +103,7 @@ def flown(prefect_server, tmp_path_factory):
     before = execute.EVALUATIONS["count"]
     state = mission_flow(config=str(config), return_state=True)
     middle = execute.EVALUATIONS["count"]
-    # The same pipeline through the command line, into a store of its own (issue 45).
+    # The same pipeline through the command line, into a store of its own.
     from ovtraj.cli import run_command
 
     cli_store = tmp / "cli-runs"
@@ -225,8 +225,8 @@ def test_the_flow_and_the_command_line_store_the_same_pipeline(flown):
     assert any(name.endswith("report.html") for name in flow_files)
     differing = [name for name in flow_files if flow_files[name] != cli_files[name]]
     assert differing == []
-    # Identical inputs, so `ovtraj diff` of the two plans (and of the two DoE runs) is empty
-    # (issue 46), while the plan's own figures are all there (--all).
+    # Identical inputs, so `ovtraj diff` of the two plans (and of the two DoE runs) is empty,
+    # while the plan's own figures are all there (--all).
     from ovtraj.cli import run_command
 
     plan = Path(flown["first"]["plan_json"])

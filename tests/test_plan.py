@@ -398,8 +398,9 @@ def test_mission_plots_write_three_pngs(record, scenario, tmp_path):
 
 
 def test_the_plan_launch_inserts_where_the_front_evaluation_starts(context, record, plan):
-    """The launch is solved to the chain's own insertion (issue 43): the plan's chain starts
-    within the match tolerances of the front's, and flies the same totals."""
+    """The launch is solved to the chain's own insertion (the plane aimed at the rendezvous):
+    the plan's chain starts within the match tolerances of the front's, and flies the same
+    totals."""
     settings = context.scenario.mission.insertion.launch_match
     front = evaluate(context, FEASIBLE)
     leg, planned = front.results.launch, record.results.launch

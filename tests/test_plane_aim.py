@@ -1,10 +1,10 @@
-"""Plane management (issue 43): the launch aimed at the target's plane at the rendezvous.
+"""Plane management: the launch aimed at the target's plane at the rendezvous.
 
 References: the closed-form J2 nodal regression (Vallado, 4th ed., eq. 9-41) for the
 planes' drift apart; the rendezvous stage's own propagated states (heyoka Taylor, not the
 aim's secular model) for the residual at the burn; the two-body Hohmann cost for the
-price of the plane; the chain's stored values from before issue 43 for the patent's
-choice; osculating elements (two-body, ``rv_to_coe``) for the launch target's orbit.
+price of the plane; the chain's stored values with the target's plane at insertion for the
+patent's choice; osculating elements (two-body, ``rv_to_coe``) for the launch target's orbit.
 """
 
 from __future__ import annotations

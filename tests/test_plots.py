@@ -1,4 +1,4 @@
-"""The plots (issue 24 point 5): coastlines, ground track, corridor limits, fronts, hours."""
+"""The plots: coastlines, ground track, corridor limits, fronts, hours."""
 
 from __future__ import annotations
 

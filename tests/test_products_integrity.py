@@ -1,4 +1,4 @@
-"""Stored products and printed results (issue 17): one records module, checked stores.
+"""Stored products and printed results: one records module, checked stores.
 
 - every former private copy of ``plain`` (``_plain``, ``_finite``, ``_json_default``,
   ``_json_safe``) is gone and its user gives null for NaN (``ovtraj.store.records.plain``);

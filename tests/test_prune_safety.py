@@ -1,4 +1,4 @@
-"""`ovtraj prune --yes` deletes inside its roots only (issue 44, row "high").
+"""`ovtraj prune --yes` deletes inside its roots only.
 
 A store and a Prefect results folder shared with other people may hold symbolic links
 planted there: a ``.pruned-*`` link, a run directory that is a link, a product folder

@@ -1,4 +1,4 @@
-"""Pseudospectral optimal entry (issue 8, seed 001) against independent references.
+"""Pseudospectral optimal entry (seed 001) against independent references.
 
 References written here, not taken from the library:
 
@@ -54,7 +54,7 @@ from ovtraj.studies.optimal_entry.transcription import transcribe
 REPO = Path(__file__).resolve().parents[1]
 CASE = REPO / "configs" / "cases" / "suborbital_return.yaml"
 PUBLISHED_RANGE_KM = 844.15  # seed 001, sec. 3.2
-# Keys the CLI prints (issue 8, point 7).
+# Keys the CLI prints.
 RESULT_KEYS = {
     "objective_value",
     "final_time_s",

@@ -665,7 +665,7 @@ def test_seed_001_aero_expressible():
     assert row[COL["load_g"]] == pytest.approx(load, rel=1e-12)
 
 
-# --- 9. the flight kernel's shortcuts (issue 20) ----------------------------------------------
+# --- 9. the flight kernel's shortcuts (for speed) ----------------------------------------------
 
 
 def test_angle_addition_gives_the_cosine_and_sine_within_two_ulp():

@@ -5,7 +5,7 @@ NLP has optima on both sides of the 180-degree transfer. The reference: the inte
 point run from every one of ten start shots spread over the transfer-time bounds, each
 on its own; the stage's multi-start must find the cheapest of them. The rendezvous
 problems are the ones the mission chain poses for its first reference designs with the
-target's plane at insertion (the chain before issue 43, ``mission.insertion: null``:
+target's plane at insertion (the chain without plane management, ``mission.insertion: null``:
 0.44-0.45 deg apart at the burn); with the plane aimed at the rendezvous they are nearly
 coplanar and have one optimum (docs/rendezvous.md, "Plane management").
 """
@@ -105,7 +105,7 @@ def test_the_stored_reference_only_lowered_the_rendezvous_cost():
     before, before_marker = reference.load(
         reference.reference_directory().with_name("mission_chain_single_start")
     )
-    # The chain after the multi-start, stored before issue 43 aimed the plane (the current
+    # The chain after the multi-start, stored with the target's plane at insertion (the current
     # reference, mission_chain/, is a different chain: tests/test_plane_aim.py).
     after, after_marker = reference.load(
         reference.reference_directory().with_name("mission_chain_plane_at_launch")

@@ -1,4 +1,4 @@
-"""Prefect task results are plain JSON, and only such records are read (issue 44).
+"""Prefect task results are plain JSON, and only such records are read (never a pickle).
 
 A shared results folder (or bucket) is writable by whoever shares it. Prefect decodes a
 record with the serializer the record names: one naming cloudpickle runs its payload on

@@ -1,4 +1,4 @@
-"""The one runner option of ``ovtraj run`` (issue 19): the library's pools, no Prefect.
+"""The one runner option of ``ovtraj run``: the library's pools, no Prefect.
 
 1. ``serial``, ``threads``, ``processes`` and ``dask`` (a local cluster) store
    byte-identical files for the same config and seed: each batch is evaluated with one

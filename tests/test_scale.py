@@ -1,4 +1,4 @@
-"""DoE and store at scale (issue 48): batches sized by the run, the same results however
+"""DoE and store at scale: batches sized by the run, the same results however
 a run is batched, the trajectory selection per batch. The scale benchmark's scaled-down
 run (a real Dask cluster, synthetic evaluations, the store commands on its run) is
 tests/test_benchmarks.py's."""

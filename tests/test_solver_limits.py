@@ -1,4 +1,4 @@
-"""Every solver stops at its iteration limit and at its wall-time limit (issue 17, point 7).
+"""Every solver stops at its iteration limit and at its wall-time limit.
 
 A tiny limit from the config must make the solve return its normal unconverged or
 infeasible result, quickly, with a reason that names the config key of the limit; the

@@ -1,4 +1,4 @@
-"""Run store integrity (issue 17): declared schemas, checksums, determinism, faults, claims.
+"""Run store integrity: declared schemas, checksums, determinism, faults, claims.
 
 The store is used as a user uses it: the ``ovtraj`` command in subprocesses, real
 file systems (a tmpfs made full or read-only when this machine allows mounting),
@@ -478,7 +478,7 @@ def test_a_killed_run_is_reported_interrupted_and_resumes_cleanly(tmp_path):
 def test_an_interrupt_wrapped_by_compiled_code_marks_the_run_interrupted(tmp_path, scenario):
     """A SIGTERM's KeyboardInterrupt raised while numba's dispatcher types a call comes
     back as CPython's ``SystemError: ... returned a result with an exception set`` (seen in
-    CI, issue 20): the run is marked interrupted by the signal, and the interrupt goes on."""
+    CI): the run is marked interrupted by the signal, and the interrupt goes on."""
     from ovtraj.interrupts import interrupt_of
     from ovtraj.runs import prepare_run
 

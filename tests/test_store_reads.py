@@ -1,4 +1,4 @@
-"""Bounded, inside-the-store reads (issue 44, row "low"): ids by pattern, regular files only.
+"""Bounded, inside-the-store reads: ids by pattern, regular files only.
 
 A hostile store (a shared folder) and hostile ids, tried as a user meets them: the
 ``ovtraj`` command in subprocesses on a real run, with real FIFOs and real symbolic links
@@ -32,7 +32,7 @@ pytestmark = pytest.mark.slow
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 # Generous: each command takes 2-5 s here; a read that waits on a FIFO never ends.
 TIMEOUT_S = 120
-# The code before issue 44 read a /dev/zero link until memory ran out; this cap on the
+# An unchecked read follows a /dev/zero link until memory runs out; this cap on the
 # command's address space turns that into a quick MemoryError instead of starving the
 # machine (a checked read needs far less: ~1.5 GB of address space measured here).
 ADDRESS_SPACE_BYTES = 4 * 2**30

@@ -1,6 +1,6 @@
 """The package as README command 1 installs it, and every command of the README's "Use"
 section and of docs/commands.md run once by that install; the package as ``pip install .``
-installs it, and the "Use" commands that need its package data (issue 44).
+installs it, and the "Use" commands that need its package data.
 
 tests/test_install.py installs the wheel without its dependencies into a venv that
 borrows this one's packages, so it cannot see a dependency missing from pyproject.toml:
@@ -468,7 +468,7 @@ def _place(
     if flow:
         from prefect.settings import PREFECT_API_URL
 
-        # A flow given no config reads the shipped scenario, as the command does (issue 45);
+        # A flow given no config reads the shipped scenario, as the command does;
         # here the shipped configs are the folder's shortened copy.
         env["OVTRAJ_CONFIG_DIR"] = str(folder / "configs")
         request.getfixturevalue("prefect_server")

@@ -1,4 +1,4 @@
-"""The launch-window scan (issue 48): ``ovtraj window SCENARIO --days N`` and its flow.
+"""The launch-window scan: ``ovtraj window SCENARIO --days N`` and its flow.
 
 A 3-day window of the default scenario with a small pipeline per day (a 12-sample DoE,
 one infill round of two points, two regressors), on the process runner in a workspace
