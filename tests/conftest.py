@@ -22,7 +22,7 @@ from ovtraj.target_sources import load_scenario
 os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
 
 REPO = Path(__file__).resolve().parents[1]
-# Keys the rendezvous result row (and `ovtraj rendezvous --json`) must carry (issue 2).
+# Keys the rendezvous result row (and `ovtraj rendezvous --json`) must carry.
 REQUIRED_KEYS = {
     "dv1_mps",
     "dv2_mps",
@@ -33,7 +33,7 @@ REQUIRED_KEYS = {
     "miss_distance_m",
     "feasible",
 }
-# Keys `ovtraj deorbit --json` must carry (issue 4).
+# Keys `ovtraj deorbit --json` must carry.
 DEORBIT_KEYS = {
     "burn_epoch_utc",
     "dv_mps",
@@ -45,7 +45,7 @@ DEORBIT_KEYS = {
     "entry_error_km",
     "feasible",
 }
-# Keys `ovtraj reentry --json` must carry (issue 5).
+# Keys `ovtraj reentry --json` must carry.
 REENTRY_KEYS = {
     "miss_distance_km",
     "flight_time_s",
@@ -269,7 +269,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=rank)  # stable: every module's own order is kept
 
 
-# --- the re-plan nights shared by the tracking and UI tests (issue 46) ---------------------
+# --- the re-plan nights shared by the tracking and UI tests ---------------------------------
 
 REPLAN_NIGHTS = 3
 
