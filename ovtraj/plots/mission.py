@@ -36,6 +36,7 @@ from ovtraj.astro.angles import wrap_to_pi
 from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.frames import great_circle_distance
 from ovtraj.config import Scenario
+from ovtraj.config.deorbit import EntryRegionConfig
 from ovtraj.plots.coastlines import draw_coastlines, split_at_wrap, with_breaks
 from ovtraj.plots.render import figure, write_png
 from ovtraj.store.backends import location
@@ -238,9 +239,20 @@ def _point(lon: float, centre: float) -> float:
 def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, centre: float) -> None:
     """Coastlines, the phases, the entry region and the points on a lon/lat axes."""
     draw_coastlines(ax, centre=centre)
+    _draw_phases(ax, tracks, centre)
+    if scenario.deorbit is not None:
+        _draw_entry_region(ax, scenario.deorbit.entry, centre)
+    _draw_landing(ax, tracks.get("reentry"), scenario, centre)
+    ax.set_xlabel("longitude [deg east]")
+    ax.set_ylabel("geocentric latitude [deg]")
+    ax.grid(True, alpha=0.3, zorder=0.0)
+
+
+def _draw_phases(ax: Any, tracks: dict[str, pd.DataFrame], centre: float) -> None:
+    """Each stage's phases as lines in their colours: long coasts thin (tens of
+    revolutions), transfers medium, the way down bold."""
     for stage, phase, rows in _segments(tracks):
         colour, label = _style(stage, phase)
-        # long coasts thin (tens of revolutions), transfers medium, the way down bold
         weight = 0 if phase in _COASTS else 1 if stage in _ORBITAL and phase != "descent" else 2
         _line(
             ax,
@@ -253,32 +265,39 @@ def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, cent
             zorder=2.0 + weight,
             label=label,
         )
-    if scenario.deorbit is not None:
-        entry = scenario.deorbit.entry
-        label = (
-            f"entry region ({entry.latitude_deg:g} ± {entry.latitude_tolerance_deg:g}° lat, "
-            f"{entry.longitude_deg:g} ± {entry.longitude_tolerance_deg:g}° lon, "
-            f"{entry.altitude_km:g} km)"
+
+
+def _draw_entry_region(ax: Any, entry: EntryRegionConfig, centre: float) -> None:
+    """The deorbit's entry region (its box of latitude and longitude tolerances), one
+    legend entry however the frame's edge cuts it."""
+    label = (
+        f"entry region ({entry.latitude_deg:g} ± {entry.latitude_tolerance_deg:g}° lat, "
+        f"{entry.longitude_deg:g} ± {entry.longitude_tolerance_deg:g}° lon, "
+        f"{entry.altitude_km:g} km)"
+    )
+    for lon0, lon1, lat0, lat1 in _boxes(
+        entry.longitude_deg,
+        entry.latitude_deg,
+        entry.longitude_tolerance_deg,
+        entry.latitude_tolerance_deg,
+        centre,
+    ):
+        ax.fill(
+            [lon0, lon1, lon1, lon0],
+            [lat0, lat0, lat1, lat1],
+            facecolor="gold",
+            edgecolor="darkgoldenrod",
+            lw=1.5,
+            alpha=0.75,
+            zorder=3.5,
+            label=label,
         )
-        for lon0, lon1, lat0, lat1 in _boxes(
-            entry.longitude_deg,
-            entry.latitude_deg,
-            entry.longitude_tolerance_deg,
-            entry.latitude_tolerance_deg,
-            centre,
-        ):
-            ax.fill(
-                [lon0, lon1, lon1, lon0],
-                [lat0, lat0, lat1, lat1],
-                facecolor="gold",
-                edgecolor="darkgoldenrod",
-                lw=1.5,
-                alpha=0.75,
-                zorder=3.5,
-                label=label,
-            )
-            label = "_"  # one legend entry
-    reentry = tracks.get("reentry")
+        label = "_"  # one legend entry
+
+
+def _draw_landing(ax: Any, reentry: pd.DataFrame | None, scenario: Scenario, centre: float) -> None:
+    """The landing site, and the reentry's entry and terminal points (the terminal one
+    with its distance from the site)."""
     site = scenario.reentry.landing_site if scenario.reentry is not None else None
     if site is not None:
         ax.plot(
@@ -292,40 +311,38 @@ def _draw_map(ax: Any, tracks: dict[str, pd.DataFrame], scenario: Scenario, cent
             zorder=5.0,
             label=f"landing site: {site.name}",
         )
-    if reentry is not None:
-        first, last = reentry.iloc[0], reentry.iloc[-1]
-        ax.plot(
-            _point(first["longitude_deg"], centre),
-            first["latitude_deg"],
-            "^",
-            color="k",
-            ms=8,
-            zorder=6.0,
-            label="entry point",
+    if reentry is None:
+        return
+    first, last = reentry.iloc[0], reentry.iloc[-1]
+    ax.plot(
+        _point(first["longitude_deg"], centre),
+        first["latitude_deg"],
+        "^",
+        color="k",
+        ms=8,
+        zorder=6.0,
+        label="entry point",
+    )
+    label = "terminal point"
+    if site is not None:
+        miss_m = great_circle_distance(
+            math.radians(last["latitude_deg"]),
+            math.radians(last["longitude_deg"]),
+            math.radians(site.latitude_deg),
+            math.radians(site.longitude_deg),
+            radius=scenario.earth.radius,
         )
-        label = "terminal point"
-        if site is not None:
-            miss_m = great_circle_distance(
-                math.radians(last["latitude_deg"]),
-                math.radians(last["longitude_deg"]),
-                math.radians(site.latitude_deg),
-                math.radians(site.longitude_deg),
-                radius=scenario.earth.radius,
-            )
-            label += f" ({miss_m / 1e3:.1f} km from the site)"
-        ax.plot(
-            _point(last["longitude_deg"], centre),
-            last["latitude_deg"],
-            "D",
-            color="k",
-            mfc="yellow",
-            ms=5,
-            zorder=7.0,
-            label=label,
-        )
-    ax.set_xlabel("longitude [deg east]")
-    ax.set_ylabel("geocentric latitude [deg]")
-    ax.grid(True, alpha=0.3, zorder=0.0)
+        label += f" ({miss_m / 1e3:.1f} km from the site)"
+    ax.plot(
+        _point(last["longitude_deg"], centre),
+        last["latitude_deg"],
+        "D",
+        color="k",
+        mfc="yellow",
+        ms=5,
+        zorder=7.0,
+        label=label,
+    )
 
 
 def _zoom_extent(
