@@ -33,6 +33,7 @@ from ovtraj.store.files import write_bytes
 __all__ = [
     "FLOWN_END",
     "FLOWN_START",
+    "STYLE",
     "flown_section",
     "pick_explanation",
     "stop_explanation",
@@ -288,7 +289,8 @@ _VALIDATION_COLUMNS = (
     "heldout_accuracy",
 )
 
-_STYLE = """
+# The look of the HTML pages (this report and the launch window's page).
+STYLE = """
 body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#222}
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
@@ -433,22 +435,13 @@ def write_report(
     :func:`ovtraj.pipeline.plan_flights.stored_flights`), each shown beside the plan; a
     mapping of neither kind, or the flight of another plan, raises
     :class:`~ovtraj.pipeline.report_tables.FlightResultError` before anything is written."""
-    converged = bool(summary.get("converged"))
-    evaluations = summary["real_evaluations"]
     plan_parts = _plan_sections(plan, ascent_plot, entry_plot, flights)
     title = f"ovtraj mission report: {scenario_name}"
     parts = [
         f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
-        f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>",
+        f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
-        f"<p>pipeline {html.escape(summary['pipeline_id'])} of DoE run "
-        f"{html.escape(summary['doe_run'])} (final run {html.escape(summary['final_run'])}), "
-        f"code {html.escape(str(summary.get('code')))}</p>",
-        f"<p class='verdict {'ok' if converged else 'no'}'>"
-        f"{html.escape(stop_explanation(summary, verify))}.</p>",
-        f"<p>real evaluations: {evaluations['doe']} (DoE) + {evaluations['infill']} (infill); "
-        f"verified front: {len(front)} points, hypervolume {summary['hypervolume']:.4f} "
-        "(normalised objectives, reference point 1).</p>",
+        *_verdict_section(summary, verify, front),
         "<h2>The plan</h2>",
         f"<p>{html.escape(pick_text)}.</p>",
         _table(_plan_rows(plan)),
@@ -460,25 +453,9 @@ def write_report(
         "<p>T_total and dV_total: lower is better; M_load: higher is better.</p>",
         _table(_front_frame(front, normalisation)),
         "<h2>Surrogates of the last round (selected models)</h2>",
+        *_surrogates_section(surrogates),
+        "<h2>Plots</h2>",
     ]
-    if surrogates is None:
-        parts.append("<p>the last round's surrogate fit is no longer stored.</p>")
-    else:
-        validation = surrogates.validation
-        chosen = validation[validation["selected"].astype(bool)]
-        shown = [c for c in _VALIDATION_COLUMNS if c in chosen and chosen[c].notna().any()]
-        parts.append(
-            "<p>k-fold cross-validation (cv_) and held-out (heldout_) figures of each output's "
-            "selected model, in the output's unit (times in s).</p>"
-        )
-        parts.append(_table(chosen[shown]))
-        for output, model in unregressed(surrogates).items():
-            why = _UNREGRESSED.get(model, "")
-            parts.append(
-                f"<p>{html.escape(output)}: {html.escape(model)}, not a regressor{why}: "
-                "no cross-validation figures.</p>"
-            )
-    parts.append("<h2>Plots</h2>")
     for plot in plots:
         parts.append(
             f"<figure><img alt='{html.escape(plot.name)}' src='{png_data_uri(plot)}'>"
@@ -487,3 +464,42 @@ def write_report(
     parts.append("</body></html>\n")
     write_bytes(path, "\n".join(parts).encode("utf-8"), replace=True)
     return path
+
+
+def _verdict_section(summary: dict[str, Any], verify: Any, front: pd.DataFrame) -> list[str]:
+    """Which pipeline and code, whether the loop converged and why it stopped, the real
+    evaluations and the verified front's size and hypervolume."""
+    converged = bool(summary.get("converged"))
+    evaluations = summary["real_evaluations"]
+    return [
+        f"<p>pipeline {html.escape(summary['pipeline_id'])} of DoE run "
+        f"{html.escape(summary['doe_run'])} (final run {html.escape(summary['final_run'])}), "
+        f"code {html.escape(str(summary.get('code')))}</p>",
+        f"<p class='verdict {'ok' if converged else 'no'}'>"
+        f"{html.escape(stop_explanation(summary, verify))}.</p>",
+        f"<p>real evaluations: {evaluations['doe']} (DoE) + {evaluations['infill']} (infill); "
+        f"verified front: {len(front)} points, hypervolume {summary['hypervolume']:.4f} "
+        "(normalised objectives, reference point 1).</p>",
+    ]
+
+
+def _surrogates_section(surrogates: Any) -> list[str]:
+    """The selected models' validation figures, and the outputs modelled without a
+    regressor; or that the last round's fit is no longer stored."""
+    if surrogates is None:
+        return ["<p>the last round's surrogate fit is no longer stored.</p>"]
+    validation = surrogates.validation
+    chosen = validation[validation["selected"].astype(bool)]
+    shown = [c for c in _VALIDATION_COLUMNS if c in chosen and chosen[c].notna().any()]
+    parts = [
+        "<p>k-fold cross-validation (cv_) and held-out (heldout_) figures of each output's "
+        "selected model, in the output's unit (times in s).</p>",
+        _table(chosen[shown]),
+    ]
+    for output, model in unregressed(surrogates).items():
+        why = _UNREGRESSED.get(model, "")
+        parts.append(
+            f"<p>{html.escape(output)}: {html.escape(model)}, not a regressor{why}: "
+            "no cross-validation figures.</p>"
+        )
+    return parts

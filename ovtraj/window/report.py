@@ -34,9 +34,10 @@ from ovtraj.formatting import HOUR_S, number
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import pick_weights
-from ovtraj.pipeline.report import _STYLE as REPORT_STYLE  # the pipeline report's look
+from ovtraj.pipeline.report import STYLE as REPORT_STYLE  # the pipeline report's look
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.plots.front import axis_label
+from ovtraj.plots.launch_days import mark_days_without_plan
 from ovtraj.plots.porkchop import porkchop_figure
 from ovtraj.plots.render import figure, png_bytes
 from ovtraj.runs import RunStore
@@ -146,16 +147,7 @@ def window_figure(
         ]
         ax.plot(days, y, marker="o", color="tab:blue", label="picked plan of the day")
         if missing:
-            ax.plot(
-                [days[k] for k in missing],
-                [0.0] * len(missing),
-                linestyle="none",
-                marker="x",
-                color="0.5",
-                transform=ax.get_xaxis_transform(),  # y in axes fraction: on the axis
-                clip_on=False,
-                label="no plan",
-            )
+            mark_days_without_plan(ax, [days[k] for k in missing])
         if best is not None:
             value = records[best][objective.name] * objective.report_scale
             ax.axvline(days[best], color="tab:red", linestyle="--", linewidth=1.0)
@@ -281,15 +273,55 @@ def window_page(
     plots embedded (each SVG beside it)."""
     optimize = base.mission.optimize
     title = f"ovtraj launch window: {base.name}"
+    shown_weights = ", ".join(f"{w:g}" for w in weights)
+    ideal = ", ".join(f"{k} {v:g}" for k, v in optimize.ideal.model_dump().items())
+    reference = ", ".join(f"{k} {v:g}" for k, v in optimize.reference.model_dump().items())
+    parts = [
+        "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(title)}</title><style>{REPORT_STYLE}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p>{len(records)} launch days from {html.escape(records[0]['date'])}: each day's "
+        "whole-mission pipeline, its plan picked from its verified front by the lowest "
+        f"weighted mean of the normalised objectives (weights T, dV, M = {shown_weights}; 0 "
+        f"the ideal point: {html.escape(ideal)}; 1 the reference point: "
+        f"{html.escape(reference)}; mission.optimize). The best day's plan scores lowest.</p>",
+        _verdict(records, best),
+        "<h2>Days</h2>",
+        _days_table(records, best, window_dir),
+        "<h2>T_total, dV_total and M_load against the launch day</h2>",
+        f"<figure><img alt='{PNG}' src='{png_data_uri(plot_png)}'>"
+        f"<figcaption><a href='{SVG}'>{SVG}</a></figcaption></figure>",
+        "<h2>Porkchop: dV_total and T_total over the launch day and "
+        f"{html.escape(sweep.variable)}</h2>",
+        f"<p>Each planned day's plan evaluated again by the mission chain with "
+        f"{html.escape(sweep.variable)} at {len(sweep.values)} values from "
+        f"{sweep.values[0]:g} to {sweep.values[-1]:g} (mission.design_bounds), its other "
+        "design variables kept (configs/window.yaml porkchop; the values in "
+        f"<a href='{PORKCHOP}'>{PORKCHOP}</a>). A column is one day's plan varied; the "
+        "contours between days interpolate between the plans of different days. Circles: "
+        "each day's plan; the star: the best day's; dots: infeasible designs.</p>",
+        f"<figure><img alt='{PORKCHOP_PNG}' src='{png_data_uri(porkchop_png)}'>"
+        f"<figcaption><a href='{PORKCHOP_SVG}'>{PORKCHOP_SVG}</a></figcaption></figure>",
+        "</body></html>\n",
+    ]
+    return "\n".join(parts).encode("utf-8")
+
+
+def _verdict(records: Sequence[dict[str, Any]], best: int | None) -> str:
+    """The page's verdict: the best day with its plan's objectives and score, or none."""
     if best is None:
-        verdict = "<p class='verdict no'>no day has a plan.</p>"
-    else:
-        r = records[best]
-        verdict = (
-            f"<p class='verdict ok'>best day {html.escape(r['date'])} (day {r['day']}): "
-            f"T_total {_cell(r['t_total_s'] / HOUR_S)} h, dV_total {_cell(r['dv_total_mps'])} "
-            f"m/s, M_load {_cell(r['m_load_kg'])} kg, score {r['score']:.4f}.</p>"
-        )
+        return "<p class='verdict no'>no day has a plan.</p>"
+    r = records[best]
+    return (
+        f"<p class='verdict ok'>best day {html.escape(r['date'])} (day {r['day']}): "
+        f"T_total {_cell(r['t_total_s'] / HOUR_S)} h, dV_total {_cell(r['dv_total_mps'])} "
+        f"m/s, M_load {_cell(r['m_load_kg'])} kg, score {r['score']:.4f}.</p>"
+    )
+
+
+def _days_table(records: Sequence[dict[str, Any]], best: int | None, window_dir: str) -> str:
+    """A row per day (the best in bold): its objectives, score, verdict, its report and
+    plan linked relative to ``window_dir``, and why it has no plan."""
     head = (
         "<tr><th>day</th><th>date</th><th>T_total [h]</th><th>dV_total [m/s]</th>"
         "<th>M_load [kg]</th><th>score</th><th>converged</th><th>report</th><th>plan</th>"
@@ -317,38 +349,7 @@ def window_page(
             html.escape(note),
         )
         rows.append(f"<tr{mark}>{''.join(f'<td>{c}</td>' for c in cells)}</tr>")
-    shown_weights = ", ".join(f"{w:g}" for w in weights)
-    ideal = ", ".join(f"{k} {v:g}" for k, v in optimize.ideal.model_dump().items())
-    reference = ", ".join(f"{k} {v:g}" for k, v in optimize.reference.model_dump().items())
-    parts = [
-        "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
-        f"<title>{html.escape(title)}</title><style>{REPORT_STYLE}</style></head><body>",
-        f"<h1>{html.escape(title)}</h1>",
-        f"<p>{len(records)} launch days from {html.escape(records[0]['date'])}: each day's "
-        "whole-mission pipeline, its plan picked from its verified front by the lowest "
-        f"weighted mean of the normalised objectives (weights T, dV, M = {shown_weights}; 0 "
-        f"the ideal point: {html.escape(ideal)}; 1 the reference point: "
-        f"{html.escape(reference)}; mission.optimize). The best day's plan scores lowest.</p>",
-        verdict,
-        "<h2>Days</h2>",
-        f"<table><thead>{head}</thead><tbody>{''.join(rows)}</tbody></table>",
-        "<h2>T_total, dV_total and M_load against the launch day</h2>",
-        f"<figure><img alt='{PNG}' src='{png_data_uri(plot_png)}'>"
-        f"<figcaption><a href='{SVG}'>{SVG}</a></figcaption></figure>",
-        "<h2>Porkchop: dV_total and T_total over the launch day and "
-        f"{html.escape(sweep.variable)}</h2>",
-        f"<p>Each planned day's plan evaluated again by the mission chain with "
-        f"{html.escape(sweep.variable)} at {len(sweep.values)} values from "
-        f"{sweep.values[0]:g} to {sweep.values[-1]:g} (mission.design_bounds), its other "
-        "design variables kept (configs/window.yaml porkchop; the values in "
-        f"<a href='{PORKCHOP}'>{PORKCHOP}</a>). A column is one day's plan varied; the "
-        "contours between days interpolate between the plans of different days. Circles: "
-        "each day's plan; the star: the best day's; dots: infeasible designs.</p>",
-        f"<figure><img alt='{PORKCHOP_PNG}' src='{png_data_uri(porkchop_png)}'>"
-        f"<figcaption><a href='{PORKCHOP_SVG}'>{PORKCHOP_SVG}</a></figcaption></figure>",
-        "</body></html>\n",
-    ]
-    return "\n".join(parts).encode("utf-8")
+    return f"<table><thead>{head}</thead><tbody>{''.join(rows)}</tbody></table>"
 
 
 def write_window(
