@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ovtraj.config.mission import ObjectivePoint, OptimizeSettings
+from ovtraj.units import S_PER_HOUR
 
 
 @dataclass(frozen=True)
@@ -28,14 +29,14 @@ class Objective:
 
 
 MISSION_OBJECTIVES = (
-    Objective("t_total_s", +1, "T_total", "h", 1.0 / 3600.0),
+    Objective("t_total_s", +1, "T_total", "h", 1.0 / S_PER_HOUR),
     Objective("dv_total_mps", +1, "dV_total", "m/s", 1.0),
     Objective("m_load_kg", -1, "M_load", "kg", 1.0),
 )
 
 
 def _si(point: ObjectivePoint) -> np.ndarray:
-    return np.array([point.t_total_h * 3600.0, point.dv_total_mps, point.m_load_kg])
+    return np.array([point.t_total_h * S_PER_HOUR, point.dv_total_mps, point.m_load_kg])
 
 
 @dataclass(frozen=True)

@@ -69,6 +69,7 @@ from ovtraj.store.backends import location
 from ovtraj.store.files import Digest, StoreError, read_json
 from ovtraj.store.products import Product
 from ovtraj.surrogate import SurrogateError, SurrogateSet, UnitCube
+from ovtraj.units import S_PER_HOUR
 
 KIND = "mission-phase-surrogates/5"
 # Stored by earlier versions and still read: /4 had no known limits, /3 no burn phase.
@@ -330,7 +331,7 @@ class MissionSurrogates:
     def time_floor(self, designs: np.ndarray) -> np.ndarray:
         """The docked stay plus the separation delay [s]: part of every T_total."""
         designs = np.atleast_2d(np.asarray(designs, dtype=float))
-        return self.stay_s + 3600.0 * designs[:, 2]
+        return self.stay_s + S_PER_HOUR * designs[:, 2]
 
     def waits(self, designs: np.ndarray) -> np.ndarray:
         """The wait model's phasing waits [s] of designs (m, 3)."""

@@ -31,6 +31,7 @@ from ovtraj.pipeline.features import (
 from ovtraj.pipeline.pass_model import PassModel
 from ovtraj.surrogate import SurrogateError, SurrogateSet, fit_surrogates
 from ovtraj.surrogate.validation import holdout_mask
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["fit_mission_surrogates", "launch_payload", "pinned_deorbit_burns"]
 
@@ -182,8 +183,8 @@ def _composition(
     return {
         "payload": payload,
         "floors": DvFloors.of(scenario),
-        "stay_s": 3600.0 * scenario.mission.stay_h,
-        "softness_s": 3600.0 * settings.floor_softness_h,
+        "stay_s": S_PER_HOUR * scenario.mission.stay_h,
+        "softness_s": S_PER_HOUR * settings.floor_softness_h,
         "softness_mps": settings.floor_softness_mps,
         "pass_model": pass_model,
         "burn_phase": burn_phase,

@@ -1,4 +1,4 @@
-"""A low-fidelity T_total: the deorbit's pass predicted from the design (issue 21, point 2).
+"""A low-fidelity T_total: the deorbit's pass predicted from the design.
 
 T_total moves in whole days: the deorbit waits for a pass of the ground track through the
 entry region, and which pass comes first depends on when the OV reaches its preparation
@@ -40,6 +40,7 @@ from ovtraj.launch.fourier import FourierSeries
 from ovtraj.mission.plane import aimed_node_offset, drop_delay_s
 from ovtraj.rendezvous.hohmann import hohmann_time_s
 from ovtraj.target_state import target_state
+from ovtraj.units import S_PER_HOUR
 
 
 def usable_burn_lead_s(solver: DeorbitSolverConfig) -> float:
@@ -129,8 +130,8 @@ class PassModel:
     # phase, :meth:`departure_phase_rad`); 0 in the models stored before them.
     target_argp0_rad: float = 0.0
     target_argp_rate: float = 0.0
-    # The launch aims at the target's plane at the rendezvous (issue 43,
-    # ovtraj/mission/plane.py): the drop and the insertion come later by the aimed node's
+    # The launch aims at the target's plane at the rendezvous
+    # (ovtraj/mission/plane.py): the drop and the insertion come later by the aimed node's
     # turn; False in the models stored before it.
     aimed_plane: bool = False
 
@@ -155,7 +156,7 @@ class PassModel:
             target_u_rate=target.u_rate,
             target_raan_rate=target.raan_rate,
             earth_angle_at_zero_rad=day.gmst_rad(),
-            stay_s=3600.0 * scenario.mission.stay_h,
+            stay_s=S_PER_HOUR * scenario.mission.stay_h,
             horizon_s=deorbit.horizon_s,
             burn_window_s=usable_burn_lead_s(deorbit.solver),
             rendezvous_transfer_fraction=settings.rendezvous_transfer_fraction,
@@ -296,4 +297,4 @@ class PassModel:
             + self.rendezvous_transfer_fraction
             * hohmann_time_s(earth.radius + 1e3 * designs[:, 0], self.target_a_m, earth.mu)
         )
-        return arrival + self.stay_s + 3600.0 * designs[:, 2]
+        return arrival + self.stay_s + S_PER_HOUR * designs[:, 2]

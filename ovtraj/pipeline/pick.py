@@ -10,6 +10,7 @@ import pandas as pd
 
 from ovtraj.config.io_limits import echoed
 from ovtraj.optimize import Normalisation
+from ovtraj.units import S_PER_HOUR
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,7 @@ def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pi
         return front.iloc[pick.index]
     keep = np.ones(len(front), dtype=bool)
     limits = (
-        ("t_total_s", pick.max_t_total_h, 3600.0, np.less_equal, "max_t_total_h"),
+        ("t_total_s", pick.max_t_total_h, S_PER_HOUR, np.less_equal, "max_t_total_h"),
         ("dv_total_mps", pick.max_dv_total_mps, 1.0, np.less_equal, "max_dv_total_mps"),
         ("m_load_kg", pick.min_m_load_kg, 1.0, np.greater_equal, "min_m_load_kg"),
     )
@@ -106,7 +107,7 @@ def pick_front_point(front: pd.DataFrame, normalisation: Normalisation, pick: Pi
 def weights_problem(weights: Sequence[float] | None) -> str | None:
     """Why ``weights`` cannot weigh (T_total, dV_total, M_load), None when they can: three
     finite, non-negative numbers, not all zero (a NaN weight made every score NaN, and
-    the first point was picked "with score nan"; issue 44). None: equal weights."""
+    the first point was picked "with score nan"). None: equal weights."""
     if weights is None:
         return None
     values = np.asarray(weights, dtype=float)

@@ -28,10 +28,10 @@ from ovtraj.mission.margins import limit_margins
 from ovtraj.mission.montecarlo_outcome import MANOEUVRES
 from ovtraj.mission.montecarlo_statistics import path_limits, planned_dv
 from ovtraj.mission.plan import MissionPlan
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["FlightResultError", "flight_shown", "manoeuvres_shown", "margins_shown"]
 
-_HOUR_S = 3600.0
 # The path-limit margins of a --fidelity high result (limit - peak, SI): key, label, unit
 # shown, scale to it.
 _PATH_MARGINS = (
@@ -188,7 +188,7 @@ def _replay(flight: Mapping[str, Any], plan: MissionPlan) -> tuple[str, pd.DataF
     t_total = None if terminal_t is None else terminal_t - plan.launch.drop_t_s
     checks = flight.get("checks") if isinstance(flight.get("checks"), Mapping) else {}
     rows = [
-        ("T_total", "h", plan.totals.t_total_s, t_total, 1 / _HOUR_S),
+        ("T_total", "h", plan.totals.t_total_s, t_total, 1 / S_PER_HOUR),
         ("dV_total", "m/s", plan.totals.dv_total_mps, dv_total, 1.0),
         ("M_load", "kg", plan.totals.m_load_kg, _figure(flight, "insertion", "payload_kg"), 1.0),
         (
