@@ -48,6 +48,7 @@ from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import number
 from ovtraj.store.backends import location
 from ovtraj.store.files import StoreError
+from ovtraj.units import S_PER_HOUR
 from ovtraj.version import code_version
 
 if TYPE_CHECKING:  # the driver, the store and the surrogates load the numerics: imported when run
@@ -88,7 +89,7 @@ def _print_front(front: Any) -> None:
         typer.echo(
             f"  {row.front_index:5d}  {row.sample_id:6d}  {row.parking_altitude_km:9.2f}  "
             f"{row.preparation_altitude_km:9.2f}  {row.separation_delay_h:9.2f}  "
-            f"{row.t_total_s / 3600:6.1f}  {row.dv_total_mps:8.2f}  {row.m_load_kg:6.1f}  "
+            f"{row.t_total_s / S_PER_HOUR:6.1f}  {row.dv_total_mps:8.2f}  {row.m_load_kg:6.1f}  "
             f"{row.origin}"
         )
     typer.echo(

@@ -40,6 +40,7 @@ from ovtraj.config.orchestration import load_orchestration
 from ovtraj.formatting import quantity
 from ovtraj.paths import scenario_file
 from ovtraj.store.files import StoreError
+from ovtraj.units import S_PER_HOUR
 from ovtraj.version import code_version
 
 if TYPE_CHECKING:  # the runners load the numerics: imported when run
@@ -241,7 +242,7 @@ def _json_rows(outcome: Any, store: Any) -> list[dict[str, Any]]:
                 "date": record["date"],
                 "status": record["status"],
                 "reason": record["reason"],
-                "t_total_h": None if t_total is None else t_total / 3600.0,
+                "t_total_h": None if t_total is None else t_total / S_PER_HOUR,
                 "dv_total_mps": record["dv_total_mps"],
                 "m_load_kg": record["m_load_kg"],
                 "score": record["score"],

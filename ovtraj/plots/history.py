@@ -15,13 +15,13 @@ from pathlib import Path
 import pandas as pd
 
 from ovtraj.plots.render import figure, write_png
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["history_plot"]
 
-_HOUR_S = 3600.0
 _PANELS = (
     ("dv_total_mps", "dV_total [m/s]", 1.0),
-    ("t_total_s", "T_total [h]", 1.0 / _HOUR_S),
+    ("t_total_s", "T_total [h]", 1.0 / S_PER_HOUR),
     ("m_load_kg", "M_load [kg]", 1.0),
     ("landing_miss_m", "landing miss [m]", 1.0),
 )

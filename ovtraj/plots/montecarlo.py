@@ -28,12 +28,12 @@ from numpy.typing import NDArray
 from ovtraj.config.montecarlo_plots import Runway
 from ovtraj.plots.render import figure
 from ovtraj.reentry.dynamics import range_and_bearing
+from ovtraj.units import M_PER_KM
 
 __all__ = ["LOOPS", "LandingPoints", "Site", "dv_figure", "footprint_figure", "site_offsets_km"]
 
 # loop -> (colour, legend text)
 LOOPS = {"closed": ("tab:blue", "closed loop"), "open": ("tab:orange", "open loop")}
-_KM = 1e3
 _SITE_COLOUR = "tab:purple"
 _MISS_COLOUR = "tab:green"
 _RUNWAY_COLOUR = "0.15"
@@ -68,7 +68,7 @@ def site_offsets_km(
     lat0, lon0 = math.radians(site.latitude_deg), math.radians(site.longitude_deg)
     for lat, lon in zip(latitude_deg, longitude_deg, strict=True):
         angle, bearing = range_and_bearing(lat0, lon0, math.radians(lat), math.radians(lon))
-        distance = angle * site.radius_m / _KM
+        distance = angle * site.radius_m / M_PER_KM
         east.append(distance * math.sin(bearing))
         north.append(distance * math.cos(bearing))
     return np.array(east, dtype=float), np.array(north, dtype=float)
@@ -89,7 +89,7 @@ def footprint_figure(
     offsets = {
         loop: site_offsets_km(site, p.latitude_deg, p.longitude_deg) for loop, p in loops.items()
     }
-    stated_km = stated_miss_m / _KM
+    stated_km = stated_miss_m / M_PER_KM
     half = zoom_stated_misses * stated_km
     for ax in (every, near):
         _site_features(ax, site, stated_km, runway)
@@ -139,8 +139,8 @@ def _site_features(ax: Any, site: Site, stated_km: float, runway: Runway | None)
     )
     if runway is not None:
         heading = math.radians(runway.heading_deg)
-        along = np.array([math.sin(heading), math.cos(heading)]) * runway.length_m / 2 / _KM
-        across = np.array([math.cos(heading), -math.sin(heading)]) * runway.width_m / 2 / _KM
+        along = np.array([math.sin(heading), math.cos(heading)]) * runway.length_m / 2 / M_PER_KM
+        across = np.array([math.cos(heading), -math.sin(heading)]) * runway.width_m / 2 / M_PER_KM
         corners = [along + across, along - across, -along - across, -along + across]
         ax.add_patch(
             Polygon(
@@ -149,7 +149,7 @@ def _site_features(ax: Any, site: Site, stated_km: float, runway: Runway | None)
                 color=_RUNWAY_COLOUR,
                 linewidth=1.5,
                 zorder=2,
-                label=f"runway {runway.designation} ({runway.length_m / _KM:g} km)",
+                label=f"runway {runway.designation} ({runway.length_m / M_PER_KM:g} km)",
             )
         )
     ax.plot(

@@ -21,13 +21,13 @@ import pandas as pd
 from ovtraj.plots.render import figure, write_png
 from ovtraj.store.backends import location
 from ovtraj.surrogate import SurrogateSet
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["display_unit", "parity_figure", "parity_plots"]
 
-_HOUR_S = 3600.0
 # Name suffix (the stored value's unit) -> (shown unit, shown value per stored value).
 _UNITS = {
-    "_s": ("h", 1.0 / _HOUR_S),
+    "_s": ("h", 1.0 / S_PER_HOUR),
     "_h": ("h", 1.0),
     "_mps": ("m/s", 1.0),
     "_kg": ("kg", 1.0),

@@ -20,7 +20,7 @@ to is read from the cache when fetched recently enough. The scenario itself then
 carries the element set read (``docs/targets.md``), so a replay of a stored run reads
 neither the network nor the cache.
 
-Bounds (issue 44), all from ``target.source_settings``:
+Bounds, all from ``target.source_settings``:
 
 * ``url_timeout_s`` bounds the whole fetch: the connection, every redirect, the
   headers and the body. The fetch runs in a thread the caller waits for no longer, and
@@ -57,12 +57,12 @@ from ovtraj.config.io_limits import echoed
 from ovtraj.config.target import TargetSourceSettings
 from ovtraj.errors import ConfigError
 from ovtraj.store.files import Digest, StoreError, read_bytes, read_json, write_bytes, write_json
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["default_cache_dir", "fetch_text", "is_url"]
 
 _SCHEMES = ("http://", "https://")
 _CHUNK_BYTES = 1 << 16
-_SECONDS_PER_HOUR = 3600.0
 _REDIRECTS = {301, 302, 303, 307, 308}
 # The standard library's own bound on a chain of redirects (10).
 _MAX_REDIRECTS = urllib.request.HTTPRedirectHandler.max_redirections
@@ -379,7 +379,7 @@ def fetch_text(
     if not is_url(url):
         raise ConfigError(["not an http:// or https:// address"], echoed(url))
     cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    max_age_s = settings.url_cache_max_age_h * _SECONDS_PER_HOUR
+    max_age_s = settings.url_cache_max_age_h * S_PER_HOUR
     payload = _cached(url, cache_dir, max_age_s)
     if payload is None:
         payload, served, from_cache = _download(url, settings, cache_dir, max_age_s)

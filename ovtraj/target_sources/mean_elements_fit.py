@@ -33,14 +33,14 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.elements import (
     NonsingularElements,
     nonsingular_to_classical,
     true_to_mean_anomaly,
 )
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.j2_elements import state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.config.target import TargetSourceSettings
@@ -48,11 +48,10 @@ from ovtraj.deadline import Deadline
 from ovtraj.element_sets.elements import SourceElements
 from ovtraj.element_sets.ephemeris import sgp4_eci
 from ovtraj.errors import ConfigError
+from ovtraj.units import M_PER_KM, S_PER_DAY, S_PER_HOUR
 
 __all__ = ["PoorTargetFitWarning", "StaleElementSetWarning", "TargetFit", "fit_target"]
 
-_SECONDS_PER_HOUR = 3600.0
-_KM = 1e3
 _SETTINGS = "target.source_settings"
 
 
@@ -84,14 +83,14 @@ class TargetFit:
     @property
     def source_age_days(self) -> float:
         """Days from the element set's epoch to the fit epoch (negative: fit before it)."""
-        return self.epoch.seconds_since(self.source.epoch) / SECONDS_PER_DAY
+        return self.epoch.seconds_since(self.source.epoch) / S_PER_DAY
 
     def to_row(self) -> dict[str, Any]:
         """The report: mean elements at the epoch, fit errors, the source and its age."""
         coe = nonsingular_to_classical(self.mean)
         return {
             "epoch_utc": self.epoch.iso(),
-            "semi_major_axis_km": float(coe.a) / _KM,
+            "semi_major_axis_km": float(coe.a) / M_PER_KM,
             "eccentricity": float(coe.e),
             "inclination_deg": math.degrees(float(coe.i)),
             "raan_deg": math.degrees(float(coe.raan)),
@@ -99,9 +98,9 @@ class TargetFit:
             "mean_anomaly_deg": math.degrees(self.mean_anomaly_rad),
             "true_anomaly_deg": math.degrees(float(coe.nu)),
             "element_set": "mean",
-            "rms_error_km": self.rms_error_m / _KM,
-            "max_error_km": self.max_error_m / _KM,
-            "span_h": self.span_s / _SECONDS_PER_HOUR,
+            "rms_error_km": self.rms_error_m / M_PER_KM,
+            "max_error_km": self.max_error_m / M_PER_KM,
+            "span_h": self.span_s / S_PER_HOUR,
             "samples": self.samples,
             "evaluations": self.evaluations,
             "converged": self.converged,
@@ -137,7 +136,7 @@ def fit_target(
     limit in ``reason``.
     """
     _warn_if_stale(source, epoch, settings)
-    span_s = settings.fit_span_h * _SECONDS_PER_HOUR
+    span_s = settings.fit_span_h * S_PER_HOUR
     t = _sample_times(span_s, settings.fit_step_s)
     r_ref, v_ref = sgp4_eci(source, epoch, t, omega=earth.omega)
     positions = _FittedPositions(source, r_ref, v_ref, t, OrbitPropagator(earth, tol=tol))
@@ -164,7 +163,7 @@ def fit_target(
         epoch=epoch,
         state=state,
         mean=mean,
-        mean_anomaly_rad=float(true_to_mean_anomaly(coe.nu, coe.e)) % TWO_PI,
+        mean_anomaly_rad=wrap_to_two_pi(float(true_to_mean_anomaly(coe.nu, coe.e))),
         span_s=span_s,
         samples=len(t),
         rms_error_m=float(np.sqrt(np.mean(errors**2))),
@@ -214,7 +213,7 @@ class _FittedPositions:
 def _warn_if_stale(source: SourceElements, epoch: Epoch, settings: TargetSourceSettings) -> None:
     """Warn (at :func:`fit_target`'s caller) when the element set's epoch lies more than
     ``max_age_days`` from the fit epoch."""
-    age_days = epoch.seconds_since(source.epoch) / SECONDS_PER_DAY
+    age_days = epoch.seconds_since(source.epoch) / S_PER_DAY
     if abs(age_days) > settings.max_age_days:
         warnings.warn(
             StaleElementSetWarning(
@@ -229,11 +228,11 @@ def _warn_if_stale(source: SourceElements, epoch: Epoch, settings: TargetSourceS
 def _warn_if_poor(fit: TargetFit, settings: TargetSourceSettings) -> None:
     """Warn (at :func:`fit_target`'s caller) when the fit misses SGP4 by more than
     ``fit_warning_km`` somewhere in the span."""
-    if fit.max_error_m > settings.fit_warning_km * _KM:
+    if fit.max_error_m > settings.fit_warning_km * M_PER_KM:
         warnings.warn(
             PoorTargetFitWarning(
                 f"poor fit: the J2 orbit misses SGP4 of {fit.source.label()} by up to "
-                f"{fit.max_error_m / _KM:.1f} km over {fit.span_s / _SECONDS_PER_HOUR:g} h "
+                f"{fit.max_error_m / M_PER_KM:.1f} km over {fit.span_s / S_PER_HOUR:g} h "
                 f"({_SETTINGS}.fit_warning_km = {settings.fit_warning_km:g}); drag dominated?"
             ),
             stacklevel=3,

@@ -16,11 +16,11 @@ from typing import Any
 from ovtraj.config.io_limits import shown_text
 from ovtraj.formatting import duration, quantity
 from ovtraj.tracking.figures import INPUTS, RESULTS, Figure
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["Change", "changes", "markdown_table", "text_rows"]
 
 _LIST_CHARS = 100  # a list (a TLE's lines) shown in a table is cut here; --json has it whole
-_HOUR_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,7 @@ def _shown(value: Any, unit: str) -> str:
 def _shown_change(change: Change) -> str:
     if change.change is None:
         return ""
-    if change.unit in ("utc", "s") and abs(change.change) >= _HOUR_S:
+    if change.unit in ("utc", "s") and abs(change.change) >= S_PER_HOUR:
         sign = "+" if change.change >= 0 else "-"
         return sign + duration(abs(change.change))
     if change.unit == "utc":
