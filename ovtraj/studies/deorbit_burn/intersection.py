@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import fsolve
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.elements import NonsingularElements, perigee_radius_from_semi_latus_rectum
 from ovtraj.deorbit.estimate import tangential_deorbit
 from ovtraj.studies.deorbit_burn.problem import EntryTarget
@@ -111,7 +111,7 @@ def intersection_roots(k: IntersectionCoefficients) -> tuple[float, float] | Non
         return None
     centre = math.atan2(k.k2, k.k1)
     half = math.acos(max(-1.0, min(1.0, k.k3 / amplitude)))
-    return (centre - half) % TWO_PI, (centre + half) % TWO_PI
+    return wrap_to_two_pi(centre - half), wrap_to_two_pi(centre + half)
 
 
 def orbit_speeds(p: float, ex: float, ey: float, u: float, mu: float) -> tuple[float, float]:
@@ -151,7 +151,7 @@ def impulsive_burn(
     if roots is None:
         return None
     # The root that precedes the entry by the smaller angle.
-    u = min(roots, key=lambda root: (entry_u - root) % TWO_PI)
+    u = min(roots, key=lambda root: wrap_to_two_pi(entry_u - root))
     v0r, v0t = orbit_speeds(p0, e0x, e0y, u, mu)
     vfr, vft = orbit_speeds(pf, efx, efy, u, mu)
     return ImpulsiveBurn(
@@ -163,7 +163,7 @@ def impulsive_burn(
         vft=vft,
         dv_mps=math.hypot(vfr - v0r, vft - v0t),
         burn_angle_rad=burn_angle(vfr - v0r, vft - v0t),
-        central_angle_rad=(entry_u - u) % TWO_PI,
+        central_angle_rad=wrap_to_two_pi(entry_u - u),
     )
 
 
@@ -197,11 +197,11 @@ def _entry_after_impulse(
         # with the perigee's u and minus the relative perigee height, so that a root finder
         # sees one continuous function.
         perigee = perigee_radius_from_semi_latus_rectum(p, e)
-        return (entry_radius - perigee) / entry_radius, u + (-f_b) % TWO_PI, math.nan, v0r, v0t
+        return (entry_radius - perigee) / entry_radius, u + wrap_to_two_pi(-f_b), math.nan, v0r, v0t
     if cos_fe < -1.0:
         return math.nan, math.nan, math.nan, v0r, v0t
     f_e = TWO_PI - math.acos(cos_fe)  # descending branch
-    u_e = u + (f_e - f_b) % TWO_PI
+    u_e = u + wrap_to_two_pi(f_e - f_b)
     fpa = math.atan2(e * math.sin(f_e), 1.0 + e * math.cos(f_e))
     v_e = math.sqrt(vr * vr + vt * vt + 2.0 * mu * (1.0 / entry_radius - 1.0 / r))
     return fpa, u_e, v_e, v0r, v0t
@@ -240,7 +240,7 @@ def impulsive_burn_at_angle(
     solution, _, status, _ = fsolve(residual, start, full_output=True, xtol=1e-12)
     if status != 1 or np.max(np.abs(residual(solution))) > 1e-9:
         return None
-    u, dv = float(solution[0]) % TWO_PI, float(solution[1])
+    u, dv = wrap_to_two_pi(float(solution[0])), float(solution[1])
     if dv <= 0.0:
         return None
     _, u_e, _, v0r, v0t = _entry_after_impulse(waiting, u, dv, theta, entry.radius_m, mu)
@@ -255,5 +255,5 @@ def impulsive_burn_at_angle(
         vft=v0t + dvt,
         dv_mps=dv,
         burn_angle_rad=theta,
-        central_angle_rad=(u_e - u) % TWO_PI,
+        central_angle_rad=wrap_to_two_pi(u_e - u),
     )

@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.deadline import Deadline
 from ovtraj.studies.deorbit_burn.flight import FlightOutcome, FlightSimulator
 from ovtraj.studies.deorbit_burn.powered import ThrustSettings
@@ -94,7 +94,7 @@ def iterate_burn_start(
     deadline = deadline or Deadline.unlimited()
     entry_radius = simulator.problem.entry.radius_m
     history: list[IterationRecord] = []
-    u_open = u_open0 % TWO_PI
+    u_open = wrap_to_two_pi(u_open0)
     flight: FlightOutcome | None = None
     for k in range(1, max_iterations + 1):
         if flight is not None and deadline.expired():
@@ -105,7 +105,7 @@ def iterate_burn_start(
             return IterationOutcome(tuple(history), flight, False, flight.reason)
         if abs(flight.u_error_rad) <= tolerance_rad:
             return IterationOutcome(tuple(history), flight, True, None)
-        u_open = (u_open - gain * flight.u_error_rad) % TWO_PI
+        u_open = wrap_to_two_pi(u_open - gain * flight.u_error_rad)
     assert flight is not None
     return IterationOutcome(
         tuple(history),

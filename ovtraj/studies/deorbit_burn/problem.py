@@ -20,6 +20,7 @@ from ovtraj.config.deorbit_burn import (
     load_deorbit_burn_config,
 )
 from ovtraj.config.physical import default_earth
+from ovtraj.units import RAD_PER_DEG
 
 __all__ = [
     "DeorbitBurnProblem",
@@ -29,8 +30,6 @@ __all__ = [
     "deorbit_burn_from_dict",
     "load_deorbit_burn",
 ]
-
-_DEG = math.pi / 180.0
 
 
 @dataclass(frozen=True)
@@ -100,14 +99,14 @@ def deorbit_burn_problem(config: DeorbitBurnConfig, source: str = "") -> Deorbit
         g0=cfg_earth.g0_m_s2 if cfg_earth.g0_m_s2 is not None else project.g0_m_s2,
     )
     orbit = config.waiting_orbit
-    argp = orbit.arg_perigee_deg * _DEG
+    argp = orbit.arg_perigee_deg * RAD_PER_DEG
     waiting = NonsingularElements(
         a=radius + orbit.altitude_km * 1e3,
         ex=orbit.eccentricity * math.cos(argp),
         ey=orbit.eccentricity * math.sin(argp),
-        i=orbit.inclination_deg * _DEG,
-        raan=orbit.raan_deg * _DEG,
-        u=orbit.start_arg_latitude_deg * _DEG,
+        i=orbit.inclination_deg * RAD_PER_DEG,
+        raan=orbit.raan_deg * RAD_PER_DEG,
+        u=orbit.start_arg_latitude_deg * RAD_PER_DEG,
     )
     vehicle = Vehicle(
         mass_kg=config.vehicle.mass_kg,
@@ -117,8 +116,8 @@ def deorbit_burn_problem(config: DeorbitBurnConfig, source: str = "") -> Deorbit
     entry = EntryTarget(
         radius_m=radius + config.entry.altitude_km * 1e3,
         speed_mps=config.entry.speed_mps,
-        fpa_rad=config.entry.fpa_deg * _DEG,
-        u_rad=config.entry.arg_latitude_deg * _DEG,
+        fpa_rad=config.entry.fpa_deg * RAD_PER_DEG,
+        u_rad=config.entry.arg_latitude_deg * RAD_PER_DEG,
     )
     return DeorbitBurnProblem(
         config=config,

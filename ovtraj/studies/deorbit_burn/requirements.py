@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import wrap_to_two_pi
 from ovtraj.astro.constants import EarthConstants
 from ovtraj.astro.elements import NonsingularElements
 from ovtraj.astro.j2_elements import osculating_to_mean
@@ -77,7 +77,7 @@ def transfer_orbit(entry: EntryTarget, mu: float) -> TransferOrbit:
     p = (r * v * math.cos(gamma)) ** 2 / mu
     e_cos_f = p / r - 1.0
     e_sin_f = v * math.sin(gamma) * math.sqrt(p / mu)
-    f = math.atan2(e_sin_f, e_cos_f) % TWO_PI
+    f = wrap_to_two_pi(math.atan2(e_sin_f, e_cos_f))
     return TransferOrbit(
         a=1.0 / inv_a,
         e=math.hypot(e_cos_f, e_sin_f),
