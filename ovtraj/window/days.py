@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import datetime
 
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.epoch import Epoch
 from ovtraj.config import Scenario, scenario_from_dict
+from ovtraj.units import S_PER_DAY
 
 __all__ = ["day_scenario", "launch_date"]
 
@@ -43,6 +44,6 @@ def day_scenario(base: Scenario, offset_days: int) -> Scenario:
     deorbit = data.get("deorbit")
     if deorbit is not None:
         start = Epoch.from_iso(deorbit["preparation_orbit"]["epoch_utc"])
-        later = start.plus_seconds(offset_days * SECONDS_PER_DAY)
+        later = start.plus_seconds(offset_days * S_PER_DAY)
         deorbit["preparation_orbit"]["epoch_utc"] = later.iso()
     return scenario_from_dict(data, f"day {offset_days} of the window")

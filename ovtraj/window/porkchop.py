@@ -30,10 +30,10 @@ import numpy as np
 import pandas as pd
 
 from ovtraj.config import Scenario
-from ovtraj.formatting import HOUR_S
 from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema
+from ovtraj.units import S_PER_HOUR
 from ovtraj.window.settings import MAX_SWEEP_POINTS, PorkchopSettings
 
 __all__ = [
@@ -159,7 +159,7 @@ def porkchop_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                     **(design | {sweep["variable"]: value}),
                     "feasible": sweep["feasible"][k],
                     "failed_stage": sweep["failed_stage"][k],
-                    "t_total_h": None if t_total is None else t_total / HOUR_S,
+                    "t_total_h": None if t_total is None else t_total / S_PER_HOUR,
                     "dv_total_mps": sweep["dv_total_mps"][k],
                     "m_load_kg": sweep["m_load_kg"][k],
                 }
