@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from ovtraj.astro.epoch import (
-    J2000_JD,
     Epoch,
     earth_rotation_angle,
     gmst_rad,
     julian_date,
 )
 from ovtraj.config.physical import default_earth
+from ovtraj.units import J2000_JD
 
 # ---------------------------------------------------------------- Julian date
 

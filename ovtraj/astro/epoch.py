@@ -29,25 +29,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ovtraj.astro.angles import TWO_PI, wrap_to_two_pi
+from ovtraj.units import DAYS_PER_JULIAN_CENTURY, J2000_JD, S_PER_DAY, S_PER_HOUR
 
 __all__ = [
-    "J2000_JD",
-    "JULIAN_CENTURY_DAYS",
-    "SECONDS_PER_DAY",
     "Epoch",
     "earth_rotation_angle",
     "gmst_rad",
     "julian_date",
 ]
-
-SECONDS_PER_DAY = 86400.0
-"""Length of a (leap-second free) UTC day [s]."""
-
-J2000_JD = 2451545.0
-"""Julian date of the J2000.0 epoch, 2000-01-01 12:00 [day] (Vallado eq. 3-42)."""
-
-JULIAN_CENTURY_DAYS = 36525.0
-"""Days per Julian century, the unit of T_UT1 (Vallado eq. 3-42)."""
 
 # IAU-82 GMST polynomial in T_UT1, result in seconds of time (Vallado eq. 3-47):
 #   GMST = 67310.54841 + (876600 h + 8640184.812866) T + 0.093104 T^2 - 6.2e-6 T^3
@@ -159,16 +148,16 @@ def gmst_rad(jd1: ArrayLike, jd2: ArrayLike = 0.0) -> float | np.ndarray:
     """
     jd1_from_j2000 = np.asarray(jd1, dtype=float) - J2000_JD
     jd2 = np.asarray(jd2, dtype=float)
-    t_ut1 = (jd1_from_j2000 + jd2) / JULIAN_CENTURY_DAYS
+    t_ut1 = (jd1_from_j2000 + jd2) / DAYS_PER_JULIAN_CENTURY
     # Whole days are whole turns of the 876600 h term; only the day fraction,
     # taken part by part, contributes (see the module constants).
     day_fraction = np.mod(jd1_from_j2000, 1.0) + np.mod(jd2, 1.0)
     gmst_s = (
-        SECONDS_PER_DAY * day_fraction
+        S_PER_DAY * day_fraction
         + _IAU82_GMST_S0
         + t_ut1 * (_IAU82_GMST_S1_EXCESS + t_ut1 * (_IAU82_GMST_S2 + t_ut1 * _IAU82_GMST_S3))
     )
-    return _as_float_or_array(wrap_to_two_pi(gmst_s * (TWO_PI / SECONDS_PER_DAY)))
+    return _as_float_or_array(wrap_to_two_pi(gmst_s * (TWO_PI / S_PER_DAY)))
 
 
 @dataclass(frozen=True, order=True)
@@ -205,8 +194,8 @@ class Epoch:
         if dt.tzinfo is not None:
             dt = dt.astimezone(UTC)
         jd_day, _ = julian_date(dt.year, dt.month, dt.day)
-        seconds_of_day = dt.hour * 3600 + dt.minute * 60 + dt.second + dt.microsecond * 1e-6
-        return cls(jd_day, seconds_of_day / SECONDS_PER_DAY)
+        seconds_of_day = dt.hour * S_PER_HOUR + dt.minute * 60 + dt.second + dt.microsecond * 1e-6
+        return cls(jd_day, seconds_of_day / S_PER_DAY)
 
     @classmethod
     def from_iso(cls, text: str) -> Epoch:
@@ -235,7 +224,7 @@ class Epoch:
     def to_datetime(self) -> datetime:
         """The epoch as a timezone-aware UTC :class:`datetime`, rounded to 1 microsecond."""
         days_from_2000 = self.jd1 - _JD_2000_MIDNIGHT  # a whole number after normalisation
-        microseconds = round(self.jd2 * SECONDS_PER_DAY * 1e6)
+        microseconds = round(self.jd2 * S_PER_DAY * 1e6)
         return _DATETIME_2000_MIDNIGHT + timedelta(
             days=round(days_from_2000), microseconds=microseconds
         )
@@ -244,7 +233,7 @@ class Epoch:
         """ISO 8601 UTC text with ``digits`` decimals of the second (rounded), e.g.
         ``'2026-03-01T12:00:00.000000Z'`` (6, microseconds: :meth:`to_datetime`'s)."""
         units = 10**digits
-        ticks = round(self.jd2 * SECONDS_PER_DAY * units)  # jd2: the day's fraction
+        ticks = round(self.jd2 * S_PER_DAY * units)  # jd2: the day's fraction
         seconds, fraction = divmod(ticks, units)
         midnight = _DATETIME_2000_MIDNIGHT + timedelta(days=round(self.jd1 - _JD_2000_MIDNIGHT))
         whole = (midnight + timedelta(seconds=seconds)).strftime("%Y-%m-%dT%H:%M:%S")
@@ -253,12 +242,12 @@ class Epoch:
     def plus_seconds(self, seconds: float) -> Epoch:
         """The epoch ``seconds`` [s] later (earlier if negative), leap seconds ignored."""
         # Whole days go to jd1 exactly; only the remainder is rounded into jd2.
-        whole_days, remainder_s = divmod(float(seconds), SECONDS_PER_DAY)
-        return Epoch(self.jd1 + whole_days, self.jd2 + remainder_s / SECONDS_PER_DAY)
+        whole_days, remainder_s = divmod(float(seconds), S_PER_DAY)
+        return Epoch(self.jd1 + whole_days, self.jd2 + remainder_s / S_PER_DAY)
 
     def seconds_since(self, other: Epoch) -> float:
         """Seconds [s] from ``other`` to this epoch (positive if this one is later)."""
-        return ((self.jd1 - other.jd1) + (self.jd2 - other.jd2)) * SECONDS_PER_DAY
+        return ((self.jd1 - other.jd1) + (self.jd2 - other.jd2)) * S_PER_DAY
 
     @property
     def jd(self) -> float:

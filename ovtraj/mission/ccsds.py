@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ovtraj.astro.eme2000 import teme_to_eme2000
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.rocket import burn_durations
 from ovtraj.config import scenario_from_dict
 from ovtraj.config.export import FORMATS, CcsdsExportSettings, kvn_value_problem
@@ -49,6 +49,7 @@ from ovtraj.mission.flight_report import FlightReport
 from ovtraj.mission.fly import replay_ephemeris
 from ovtraj.mission.plan import MissionPlan, PlanError
 from ovtraj.store.files import StoreError, holds_other, writable_target, write_bytes
+from ovtraj.units import S_PER_DAY
 
 __all__ = ["FORMATS", "UnflownPlan", "export_plan", "oem_text", "opm_text"]
 
@@ -72,8 +73,8 @@ def _epoch_text(day: Epoch, t_s: float) -> str:
 
 def _julian_dates(day: Epoch, t_s: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     """Two-part UTC Julian dates of ``day + t_s`` (whole days first, as erfa takes them)."""
-    whole, rest = np.divmod(np.asarray(t_s, dtype=float), SECONDS_PER_DAY)
-    return day.jd1 + whole, day.jd2 + rest / SECONDS_PER_DAY
+    whole, rest = np.divmod(np.asarray(t_s, dtype=float), S_PER_DAY)
+    return day.jd1 + whole, day.jd2 + rest / S_PER_DAY
 
 
 def _kvn(field: str, value: str) -> str:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ovtraj.astro.epoch import SECONDS_PER_DAY, Epoch
+from ovtraj.astro.epoch import Epoch
 from ovtraj.astro.forces.dynamics import ForceTerms
 from ovtraj.astro.forces.earth_data import earth_orientation_span, space_weather_span
 from ovtraj.astro.forces.propagator import HighFidelityPropagator
@@ -30,7 +30,7 @@ from ovtraj.config.body import BodyConfig
 from ovtraj.config.force_model import ForceModelSettings
 from ovtraj.errors import ConfigError
 from ovtraj.mission.flight_report import ReplayFailed
-from ovtraj.units import J2000_JD, S_PER_HOUR
+from ovtraj.units import J2000_JD, S_PER_DAY, S_PER_HOUR
 
 __all__ = [
     "FIDELITIES",
@@ -137,7 +137,7 @@ def flight_span(plan: Any, scenario: Scenario) -> tuple[Epoch, Epoch]:
     descent and the entry take a fraction of it)."""
     last = max(impulse.t_s for impulse in plan.impulses())
     start = scenario.epoch if scenario.epoch.jd < plan.day.jd else plan.day
-    return start, plan.day.plus_seconds(last + SECONDS_PER_DAY)
+    return start, plan.day.plus_seconds(last + S_PER_DAY)
 
 
 def high_fidelity_settings(
@@ -217,7 +217,7 @@ class HighFidelityOrbit:
             ballistic_m2_kg=factors.ballistic_m2_kg,
             radiation_m2_kg=factors.radiation_m2_kg,
             tol=settings.integration.tolerance,
-            max_arc_s=settings.integration.max_arc_days * SECONDS_PER_DAY,
+            max_arc_s=settings.integration.max_arc_days * S_PER_DAY,
         )
 
     def arc(
