@@ -21,6 +21,8 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
+from ovtraj.units import S_PER_HOUR
+
 __all__ = [
     "MISSING",
     "byte_size",
@@ -36,8 +38,6 @@ __all__ = [
 
 MISSING = "-"
 """What a missing value (``None``, NaN) is shown as."""
-
-HOUR_S = 3600.0
 
 
 def _missing(value: Any) -> bool:
@@ -93,8 +93,8 @@ def duration(seconds: float | None) -> str:
     if _missing(seconds):
         return MISSING
     s = float(seconds)
-    if abs(s) >= HOUR_S:
-        return f"{s / HOUR_S:.3f} h"
+    if abs(s) >= S_PER_HOUR:
+        return f"{s / S_PER_HOUR:.3f} h"
     if abs(s) < 5e-3:
         return "0 s"
     return number(s, "s", digits=4)

@@ -30,7 +30,7 @@ from typing import Any
 import pandas as pd
 
 from ovtraj.config import Scenario
-from ovtraj.formatting import HOUR_S, number
+from ovtraj.formatting import number
 from ovtraj.mission import DESIGN_NAMES
 from ovtraj.optimize import Normalisation
 from ovtraj.pipeline.pick import pick_weights
@@ -45,6 +45,7 @@ from ovtraj.store.files import StoreError, marker_files, remove_file
 from ovtraj.store.products import Product
 from ovtraj.store.records import BOOL, FLOAT, INT, TEXT, record_schema, table_from_rows
 from ovtraj.store.verification import VerifyReport
+from ovtraj.units import S_PER_HOUR
 from ovtraj.window.porkchop import PORKCHOP_SCHEMA, Sweep, porkchop_grid, porkchop_rows
 from ovtraj.window.records import (
     DAYS_DIR,
@@ -111,7 +112,7 @@ def window_rows(records: Sequence[dict[str, Any]], best: int | None) -> list[dic
                 "date": r["date"],
                 "status": r["status"],
                 "reason": r["reason"],
-                "t_total_h": None if t_total is None else t_total / HOUR_S,
+                "t_total_h": None if t_total is None else t_total / S_PER_HOUR,
                 "dv_total_mps": r["dv_total_mps"],
                 "m_load_kg": r["m_load_kg"],
                 "score": r["score"],
@@ -314,7 +315,7 @@ def _verdict(records: Sequence[dict[str, Any]], best: int | None) -> str:
     r = records[best]
     return (
         f"<p class='verdict ok'>best day {html.escape(r['date'])} (day {r['day']}): "
-        f"T_total {_cell(r['t_total_s'] / HOUR_S)} h, dV_total {_cell(r['dv_total_mps'])} "
+        f"T_total {_cell(r['t_total_s'] / S_PER_HOUR)} h, dV_total {_cell(r['dv_total_mps'])} "
         f"m/s, M_load {_cell(r['m_load_kg'])} kg, score {r['score']:.4f}.</p>"
     )
 
@@ -335,7 +336,7 @@ def _days_table(records: Sequence[dict[str, Any]], best: int | None, window_dir:
             if r[key] is not None:
                 href = html.escape(posixpath.relpath(r[key], window_dir), quote=True)
                 links[k] = f"<a href='{href}'>{html.escape(posixpath.basename(r[key]))}</a>"
-        t_total = None if r["t_total_s"] is None else r["t_total_s"] / HOUR_S
+        t_total = None if r["t_total_s"] is None else r["t_total_s"] / S_PER_HOUR
         note = "best day" if r["day"] == best else (r["reason"] or "")
         cells = (
             str(r["day"]),

@@ -41,7 +41,6 @@ from typing import Any, Protocol
 
 from ovtraj.config import Scenario, scenario_from_dict
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
-from ovtraj.formatting import HOUR_S
 from ovtraj.launch.launch_fit import (
     Progress,
     day_launch_fit,
@@ -60,6 +59,7 @@ from ovtraj.runs.ids import checked_id
 from ovtraj.runs.runners import RunnerChoice, batch_pool
 from ovtraj.store.backends import location
 from ovtraj.store.files import StoreError, file_digest
+from ovtraj.units import S_PER_HOUR
 from ovtraj.window.days import day_scenario, launch_date
 from ovtraj.window.porkchop import Sweep, sweep_day, window_sweep
 from ovtraj.window.records import (
@@ -349,7 +349,7 @@ def day_line(record: dict[str, Any]) -> str:
     if record["status"] != PLANNED:
         return f"day {record['day']} {record['date']}: no plan ({record['reason']})"
     return (
-        f"day {record['day']} {record['date']}: T_total {record['t_total_s'] / HOUR_S:.2f} h, "
+        f"day {record['day']} {record['date']}: T_total {record['t_total_s'] / S_PER_HOUR:.2f} h, "
         f"dV_total {record['dv_total_mps']:.2f} m/s, M_load {record['m_load_kg']:.2f} kg, "
         f"score {record['score']:.4f}"
     )
