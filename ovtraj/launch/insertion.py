@@ -25,7 +25,6 @@ of a front point flies the figures the front promised (docs/plan.md).
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import Bounds, OptimizeResult, minimize
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import principal_angle
 from ovtraj.astro.constants import EarthModel
 from ovtraj.astro.frames import ecef_to_eci, eci_to_ecef
 from ovtraj.astro.j2_elements import state_to_mean
@@ -92,7 +91,7 @@ def circular_insertion_state(
         )
         mean = state_to_mean(state[:3], state[3:], mu=earth.mu, radius=earth.radius, j2=earth.j2)
         di = mean_inclination_rad - float(mean.i)
-        draan = math.remainder(mean_raan_rad - float(mean.raan), TWO_PI)
+        draan = principal_angle(mean_raan_rad - float(mean.raan))
         if max(abs(di), abs(draan)) < _PLANE_TOLERANCE_RAD:
             return state
         inclination, raan = inclination + di, raan + draan

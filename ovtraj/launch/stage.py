@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.angles import TWO_PI, wrap_to_pi
+from ovtraj.astro.angles import TWO_PI, wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.atmosphere import TabulatedAtmosphere
 from ovtraj.astro.elements import rv_to_coe
 from ovtraj.astro.frames import ecef_to_eci, ecef_to_geocentric
@@ -126,7 +126,7 @@ def insertion_time_s(
     theta0 = inp.launch_day.gmst_rad()
     plane = inp.target_plane
     rate = inp.earth.omega - plane.raan_rate_rad_s
-    phase = (plane.raan_0h_rad - node_fixed_rad - theta0) % TWO_PI
+    phase = wrap_to_two_pi(plane.raan_0h_rad - node_fixed_rad - theta0)
     t_ins = phase / rate
     while t_ins - flight_time_s < 0.0:
         t_ins += TWO_PI / rate
@@ -283,8 +283,8 @@ def _insertion_figures(
         "insertion_v_eci_mps": v_eci,
         "osculating": osc,
         "mean_inclination_rad": float(mean.i),
-        "mean_raan_rad": float(mean.raan) % TWO_PI,
-        "mean_u_rad": float(mean.u) % TWO_PI,
+        "mean_raan_rad": wrap_to_two_pi(float(mean.raan)),
+        "mean_u_rad": wrap_to_two_pi(float(mean.u)),
         "altitude_error_m": r_norm - radius_target,
         "speed_error_mps": v_norm - math.sqrt(earth.mu / radius_target),
         "flight_path_angle_error_rad": math.asin(float(np.dot(r_eci, v_eci)) / (r_norm * v_norm)),

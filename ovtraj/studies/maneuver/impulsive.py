@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ovtraj.astro.angles import TWO_PI
+from ovtraj.astro.angles import TWO_PI, wrap_to_two_pi
 from ovtraj.astro.elements import perigee_radius_from_semi_latus_rectum
 from ovtraj.astro.frames import rsw_to_eci
 from ovtraj.astro.propagation import OrbitPropagator
@@ -93,7 +93,7 @@ def _periapsis_if_passed(
     elliptic = a > 0.0
     root = rv / np.sqrt(mu * a_abs)
     big_e = np.arctan2(root, 1.0 - r / a)
-    m_ell = np.mod(big_e - root, TWO_PI)
+    m_ell = wrap_to_two_pi(big_e - root)
     big_h = np.arcsinh(root / np.maximum(e, 1e-300))
     m_hyp = root - big_h
     m_end = np.where(elliptic, m_ell, m_hyp) + n * duration

@@ -40,6 +40,7 @@ from ovtraj.studies.optimal_entry.atmosphere import (
     us76_atmosphere,
 )
 from ovtraj.studies.optimal_entry.nlp import NlpSettings
+from ovtraj.units import DEG_PER_RAD, RAD_PER_DEG
 
 __all__ = [
     "STATE_KEYS",
@@ -61,11 +62,11 @@ _CONFIG_FIELD = {
 }
 _TO_SI = {
     "altitude": 1e3,
-    "longitude": math.pi / 180.0,
-    "latitude": math.pi / 180.0,
+    "longitude": RAD_PER_DEG,
+    "latitude": RAD_PER_DEG,
     "speed": 1.0,
-    "fpa": math.pi / 180.0,
-    "heading": math.pi / 180.0,
+    "fpa": RAD_PER_DEG,
+    "heading": RAD_PER_DEG,
 }
 
 
@@ -320,7 +321,7 @@ def _vehicle(config: OptimalEntryConfig) -> dict[str, Any]:
         "area": config.vehicle.reference_area_m2,
         "cl": np.array(aero.cl, dtype=float),
         "cd": np.array(aero.cd, dtype=float),
-        "alpha_scale": 180.0 / math.pi if aero.alpha_unit == "deg" else 1.0,
+        "alpha_scale": DEG_PER_RAD if aero.alpha_unit == "deg" else 1.0,
     }
 
 
