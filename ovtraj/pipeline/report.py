@@ -29,6 +29,7 @@ from ovtraj.pipeline.pick import Pick, pick_weights, weighted_scores
 from ovtraj.pipeline.report_tables import flight_shown, manoeuvres_shown, margins_shown
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.store.files import write_bytes
+from ovtraj.units import M_PER_KM, S_PER_HOUR
 
 __all__ = [
     "FLOWN_END",
@@ -230,7 +231,7 @@ def _totals_rows(plan: Any) -> list[tuple[str, str]]:
     front = plan.source.get("front_objectives", {})
     rows = []
     for label, name, scale, unit in (
-        ("T_total", "t_total_s", 1 / 3600.0, "h"),
+        ("T_total", "t_total_s", 1 / S_PER_HOUR, "h"),
         ("dV_total", "dv_total_mps", 1.0, "m/s"),
         ("M_load", "m_load_kg", 1.0, "kg"),
     ):
@@ -251,7 +252,7 @@ def _plan_rows(plan: Any) -> pd.DataFrame:
         ("launch day", utc(plan.launch_day_utc)),
         ("drop", utc(plan.launch.drop_epoch_utc)),
         ("payload in orbit", f"{number(plan.launch.payload_kg, digits=4)} kg"),
-        ("rendezvous wait", f"{number(plan.rendezvous.wait_time_s / 3600.0, digits=4)} h"),
+        ("rendezvous wait", f"{number(plan.rendezvous.wait_time_s / S_PER_HOUR, digits=4)} h"),
         ("docking", utc(plan.stay.docking_epoch_utc)),
         ("separation", utc(plan.stay.separation_epoch_utc)),
         (
@@ -262,7 +263,7 @@ def _plan_rows(plan: Any) -> pd.DataFrame:
         (
             "landing",
             f"{utc(plan.terminal.epoch_utc)} at {plan.terminal.landing_site_name}, "
-            f"miss {number(plan.terminal.miss_distance_m / 1000.0, digits=3)} km",
+            f"miss {number(plan.terminal.miss_distance_m / M_PER_KM, digits=3)} km",
         ),
         *_totals_rows(plan),
         ("peak heat rate", f"{number(plan.reentry.max_heat_rate_w_m2 / 1000.0, digits=4)} kW/m²"),

@@ -40,6 +40,7 @@ from ovtraj.config.deorbit import EntryRegionConfig
 from ovtraj.plots.coastlines import draw_coastlines, split_at_wrap, with_breaks
 from ovtraj.plots.render import figure, write_png
 from ovtraj.store.backends import location
+from ovtraj.units import S_PER_HOUR
 
 __all__ = ["PHASES", "limit_labels", "mission_figures", "mission_plots", "scenario_when"]
 
@@ -56,7 +57,6 @@ PHASES: dict[tuple[str, str], tuple[str, str]] = {
 _STAGE_COLOURS = {"rendezvous": "tab:blue", "transfer": "tab:green", "deorbit": "tab:orange"}
 _ORBITAL = ("rendezvous", "transfer", "deorbit")
 _COASTS = ("wait", "preparation")  # phases that last many revolutions
-_HOUR = 3600.0
 _ZOOM_MARGIN_DEG = 6.0  # around the entry region, the reentry and the landing site
 _SITE = "tab:purple"
 
@@ -182,11 +182,13 @@ def _profile(tracks: dict[str, pd.DataFrame], scenario: Scenario) -> Any:
         if stage == "reentry":
             label += " (Earth-relative speed)"
         altitude = rows["altitude_m"] / 1e3
-        left.plot(rows["t_s"] / _HOUR, altitude, color=colour, lw=1.0, label=label)
+        left.plot(rows["t_s"] / S_PER_HOUR, altitude, color=colour, lw=1.0, label=label)
         right.plot(rows["speed_mps"], altitude, color=colour, lw=1.0)
     if "rendezvous" in tracks and "transfer" in tracks:
         docked = (tracks["rendezvous"]["t_s"].iloc[-1], tracks["transfer"]["t_s"].iloc[0])
-        left.axvspan(docked[0] / _HOUR, docked[1] / _HOUR, color="0.85", label="docked (stay)")
+        left.axvspan(
+            docked[0] / S_PER_HOUR, docked[1] / S_PER_HOUR, color="0.85", label="docked (stay)"
+        )
     left.set_xlabel("time from the launch day's 0 h UTC [h]")
     left.set_ylabel("altitude [km]")
     left.set_title("altitude against time")
