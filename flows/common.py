@@ -23,6 +23,7 @@ from flows.runners import ClusterError, count_workers, task_runner
 from ovtraj.plots.embed import png_data_uri
 from ovtraj.store.batched import consecutive_batches
 from ovtraj.store.result_records import is_result_record
+from ovtraj.units import S_PER_HOUR
 from tasks.common import ORCHESTRATION
 from tasks.results import checked_storage
 
@@ -71,7 +72,7 @@ def prune_expired_results() -> int:
     folder = Path(location)
     if "://" in location or not folder.is_dir():
         return 0
-    cutoff = time.time() - ORCHESTRATION.results.expiration_h * 3600.0
+    cutoff = time.time() - ORCHESTRATION.results.expiration_h * S_PER_HOUR
     removed = 0
     for path in folder.iterdir():
         try:
