@@ -1,4 +1,4 @@
-"""Wall-time limits of the solvers (issue 17): one small deadline object per solve.
+"""Wall-time limits of the solvers: one small deadline object per solve.
 
 Every solver stops at its iteration limit and at its wall-time limit, both from its
 config (``time_limit_s`` in the solver's section, in seconds of wall time). A

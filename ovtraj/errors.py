@@ -1,5 +1,5 @@
 """The project's error for unusable input, at the bottom of the layers: the store, the
-paths and the configuration models raise it alike (issue 45: no upward import for it)."""
+paths and the configuration models raise it alike (so none of them imports upward for it)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A spacecraft as drag and solar radiation pressure see it (issue 47): the cannonball
+"""A spacecraft as drag and solar radiation pressure see it: the cannonball
 figures of the high-fidelity force model (``ovtraj.astro.forces``)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Settings of the finite-thrust deorbit burn by osculating-element prediction (issue 10, seed 004).
+"""Settings of the finite-thrust deorbit burn by osculating-element prediction (seed 004).
 
 A deorbit-burn problem is posed by a YAML file alone (``configs/cases/shuttle_deorbit.yaml``
 is the seed's published case): Earth constants, the waiting orbit, the vehicle (mass, thrust,

@@ -1,4 +1,4 @@
-"""Dispersions of a flown mission plan and the closed-loop settings (issue 23).
+"""Dispersions of a flown mission plan and the closed-loop settings.
 
 ``configs/dispersions.yaml``: the 1-sigma errors a real flight meets, each drawn
 normally per Monte Carlo run (``ovtraj.mission.montecarlo``), and the corrections the

@@ -1,4 +1,4 @@
-"""Settings of the CCSDS export of a mission plan (``configs/ccsds_export.yaml``; issue 23).
+"""Settings of the CCSDS export of a mission plan (``configs/ccsds_export.yaml``; docs/export.md).
 
 The export writes the planned trajectory as a CCSDS Orbit Ephemeris Message and the
 plan's manoeuvres as an Orbit Parameter Message (CCSDS 502.0-B-2, *Orbit Data
@@ -39,7 +39,7 @@ _KVN_CHARACTERS = range(ord(" "), ord("~") + 1)
 def kvn_value_problem(text: str) -> str | None:
     """Why ``text`` cannot be written as a KVN value or comment (None when it can): a
     character outside printable ASCII, such as a newline that would start a line of its
-    own in the message's header (issue 44)."""
+    own in the message's header."""
     for index, character in enumerate(text):
         if ord(character) not in _KVN_CHARACTERS:
             return (

@@ -1,4 +1,4 @@
-"""Settings of the quick orbit manoeuvre of an upper stage (issue 9, seed 003).
+"""Settings of the quick orbit manoeuvre of an upper stage (seed 003).
 
 A manoeuvre is posed by a YAML file alone: the stage (mass, thrust, specific impulse,
 working time), the chaser's and the target's orbits, the manoeuvre (end condition,

@@ -1,4 +1,4 @@
-"""Settings of the pseudospectral optimal-entry solver (issue 8, seed 001).
+"""Settings of the pseudospectral optimal-entry solver (seed 001).
 
 A published optimal-entry problem is posed by a YAML file alone: Earth constants,
 vehicle and aerodynamics, atmosphere, fixed initial state, terminal conditions (fixed

@@ -1,4 +1,4 @@
-"""The launch solved at one parking altitude, not read from the fit, and cached (issue 23).
+"""The launch solved at one parking altitude, not read from the fit, and cached.
 
 The mission chain takes the launch from the launch fit (patent 5.1): payload, times
 and the insertion's argument of latitude, with an idealised insertion on the circular

@@ -1,4 +1,4 @@
-"""The launch aimed at the target's plane at the rendezvous, not at insertion (issue 43).
+"""The launch aimed at the target's plane at the rendezvous, not at insertion.
 
 The launch stage times the drop so that the parking orbit's mean node is the target's at
 insertion (patent step 101). At a lower altitude, J2 regresses the parking orbit's node

@@ -1,4 +1,4 @@
-"""The mission chain's reference values: stored once, compared after every change (issue 20).
+"""The mission chain's reference values: stored once, compared after every change.
 
 A fixed set of designs (a seeded Latin hypercube over the design bounds,
 ``configs/mission_reference.yaml``) is evaluated with the shipped scenario; the totals,
@@ -56,8 +56,8 @@ class ReferenceTolerances(StrictModel):
 
 
 class PlaneAimBounds(StrictModel):
-    """What the rendezvous of a reference design must reach with the plane aimed at it
-    (issue 43): its dV over its coplanar two-body Hohmann cost, and the angle between the
+    """What the rendezvous of a reference design must reach with the plane aimed at it:
+    its dV over its coplanar two-body Hohmann cost, and the angle between the
     chaser's and the target's planes at its first burn."""
 
     hohmann_ratio_max: float = bounded(ge=1, le=10)
@@ -69,7 +69,7 @@ class ReferenceSettings(StrictModel):
     designs: int = bounded(ge=1, le=10000)
     seed: int = bounded(ge=0, le=2**32 - 1)
     tolerances: ReferenceTolerances
-    # Optional: the markers stored before issue 43 hold settings without it.
+    # Optional: the markers stored by older versions hold settings without it.
     plane_aim: PlaneAimBounds | None = None
     # Optional: the markers stored before them hold settings without them.
     extra_designs: list[tuple[float, float, float]] = Field(

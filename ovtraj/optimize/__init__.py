@@ -1,4 +1,4 @@
-"""Outer multi-objective optimisation of the mission (SPEC step 5; issue 7).
+"""Outer multi-objective optimisation of the mission (SPEC step 5; docs/optimize.md).
 
 ``objectives``: the mission objectives and their normalisation; ``front``: Pareto
 filtering and the hypervolume; ``nsga2``: NSGA-II (pymoo) on any vectorised model,

@@ -1,4 +1,4 @@
-"""Which front points to verify with the real chain (the infill of issue 7).
+"""Which front points to verify with the real chain (the infill).
 
 Greedy max-min spreading in the normalised objective space (Gonzalez 1985's
 farthest-point traversal): start from the point best in the first objective, then

@@ -1,4 +1,4 @@
-"""The surrogate pipeline over a DoE run (SPEC steps 5-6; issue 7).
+"""The surrogate pipeline over a DoE run (SPEC steps 5-6; docs/optimize.md).
 
 ``data``: a run's training data; ``steps``: the surrogate fit and the surrogate
 front, each stored in the run and reused by content hash; ``loop``: verification of

@@ -1,4 +1,4 @@
-"""Where the rendezvous's first burn falls, from the design in closed form (issue 21).
+"""Where the rendezvous's first burn falls, from the design in closed form.
 
 The chaser is inserted into the target's mean plane, but at a lower altitude its J2
 nodal regression is faster, so by the first burn the two planes differ (0.44-0.45 deg on

@@ -1,5 +1,5 @@
 """The whole mission pipeline, once: the one driver behind ``ovtraj pipeline`` and the
-mission flow (issue 45).
+mission flow.
 
 1. the DoE run: created, reopened or extended (:func:`.data.pipeline_doe_run`);
 2. its batches evaluated by a :class:`BatchExecutor`;

@@ -14,7 +14,7 @@ lead angle is an output, not an input). The trust-region interior-point
 (barrier) method of :mod:`.interior_point` solves it because the problem has
 bounds; it is scipy ``trust-constr``'s algorithm written for this 4-5-variable
 dense problem, and takes 5-20 iterations where trust-constr took 10-20 at about
-three times the cost each (issue 20, docs/rendezvous.md).
+three times the cost each (docs/rendezvous.md).
 
 Derivatives: first derivatives are exact (state-transition matrix from the
 variational equations); the Hessians are forward differences of those exact
@@ -227,7 +227,7 @@ class _Transfer:
     ) -> _Candidates:
         """The candidates at points x (m, n) from their arcs' end states (m, 6) and
         state-transition matrices (m, 6, 6), all lanes in one pass of array arithmetic
-        (a Hessian's columns are ~5 candidates per iteration; issue 20)."""
+        (a Hessian's columns are ~5 candidates per iteration)."""
         p = self.p
         burn_time, arrival = self._epochs(x)
         target = p.target_coast.states_at(arrival)
@@ -256,7 +256,7 @@ class _Transfer:
         key = np.asarray(x, dtype=float).tobytes()
         if self._hessians is None or self._hessians[0] != key:
             base = self.at(x)
-            # The columns' arcs are independent: one batch propagation (issue 20).
+            # The columns' arcs are independent: one batch propagation, for speed.
             self._store_hessians(base, self._evaluate_many(self._columns(base.x)), 0)
         return self._hessians[1], self._hessians[2]
 
@@ -293,7 +293,7 @@ class _Transfer:
     def newton_shots(self, fractions: tuple[float, ...]) -> list[_Point | None]:
         """dv1 that meets the target at each fixed transfer time (J2 Lambert by Newton).
 
-        The shots run in lockstep, each step's arcs in one batch propagation (issue 20);
+        The shots run in lockstep, each step's arcs in one batch propagation (for speed);
         a shot is dropped (None) when it needs more than ``_START_NEWTON_STEPS`` steps,
         its impulse grows past ``_START_MAX_IMPULSE_RATIO`` or its arc cannot be flown.
         """
@@ -363,7 +363,7 @@ def _transfer_terms(
     (|dv1| + |dv2|) / dv_scale. d(final) / d(dv1, T, burn epoch): the STM's velocity
     columns, f(final), and (the flow is autonomous) for the burn epoch with T fixed
     f(final) + Phi (f(x_c) - f(x_c + dv1)) = f(final) - Phi_r dv1; the target moves by
-    f(target) with either epoch. Compiled: ~35 lanes a mission evaluation (issue 20).
+    f(target) with either epoch. Compiled: ~35 lanes a mission evaluation.
     """
     m, n = x.shape
     cost = np.empty(m)

@@ -41,7 +41,7 @@ class ClusterError(RuntimeError):
 
 
 DASK_ADDRESS_ENV = "OVTRAJ_DASK_ADDRESS"
-"""The Dask scheduler when neither the command line nor the flow names one (issue 44: never
+"""The Dask scheduler when neither the command line nor the flow names one (never
 a scenario file, which is shared; Dask's protocol unpickles what the scheduler sends)."""
 
 

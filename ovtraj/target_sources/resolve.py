@@ -174,7 +174,7 @@ def resolved_target(
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario YAML file; its target's file or URL is read here
     (relative files relative to the scenario file's folder) and put inline, so that
-    validation reads nothing (issue 45). :class:`ConfigError` naming the file and field."""
+    validation reads nothing. :class:`ConfigError` naming the file and field."""
     from ovtraj.config.base import yaml_data
     from ovtraj.config.scenario import scenario_from_dict
 

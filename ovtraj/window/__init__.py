@@ -1,4 +1,4 @@
-"""The launch-window scan (issue 48): one whole-mission pipeline per launch day, the best
+"""The launch-window scan: one whole-mission pipeline per launch day, the best
 plan of each day by the pick's weights, and the best day (``ovtraj window``,
 ``flows/window.py``; docs/window.md).
 

@@ -322,7 +322,7 @@ class OrbitPropagator:
         """States (n, 6) at monotonic ``times`` (the first may equal ``t0``).
 
         heyoka's own grid output (its dense output inside each step): no continuous-output
-        object, whose ~1 ms fixed cost is most of a short coast's (issue 20). With
+        object, whose ~1 ms fixed cost is most of a short coast's. With
         ``times[0] == t0`` the states equal ``propagate(..., dense=True).dense(times)``.
         """
         times = np.asarray(times, dtype=float)
@@ -439,7 +439,7 @@ class OrbitPropagator:
                 np.tile(np.r_[np.ones(6), np.eye(6).ravel()][:, None], (1, size)),
                 tol=self.tol,
                 # Not compact: 0.6-0.7x the time of a compact batch here (AVX-512, 8 lanes),
-                # ~3 ms an evaluation (issue 20); ~5 s to compile once per machine, then
+                # ~3 ms an evaluation; ~5 s to compile once per machine, then
                 # loaded from heyoka's on-disk cache (~0.1 s a process).
                 compact_mode=False,
             )

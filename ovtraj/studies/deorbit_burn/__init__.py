@@ -1,4 +1,4 @@
-"""Finite-thrust deorbit burn by osculating-element prediction (issue 10, seed 004).
+"""Finite-thrust deorbit burn by osculating-element prediction (seed 004).
 
 Entry requirements become transfer-orbit requirements; a mean-element two-orbit intersection
 gives the impulsive burn start, size and angle; the burn is propagated under J2 with constant

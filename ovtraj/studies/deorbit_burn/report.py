@@ -22,7 +22,7 @@ from ovtraj.studies.deorbit_burn.solve import BurnSolver
 
 __all__ = ["REPORT_KEYS", "deorbit_burn_report", "format_report"]
 
-# The fields of the solve that the CLI prints (issue 10, point 8); ``--json`` gives them all.
+# The fields of the solve that the CLI prints; ``--json`` gives them all.
 REPORT_KEYS = (
     "converged",
     "reason",

@@ -1,4 +1,4 @@
-"""Quick orbit manoeuvre of an upper stage (issue 9, seed 003).
+"""Quick orbit manoeuvre of an upper stage (seed 003).
 
 Minimum-time (or minimum-dv) multi-impulse interception, rendezvous or orbit transfer
 under the stage's delta-v budget: the seed's improved differential evolution (or

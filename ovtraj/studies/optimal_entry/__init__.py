@@ -1,4 +1,4 @@
-"""Pseudospectral optimal lifting entry (issue 8, seed 001).
+"""Pseudospectral optimal lifting entry (seed 001).
 
 Legendre-Gauss collocation (the seed's Gauss pseudospectral method) or Legendre-Gauss-
 Radau, one or several segments, normalised energy or time as the independent variable,

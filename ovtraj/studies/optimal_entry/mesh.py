@@ -1,4 +1,4 @@
-"""h-refinement of the collocation mesh from each segment's own re-flight (issue 22).
+"""h-refinement of the collocation mesh from each segment's own re-flight.
 
 After a solve, every segment is flown by the independent model of :mod:`.flight` from its
 collocated first state, over its own time span, with the interpolated optimal controls;

@@ -84,7 +84,7 @@ class OptimalControlProblem:
     def node_functions(self) -> NodeFunctions:
         """The dynamics, Lagrange integrand and path constraints of one node as SX functions
         of ``(x, u, s, p)``, built once per problem: CasADi keeps each function's derivatives,
-        so every mesh of a refinement maps the same functions and reuses them (issue 22)."""
+        so every mesh of a refinement maps the same functions and reuses them."""
         x, u = ca.SX.sym("xn", self.nx), ca.SX.sym("un", self.nu)
         s, p = ca.SX.sym("sn"), ca.SX.sym("pn", self.npar)
 
