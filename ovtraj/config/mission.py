@@ -12,7 +12,7 @@ from ovtraj.config.launch import Bound
 from ovtraj.config.surrogate_candidates import ClassifierName, RegressorName
 
 # How a DoE's batches run: the one definition behind `ovtraj run --runner`, the config's
-# `mission.doe.task_runner` and the flows' `runner` parameter (docs/mission.md, issue 19).
+# `mission.doe.task_runner` and the flows' `runner` parameter (docs/mission.md).
 # serial: one batch after another in this process (the library path of `ovtraj run`, no
 # Prefect); threads / processes: Prefect task runners of this machine; dask: a Dask
 # cluster (`dask_address`, or a local one of `workers` processes).
@@ -29,7 +29,7 @@ class MissionBoundsConfig(StrictModel):
 
 
 class BatchingSettings(StrictModel):
-    """How a DoE's samples are cut into batches past ``batch_size`` (issue 48)."""
+    """How a DoE's samples are cut into batches past ``batch_size``."""
 
     preferred_batch_size: int = bounded(
         ge=1, le=10000, description="samples a batch grows to in a large DoE"
@@ -63,8 +63,7 @@ class DoeSettings(StrictModel):
         default=None,
         description="always null: a scenario never names a Dask scheduler (Dask's protocol "
         "unpickles what the scheduler sends, and scenario files are shared); give it on the "
-        "command line (--dask-address), as a flow parameter or in OVTRAJ_DASK_ADDRESS "
-        "(issue 44)",
+        "command line (--dask-address), as a flow parameter or in OVTRAJ_DASK_ADDRESS",
     )
     task_retries: int = bounded(ge=0, le=10)
 
@@ -111,7 +110,7 @@ class DoeSettings(StrictModel):
 
 
 class StoreSettings(StrictModel):
-    """What the run store keeps of each sample and how writers share a run (issue 17)."""
+    """What the run store keeps of each sample and how writers share a run."""
 
     orbit_trajectory_step_s: float = bounded(
         unit="s",
@@ -334,7 +333,7 @@ class ObjectivePoint(StrictModel):
 
 
 class OptimizeSettings(StrictModel):
-    """NSGA-II on the surrogates (pymoo) and the hypervolume's normalisation (issue 7)."""
+    """NSGA-II on the surrogates (pymoo) and the hypervolume's normalisation."""
 
     population: int = bounded(ge=4, le=100000)
     generations: int = bounded(ge=1, le=100000)
@@ -363,7 +362,7 @@ class OptimizeSettings(StrictModel):
 
 
 class VerifySettings(StrictModel):
-    """Verification of front points with the real chain and infill (issue 7)."""
+    """Verification of front points with the real chain and infill."""
 
     points_per_iteration: int = bounded(ge=1, le=1000)
     selection: Literal["hypervolume", "spread"] = Field(
@@ -424,17 +423,17 @@ class PlanSettings(StrictModel):
     entry_fpa_tolerance_deg: float = bounded(
         unit="deg", ge=0, le=10, description="slack of the replayed entry angle on its limits"
     )
-    # Optional: the configs stored before issue 43 have no promise to check.
+    # Optional: the configs stored by older versions have no promise to check.
     front_tolerance: FrontTolerance | None = Field(
         default=None,
         description="how far a plan's totals may lie from its front point's; null: unchecked",
     )
 
 
-# Where the chain starts the OV (issue 43, docs/rendezvous.md "Plane management"):
+# Where the chain starts the OV (docs/rendezvous.md "Plane management"):
 # launch_target: the osculating circular orbit at R_E + H_P0 the launch stage aims at (its
 # insertion constraints); mean_circular: a circular orbit of J2 mean elements at H_P0 (the
-# chain before issue 43).
+# chain of configs without an insertion section).
 InsertionOrbit = Literal["launch_target", "mean_circular"]
 # The plane the launch aims at: rendezvous: the target's plane at the rendezvous transfer
 # (the differential nodal regression over the phasing wait compensated through the
@@ -474,7 +473,7 @@ class LaunchMatchSettings(StrictModel):
 
 
 class InsertionSettings(StrictModel):
-    """Where the chain starts the OV, and the launch that flies there (issue 43)."""
+    """Where the chain starts the OV, and the launch that flies there."""
 
     orbit: InsertionOrbit
     plane: PlaneStrategy
@@ -487,12 +486,12 @@ class MissionSettings(StrictModel):
         unit="h", ge=0, le=8760, description="docked with the target after arrival"
     )
     design_bounds: MissionBoundsConfig
-    # Optional: the configs stored before issue 43 still read, and their chain is the one
+    # Optional: the configs stored by older versions still read, and their chain is the one
     # they were evaluated with (mean circular, the target's plane at insertion).
     insertion: InsertionSettings | None = Field(
         default=None,
         description="where the chain starts the OV and how the plan's launch flies there; "
-        "null: a mean circular orbit in the target's plane at insertion (before issue 43)",
+        "null: a mean circular orbit in the target's plane at insertion",
     )
     doe: DoeSettings
     store: StoreSettings

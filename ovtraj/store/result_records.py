@@ -1,4 +1,4 @@
-"""Prefect's task result records, read as plain JSON data (issue 44).
+"""Prefect's task result records, read as plain JSON data.
 
 A persisted task result is one JSON document (Prefect 3.9, ``ResultRecord.serialize``)::
 
@@ -57,7 +57,7 @@ def check_record(payload: bytes, source: str) -> bytes:
     if kind != SERIALIZER:
         raise RecordError(
             f"{source}: a Prefect result record of serializer {kind[:40]!r}, refused: only "
-            f"{SERIALIZER!r} records are read (issue 44: others can run code when read)"
+            f"{SERIALIZER!r} records are read (others can run code when read)"
         )
     return payload
 
