@@ -250,9 +250,16 @@ LONG_MODULES = (
 )
 
 
+# A test that uses one of these (directly or through another fixture) starts a server: the
+# fast tier (-m "not slow") leaves it out, as README says.
+SERVER_FIXTURES = frozenset({"prefect_server"})
+
+
 def measured_slow_tests() -> set[str]:
     """The test ids tools/slow_tests.py chose from a measured run (tests/slow_tests.txt)."""
     listing = REPO / "tests" / "slow_tests.txt"
+    if os.environ.get("OVTRAJ_SLOW_LISTING") == "off":  # tools/slow_tests.py: the other marks
+        return set()
     lines = listing.read_text(encoding="utf-8").splitlines() if listing.is_file() else []
     return {line.split("#")[0].strip() for line in lines if line.split("#")[0].strip()}
 
@@ -264,7 +271,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
     slow = measured_slow_tests()
     for item in items:
-        if item.nodeid in slow:
+        if item.nodeid in slow or SERVER_FIXTURES.intersection(item.fixturenames):
             item.add_marker(pytest.mark.slow)
     items.sort(key=rank)  # stable: every module's own order is kept
 

@@ -104,6 +104,12 @@ def test_phase_ordering_is_converged_then_feasible_then_payload():
 # -- the optimised ascent at two altitudes (one global search, one continuation) -----------
 
 
+# The tests of the solved ascent share one global search and one continuation (~15 s):
+# left out of the fast tier (-m "not slow"), where the refusals above and
+# tests/test_launch_dynamics.py check the launch.
+SOLVED = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def solved(scenario):
     reference = solve_launch(launch_input(scenario))
@@ -115,6 +121,7 @@ def solved(scenario):
     return reference, lower
 
 
+@SOLVED
 def test_insertion_constraints_met_within_tolerances_at_two_altitudes(solved, scenario):
     tol = scenario.launch.insertion_tolerances
     for result in solved:
@@ -138,12 +145,14 @@ def test_insertion_constraints_met_within_tolerances_at_two_altitudes(solved, sc
         assert row["eccentricity"] < 1e-3
 
 
+@SOLVED
 def test_payload_decreases_with_target_altitude(solved):
     reference, lower = solved
     assert lower.target_altitude_m < reference.target_altitude_m
     assert lower.payload_kg > reference.payload_kg
 
 
+@SOLVED
 def test_local_phases_never_end_worse_than_their_seed(solved, scenario):
     converged = scenario.launch.local.converged_residual
     for result in solved:
@@ -162,6 +171,7 @@ def test_local_phases_never_end_worse_than_their_seed(solved, scenario):
     assert [p.name for p in reference.phases] == ["genetic", "slsqp", "trust-constr"]
 
 
+@SOLVED
 def test_launch_epoch_is_on_the_launch_day_and_in_plane(solved, scenario):
     reference = solved[0]
     assert 0.0 <= reference.drop_time_s < 86400.0
@@ -182,6 +192,7 @@ def test_launch_epoch_is_on_the_launch_day_and_in_plane(solved, scenario):
     assert t_drop >= 0.0
 
 
+@SOLVED
 def test_trajectory_table_is_complete_and_consistent(solved):
     table = solved[0].trajectory
     for column in (
@@ -202,6 +213,7 @@ def test_trajectory_table_is_complete_and_consistent(solved):
     assert table["dynamic_pressure_pa"].max() <= solved[0].max_dynamic_pressure_pa * (1 + 1e-9)
 
 
+@SOLVED
 def test_design_round_trips_through_the_row(solved):
     reference = solved[0]
     assert design_of(reference.to_row()) == reference.design

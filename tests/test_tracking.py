@@ -28,6 +28,10 @@ from typer.testing import CliRunner
 from ovtraj.cli import app
 from tests.conftest import REPLAN_NIGHTS, replan_nights
 
+# Left out of the fast tier (-m "not slow"): every test reads the three re-plan nights, a
+# launch fit and a pipeline each (about a minute).
+pytestmark = pytest.mark.slow
+
 NIGHTS = REPLAN_NIGHTS
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 TARGET = "ISS-like space target"

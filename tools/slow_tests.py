@@ -2,9 +2,12 @@
 
 Reads a JUnit XML report of the whole suite (``pytest --junitxml=FILE``; each test's
 time there includes its fixtures' setup) and writes ``tests/slow_tests.txt``: the longest
-tests outside the modules marked slow as a whole, taken until the rest fits in the fast
-tier's budget of test time (``--budget-s``, summed over both workers). ``tests/conftest.py``
-marks the listed tests ``slow``; each line keeps the seconds it was measured at.
+tests not marked slow otherwise, taken until the rest fits in the fast tier's budget of
+test time (``--budget-s``, summed over both workers). ``tests/conftest.py`` marks the
+listed tests ``slow``; each line keeps the seconds it was measured at. A module fixture's
+setup is timed in the first test that uses it: when every test using an expensive one
+belongs out of the fast tier, mark those tests in their module (tests/test_launch.py's
+``solved``), or the listing would only move the setup to the next test.
 
     python tools/slow_tests.py REPORT.xml [--budget-s 100]
 """
@@ -12,6 +15,9 @@ marks the listed tests ``slow``; each line keeps the seconds it was measured at.
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -32,20 +38,37 @@ def measured(report: Path) -> dict[str, float]:
     return times
 
 
-def slow_modules() -> set[str]:
-    """The test modules marked slow as a whole (``pytestmark = pytest.mark.slow``)."""
-    return {
-        f"tests/{p.name}"
-        for p in (REPO / "tests").glob("test_*.py")
-        if "pytestmark = pytest.mark.slow" in p.read_text(encoding="utf-8")
-    }
+def marked_slow() -> set[str]:
+    """The tests marked slow otherwise than by the listing: a module's ``pytestmark``, a
+    test's own mark, a server fixture (tests/conftest.py ``SERVER_FIXTURES``), as pytest
+    collects them with the listing switched off."""
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "--collect-only",
+            "-q",
+            "-m",
+            "slow",
+            "-p",
+            "no:cacheprovider",
+        ],
+        cwd=REPO,
+        env=os.environ | {"OVTRAJ_SLOW_LISTING": "off"},
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
+    return {line.strip() for line in done.stdout.splitlines() if "::" in line}
 
 
-def choose(times: dict[str, float], budget_s: float, whole: set[str]) -> list[tuple[str, float]]:
-    """The longest tests, outside ``whole``'s modules, whose removal brings the rest
-    within ``budget_s``."""
+def choose(times: dict[str, float], budget_s: float, marked: set[str]) -> list[tuple[str, float]]:
+    """The longest tests, outside ``marked``, whose removal brings the rest within
+    ``budget_s``."""
     fast = sorted(
-        ((node, t) for node, t in times.items() if node.split("::")[0] not in whole),
+        ((node, t) for node, t in times.items() if node not in marked),
         key=lambda item: -item[1],
     )
     total = sum(t for _, t in fast)
@@ -64,17 +87,15 @@ def main() -> None:
     parser.add_argument("--budget-s", type=float, default=100.0)
     args = parser.parse_args()
     times = measured(args.report)
-    whole = slow_modules()
-    chosen = choose(times, args.budget_s, whole)
+    marked = marked_slow()
+    chosen = choose(times, args.budget_s, marked)
     lines = [f"{node}  # {t:.1f} s" for node, t in sorted(chosen)]
     header = (
         "# Tests the fast tier (-m 'not slow') leaves out, by measured time (tools/slow_tests.py\n"
         "# chose them from a whole-suite run on 2 cores); tests/conftest.py marks them slow.\n"
     )
     LISTING.write_text(header + "\n".join(lines) + "\n", encoding="utf-8")
-    kept = sum(t for n, t in times.items() if n.split("::")[0] not in whole) - sum(
-        t for _, t in chosen
-    )
+    kept = sum(t for n, t in times.items() if n not in marked) - sum(t for _, t in chosen)
     print(f"{LISTING}: {len(chosen)} tests listed; the fast tier's tests take {kept:.0f} s")
 
 
