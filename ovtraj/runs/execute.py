@@ -10,9 +10,8 @@ import logging
 import shutil
 import time
 from collections.abc import Callable
-from contextlib import AbstractContextManager, ExitStack, nullcontext
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import numpy as np
@@ -27,12 +26,7 @@ from ovtraj.launch.launch_fit import LaunchFit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, MissionRecord, evaluate
 from ovtraj.mission.design_space import latin_hypercube
 from ovtraj.parallel import EVALUATION_BLAS_THREADS, Bounded, blas_threads
-from ovtraj.runs.runners import (
-    BatchPool,
-    ClusterError,
-    RunnerChoice,
-    batch_pool,
-)
+from ovtraj.runs.runners import BatchPool, ClusterError, RunnerChoice, StartedPool, batch_pool
 from ovtraj.runs.store import Run, RunStore, StoreError
 from ovtraj.store.backends import S3Path
 
@@ -358,7 +352,7 @@ def _raise_failures(run: Run, failures: dict[int, str]) -> None:
         )
 
 
-class PoolBatches:
+class PoolBatches(StartedPool):
     """The library's :class:`ovtraj.pipeline.drive.BatchExecutor`: a run's batches on the
     pool of ``choice`` (:func:`~ovtraj.runs.runners.batch_pool`), started once for the
     DoE and every infill run, through :func:`run_doe`.
@@ -378,29 +372,10 @@ class PoolBatches:
         progress: Callable[[str], None] | None = None,
         progress_bar: Callable[[str], AbstractContextManager[Any]] | None = None,
     ) -> None:
-        self.scenario, self.launch_fit, self.choice = scenario, launch_fit, choice
-        orchestration = None if dask is not None else load_orchestration()
-        self.dask = dask or orchestration.dask
+        super().__init__(choice, dask or load_orchestration().dask)
+        self.scenario, self.launch_fit = scenario, launch_fit
         self.time_limit_s = time_limit_s
         self.progress, self.progress_bar = progress, progress_bar
-        self._stack = ExitStack()
-        self.pool: BatchPool | None = None
-
-    def __enter__(self) -> PoolBatches:
-        choice = self.choice
-        self.pool = self._stack.enter_context(
-            batch_pool(choice.runner, choice.workers, choice.dask_address, self.dask)
-        )
-        return self
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        error: BaseException | None,
-        trace: TracebackType | None,
-    ) -> None:
-        self.pool = None
-        self._stack.close()
 
     def evaluate(self, run: Run) -> Run:
         bar = nullcontext(None) if self.progress_bar is None else self.progress_bar(f"run {run.id}")

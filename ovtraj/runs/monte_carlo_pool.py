@@ -14,19 +14,17 @@ import concurrent.futures
 import functools
 import time
 from collections.abc import Callable
-from contextlib import ExitStack
-from types import TracebackType
 from typing import Any
 
 from ovtraj.config.orchestration import DaskSettings, load_orchestration
-from ovtraj.runs.runners import BatchPool, ClusterError, RunnerChoice, batch_pool
+from ovtraj.runs.runners import BatchPool, ClusterError, RunnerChoice, StartedPool
 from ovtraj.store.batched import BatchedRun
 from ovtraj.store.monte_carlo import BatchJob
 
 __all__ = ["PoolFlier"]
 
 
-class PoolFlier:
+class PoolFlier(StartedPool):
     """The batches of a stored Monte Carlo on the pool of ``choice``, started on enter.
 
     ``on_run()`` after each run flown (on a pool: a batch's runs when it ends). A batch
@@ -43,27 +41,13 @@ class PoolFlier:
         on_run: Callable[[], None] | None = None,
         dask: DaskSettings | None = None,
     ) -> None:
-        self.choice, self.on_run, self.dask = choice, on_run, dask
-        self._stack = ExitStack()
-        self.pool: BatchPool | None = None
+        super().__init__(choice, dask)
+        self.on_run = on_run
 
     def __enter__(self) -> PoolFlier:
-        choice = self.choice
-        if self.dask is None and choice.runner != "serial":  # a pool's settings only
+        if self.dask is None and self.choice.runner != "serial":  # a pool's settings only
             self.dask = load_orchestration().dask
-        self.pool = self._stack.enter_context(
-            batch_pool(choice.runner, choice.workers, choice.dask_address, self.dask)
-        )
-        return self
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        error: BaseException | None,
-        trace: TracebackType | None,
-    ) -> None:
-        self.pool = None
-        self._stack.close()
+        return super().__enter__()
 
     def fly(self, run: BatchedRun, job: BatchJob, batches: list[list[int]]) -> dict[int, str]:
         """Each batch flown by ``job`` (stored in ``run`` by the job itself); the failed

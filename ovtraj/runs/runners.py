@@ -25,9 +25,10 @@ import multiprocessing
 import os
 import sys
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
-from typing import Any
+from types import TracebackType
+from typing import Any, Self
 
 from ovtraj.config.io_limits import echoed
 from ovtraj.config.mission import RUNNERS, DoeSettings
@@ -345,3 +346,31 @@ def batch_pool(
             yield BatchPool(runner, client.get_executor(pure=False), client)
         finally:
             close(client)
+
+
+class StartedPool:
+    """The pool of ``choice`` (:func:`batch_pool`) as ``self.pool``: started on enter, shut
+    on exit. The DoE's batches (:class:`~ovtraj.runs.execute.PoolBatches`) and a Monte
+    Carlo's (:class:`~ovtraj.runs.monte_carlo_pool.PoolFlier`) run on it; ``dask`` must be
+    set before enter."""
+
+    def __init__(self, choice: RunnerChoice, dask: DaskSettings | None) -> None:
+        self.choice, self.dask = choice, dask
+        self._stack = ExitStack()
+        self.pool: BatchPool | None = None
+
+    def __enter__(self) -> Self:
+        choice = self.choice
+        self.pool = self._stack.enter_context(
+            batch_pool(choice.runner, choice.workers, choice.dask_address, self.dask)
+        )
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        trace: TracebackType | None,
+    ) -> None:
+        self.pool = None
+        self._stack.close()
