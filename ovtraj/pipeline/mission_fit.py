@@ -54,11 +54,23 @@ def fit_mission_surrogates(
     if not data.feasible.any():
         raise SurrogateError(f"all {len(data)} samples are infeasible: nothing to fit")
     payload = launch_payload(scenario, data)
-    wait_set = _wait_set(data, scenario, lower, upper, candidates, executor)
+    wait = np.asarray(data.components[WAIT], dtype=float)
+    fit = (lower, upper), candidates, executor
+    wait_set = _wait_fit(
+        data, scenario, WAIT, np.isfinite(wait), "the phase input needs the rendezvous wait", *fit
+    )
     pass_model, burn_phase = _phase_models(scenario, data, wait_set)
     bounds = _composition(scenario, payload, pass_model, burn_phase)
     if bounds["limits"] is not None:
-        bounds["phasing"] = _phasing_wait_set(data, scenario, lower, upper, candidates, executor)
+        # the samples whose rendezvous got as far as a refined phasing wait (feasible ones,
+        # and those refused by less than the burn window: both sides of the limit); further
+        # beyond, the stage kept a secular estimate only, and those samples stay out
+        phasing = np.asarray(data.components[PHASING_WAIT], dtype=float)
+        rendezvous = scenario.rendezvous
+        longest = rendezvous.max_wait_time_s + rendezvous.burn_epoch_window_s
+        usable = np.isfinite(phasing) & (phasing <= longest)
+        needs = "the wait limit needs the phasing wait"
+        bounds["phasing"] = _wait_fit(data, scenario, PHASING_WAIT, usable, needs, *fit)
     period = target_draconic_period(scenario)
     composed = MissionSurrogates(wait_set, None, period, lower, upper, **bounds)
     main = _main_set(data, scenario, composed, lower, upper, candidates, executor)
@@ -73,22 +85,30 @@ def _first_per_parking_altitude(data: Any, known: np.ndarray) -> np.ndarray:
     return known & np.isin(np.arange(len(known)), first)
 
 
-def _fitted_on_parking_altitude(
+def _wait_fit(
     data: Any,
+    scenario: Scenario,
     name: str,
-    values: np.ndarray,
-    known: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    settings: Any,
+    usable: np.ndarray,
+    needs: str,
+    bounds: tuple[np.ndarray, np.ndarray],
     candidates: dict[str, str] | None,
     executor: Executor | None,
 ) -> SurrogateSet:
-    """The set of one output ``name`` on H_P0, fitted on the ``known`` samples (each one
-    counted feasible: only its value is modelled)."""
+    """The set of the wait ``name`` [s] on H_P0, fitted on the ``usable`` samples (the
+    first of each H_P0; each one counted feasible: only its value is modelled); ``needs``
+    begins the refusal of too few samples (what needs which wait)."""
+    settings = scenario.mission.surrogate
+    known = _first_per_parking_altitude(data, usable)
+    if known.sum() < settings.min_training_samples:
+        raise SurrogateError(
+            f"{needs} of at least "
+            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
+        )
+    lower, upper = bounds
     return fit_surrogates(
         data.designs[known][:, :1],
-        {name: values[known]},
+        {name: np.asarray(data.components[name], dtype=float)[known]},
         np.ones(int(known.sum()), dtype=bool),
         lower[:1],
         upper[:1],
@@ -97,55 +117,6 @@ def _fitted_on_parking_altitude(
         sample_ids=data.sample_ids[known],
         candidates=candidates,
         executor=executor,
-    )
-
-
-def _wait_set(
-    data: Any,
-    scenario: Scenario,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    candidates: dict[str, str] | None,
-    executor: Executor | None,
-) -> SurrogateSet:
-    """The rendezvous wait [s] on H_P0: every sample whose rendezvous computed one."""
-    settings = scenario.mission.surrogate
-    wait = data.components[WAIT]
-    known = _first_per_parking_altitude(data, np.isfinite(wait))
-    if known.sum() < settings.min_training_samples:
-        raise SurrogateError(
-            f"the phase input needs the rendezvous wait of at least "
-            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
-        )
-    return _fitted_on_parking_altitude(
-        data, WAIT, wait, known, lower, upper, settings, candidates, executor
-    )
-
-
-def _phasing_wait_set(
-    data: Any,
-    scenario: Scenario,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    candidates: dict[str, str] | None,
-    executor: Executor | None,
-) -> SurrogateSet:
-    """The phasing wait [s] on H_P0 for the wait limit: every sample whose rendezvous got
-    as far as a refined phasing wait (feasible ones, and those refused by less than the
-    burn window: both sides of the limit); further beyond, the stage kept a secular
-    estimate only, and those samples stay out."""
-    settings = scenario.mission.surrogate
-    rendezvous = scenario.rendezvous
-    wait = np.asarray(data.components[PHASING_WAIT], dtype=float)
-    longest = rendezvous.max_wait_time_s + rendezvous.burn_epoch_window_s
-    known = _first_per_parking_altitude(data, np.isfinite(wait) & (wait <= longest))
-    if known.sum() < settings.min_training_samples:
-        raise SurrogateError(
-            f"the wait limit needs the phasing wait of at least "
-            f"{settings.min_training_samples} samples; {int(known.sum())} have one"
-        )
-    return _fitted_on_parking_altitude(
-        data, PHASING_WAIT, wait, known, lower, upper, settings, candidates, executor
     )
 
 
