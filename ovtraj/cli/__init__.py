@@ -65,12 +65,14 @@ def entry_point() -> None:
     _exit(run_command())
 
 
-def run_command(args: list[str] | None = None) -> int:
+def run_command(args: list[str] | None = None, prog_name: str | None = None) -> int:
     """Run the command line ``args`` (default: the process's) as :func:`entry_point`
-    does, and return its exit code instead of ending the process (the tests call it)."""
+    does, and return its exit code instead of ending the process (the tests call it).
+    ``prog_name`` is the command's name in usage lines (default: click's, from the
+    process's ``sys.argv[0]``; a test process passes ``"ovtraj"``)."""
 
     try:
-        code = app(args=args, standalone_mode=False)
+        code = app(args=args, prog_name=prog_name, standalone_mode=False)
         if code == 130:
             typer.echo("interrupted", err=True)
     except typer.Exit as done:
