@@ -3,10 +3,12 @@
 A store and a Prefect results folder shared with other people may hold symbolic links
 planted there: a ``.pruned-*`` link, a run directory that is a link, a product folder
 that is a link, a link among the task results. Each case is tried with the real command
-in a subprocess on a real run family (`ovtraj run`, then `run --append` twice): the link's
-target outside the store is intact afterwards. Only files that parse as Prefect result
-records (written here by Prefect's own ``ResultStore``) count as task results, and what a
-process holds (a run's lock, a product folder's lock) is kept.
+on a real run family (`ovtraj run`, then `run --append` twice), run in this process
+(tests/cli_runner.py: the entry point's body, its exit code and output; a time-out fails a
+prune that hangs): the link's target outside the store is intact afterwards. Only files
+that parse as Prefect result records (written here by Prefect's own ``ResultStore``) count
+as task results, and what another process holds (a run's lock, a product folder's lock) is
+kept.
 """
 
 from __future__ import annotations
@@ -20,23 +22,20 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO, prefect_record
 
-# Left out of the fast tier (-m "not slow"): it runs DoEs through the command in subprocesses.
+# Left out of the fast tier (-m "not slow"): it runs a family of DoEs through the command.
 pytestmark = pytest.mark.slow
 
-OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 # Generous: a prune takes ~2 s here; one that waits on a FIFO never ends.
 TIMEOUT_S = 120
 
 
 def _cli(*args: str, results: Path | None = None) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    if results is not None:
-        env["OVTRAJ_PREFECT_RESULTS"] = str(results)  # configs/orchestration.yaml `results`
-    return subprocess.run(
-        [OVTRAJ, *args], capture_output=True, text=True, timeout=TIMEOUT_S, check=False, env=env
-    )
+    # OVTRAJ_PREFECT_RESULTS: configs/orchestration.yaml `results`, read at each use
+    env = None if results is None else {"OVTRAJ_PREFECT_RESULTS": str(results)}
+    return run_cli(*args, env=env, timeout=TIMEOUT_S)
 
 
 def _run(store: Path, samples: int, parent: str | None = None) -> str:

@@ -1,8 +1,12 @@
 """Run store integrity: declared schemas, checksums, determinism, faults, claims.
 
-The store is used as a user uses it: the ``ovtraj`` command in subprocesses, real
-file systems (a tmpfs made full or read-only when this machine allows mounting),
-real concurrent processes and a real ``kill -9``.
+The store is used as a user uses it: the ``ovtraj`` command, real file systems (a tmpfs
+made full or read-only when this machine allows mounting), real concurrent processes and
+a real ``kill -9``. A command whose answer and files are all a test checks runs in this
+process (tests/cli_runner.py: the entry point's body, its exit code, stdout and stderr);
+the command runs in a subprocess where a process is the point: killed, sent SIGTERM, two
+racing on one run, and the tmpfs cases (a full and a read-only disk, and a configuration
+folder of their own, which a process reads once).
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from ovtraj.runs import RunStore, execute, latin_hypercube
 from ovtraj.runs.schemas import DATASETS
 from ovtraj.store.files import Digest, StoreError, read_bytes, write_bytes
 from ovtraj.store.records import SchemaError, plain, record_schema, table_from_rows
+from tests.cli_runner import run_cli as _cli
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
@@ -54,9 +59,10 @@ def _write_config(directory: Path, data: dict) -> Path:
     return path
 
 
-def _cli(
+def _process(
     *args: str, timeout: float = 600, cwd: Path | None = None, env: dict | None = None
 ) -> subprocess.CompletedProcess:
+    """``ovtraj ARGS`` as a process of its own."""
     return subprocess.run(
         [OVTRAJ, *args],
         capture_output=True,
@@ -197,11 +203,11 @@ def test_records_refuse_an_undeclared_column_and_store_nan_as_null():
 
 def test_two_stores_of_one_config_and_seed_are_byte_identical(tmp_path):
     config = _write_config(tmp_path, _short_data())
-    done = [
-        # Seed 5: samples failing at the rendezvous and the deorbit, and two that land.
-        _cli("run", str(config), "--samples", "4", "--seed", "5", "--store", str(tmp_path / s))
-        for s in ("a", "b")
-    ]
+    # Seed 5: samples failing at the rendezvous and the deorbit, and two that land. One
+    # store is written in this process, the other by a process of its own (nothing the
+    # first computed is reused by the second).
+    args = ("run", str(config), "--samples", "4", "--seed", "5", "--store")
+    done = [_cli(*args, str(tmp_path / "a")), _process(*args, str(tmp_path / "b"))]
     assert all(d.returncode == 0 for d in done), [d.stderr for d in done]
     (a,) = (tmp_path / "a").iterdir()
     (b,) = (tmp_path / "b").iterdir()
@@ -369,7 +375,7 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
     store = tmpfs / "runs"
     args = ("run", str(config), "--samples", "6", "--seed", "5", "--store", str(store))
     # 160 kB: less than the DoE's estimate (configs/io_limits.yaml): refused, nothing written.
-    line = _one_line_error(_cli(*args))
+    line = _one_line_error(_process(*args))
     assert line.startswith(f"{store}: a DoE of 6 samples takes ~") and "free on its disk" in line
     assert not store.exists() or not any(store.iterdir())
     # An estimate that lets it start: the run's first files and a batch or two fit, then
@@ -380,7 +386,7 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
     limits.write_text(
         re.sub(r"doe_bytes_per_sample: \d+", "doe_bytes_per_sample: 1", limits.read_text())
     )
-    line = _one_line_error(_cli(*args, env={"OVTRAJ_CONFIG_DIR": str(configs)}))
+    line = _one_line_error(_process(*args, env={"OVTRAJ_CONFIG_DIR": str(configs)}))
     assert line.startswith(f"cannot write {store}") and line.endswith("no space left on the device")
     (run_dir,) = store.iterdir()
     run = RunStore(store).run(run_dir.name)
@@ -392,7 +398,7 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
     # More space: the run resumes where it stopped and nothing stored is lost.
     before = {p: p.read_bytes() for p in run_dir.rglob("*.parquet")}
     _remount(tmpfs, "size=20m")
-    done = _cli(*args)
+    done = _process(*args)
     assert done.returncode == 0, done.stderr
     assert f"batch {min(kept) + 1}/" not in done.stdout if kept else True
     assert run.status() == "complete" and run.verify().clean
@@ -400,11 +406,11 @@ def test_full_then_read_only_file_system(tmpfs, tmp_path):
     # Read-only: the complete run is listed again without a write; anything new is refused.
     manifest = (run_dir / "manifest.json").read_bytes()
     _remount(tmpfs, "ro")
-    again = _cli(*args)
+    again = _process(*args)
     assert again.returncode == 0 and run_dir.name in again.stdout, again.stderr
     assert (run_dir / "manifest.json").read_bytes() == manifest
-    assert _cli("verify", run_dir.name, "--store", str(store)).returncode == 0
-    line = _one_line_error(_cli("run", str(config), "--samples", "2", "--store", str(store)))
+    assert _process("verify", run_dir.name, "--store", str(store)).returncode == 0
+    line = _one_line_error(_process("run", str(config), "--samples", "2", "--store", str(store)))
     assert line.startswith(f"cannot write {store}") and line.endswith("read-only file system")
 
 
@@ -458,12 +464,12 @@ def test_a_killed_run_is_reported_interrupted_and_resumes_cleanly(tmp_path):
     (run_dir,) = store.iterdir()
     run = RunStore(store).run(run_dir.name)
     assert run.manifest["status"] == "running" and run.status() == "interrupted"
-    shown = json.loads(_cli("show", run.id, "--store", str(store)).stdout)
+    shown = json.loads(_process("show", run.id, "--store", str(store)).stdout)
     assert shown["summary"]["status"] == "interrupted"
     done_before = run.done_batches()
     orphan = run_dir / "totals" / f".part-00004.parquet.host-1-{uuid.uuid4().hex[:8]}.tmp"
     orphan.write_bytes(b"half a file")
-    resumed = _cli(*args)
+    resumed = _process(*args)
     assert resumed.returncode == 0, resumed.stderr
     assert re.search(
         r"removed [1-9]\d* temporary file\(s\) of an interrupted write", resumed.stdout
