@@ -175,6 +175,18 @@ class StoreKeySettings(StrictModel):
     )
 
 
+class LockSettings(StrictModel):
+    """The store's locks (:mod:`ovtraj.store.locks`)."""
+
+    poll_s: float = bounded(unit="s", gt=0, le=10, description="a held lock is tried again after")
+    lease_s: float = bounded(
+        unit="s",
+        ge=5,
+        le=3600,
+        description="an object-store lease unrenewed this long is stale (renewed each third)",
+    )
+
+
 class PreparationSettings(StrictModel):
     """What a DoE or a pipeline does before its first batch, from the command line and the
     flows alike (:mod:`ovtraj.runs.preparation`)."""
@@ -195,6 +207,7 @@ class OrchestrationConfig(StrictModel):
     reads: ReadSettings
     catalog: CatalogSettings
     store_key: StoreKeySettings
+    locks: LockSettings
     preparation: PreparationSettings
 
 

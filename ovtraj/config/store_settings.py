@@ -2,9 +2,9 @@
 
 The store sits below the configuration and reads no configuration file: importing
 ``ovtraj.config`` hands it :func:`store_settings` (:func:`ovtraj.store.settings.use_settings`),
-which it calls at its first need. The figures are ``reads`` and ``store_key.min_bytes`` of
-``configs/orchestration.yaml`` and the JSON bounds, the echo length and the object-store
-waits of ``configs/io_limits.yaml``, read once per process.
+which it calls at its first need. The figures are ``reads``, ``store_key.min_bytes`` and
+``locks`` of ``configs/orchestration.yaml`` and the JSON bounds, the echo length and the
+object-store waits of ``configs/io_limits.yaml``, read once per process.
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ def store_settings() -> StoreSettings:
         unrecorded_file_max_mib=reads.unrecorded_file_max_mib,
         environment_block_max_kib=reads.environment_block_max_kib,
         store_key_min_bytes=orchestration.store_key.min_bytes,
+        lock_poll_s=orchestration.locks.poll_s,
+        lock_lease_s=orchestration.locks.lease_s,
         json_max_depth=limits.json_max_depth,
         json_number_max_chars=limits.json_number_max_chars,
         echo_max_chars=limits.echo_max_chars,

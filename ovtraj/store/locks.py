@@ -7,10 +7,11 @@ last holder's host and process id, for messages only.
 
 Object store (:class:`ovtraj.store.backends.S3Path`): a lock is a lease object naming its
 holder and its expiry. It is created only if absent (``If-None-Match``), renewed
-by its holder every :data:`RENEW_S` while held, and taken over when it expired
+by its holder every third of its lease while held, and taken over when it expired
 (``If-Match`` on the stale lease, so one process wins), then deleted on release. A
-killed holder's lease is stale after :data:`LEASE_S`. A shared lock is one lease per
-holder under the lock's key.
+killed holder's lease is stale after the lease (``locks.lease_s`` of
+``configs/orchestration.yaml``, as the store's settings give it). A shared lock is one
+lease per holder under the lock's key.
 """
 
 from __future__ import annotations
@@ -30,14 +31,22 @@ from pathlib import Path
 
 from ovtraj.store.backends import PreconditionFailed, S3Path, StorageError, location
 from ovtraj.store.files import StoreError, json_data, make_folders, os_error_text, read_bytes
+from ovtraj.store.settings import given_settings
 
 __all__ = ["held", "hold", "hold_directory"]
 
-_POLL_S = 0.05
-# Object-store leases: a lease not renewed for LEASE_S is stale; holders renew it every
-# RENEW_S (a third), so a slow request or a clock offset of tens of seconds is tolerated.
-LEASE_S = 60.0
-RENEW_S = LEASE_S / 3.0
+
+def _poll_s() -> float:
+    """How long a waiter sleeps before it tries a held lock again [s]."""
+    return given_settings().lock_poll_s
+
+
+def _lease_s() -> float:
+    """How long an object-store lease not renewed stays valid [s]; its holder renews it
+    every third of it, so a slow request or a clock offset of tens of seconds is tolerated."""
+    return given_settings().lock_lease_s
+
+
 # A lock file is a regular file of the store: never opened through a symbolic link (a
 # holder writes its name into it: a link would have it truncate a file elsewhere) and
 # never waiting on a FIFO.
@@ -81,7 +90,7 @@ def _acquire(fd: int, mode: int, wait_s: float) -> bool:
         except BlockingIOError:
             if time.monotonic() >= deadline:
                 return False
-            time.sleep(_POLL_S)
+            time.sleep(_poll_s())
 
 
 @contextmanager
@@ -178,7 +187,7 @@ def held(path: Path) -> bool:
 
 
 def _lease_body(owner: str) -> bytes:
-    return json.dumps({"owner": owner, "expires_unix_s": time.time() + LEASE_S}).encode()
+    return json.dumps({"owner": owner, "expires_unix_s": time.time() + _lease_s()}).encode()
 
 
 def _lease_state(path: S3Path) -> tuple[dict | None, str | None]:
@@ -230,7 +239,7 @@ def _lease(path: S3Path, *, shared: bool, wait_s: float) -> Iterator[bool]:
                 etag = _take(key, owner)  # exclusive: no live shared holder either
             if etag is not None or time.monotonic() >= deadline:
                 break
-            time.sleep(_POLL_S * 10)  # each attempt is a few requests
+            time.sleep(_poll_s() * 10)  # each attempt is a few requests
     except StorageError as err:
         raise StoreError(f"cannot write {key}: {err}") from None
     if etag is None:
@@ -255,20 +264,22 @@ def _lease(path: S3Path, *, shared: bool, wait_s: float) -> Iterator[bool]:
 
 
 class _Renewer(threading.Thread):
-    """Renews a held lease every RENEW_S until stopped (a daemon: dies with the process)."""
+    """Renews a held lease every third of the lease until stopped (a daemon: dies with the
+    process)."""
 
     def __init__(self, key: S3Path, owner: str, etag: str) -> None:
         super().__init__(daemon=True, name=f"lease {key}")
         self.key, self.owner, self.etag = key, owner, etag
+        self.every_s = _lease_s() / 3.0
         self._stopped = threading.Event()
 
     def run(self) -> None:
-        while not self._stopped.wait(RENEW_S):
+        while not self._stopped.wait(self.every_s):
             try:
                 self.etag = self.key.put(_lease_body(self.owner), if_match=self.etag)
             except (PreconditionFailed, StorageError):
-                return  # lost (stalled for longer than LEASE_S): writes stay create-only
+                return  # lost (stalled for longer than the lease): writes stay create-only
 
     def stop(self) -> None:
         self._stopped.set()
-        self.join(timeout=RENEW_S)
+        self.join(timeout=self.every_s)

@@ -25,6 +25,9 @@ class StoreSettings:
     environment_block_max_kib: float  # largest environment block of a manifest [KiB]
     # ``store_key.min_bytes`` of configs/orchestration.yaml
     store_key_min_bytes: int  # shortest OVTRAJ_STORE_KEY accepted [bytes]
+    # ``locks`` of configs/orchestration.yaml
+    lock_poll_s: float  # a held lock is tried again after this [s]
+    lock_lease_s: float  # an object-store lease not renewed for this long is stale [s]
     # configs/io_limits.yaml
     json_max_depth: int  # deepest nesting of a JSON text parsed [levels]
     json_number_max_chars: int  # longest number in a JSON text parsed [characters]
