@@ -1,11 +1,13 @@
 """Bounded, inside-the-store reads: ids by pattern, regular files only.
 
 A hostile store (a shared folder) and hostile ids, tried as a user meets them: the
-``ovtraj`` command in subprocesses on a real run, with real FIFOs and real symbolic links
-(to ``/dev/zero``, to a file outside the store). Every case ends in one line naming the
-file or the id, exit 2 (``verify``: exit 1 with the bad file listed), never a traceback,
-never a hang (each subprocess has a time-out, so a hang fails the test), and nothing
-outside the store is read or written.
+``ovtraj`` command on a real run, with real FIFOs and real symbolic links (to
+``/dev/zero``, to a file outside the store). Every case ends in one line naming the file or
+the id, exit 2 (``verify``: exit 1 with the bad file listed), never a traceback, never a
+hang (each command has a time-out, so a hang fails the test), and nothing outside the store
+is read or written. The commands run in this process (tests/cli_runner.py: the entry
+point's body), except on a link to ``/dev/zero``: a subprocess under a cap on its address
+space, so that an unchecked read fails the test instead of exhausting the machine's memory.
 """
 
 from __future__ import annotations
@@ -23,10 +25,11 @@ import pytest
 from ovtraj.runs import RunStore
 from ovtraj.store import locks
 from ovtraj.store.files import StoreError
+from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO
 
-# Left out of the fast tier (-m "not slow"): it runs the command in subprocesses under a memory
-# limit.
+# Left out of the fast tier (-m "not slow"): it runs the command on a real 8-sample run, and
+# in subprocesses under a memory limit.
 pytestmark = pytest.mark.slow
 
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
@@ -39,6 +42,13 @@ ADDRESS_SPACE_BYTES = 4 * 2**30
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
+    """``ovtraj ARGS`` in this process, under the time-out."""
+    return run_cli(*args, timeout=TIMEOUT_S)
+
+
+def _limited(*args: str) -> subprocess.CompletedProcess:
+    """``ovtraj ARGS`` as a process of its own, its address space capped."""
+
     def limited() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE_BYTES, ADDRESS_SPACE_BYTES))
 
@@ -83,25 +93,8 @@ def _copy(stored, tmp_path: Path) -> tuple[Path, str]:
     return copy, run_id
 
 
-def _in_process(capsys: pytest.CaptureFixture, *args: str) -> subprocess.CompletedProcess:
-    """The command run in this process (:func:`ovtraj.cli.run_command`, the entry point's
-    body: its exit code and its one-line errors), as :func:`_cli`'s result: where nothing
-    is read (an id refused before any file is opened), the ~2-5 s of a subprocess's
-    imports buy nothing (tests/test_cli_fuzz.py does the same for ~200 cases)."""
-    from ovtraj.cli import run_command
-
-    capsys.readouterr()
-    code = run_command(list(args))
-    out, err = capsys.readouterr()
-    return subprocess.CompletedProcess(list(args), code, out, err)
-
-
-def test_a_path_or_a_control_character_as_an_id_is_refused_in_one_line(stored, tmp_path, capsys):
+def test_a_path_or_a_control_character_as_an_id_is_refused_in_one_line(stored, tmp_path):
     store, run_id = _copy(stored, tmp_path)
-
-    def _cli(*args: str) -> subprocess.CompletedProcess:
-        return _in_process(capsys, *args)
-
     # What `../../outside/x` reaches from the store root: a readable run's files.
     outside = tmp_path / "outside" / "x"
     shutil.copytree(store / run_id, outside)
@@ -148,14 +141,14 @@ def test_a_link_to_dev_zero_in_place_of_a_stored_file_is_refused_at_once(stored,
     part = store / run_id / "trajectories" / "deorbit" / "part-00000.parquet"
     part.unlink()
     part.symlink_to("/dev/zero")
-    checked = _cli("verify", run_id, "--store", str(store))
+    checked = _limited("verify", run_id, "--store", str(store))
     assert checked.returncode == 1 and "Traceback" not in checked.stderr, checked.stderr
     bad = [line for line in checked.stdout.splitlines() if line.startswith("bad:")]
     assert bad == [f"bad: {part}: a symbolic link, not a stored file; not read"], checked.stdout
     marker = store / run_id / "batches" / "1.json"
     marker.unlink()
     marker.symlink_to("/dev/zero")  # an index file: no recorded size bounds the read
-    line = _one_line_error(_cli("replay", run_id, "--store", str(store)))
+    line = _one_line_error(_limited("replay", run_id, "--store", str(store)))
     assert line == f"{marker}: a symbolic link, not a stored file; not read"
 
 

@@ -4,17 +4,16 @@ kept outside the store (``OVTRAJ_STORE_KEY``, :mod:`ovtraj.store.seals`).
 An attacker who can write the store but has no key rewrites a totals file and its batch
 marker with the new size and SHA-256, as the checksums alone cannot see. The stores are
 real (a run store with made-up records: no simulation; a product; a Monte Carlo run),
-``ovtraj verify`` runs as a user runs it, in a subprocess with the key in its environment.
+``ovtraj verify`` runs as a user runs it, with the key in its environment (in this process,
+tests/cli_runner.py: the entry point's body; the key is read at each use).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 import secrets
 import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
@@ -30,25 +29,15 @@ from ovtraj.store.files import Digest, StoreError
 from ovtraj.store.products import Product
 from ovtraj.store.seals import STORE_KEY_ENV, TamperedError
 from ovtraj.studies.deorbit_burn.store import MonteCarloRun
+from tests.cli_runner import run_cli
 from tests.test_products_integrity import _frame
 
-OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 KEY_A = secrets.token_hex(32)
 KEY_B = secrets.token_hex(32)
 
 
 def _verify(run_id: str, store: Path, key: str | None) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if k != STORE_KEY_ENV}
-    if key is not None:
-        env[STORE_KEY_ENV] = key
-    return subprocess.run(
-        [OVTRAJ, "verify", run_id, "--store", str(store)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=env,
-        check=False,
-    )
+    return run_cli("verify", run_id, "--store", str(store), env={STORE_KEY_ENV: key}, timeout=120)
 
 
 def _made_up_run(root: Path, scenario):
@@ -116,14 +105,7 @@ def test_a_rewritten_totals_file_and_marker_are_tampered_with_the_key_clean_with
     # A normal read refuses it naming the marker; the command says so in one line, exit 2.
     with pytest.raises(TamperedError, match=r"batches/1\.json: tampered"):
         run.totals()
-    shown = subprocess.run(
-        [OVTRAJ, "show", run.id, "--store", str(store)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=os.environ | {STORE_KEY_ENV: KEY_A},
-        check=False,
-    )
+    shown = run_cli("show", run.id, "--store", str(store), env={STORE_KEY_ENV: KEY_A}, timeout=120)
     assert shown.returncode == 2 and "Traceback" not in shown.stderr
     assert shown.stderr.strip().splitlines() == [tampered[0].removeprefix("tampered: ")]
 
