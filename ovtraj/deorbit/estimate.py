@@ -25,6 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ovtraj.astro.elements import mean_motion
+
 
 @dataclass(frozen=True)
 class TangentialDeorbit:
@@ -215,8 +217,7 @@ def _time_of_flight_s(a: float, e: float, delta: float, mu: float) -> float:
     """
     sin_d, cos_d = math.sin(delta), math.cos(delta)
     d_ecc_anomaly = math.atan2(math.sqrt((1.0 - e) * (1.0 + e)) * sin_d, cos_d - e)
-    mean_motion = math.sqrt(mu / a**3)
-    return (d_ecc_anomaly + e * math.sin(d_ecc_anomaly)) / mean_motion
+    return (d_ecc_anomaly + e * math.sin(d_ecc_anomaly)) / mean_motion(a, mu=mu)
 
 
 def descent_central_angle_rad(

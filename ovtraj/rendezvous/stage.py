@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from ovtraj.astro.elements import NonsingularElements
+from ovtraj.astro.elements import NonsingularElements, mean_motion
 from ovtraj.astro.frames import eci_to_rsw
 from ovtraj.astro.j2_elements import mean_to_state, state_to_mean
 from ovtraj.astro.propagation import OrbitPropagator, PropagationResult
@@ -171,7 +171,7 @@ def _plan_rendezvous(inp: RendezvousInput, prop: OrbitPropagator) -> _Plan:
 
 def _two_body_lead(transfer: HohmannTransfer, mu: float) -> float:
     """Lead angle with the target's two-body mean motion (patent step 102, classic formula)."""
-    return lead_angle(transfer, math.sqrt(mu / transfer.r2_m**3))
+    return lead_angle(transfer, mean_motion(transfer.r2_m, mu=mu))
 
 
 def _covering(

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ovtraj.astro.angles import TWO_PI, wrap_to_two_pi
-from ovtraj.astro.elements import perigee_radius_from_semi_latus_rectum
+from ovtraj.astro.elements import mean_motion, perigee_radius_from_semi_latus_rectum
 from ovtraj.astro.frames import rsw_to_eci
 from ovtraj.astro.propagation import OrbitPropagator
 from ovtraj.astro.rocket import burn_durations
@@ -89,7 +89,7 @@ def _periapsis_if_passed(
     e = np.sqrt(np.maximum(0.0, 1.0 - p / a))
     periapsis = perigee_radius_from_semi_latus_rectum(p, e)
     a_abs = np.abs(a)
-    n = np.sqrt(mu / a_abs**3)
+    n = mean_motion(a, mu=mu)
     elliptic = a > 0.0
     root = rv / np.sqrt(mu * a_abs)
     big_e = np.arctan2(root, 1.0 - r / a)
