@@ -1,8 +1,10 @@
-"""One definition of each unit constant, angle wrap and orbital period in the code.
+"""One definition of each unit constant, angle wrap, orbital period and mean motion in the
+code.
 
 The unit and time constants live in ovtraj/units.py, the reduction of an angle to one turn
 in ovtraj/astro/angles.py (``wrap_to_two_pi``, ``wrap_to_pi``, ``principal_angle``) and the
-Keplerian period in ``ovtraj.astro.elements.orbital_period``. A copy elsewhere drifts from
+Keplerian period and the mean motion in ``ovtraj.astro.elements`` (``orbital_period``,
+``mean_motion``). A copy elsewhere drifts from
 its kernel: a bare ``x % TWO_PI`` returns 2 pi itself for a tiny negative ``x``, where the
 kernel returns 0. The check reads every module of the library and of its Prefect adapters
 (``ovtraj/``, ``flows/``, ``tasks/``) with :mod:`ast` (so comments, docstrings and messages
@@ -18,7 +20,9 @@ never count) and names each copy by file and line:
   and ``np.mod``, ``np.fmod``, ``np.remainder``, ``math.fmod``, ``math.remainder``,
   ``divmod`` by a turn (``TWO_PI``, ``2 * pi``, ``tau``);
 * a Keplerian period (a turn, or pi for a half period, times ``sqrt(... ** 3 ...)``)
-  outside ``orbital_period``.
+  outside ``orbital_period``;
+* a mean motion (``sqrt`` of a quotient whose divisor is a cube, ``sqrt(mu / a**3)``)
+  outside ``mean_motion``.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ SCANNED = ("ovtraj", "flows", "tasks")
 UNITS_MODULE = "ovtraj/units.py"
 ANGLES_MODULE = "ovtraj/astro/angles.py"
 PERIOD_KERNEL = ("ovtraj/astro/elements.py", "orbital_period")
+MEAN_MOTION_KERNEL = ("ovtraj/astro/elements.py", "mean_motion")
 FROM_UNITS = "import it from ovtraj.units"
 
 # Values no other figure has: written anywhere, they are a unit constant.
@@ -150,6 +155,19 @@ def _is_sqrt_of_cube(node: ast.AST) -> bool:
     return function is not None and function[1] == "sqrt" and _has_cube(node.args[0])
 
 
+def _is_mean_motion(node: ast.Call) -> bool:
+    """``sqrt(x / y)`` with a cube in ``y``: sqrt(mu / a**3)."""
+    function = _function(node)
+    if function is None or function[1] != "sqrt" or not node.args:
+        return False
+    quotient = node.args[0]
+    return (
+        isinstance(quotient, ast.BinOp)
+        and isinstance(quotient.op, ast.Div)
+        and _has_cube(quotient.right)
+    )
+
+
 def _factors(node: ast.AST) -> list[ast.AST]:
     """The factors of a product ``a * b * c`` (one factor for anything else)."""
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult):
@@ -211,6 +229,9 @@ class _Finder(ast.NodeVisitor):
         wraps = function in WRAP_FUNCTIONS or function == ("", "divmod")
         if wraps and len(node.args) >= 2 and _is_turn(node.args[1]):
             self._wrap(node, f"{'.'.join(filter(None, function))}(..., a turn)")
+        here = (self.path, self.functions[-1] if self.functions else "")
+        if here != MEAN_MOTION_KERNEL and _is_mean_motion(node):
+            self._add(node, "a mean motion written inline; use mean_motion")
         # The bounds of a setting's schema (``bounded(unit="s", le=86400)``: at most a day)
         # are limits of a figure stated in its unit, not conversions: their numbers are
         # not read (an expression inside one still is, as everywhere).
@@ -279,6 +300,7 @@ t = (2451545.0 - 2451000.0) / 36525.0
 horizon = 3 * TWO_PI * np.sqrt(a**3 / mu)
 turns, angle = divmod(heading, 2 * np.pi)
 step_s = bounded(unit="s", le=3600, default=2 * 86400.0)
+n = math.sqrt(3.986e14 / a**3)
 """
 # What the check must not take for a copy: the kernels, the constants imported, numbers
 # that are no unit (a penalty of 1000 under its own name, a modulo by a period).
@@ -293,6 +315,7 @@ heading = wrap_to_two_pi(math.atan2(1.0, -1.0))
 phase = TWO_PI * (wait % period) / period
 altitude_km = 400e3 / M_PER_KM
 period = orbital_period(7e6, mu=3.986e14)
+time_scale_s = math.sqrt(radius**3 / mu)
 label = "T = 2 pi sqrt(a**3 / mu), 3600 s per hour, x % TWO_PI"
 time_limit_s: float = bounded(unit="s", gt=0, le=7 * 86400)
 """
@@ -301,7 +324,7 @@ time_limit_s: float = bounded(unit="s", gt=0, le=7 * 86400)
 def test_the_check_finds_each_planted_copy_by_file_and_line():
     found = copies(PLANTED, "ovtraj/planted.py")
     lines = sorted({int(line.split(":")[1]) for line in found})
-    assert lines == [4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14]
+    assert lines == [4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15]
     assert f"ovtraj/planted.py:4: S_PER_HOUR written as a number; {FROM_UNITS}" in found
     assert any(line.startswith("ovtraj/planted.py:5: METRES_PER_KM = M_PER_KM") for line in found)
     assert any(line.startswith("ovtraj/planted.py:6: a modulo by a turn") for line in found)
@@ -319,6 +342,9 @@ def test_the_check_finds_each_planted_copy_by_file_and_line():
     assert [w for w in found if ":14:" in w] == [
         f"ovtraj/planted.py:14: S_PER_DAY written as a number; {FROM_UNITS}"
     ]
+    assert [w for w in found if ":15:" in w] == [
+        "ovtraj/planted.py:15: a mean motion written inline; use mean_motion"
+    ]
 
 
 def test_the_check_leaves_the_kernels_and_other_numbers_alone():
@@ -331,6 +357,7 @@ def test_the_check_leaves_the_kernels_and_other_numbers_alone():
         (UNITS_MODULE, "S_PER_HOUR = 3600.0\nM_PER_KM = 1000.0\n"),
         (ANGLES_MODULE, "def wrap(angle):\n    return angle % TWO_PI\n"),
         (PERIOD_KERNEL[0], "def orbital_period(a, mu):\n    return TWO_PI * np.sqrt(a**3 / mu)\n"),
+        (MEAN_MOTION_KERNEL[0], "def mean_motion(a, mu):\n    return np.sqrt(mu / a**3)\n"),
     ],
 )
 def test_each_definition_is_allowed_in_its_own_home_only(path, source):

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ovtraj.astro.angles import TWO_PI, wrap_to_pi, wrap_to_two_pi
 from ovtraj.astro.constants import EarthModel
+from ovtraj.astro.elements import mean_motion
 from ovtraj.astro.j2_elements import secular_rates
 from ovtraj.deorbit.estimate import descent_central_angle_rad, tangential_deorbit
 from ovtraj.deorbit.inputs import EntryRegion
@@ -88,7 +89,7 @@ def first_pass_s(
     # Crossings k = 0, 1, ... of each chosen argument of latitude, one per revolution.
     revolutions = int(np.ceil(horizon_s * float(np.max(u_dot)) / TWO_PI)) + 1
     k = np.arange(revolutions)[None, :]
-    lead = descent_angle_rad(radius, entry, earth) / np.sqrt(earth.mu / radius**3)
+    lead = descent_angle_rad(radius, entry, earth) / mean_motion(radius, mu=earth.mu)
     best = np.full(t0.shape, np.inf)
     for u in crossings:
         du = wrap_to_two_pi(u - u0)[:, None] + TWO_PI * k
