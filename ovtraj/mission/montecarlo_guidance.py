@@ -216,8 +216,8 @@ def _measured_model(
     drag and its lift coefficient to the measured lift-to-drag ratio, once the drag is
     measurable (the density filter of predictor-corrector entry guidance); the measured
     accelerations carry the draw's relative errors."""
-    lift_t, drag_t, *_ = dyn._aero(x, truth.params, truth.tables)
-    lift_n, drag_n, *_ = dyn._aero(x, nominal.params, nominal.tables)
+    lift_t, drag_t, *_ = dyn.aero_accelerations(x, truth.params, truth.tables)
+    lift_n, drag_n, *_ = dyn.aero_accelerations(x, nominal.params, nominal.tables)
     drag_measured = drag_t * (1.0 + error[1])
     if drag_measured < config.closed_loop.drag_estimate_threshold_mps2 or drag_n <= 0.0:
         return nominal

@@ -258,12 +258,15 @@ def _aero_packed(r: float, v: float, m: np.ndarray) -> tuple[float, float, float
 
 
 @njit(cache=True, error_model="numpy")
-def _aero(
+def aero_accelerations(
     x: np.ndarray,
     p: np.ndarray,
     tables: Tables,
 ) -> tuple[float, float, float, float, float]:
-    """Lift and drag accelerations, angle of attack, Mach and density at state x."""
+    """Lift and drag accelerations [m/s^2], angle of attack [rad], Mach and density
+    [kg/m^3] at state ``x`` (radius [m] first, speed [m/s] fourth) of the vehicle ``p``
+    in the atmosphere and aerodynamic ``tables``: what an accelerometer on board measures
+    (the Monte Carlo's guidance compares the truth's with its model's)."""
     return _aero_packed(x[0], x[3], pack(p, tables))
 
 
