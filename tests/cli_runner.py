@@ -14,8 +14,8 @@ What a separate process would give each command and this one must set and restor
 * the ``ovtraj`` loggers' handler and level and the ``--quiet`` setting, which
   :func:`ovtraj.cli.progress.configure_logging` sets for each command: restored after;
 * ``env``: entries set (or, given None, removed) for the run and restored after.
-  ``OVTRAJ_CONFIG_DIR`` is refused: the configuration files are read once per process
-  (``lru_cache``), so another folder needs a process of its own;
+  Another ``OVTRAJ_CONFIG_DIR`` is refused: the configuration files are read once per
+  process (``lru_cache``), so another folder needs a process of its own;
 * ``cwd``: changed for the run and back after;
 * ``timeout``: an alarm ends a command that does not return (``subprocess.TimeoutExpired``,
   as ``subprocess.run`` raises), so that a hang fails the test, not the suite.
@@ -55,7 +55,7 @@ def _hung(signum, frame) -> None:
 @contextlib.contextmanager
 def _environment(env: Mapping[str, str | None] | None) -> Iterator[None]:
     changes = dict(env or {})
-    refused = [name for name in REFUSED_ENV if name in changes]
+    refused = [n for n in REFUSED_ENV if n in changes and changes[n] != os.environ.get(n)]
     if refused:
         raise ValueError(f"{refused}: read once per process; run this command in a subprocess")
     saved = {name: os.environ.get(name) for name in changes}

@@ -307,9 +307,11 @@ def replan_nights(tmp_path_factory: Any) -> dict[str, Any]:
     """Three nights of a drifting target re-planned into one store, as the nightly
     deployment runs them: ``tools/example_tle.py --nights 3`` (the default orbit propagated
     with the J2 propagator, fitted as TLEs a day apart, the last at the scenario epoch),
-    then each night ``ovtraj launch-fit`` and ``ovtraj pipeline --target`` in subprocesses
-    with a workspace of their own. Built once per test session: the xdist workers share it
-    (a lock in the session's base folder); its users copy the store before changing it.
+    then each night ``ovtraj launch-fit`` and ``ovtraj pipeline --target`` with a workspace
+    of their own and no ``PREFECT_``/``OVTRAJ_`` variable but ``OVTRAJ_HOME``, in this
+    process (tests/cli_runner.py: the entry point's body; the commands need no process of
+    their own). Built once per test session: the xdist workers share it (a lock in the
+    session's base folder); its users copy the store before changing it.
 
     Returns ``store``, ``plans`` (the plans' JSON files, oldest element set first),
     ``tles``, ``config`` and ``home`` (the workspace, with the three launch fits)."""
@@ -328,17 +330,25 @@ def replan_nights(tmp_path_factory: Any) -> dict[str, Any]:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if done_file.is_file():
             return {k: _paths(v) for k, v in json.loads(done_file.read_text()).items()}
+        from tests.cli_runner import run_cli
+
         config = replan_config(folder)
         env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
         env["OVTRAJ_HOME"] = str(folder / "home")
-        ovtraj = str(Path(sys.executable).with_name("ovtraj"))
+        # The same environment in this process: the others of those variables unset.
+        changes = {k: env.get(k) for k in os.environ.keys() | env.keys() if k.startswith(
+            ("PREFECT_", "OVTRAJ_"))}  # fmt: skip
 
-        def run(*args: str) -> str:
-            done = subprocess.run(
-                args, cwd=folder, env=env, capture_output=True, text=True, timeout=600
-            )
+        def check(args: Any, done: subprocess.CompletedProcess) -> str:
             assert done.returncode == 0, f"{args}: exit {done.returncode}\n{done.stderr[-3000:]}"
             return done.stdout
+
+        def run(*args: str) -> str:
+            return check(args, subprocess.run(args, cwd=folder, env=env, capture_output=True,
+                                              text=True, timeout=600))  # fmt: skip
+
+        def ovtraj(*args: str) -> str:
+            return check(args, run_cli(*args, env=changes, cwd=folder, timeout=600))
 
         tles = folder / "tles"
         first = str(1 - REPLAN_NIGHTS)
@@ -347,11 +357,11 @@ def replan_nights(tmp_path_factory: Any) -> dict[str, Any]:
             "--out", str(tles))  # fmt: skip
         store, plans = folder / "runs", []
         for tle in sorted(tles.glob("*.tle")):
-            run(ovtraj, "launch-fit", str(config), "--target", str(tle))
+            ovtraj("launch-fit", str(config), "--target", str(tle))
             # One verification round: a night's loop may stop unconverged (exit 1 without
             # the flag); the history records either.
-            out = run(ovtraj, "pipeline", str(config), "--target", str(tle), "--store",
-                      str(store), "--json", "--allow-unconverged")  # fmt: skip
+            out = ovtraj("pipeline", str(config), "--target", str(tle), "--store", str(store),
+                         "--json", "--allow-unconverged")  # fmt: skip
             plans.append(str(json.loads(out)["plan_json"]))
         found = {
             "store": str(store),
