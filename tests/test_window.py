@@ -41,6 +41,7 @@ from ovtraj.launch.launch_fit import (
 from ovtraj.window.days import day_scenario
 from ovtraj.window.porkchop import PORKCHOP_SCHEMA
 from ovtraj.window.report import WINDOW_SCHEMA
+from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario
 
 # Left out of the fast tier (-m "not slow"): it scans a 3-day launch window, in the command and in
@@ -507,12 +508,7 @@ def test_verify_checks_a_stored_window_and_the_pipeline_of_its_day(scanned, tmp_
     shutil.copytree(scanned["store"], store, symlinks=True)
 
     def verify(item: str) -> subprocess.CompletedProcess:
-        return subprocess.run(
-            [str(OVTRAJ), "verify", item, "--store", str(store)],
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
+        return run_cli("verify", item, "--store", str(store), timeout=300)
 
     done = verify(summary["window_id"])
     assert done.returncode == 0, done.stdout + done.stderr
