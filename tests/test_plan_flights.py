@@ -126,6 +126,18 @@ def test_verify_passes_with_the_flights(flown):
         assert not [p for p in report["uncovered"] if "-flight-" in p], report["uncovered"]
 
 
+def test_the_flights_bring_their_plans_catalog_row_up_to_date(flown):
+    """A flight rewrites its plan's marker and refreshes that catalog row: the stamp the
+    catalog records for the marker is the marker's as it is now (the next refresh does not
+    read it again)."""
+    from ovtraj.tracking.catalog_sources import stamp_of
+
+    store = flown["store"]
+    stamps = json.loads((store / "catalog" / "stamps.json").read_text(encoding="utf-8"))
+    marker = flown["folder"] / f"{flown['plan'].stem}.files.json"
+    assert stamps[marker.relative_to(store).as_posix()] == stamp_of([str(marker)])
+
+
 def test_the_report_shows_both_flights_as_printed(flown):
     folder, stem = flown["folder"], flown["plan"].stem
     plan = read_plan(flown["plan"])

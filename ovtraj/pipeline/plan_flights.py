@@ -185,9 +185,12 @@ def store_flight(plan_path: Path, plan: Any, row: Mapping[str, Any]) -> StoredFl
                 files[report.name] = write_bytes(report, spliced.encode("utf-8"), replace=True)
                 written = report
         write_sealed(marker_path, {**marker, "files": digests_json(files)}, replace=True)
-    from ovtraj.tracking.catalog import refresh
+    from ovtraj.tracking.catalog import refresh_entries
 
-    refresh(folder.parents[3])  # the catalog's stamps of the plan's marker
+    # the plan's catalog row (and those of what it references) for its marker's new files;
+    # the store's other rows are not read
+    root = folder.parents[3]
+    refresh_entries(root, [marker_path.relative_to(root).as_posix()])
     return StoredFlight(path, new, written)
 
 
