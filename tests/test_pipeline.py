@@ -959,28 +959,20 @@ def test_nsga2_stopped_by_its_time_limit_stores_no_front_and_exits_1(small, tmp_
 
 
 def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
-    """``ovtraj pipeline`` end to end in its own process, on the process runner: the DoE and
-    the infill run on one pool, every path printed is absolute, and the same command again
-    reuses every stored run and result (no batch evaluated). Its loop does not converge
+    """``ovtraj pipeline`` end to end (the entry point's body in this process,
+    tests/cli_runner.py), on the process runner: the DoE and the infill run on one pool,
+    every path printed is absolute, and the same command again reuses every stored run and
+    result (no batch evaluated). Its loop does not converge
     (a promise tolerance no round meets): exit 1, everything stored and printed, the
     verdict saying why; exit 0 with ``--allow-unconverged``."""
-    import subprocess
-    import sys
+    from tests.cli_runner import run_cli
 
     data = _data(points_per_iteration=2, max_iterations=1, budget=2)
     data["mission"]["doe"].update(store=str(tmp_path / "runs"), batch_size=6, workers=2)
     config = tmp_path / "scenario.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
-    command = [
-        str(Path(sys.executable).with_name("ovtraj")),
-        "pipeline",
-        str(config),
-        "--samples",
-        "12",
-        "--runner",
-        "processes",
-    ]
-    done = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    command = ["pipeline", str(config), "--samples", "12", "--runner", "processes"]
+    done = run_cli(*command, cwd=tmp_path)
     assert done.returncode == 1, done.stderr
     lines = done.stdout.splitlines()
     assert re.search(r"^DoE run \w+: 12 samples$", done.stdout, flags=re.MULTILINE)
@@ -1010,13 +1002,7 @@ def test_the_pipeline_command_runs_the_doe_and_infill_on_one_pool(tmp_path):
     assert len(runs) == 3 and "catalog" in runs  # the DoE, its infill child, the catalog
     # Again, as JSON, unconverged allowed: nothing evaluated, one object on stdout, the
     # same verdict and report, exit 0.
-    again = subprocess.run(
-        [*command, "--json", "--allow-unconverged"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    again = run_cli(*command, "--json", "--allow-unconverged", cwd=tmp_path)
     assert again.returncode == 0, again.stderr
     assert not re.search(r"^batch \d+/", again.stdout + again.stderr, flags=re.MULTILINE)
     summary = json.loads(again.stdout)
