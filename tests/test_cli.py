@@ -220,7 +220,9 @@ def test_maneuver_bad_config_exits_2_naming_the_field(tmp_path):
 DEORBIT_BURN_CASE = REPO / "configs" / "cases" / "shuttle_deorbit.yaml"
 
 
-def test_deorbit_burn_json_has_the_issue_keys_and_the_dispersion_statistics():
+def test_deorbit_burn_json_has_the_issue_keys_and_the_dispersion_statistics(tmp_path, monkeypatch):
+    """The Monte Carlo is stored in the workspace's runs/ (the case names no store)."""
+    monkeypatch.setenv("OVTRAJ_HOME", str(tmp_path))
     result = runner.invoke(
         app,
         ["deorbit-burn", str(DEORBIT_BURN_CASE), "--json", "--monte-carlo", "3", "--strategy", "1"],
@@ -234,6 +236,10 @@ def test_deorbit_burn_json_has_the_issue_keys_and_the_dispersion_statistics():
     assert abs(doc["entry_u_error_deg"]) <= 0.01  # the configured convergence tolerance
     (stats,) = doc["monte_carlo"]
     assert stats["strategy"] == 1 and stats["runs"] == 3
+    run = doc["monte_carlo_run"]
+    assert run["directory"] == str(tmp_path.resolve() / "runs" / run["run_id"])
+    assert run["strategies"] == [1] and run["simulated_runs"] == 3
+    assert all(Path(p).is_file() and Path(p).is_absolute() for p in run["plots"])
 
 
 def test_deorbit_burn_bad_value_exits_2_naming_the_field(tmp_path):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import json
 import math
 import shutil
 from dataclasses import replace
@@ -531,6 +532,75 @@ def test_the_library_driver_stores_the_flows_run_without_prefect(ten_runs, tmp_p
         *(f"plots/{Path(p).name}" for p in flown["plots"]),
     ):
         assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+
+
+def test_the_command_stores_the_library_drivers_run(tmp_path):
+    """`ovtraj deorbit-burn CONFIG --monte-carlo N` flies the flow's study by the one driver
+    in its own process (the flow is that driver with its batches as tasks: the test
+    above), so it stores the run the library driver stores: the same id, parts, plots and
+    summary but for where it is, in the config's ``monte_carlo.store``. Four runs in
+    batches of three give two parts, enough to see the batches; the command again flies
+    nothing and says where the run and its pictures are."""
+    from typer.testing import CliRunner
+
+    from ovtraj.cli import app
+    from ovtraj.runs.monte_carlo_pool import PoolFlier
+    from ovtraj.runs.runners import RunnerChoice
+    from ovtraj.store.monte_carlo import drive_monte_carlo
+    from ovtraj.studies.deorbit_burn.stored_monte_carlo import DeorbitMonteCarlo
+
+    runs = 4
+    config = _flow_config(tmp_path, batch_size=3, store="command")  # beside the config
+    command = ["deorbit-burn", config, "--monte-carlo", str(runs)]
+    before = SIMULATIONS["runs"]
+    done = CliRunner().invoke(app, [*command, "--json"])
+    assert done.exit_code == 0, done.output
+    doc = json.loads(done.stdout)
+    assert SIMULATIONS["runs"] - before == runs
+    mc = doc["monte_carlo_run"]
+    ours = tmp_path.resolve() / "command" / mc["run_id"]
+    assert mc["directory"] == str(ours) and mc["simulated_runs"] == runs
+    assert mc["status"] == "complete" and mc["strategies"] == [1, 2]
+    settings = load_deorbit_burn(config).config.monte_carlo
+    study = DeorbitMonteCarlo(
+        load_deorbit_burn(config),
+        runs=runs,
+        strategies=[1, 2],
+        seed=settings.seed,
+        root=tmp_path / "driver",
+        code=MonteCarloRun(ours).info["code_version"],
+        batch_size=3,
+    )
+    report = drive_monte_carlo(study, PoolFlier(RunnerChoice("serial", 1)))
+    theirs = Path(report["directory"])
+    assert report["run_id"] == mc["run_id"] and report["failed_batches"] == []
+    # The command's statistics and dispersion figures are the stored run's.
+    assert doc["monte_carlo"] == report["statistics"]
+    figures = {row["figure"]: row for row in doc["published"]}
+    assert [figures[row["figure"]] for row in report["published"]] == report["published"]
+    where = {"directory", "plots", "statistics", "published", "failed_batches"}
+    assert mc == {k: v for k, v in report.items() if k not in where} | {
+        "directory": str(ours),
+        "plots": [str(ours / "plots" / Path(p).name) for p in report["plots"]],
+    }
+    parts = _digest(ours)
+    assert list(parts) == ["runs/part-00000.parquet", "runs/part-00003.parquet"]
+    assert parts == _digest(theirs)
+    for name in ("config.json", *(f"plots/{Path(p).name}" for p in report["plots"])):
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+    stored = [json.loads((d / "summary.json").read_text()) for d in (ours, theirs)]
+    assert [Path(p).name for p in stored[0]["plots"]] == [Path(p).name for p in report["plots"]]
+    assert [{k: v for k, v in s.items() if k not in ("directory", "plots")} for s in stored] == [
+        {k: v for k, v in stored[1].items() if k not in ("directory", "plots")}
+    ] * 2
+    # Again: nothing flown, the parts unchanged, the run and its pictures printed.
+    before = SIMULATIONS["runs"]
+    again = CliRunner().invoke(app, command)
+    assert again.exit_code == 0, again.output
+    assert SIMULATIONS["runs"] == before and _digest(ours) == parts
+    assert f"monte carlo run {mc['run_id']} (0 flown now, the rest stored): {ours}" in again.stdout
+    for path in mc["plots"]:
+        assert f"  picture: {path}" in again.stdout
 
 
 def test_a_deleted_run_is_simulated_again_although_its_tasks_are_cached(prefect_server, tmp_path):

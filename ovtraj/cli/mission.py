@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from ovtraj.cli.common import JsonOpt, app, option_limits, print_json
-from ovtraj.cli.progress import progress_bar
+from ovtraj.cli.monte_carlo import drive_here, format_stored
 from ovtraj.config import ConfigError
 from ovtraj.config.base import load_model
 from ovtraj.config.dispersions import DispersionsConfig, MonteCarloExecution, default_dispersions
@@ -101,7 +101,7 @@ def fly(
         typer.echo(text)
         if monte_carlo:
             typer.echo(_format_monte_carlo(row["monte_carlo"]))
-            typer.echo(_format_stored(row["monte_carlo"]))
+            typer.echo(format_stored(row["monte_carlo"]))
     if not monte_carlo:  # the Monte Carlo's runs are stored by its own driver
         _store_flight(plan_file, plan, row, as_json)
     if not landed:
@@ -246,11 +246,7 @@ def _monte_carlo(
     workspace's runs/). The report, with the run's directory and pictures; the closed loop
     under ``force_model``'s sky when given. A failed batch or an unusable store: one line,
     exit 2 (the stored batches are kept: the same command flies the missing runs)."""
-    from ovtraj.runs.monte_carlo_pool import PoolFlier
     from ovtraj.runs.plan_monte_carlo import PlanMonteCarlo, store_of
-    from ovtraj.runs.runners import RunnerChoice
-    from ovtraj.store.files import StoreError
-    from ovtraj.store.monte_carlo import drive_monte_carlo
     from ovtraj.version import code_version
 
     study = PlanMonteCarlo(
@@ -263,40 +259,7 @@ def _monte_carlo(
         batch_size=dispersions.execution.batch_size,
         force_model=force_model,
     )
-    with progress_bar("Monte Carlo runs", enabled=not as_json) as update:
-        flown = {"done": 0, "total": 0}
-
-        def opened(run: Any, todo: int) -> None:
-            flown["total"] = todo
-
-        def step() -> None:
-            flown["done"] += 1
-            update(flown["done"], flown["total"])
-
-        here = PoolFlier(RunnerChoice("serial", 1), on_run=step)
-        try:
-            report = drive_monte_carlo(study, here, opened=opened)
-        except StoreError as err:
-            typer.echo(str(err), err=True)
-            raise typer.Exit(code=2) from None
-    if report["failed_batches"]:
-        typer.echo(
-            f"{report['directory']}: {len(report['failed_batches'])} batch(es) failed "
-            f"({'; '.join(report['failed_batches'])}); the stored runs are kept, the same "
-            "command flies the missing ones",
-            err=True,
-        )
-        raise typer.Exit(code=2)
-    return report
-
-
-def _format_stored(report: dict) -> str:
-    """Where the Monte Carlo is stored: the run's directory and its pictures."""
-    flown = report["simulated_runs"]
-    stored = "flown now" if flown == report["runs"] else f"{flown} flown now, the rest stored"
-    lines = [f"monte carlo run {report['run_id']} ({stored}): {report['directory']}"]
-    lines += [f"  picture: {path}" for path in report["plots"]]
-    return "\n".join(lines)
+    return drive_here(study, as_json=as_json)
 
 
 def _format_monte_carlo(summary: dict) -> str:

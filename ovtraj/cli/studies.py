@@ -17,7 +17,7 @@ from ovtraj.cli.common import (
     print_rows,
     spec_rows,
 )
-from ovtraj.cli.progress import progress_bar
+from ovtraj.cli.monte_carlo import drive_here, format_stored
 from ovtraj.config import ConfigError
 from ovtraj.config.deorbit_burn import MonteCarloConfig
 from ovtraj.formatting import duration, number
@@ -198,7 +198,9 @@ def deorbit_burn(
         typer.Option(
             "--monte-carlo",
             **option_limits(MonteCarloConfig, "runs"),
-            help="also fly this many dispersed runs (default: none; a progress bar on stderr)",
+            help="also fly this many dispersed runs, stored with their pictures as the deorbit "
+            "Monte Carlo flow stores them (the path is printed; default: none; a progress "
+            "bar on stderr)",
             show_default=False,
         ),
     ] = None,
@@ -213,7 +215,10 @@ def deorbit_burn(
         ),
     ] = None,
 ) -> None:
-    """Finite-thrust deorbit burn by osculating-element prediction (seed 004).
+    """Finite-thrust deorbit burn by osculating-element prediction (seed 004); with
+    --monte-carlo, the dispersed runs stored with their pictures as the deorbit Monte Carlo
+    flow stores them, in the config's monte_carlo.store (else the workspace's runs/; the
+    run's directory and pictures are printed; runs already stored are not flown again).
 
     Example: `ovtraj deorbit-burn configs/cases/shuttle_deorbit.yaml --monte-carlo 100`"""
     from ovtraj.studies.deorbit_burn import deorbit_burn_report, format_report, load_deorbit_burn
@@ -223,15 +228,43 @@ def deorbit_burn(
     except (ConfigError, ValueError) as err:
         typer.echo(str(err), err=True)
         raise typer.Exit(code=2) from None
-    with progress_bar("Monte Carlo", enabled=bool(monte_carlo) and not as_json) as update:
-        report = deorbit_burn_report(
-            problem, strategy=strategy, monte_carlo_runs=monte_carlo, on_progress=update
-        )
+    stored = None
+    if monte_carlo:
+        stored = _deorbit_monte_carlo(problem, config, monte_carlo, strategy, as_json)
+    report = deorbit_burn_report(problem, strategy=strategy, monte_carlo=stored)
     if as_json:
         # The solve's fields at the top level, the history and statistics alongside.
         flat = report["result"] | {k: v for k, v in report.items() if k != "result"}
         print_json(flat)
     else:
         typer.echo(format_report(report))
+        if stored is not None:
+            typer.echo(format_stored(stored))
     if not report["result"]["converged"]:
         raise typer.Exit(code=1)
+
+
+def _deorbit_monte_carlo(
+    problem: Any, config: Path, runs: int, strategy: int | None, as_json: bool
+) -> dict[str, Any]:
+    """The deorbit Monte Carlo stored by the one driver and study
+    (:class:`~ovtraj.studies.deorbit_burn.stored_monte_carlo.DeorbitMonteCarlo`), as the
+    flow ``flows/deorbit_monte_carlo.py`` stores it: ``runs`` runs of ``strategy`` (else
+    the config's strategies) with the config's seed and batches, in its ``monte_carlo.store``
+    (relative to the config's folder; else the workspace's runs/), flown in this process;
+    the driver's report. A failed batch or an unusable store: one line, exit 2."""
+    from ovtraj.store.paths import store_root
+    from ovtraj.studies.deorbit_burn.stored_monte_carlo import DeorbitMonteCarlo
+    from ovtraj.version import code_version
+
+    settings = problem.config.monte_carlo
+    study = DeorbitMonteCarlo(
+        problem,
+        runs=runs,
+        strategies=[strategy] if strategy is not None else [int(s) for s in settings.strategies],
+        seed=settings.seed,
+        root=store_root(settings.store, config.resolve().parent, None),
+        code=code_version(),
+        batch_size=settings.batch_size,
+    )
+    return drive_here(study, as_json=as_json)

@@ -1,21 +1,17 @@
-"""What ``ovtraj deorbit-burn`` prints: the solve, its history, an optional Monte Carlo.
+"""What ``ovtraj deorbit-burn`` prints: the solve, its history, an optional stored Monte
+Carlo.
 
 :func:`deorbit_burn_report` gathers plain JSON types; :func:`format_report` renders them
-as text. The CLI only loads the problem (``ConfigError`` -> exit 2) and prints one of them.
+as text. The CLI loads the problem (``ConfigError`` -> exit 2), has the Monte Carlo stored
+by the one driver (the flow's study, flown in its process) and prints one of them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 from ovtraj.formatting import number, quantity, split_unit
 from ovtraj.store.records import plain
-from ovtraj.studies.deorbit_burn.montecarlo import (
-    MonteCarloContext,
-    monte_carlo_summary,
-    run_monte_carlo,
-)
 from ovtraj.studies.deorbit_burn.problem import DeorbitBurnProblem
 from ovtraj.studies.deorbit_burn.published import published_comparison
 from ovtraj.studies.deorbit_burn.solve import BurnSolver
@@ -41,45 +37,44 @@ REPORT_KEYS = (
     "solve_time_s",
 )
 
+# The stored Monte Carlo's report but its run: the statistics and figures the report
+# carries, and the failed batches (a command stops on one).
+_NOT_THE_RUN = ("statistics", "published", "failed_batches")
+
 
 def deorbit_burn_report(
     problem: DeorbitBurnProblem,
     *,
     strategy: int | None = None,
-    monte_carlo_runs: int | None = None,
-    on_progress: Callable[[int, int, str], None] | None = None,
+    monte_carlo: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Solve (and with ``monte_carlo_runs``, run the Monte Carlo in this process;
-    ``on_progress(runs done, runs, label)`` after each run).
+    """Solve with ``strategy`` (else the config's) and gather the report beside the stored
+    Monte Carlo ``monte_carlo``, when given: the report of its run
+    (:class:`~.stored_monte_carlo.DeorbitMonteCarlo` flown by
+    :func:`ovtraj.store.monte_carlo.drive_monte_carlo`), which this flies nothing of.
 
     Returns ``{"result": to_row(), "history": [...], "monte_carlo": [per-strategy
-    statistics] | None, "published": [...]}``. The Monte Carlo flies ``strategy`` if given,
-    else the config's strategies, with the config's seed.
+    statistics] | None, "published": [...], "monte_carlo_run": {...} | None}``: the
+    statistics and the dispersion figures of ``published`` are the stored run's
+    (``statistics``, ``published``); ``monte_carlo_run`` is the rest of its report (id,
+    directory, plots, runs flown now, status).
     """
     solver = BurnSolver(problem)
     result = solver.solve(strategy=strategy)
+    published = [row.as_dict() for row in published_comparison(problem, result=result)]
     report: dict[str, Any] = {
         "result": result.to_row(),
         "history": [plain(record.as_dict()) for record in result.history],
         "monte_carlo": None,
     }
-    summary = None
-    if monte_carlo_runs:
-        config = problem.config.monte_carlo
-        strategies = [strategy] if strategy is not None else list(config.strategies)
-        frame = run_monte_carlo(
-            problem,
-            monte_carlo_runs,
-            strategies,
-            config.seed,
-            context=MonteCarloContext(problem),
-            on_progress=on_progress,
-        )
-        summary = monte_carlo_summary(frame)
-        report["monte_carlo"] = [plain(row) for row in summary.to_dict(orient="records")]
-    report["published"] = [
-        row.as_dict() for row in published_comparison(problem, result=result, summary=summary)
-    ]
+    run = None
+    if monte_carlo is not None:
+        report["monte_carlo"] = monte_carlo["statistics"]
+        stored = {row["figure"]: row for row in monte_carlo["published"]}
+        published = [stored.get(row["figure"], row) for row in published]
+        run = {k: v for k, v in monte_carlo.items() if k not in _NOT_THE_RUN}
+    report["published"] = published
+    report["monte_carlo_run"] = run
     return report
 
 
