@@ -25,6 +25,7 @@ import pytest
 import yaml
 
 from ovtraj.runs import RunStore
+from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO, REPO, build_scenario, digest, held_claim
 
 # Left out of the fast tier (-m "not slow"): it runs DoEs on every runner: threads, processes and
@@ -46,10 +47,17 @@ def _config(folder: Path, **doe) -> Path:
 
 
 def _ovtraj(*args: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
+    """``ovtraj ARGS`` as a process of its own, no ``PREFECT_``/``OVTRAJ_`` variable set."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PREFECT_", "OVTRAJ_"))}
     return subprocess.run(
         [str(OVTRAJ), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
     )
+
+
+def _ovtraj_here(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """:func:`_ovtraj` in this process (tests/cli_runner.py: the entry point's body)."""
+    unset = {k: None for k in os.environ if k.startswith(("PREFECT_", "OVTRAJ_"))}
+    return run_cli(*args, env=unset, cwd=cwd)
 
 
 def _stored_in(output: str) -> Path:
@@ -62,7 +70,9 @@ def _stored_in(output: str) -> Path:
 def test_every_runner_stores_the_files_the_serial_one_does(tmp_path, runner):
     serial = _config(tmp_path / "serial", samples=4, batch_size=2, workers=2)
     other = _config(tmp_path / runner, samples=4, batch_size=2, workers=2)
-    reference = _ovtraj("run", str(serial), "--runner", "serial", cwd=tmp_path)
+    # The serial reference in this process, the other runner in a process of its own: the
+    # same files from two processes.
+    reference = _ovtraj_here("run", str(serial), "--runner", "serial", cwd=tmp_path)
     assert reference.returncode == 0, reference.stderr
     done = _ovtraj("run", str(other), "--runner", runner, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
