@@ -1,18 +1,28 @@
 """docs/tutorial.md: its commands run, in order, as tools/tutorial.py runs them to write
-the page, on the nightly re-plan's short scenario (tests/conftest.py ``replan_config``),
-with a real Prefect server and process worker, a real Dask scheduler and workers and a
-moto S3 server, each started on 127.0.0.1 and stopped by its process group's id. And
-the page shows what its steps ran: each console block's command is its step's command
-with the captured values and ports filled in, followed by output."""
+the page, on short settings: the nightly re-plan's short scenario (tests/conftest.py
+``replan_config``) and a Monte Carlo of 4 runs instead of the page's 20; with a real
+Prefect server and process worker, a real Dask scheduler and workers and a moto S3
+server, each started on 127.0.0.1 and stopped by its process group's id. And the page
+shows what its steps ran: each console block's command is its step's command with the
+captured values and ports filled in, followed by output.
+
+Where the run's time goes (a few minutes): four pipelines (two on the command line, one
+in the deployment's flow run, one on Dask and S3) with their launch fits, the plan and
+its flights, and the services' start-ups. Against the page's own run it saves what is
+not under test: heyoka's compiled code comes from the suite's disk cache (not the
+temporary HOME's empty one), the Prefect worker asks for work every second, the
+Monte Carlo flies 4 runs."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+import heyoka as hy
 import pytest
 
 from tests.conftest import REPO, replan_config
@@ -72,9 +82,31 @@ def test_every_console_block_shows_its_steps_command():
             assert len(shown) > 1, f"{step.run}: no output shown"
 
 
+MONTE_CARLO_RUNS = 4  # of the page's 20: each run flies the same code (~1 s each here)
+
+
+def short_steps(steps: list) -> list:
+    """The page's steps with the Monte Carlo on ``MONTE_CARLO_RUNS`` runs (its one short
+    setting that is not the scenario's); every other command as the page runs it."""
+    page, short = "--monte-carlo 20 ", f"--monte-carlo {MONTE_CARLO_RUNS} "
+    changed = [step for step in steps if page in step.run]
+    assert len(changed) == 1, [step.run for step in changed]
+    return [
+        dataclasses.replace(step, run=step.run.replace(page, short)) if step in changed else step
+        for step in steps
+    ]
+
+
 def test_the_tutorial_runs_on_short_settings(tmp_path):
     scenario = replan_config(tmp_path)
     checkout, env = tutorial.prepare(tmp_path / "work", scenario)
+    # heyoka's compiled code from this process's disk cache (the rest of the suite's), not
+    # the temporary HOME's empty one: the page shows a first run's times, this test checks
+    # the steps and their outputs, and a cold build of a model takes seconds to a minute.
+    env["XDG_CACHE_HOME"] = str(Path(hy.llvm_state.get_diskcache_path()).parent)
+    # The process worker asks for scheduled runs every second, not every 10 s (Prefect's
+    # default): the deployment's run starts as soon as it is asked for.
+    env["PREFECT_WORKER_QUERY_SECONDS"] = "1"
     # The short scenario's launch fit (the shipped one serves only the shipped launch).
     fit = subprocess.run(
         [str(Path(sys.executable).with_name("ovtraj")), "launch-fit", "configs/scenario.yaml"],
@@ -86,7 +118,7 @@ def test_the_tutorial_runs_on_short_settings(tmp_path):
     )
     assert fit.returncode == 0, fit.stderr[-2000:]
     ports = {name: tutorial._free_port() for name in tutorial.DEFAULT_PORTS}
-    results = tutorial.run_steps(STEPS, checkout, env, ports, unconverged_ok=True)
+    results = tutorial.run_steps(short_steps(STEPS), checkout, env, ports, unconverged_ok=True)
     assert len(results) == len(STEPS)
     shown = dict(results)
     # what the analyst is told to look at is there

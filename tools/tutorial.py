@@ -169,18 +169,26 @@ def _wait_ready(ready: dict[str, str], cwd: Path, process: subprocess.Popen, wha
     raise RuntimeError(f"{what}: not ready within {SERVICE_TIMEOUT_S:.0f} s")
 
 
-def _stop(process: subprocess.Popen) -> None:
-    """Stop a service's process group by its id: SIGINT (as Ctrl-C), then SIGTERM, SIGKILL."""
+def _stop(processes: list[subprocess.Popen]) -> None:
+    """Stop services' process groups by their ids, all at once (each takes seconds to
+    close): SIGINT (as Ctrl-C), then SIGTERM, then SIGKILL to those still running after
+    :data:`STOP_TIMEOUT_S`."""
+    running = list(processes)
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-        try:
-            os.killpg(process.pid, sig)
-        except ProcessLookupError:
+        for process in running:
+            try:
+                os.killpg(process.pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + STOP_TIMEOUT_S
+        for process in running:
+            try:
+                process.wait(timeout=max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                pass
+        running = [process for process in running if process.poll() is None]
+        if not running:
             return
-        try:
-            process.wait(timeout=STOP_TIMEOUT_S)
-            return
-        except subprocess.TimeoutExpired:
-            continue
 
 
 def _shown(output: str, step: Step, replacements: list[tuple[str, str]]) -> str:
@@ -203,8 +211,7 @@ def services() -> Iterator[list[subprocess.Popen]]:
     try:
         yield started
     finally:
-        for process in reversed(started):
-            _stop(process)
+        _stop(started)
 
 
 def run_steps(
