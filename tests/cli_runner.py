@@ -17,6 +17,9 @@ What a separate process would give each command and this one must set and restor
   Another ``OVTRAJ_CONFIG_DIR`` is refused: the configuration files are read once per
   process (``lru_cache``), so another folder needs a process of its own;
 * ``cwd``: changed for the run and back after;
+* :func:`ovtraj.version.code_version`, cached once per process: computed again (~30 ms)
+  before each command, so that the command names the checkout as it is when it starts, as
+  a new process does (a run id holds it: a run compared with another process's run);
 * ``timeout``: an alarm ends a command that does not return (``subprocess.TimeoutExpired``,
   as ``subprocess.run`` raises), so that a hang fails the test, not the suite.
 
@@ -37,6 +40,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from ovtraj.cli import progress, run_command
+from ovtraj.version import code_version
 
 __all__ = ["run_cli"]
 
@@ -123,6 +127,7 @@ def run_cli(
                 contextlib.redirect_stdout(out),
                 contextlib.redirect_stderr(err),
             ):
+                code_version.cache_clear()
                 code = run_command(argv, prog_name=PROGRAM)
         finally:
             os.chdir(here)
