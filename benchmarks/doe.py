@@ -360,8 +360,9 @@ def main() -> None:
         (via, workers): [] for via in VIAS for workers in (1, 2)
     }
     try:
+        # The cluster's processes start while the Prefect server does (each takes seconds).
+        cluster = Cluster(workdir, "cluster", 2)
         with prefect_test_harness(server_startup_timeout=120):
-            cluster = Cluster(workdir, "cluster", 2)
             cluster.wait()
             # Warm-up: both workers import, compile and evaluate (batches of 2).
             run_doe_flow(
