@@ -9,7 +9,8 @@ with astropy, a dev extra). Here the files a checkout holds (tests/test_install.
 ``_tracked_files``) are copied to a temporary folder and installed as README command 1
 does: ``python3 -m venv V && V/bin/pip install -e COPY`` (python3: the interpreter running
 the tests), no dev extra, every dependency resolved by pip from the indexes its user's
-configuration names (~90 s here; the venv, 1.8 GB, is removed afterwards). A first test
+configuration names (2 min on 2 quiet cores here, 4 beside other work; the venv, 1.8 GB,
+is removed at the end by a process the session does not wait for). A first test
 checks the same statically, in a second: every package the code imports is installed by
 the runtime dependencies.
 
@@ -27,8 +28,8 @@ run differs from the README's text, and why:
   worker of the installed venv on 127.0.0.1 (tests/test_dask_tls.py's certificates; the
   worker has the S3 credentials, as a cluster sharing the store must), ``s3://bucket/prefix``
   a bucket of a moto S3 server (tests/test_object_store.py); an optional ``[...]`` is left out;
-- short settings (command 1's part takes 4.5 min on 2 quiet cores here, 1.5 of them the
-  install; 6.5 min beside a running suite): each folder's ``configs/`` is a copy of the
+- short settings (command 1's part takes 4.5 min on 2 quiet cores here, 2 of them the
+  install; 12 min beside other work, load ~5): each folder's ``configs/`` is a copy of the
   shipped one with smaller budgets: the mission folder's scenario has
   tests/test_pipeline.py's (a 12-sample DoE, one infill round of 2 points, two regressors,
   3 folds, a smaller NSGA-II) and the shipped launch section, so the shipped launch fit
@@ -43,17 +44,29 @@ run differs from the README's text, and why:
   evaluate their DoE and solve their fit rather than find the command line's;
 - ``ovtraj run``: a workspace of its own too, where ``--runner processes`` evaluates its
   samples on the process pool (in the main job's workspace its run is the pipeline's DoE,
-  already stored).
+  already stored);
+- one compiled-code cache (``XDG_CACHE_HOME``) for both installs, as a user's ``~/.cache``
+  is across installs: heyoka keeps its compiled Taylor integrators there (~10 s in an empty
+  one, paid by the editable part's first commands); the homes are otherwise empty and apart.
+  numba caches its kernels beside their sources: each install compiles them once.
 
-Then a second copy is installed by ``V/bin/pip install COPY`` (not editable; 80-100 s) into
-another fresh venv, and deleted: nothing can come from a source tree, the configs and the
-reference data are the ones inside the package (``ovtraj paths`` must say so). The "Use"
+Then the same venv holds the package as ``pip install COPY`` installs it: the editable
+install is uninstalled, its copy deleted, and a second copy installed by ``V/bin/pip install
+--no-deps COPY`` (not editable; ~10 s, where a fresh venv resolves and installs the
+dependencies in 80-100 s) and deleted. The dependencies are the ones pip resolved for
+README command 1 from the same pyproject.toml, which ``pip install COPY`` finds installed
+(``pip check``: every requirement of the installed package is met). Nothing can come from
+a source tree: no ``__editable__`` path file or finder is left, no entry of the venv's
+path lies outside the venv and the interpreter's library, and the configs and the
+reference data are the ones inside the package (``ovtraj paths`` must say so). The wheel
+fixture depends on the editable one and its tests come after the editable ones in the
+module; a test of the editable install run after the switch fails, saying so. The "Use"
 commands that differ between the two installs (``WHEEL_USE``: the shipped scenario, its
 launcher, the reference launch fit, the export's settings and pyerfa) run as above, from a
 folder whose ``configs/`` is a shortened copy of the installed ones (the main job's
 scenario); a shipped config file is named by its installed path. Every module of the
-package and every package the code imports must import. This part costs 2.6 min here (7.1
-min for the module), its venv is removed too.
+package and every package the code imports must import. This part costs 1.4 min beside
+other work (load ~5 on 2 cores; the module 13.5 min).
 """
 
 from __future__ import annotations
@@ -83,7 +96,7 @@ from tests.test_install import _tracked_files
 # resolved by pip and runs every README command.
 pytestmark = pytest.mark.slow
 
-INSTALL_TIMEOUT_S = 900.0  # a fresh venv's `pip install -e`: ~90 s here
+INSTALL_TIMEOUT_S = 900.0  # a fresh venv's `pip install -e`: 2-4 min here
 COMMAND_TIMEOUT_S = 300.0  # the longest command with these settings: ~30 s (the first, compiling)
 MONTE_CARLO_RUNS = "4"  # for `--monte-carlo N`: the README's 100 take ~2 min
 PIPELINE = ".venv/bin/ovtraj pipeline configs/scenario.yaml"  # README command 1's main job
@@ -248,64 +261,102 @@ def _shorten_launch(folder: Path) -> None:
     _dump(scenario, data)
 
 
-def _base_environment(home: Path) -> dict[str, str]:
+def _base_environment(home: Path, cache: Path) -> dict[str, str]:
     """The caller's environment without its Python, ovtraj, Prefect, Dask, S3 or XDG
-    settings, and an empty home."""
+    settings, an empty home and the compiled-code cache ``cache`` (``XDG_CACHE_HOME``,
+    heyoka's compiled integrators; module notes)."""
     drop = ("PYTHON", "VIRTUAL_ENV", "OVTRAJ_", "PREFECT_", "DASK_", "AWS_", "XDG_")
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
-    return env | {"HOME": str(home), "PREFECT_SERVER_ANALYTICS_ENABLED": "false"}
+    updates = {"HOME": str(home), "XDG_CACHE_HOME": str(cache)}
+    return env | updates | {"PREFECT_SERVER_ANALYTICS_ENABLED": "false"}
 
 
-def _install(root: Path, *pip_args: str) -> Path:
-    """A copy of the checkout at ``root/checkout`` installed by ``V/bin/pip install
-    *pip_args COPY`` into the fresh venv ``root/venv`` (returned), every dependency
-    resolved by pip, no extra."""
-    source = root / "checkout"
+def _copy_checkout(source: Path) -> Path:
+    """The files a checkout holds, copied to ``source``."""
     for name in _tracked_files():
         (source / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / name, source / name)
-    venv = root / "venv"
+    return source
+
+
+def _pip_env() -> dict[str, str]:
+    """The caller's environment without its Python settings."""
+    return {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
+
+
+def _pip(venv: Path, log: Path, *args: str) -> None:
+    """``V/bin/pip *args``, with the user's configuration (its indexes), not this venv's;
+    its output appended to ``log``."""
     started = time.monotonic()
-    log = root / "pip.log"
-    # pip with the user's configuration (its indexes), not this venv's
-    pip_env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
-    install = [str(venv / "bin" / "pip"), "install", *pip_args, str(source)]
-    with open(log, "wb") as out:
-        for command in ([sys.executable, "-m", "venv", str(venv)], install):
-            done = subprocess.run(
-                command,
-                env=pip_env,
-                stdout=out,
-                stderr=subprocess.STDOUT,
-                timeout=INSTALL_TIMEOUT_S,
-            )
-            assert done.returncode == 0, log.read_text(encoding="utf-8", errors="replace")[-3000:]
-    print(f"\n{shlex.join(['pip', *install[1:-1]])} COPY: {time.monotonic() - started:.0f} s")
-    return venv
+    with open(log, "ab") as out:
+        done = subprocess.run(
+            [str(venv / "bin" / "pip"), *args],
+            env=_pip_env(),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            timeout=INSTALL_TIMEOUT_S,
+        )
+    assert done.returncode == 0, log.read_text(encoding="utf-8", errors="replace")[-3000:]
+    print(f"\npip {shlex.join(args)}: {time.monotonic() - started:.0f} s")
 
 
-def _user(root: Path, venv: Path, main_job: str) -> dict[str, Any]:
-    """What the commands of an install need: its programs, an empty home, the workspaces,
-    the name of the fixture that runs its main job; ``folders`` to fill in."""
+def _remove_later(path: Path) -> None:
+    """``path`` (the venv: 1.8 GB, ~40,000 files, ~25 s of disk time here) renamed and
+    removed by a process of its own, which the session does not wait for."""
+    if path.exists():
+        trash = path.with_name(f"{path.name}-removed")
+        path.rename(trash)
+        subprocess.Popen(
+            ["rm", "-rf", str(trash)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+
+
+def _user(root: Path, venv: Path, install: str, cache: Path) -> dict[str, Any]:
+    """What the commands of an install need: its programs, an empty home, the
+    compiled-code cache ``cache``, the workspaces,
+    the name of the fixture that runs its main job; ``folders`` to fill in. ``install``
+    ("editable", "wheel") is the install its tests need, ``venv_holds`` the one the venv
+    holds, shared by both installs' users."""
     home = root / "home"
     home.mkdir()
     return {
         "root": root,
         "bin": venv / "bin",
-        "env": _base_environment(home),
+        "env": _base_environment(home, cache),
         "folders": {},
         "workspaces": {name: root / "workspaces" / name for name in ("cli", "doe", "flows")},
-        "main_job": main_job,
+        "main_job": {"editable": "pipeline", "wheel": "wheel_pipeline"}[install],
+        "install": install,
     }
+
+
+def _holds(user: dict[str, Any]) -> None:
+    """The venv holds the install ``user`` tests (the module's tests run editable first)."""
+    assert user["venv_holds"]["install"] == user["install"], (
+        f"a test of the {user['install']} install ran after the venv was given the "
+        f"{user['venv_holds']['install']} one: keep the editable tests first in the module"
+    )
 
 
 @pytest.fixture(scope="module")
 def user(tmp_path_factory):
-    """README command 1's install of a copy of the checkout, and the user's folders."""
+    """README command 1's install of a copy of the checkout into a fresh venv, and the
+    user's folders. The venv, 1.8 GB, is removed at the end of the module."""
     root = tmp_path_factory.mktemp("user-install")
+    venv = root / "venv"
     try:
-        user = _user(root, _install(root, "-e"), "pipeline")
-        source = root / "checkout"
+        source = _copy_checkout(root / "checkout")
+        started = time.monotonic()
+        subprocess.run(
+            [sys.executable, "-m", "venv", str(venv)], check=True, timeout=300, env=_pip_env()
+        )
+        _pip(venv, root / "pip.log", "install", "-e", str(source))
+        print(f"python3 -m venv V && V/bin/pip install -e COPY: {time.monotonic() - started:.0f} s")
+        user = _user(root, venv, "editable", root / "cache")
+        user["venv_holds"] = {"install": "editable"}
         mission = _user_folder(root / "mission", source / "configs", source)
         _shorten_mission(mission)
         tle = REPO / "tests" / "data" / "targets" / "iss_2019-12-09.tle"
@@ -314,35 +365,61 @@ def user(tmp_path_factory):
         _shorten_launch(launch)
         user["folders"] = {"mission": mission, "launch": launch}
         yield user
-    finally:  # 1.8 GB here; pytest keeps the last three runs' folders
-        shutil.rmtree(root / "venv", ignore_errors=True)
+    finally:
+        _remove_later(venv)
 
 
 @pytest.fixture(scope="module")
-def wheel_user(tmp_path_factory):
-    """``pip install COPY`` (not editable) of a copy of the checkout, the copy then
-    deleted: the package alone, with the configs and reference data inside it. Its
-    mission folder holds a shortened copy of the installed configs (the one a user edits),
-    found as a user finds them: by ``ovtraj paths``."""
+def wheel_user(user, tmp_path_factory):
+    """``pip install COPY`` (not editable) of a second copy of the checkout, in the venv
+    of ``user`` once its tests are done, and every copy then deleted: the package alone,
+    with the configs and reference data inside it. The venv's dependencies are the ones
+    pip resolved for README command 1 from the same pyproject.toml (``pip check``: the
+    installed package's requirements are met); the editable install is uninstalled, and
+    neither it nor a source tree is left on the venv's path. Its mission folder holds a
+    shortened copy of the installed configs (the one a user edits), found as a user finds
+    them: by ``ovtraj paths``."""
     root = tmp_path_factory.mktemp("wheel-install")
-    try:
-        venv = _install(root)
-        shutil.rmtree(root / "checkout")  # nothing can come from the source tree
-        user = _user(root, venv, "wheel_pipeline")
-        env = user["env"] | {"OVTRAJ_HOME": str(user["workspaces"]["cli"])}
-        done = _run([str(user["bin"] / "ovtraj"), "paths", "--json"], root / "home", env)
-        assert done.returncode == 0, done.stdout + done.stderr
-        shipped = json.loads(done.stdout)
-        assert shipped["source_checkout"] is False, shipped
-        user["shipped_configs"] = Path(shipped["configs"])
-        for where in (user["shipped_configs"], Path(shipped["reference"])):
-            assert where.is_relative_to(venv) and where.is_dir(), shipped
-        mission = _user_folder(root / "mission", user["shipped_configs"])
-        _shorten_mission(mission)
-        user["folders"] = {"mission": mission}
-        yield user
-    finally:
-        shutil.rmtree(root / "venv", ignore_errors=True)
+    venv = user["bin"].parent
+    user["venv_holds"]["install"] = "wheel"  # an editable test from here on fails (_holds)
+    shutil.rmtree(user["root"] / "checkout")  # the editable install's source tree
+    source = _copy_checkout(root / "checkout")
+    log = root / "pip.log"
+    started = time.monotonic()
+    _pip(venv, log, "uninstall", "-y", "ovtraj")
+    _pip(venv, log, "install", "--no-deps", str(source))
+    _pip(venv, log, "check")
+    print(f"V/bin/pip install COPY, deps installed: {time.monotonic() - started:.0f} s")
+    shutil.rmtree(source)  # nothing can come from the source tree
+    wheel = _user(root, venv, "wheel", Path(user["env"]["XDG_CACHE_HOME"]))
+    wheel["venv_holds"] = user["venv_holds"]
+    # Nothing of the editable install is left: no __editable__ path file or finder, no
+    # entry of the venv's path outside the venv and the interpreter's own library.
+    site = subprocess.run(
+        [str(venv / "bin" / "python"), "-c", "import sys; print(*sys.path[1:], sep=chr(10))"],
+        cwd=root / "home",
+        env=wheel["env"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    tops = (venv, Path(sys.base_prefix))
+    outside = [p for p in site if not any(Path(p).is_relative_to(top) for top in tops)]
+    assert outside == [], site
+    (site_packages,) = venv.glob("lib/python*/site-packages")
+    assert [p.name for p in site_packages.iterdir() if "__editable__" in p.name] == []
+    env = wheel["env"] | {"OVTRAJ_HOME": str(wheel["workspaces"]["cli"])}
+    done = _run([str(wheel["bin"] / "ovtraj"), "paths", "--json"], root / "home", env)
+    assert done.returncode == 0, done.stdout + done.stderr
+    shipped = json.loads(done.stdout)
+    assert shipped["source_checkout"] is False, shipped
+    wheel["shipped_configs"] = Path(shipped["configs"])
+    for where in (wheel["shipped_configs"], Path(shipped["reference"])):
+        assert where.is_relative_to(venv) and where.is_dir(), shipped
+    mission = _user_folder(root / "mission", wheel["shipped_configs"])
+    _shorten_mission(mission)
+    wheel["folders"] = {"mission": mission}
+    return wheel
 
 
 def _run(argv: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
@@ -408,7 +485,8 @@ def installed_cluster(user, s3_bucket, tmp_path_factory):
         with pytest.MonkeyPatch.context() as patch:  # the processes' environment
             for key, value in s3_bucket["env"].items():
                 patch.setenv(key, value)
-            patch.setenv("HOME", user["env"]["HOME"])
+            for key in ("HOME", "XDG_CACHE_HOME"):
+                patch.setenv(key, user["env"][key])
             options = [*cluster.tls_options(), "--no-dashboard"]
             cluster.start("scheduler", [*scheduler, "--protocol", "tls", *options])
             cluster.start("worker-1", [*worker, *options])
@@ -500,6 +578,7 @@ def _check(done: subprocess.CompletedProcess, argv: list[str], root: Path) -> No
 
 def _run_use_command(command: str, user: dict[str, Any], request: pytest.FixtureRequest) -> None:
     """A command of the "Use" section run by the install ``user`` and checked."""
+    _holds(user)
     argv = _argv(command, user, request)
     if command == PIPELINE:
         done = request.getfixturevalue(user["main_job"])["done"]  # run once, by its fixture
@@ -527,6 +606,7 @@ def test_every_module_and_dependency_imports_from_the_non_editable_install(wheel
     """Every module of the installed package and every package the code imports (tasks
     and flows too), from a folder with no checkout: a module left out of the wheel or a
     dependency left out of pyproject.toml fails here."""
+    _holds(wheel_user)
     modules = sorted(_imported_top_modules())
     program = (
         "import importlib, pkgutil, sys, ovtraj\n"
