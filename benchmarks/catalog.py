@@ -55,6 +55,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from goals import goal as benchmark_goal
+
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import DESIGN_NAMES, MissionContext, MissionDesign, reference
 from ovtraj.mission.plan import MissionPlan, PlanError
@@ -83,8 +85,8 @@ from ovtraj.tracking.catalog_tags import TAGS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 OVTRAJ = Path(sys.executable).with_name("ovtraj")
-QUERY_GOAL_S = 1.0  # a query over 10,000 runs
-RUNS_COMMAND_GOAL_S = 2.0  # `ovtraj runs` on them
+QUERY_GOAL_S = benchmark_goal("catalog", "query_s")  # a query over 10,000 runs
+RUNS_COMMAND_GOAL_S = benchmark_goal("catalog", "runs_command_s")  # `ovtraj runs` on them
 FAST_REPEATS = 5  # the in-process figures of milliseconds
 TEMPLATE_SAMPLES = 2  # the template run's DoE (evaluated once)
 CREATE_SAMPLE_RUNS = 10  # runs made by RunStore.create to show its cost per run

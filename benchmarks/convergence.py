@@ -39,16 +39,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from goals import goals  # noqa: E402
 from surrogate_vs_direct import pipeline, ready_pool  # noqa: E402
 
 SEEDS = list(range(2026, 2046))
-GOALS = {
-    "converged_min": 19,
-    "converged_ratio_min": 0.99,
-    "worst_ratio_min": 0.985,
-    "median_evaluations_max": 60,
-    "smooth_pairs_min": 0.98,
-}
+GOALS = goals("convergence")
 # The design steps of the cliff probe: H_P0 and H_dp [km], t_dsp [h].
 STEPS = (0.05, 0.05, 0.05)
 SMOOTH_DV_MPS = 1.0  # a pair's dV_total moves by less than this

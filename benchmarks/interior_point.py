@@ -27,6 +27,7 @@ import time
 import warnings
 
 import numpy as np
+from goals import goal
 from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
 import ovtraj.rendezvous.correction as correction
@@ -35,8 +36,8 @@ from ovtraj.mission import evaluate, reference
 from ovtraj.rendezvous.interior_point import ITERATION_LIMIT, InteriorPointResult
 
 # The equality tolerances of the replacement: the two solvers must give the same optima.
-DV_GOAL_MPS = 0.01
-ARRIVAL_GOAL_S = 1.0
+DV_GOAL_MPS = goal("interior_point", "dv_mps")
+ARRIVAL_GOAL_S = goal("interior_point", "arrival_s")
 
 
 def _trust_constr(transfer, start, problem) -> InteriorPointResult:

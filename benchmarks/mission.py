@@ -29,12 +29,14 @@ import statistics
 import time
 from pathlib import Path
 
+from goals import goal
+
 from ovtraj.astro.propagation.reference import propagate_dop853
 from ovtraj.mission import STAGES, MissionContext, MissionDesign, evaluate, reference
 
 ROOT = Path(__file__).resolve().parents[1]
 DAY_S = 86400.0
-RATIO_GOAL = 0.6  # the chain's speed goal: one evaluation in at most 0.6 DOP853 days
+RATIO_GOAL = goal("mission", "ratio")  # the chain's speed goal: an evaluation in DOP853 days
 
 
 def _arguments() -> argparse.Namespace:

@@ -21,7 +21,9 @@ import tempfile
 import time
 from pathlib import Path
 
-GOAL_P95_M = 5000.0  # the goal: p95 landing miss closed loop [m]
+from goals import goal
+
+GOAL_P95_M = goal("monte_carlo", "p95_m")  # the goal: p95 landing miss closed loop [m]
 REFERENCE = (285.06, 326.96, 0.79)
 
 

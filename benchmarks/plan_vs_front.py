@@ -49,19 +49,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from goals import goals
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-GOALS = {
-    "plan_dv_total_mps_max": 1.0,
-    "plan_t_total_s_max": 60.0,
-    "plan_m_load_kg_max": 0.1,
-    "smooth_fraction_min": 0.9,
-    "smooth_step_m": 50.0,
-    "smooth_dv_mps": 0.5,
-    "rendezvous_hohmann_ratio_max": 1.05,
-}
+GOALS = goals("plan_vs_front")
 CHAINS = ("aimed", "patent plane", "before")
 
 

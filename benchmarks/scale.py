@@ -54,14 +54,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-PIPELINE_GOAL_S = 300.0  # 10,000-sample DoE, surrogates and front
-FIT_GOAL_S = 60.0  # the fits at 10,000 samples
-EXPONENT_GOAL = 1.1  # fit time "at most ~linearly" in the samples
-MEMORY_GOAL_BYTES = 4.0e9  # peak resident memory of the pipeline at scale
-STORE_GOAL_BYTES_PER_SAMPLE = 100_000  # the run store's bytes per sample
-ORCHESTRATION_GOAL_MS = 1.0  # per sample, 2-worker Dask cluster
-WINDOW_COLD_GOAL_S = 900.0  # a 30-day scan from nothing cached
-WINDOW_RERUN_GOAL_S = 60.0  # the same scan again, unchanged
+from goals import goal  # noqa: E402
+
+PIPELINE_GOAL_S = goal("scale", "pipeline_s")  # 10,000-sample DoE, surrogates and front
+FIT_GOAL_S = goal("scale", "fit_s")  # the fits at 10,000 samples
+EXPONENT_GOAL = goal("scale", "fit_exponent")  # fit time "at most ~linearly" in the samples
+MEMORY_GOAL_BYTES = goal("scale", "memory_bytes")  # peak resident memory of the pipeline
+STORE_GOAL_BYTES_PER_SAMPLE = goal("scale", "store_bytes_per_sample")  # run store, a sample
+ORCHESTRATION_GOAL_MS = goal("scale", "orchestration_ms")  # per sample, 2-worker Dask cluster
+WINDOW_COLD_GOAL_S = goal("scale", "window_cold_s")  # a 30-day scan from nothing cached
+WINDOW_RERUN_GOAL_S = goal("scale", "window_rerun_s")  # the same scan again, unchanged
 MEMORY_SAMPLING_S = 0.2
 
 

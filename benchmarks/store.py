@@ -30,6 +30,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
+from goals import goal
 
 from ovtraj.launch.launch_fit import find_launch_fit
 from ovtraj.mission import STAGES, MissionContext
@@ -38,7 +39,7 @@ from ovtraj.runs.schemas import DATASETS
 from ovtraj.target_sources import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-GOAL_BYTES_PER_SAMPLE = 100_000  # the store's size goal, default settings
+GOAL_BYTES_PER_SAMPLE = goal("store", "bytes_per_sample")  # the size goal, default settings
 PROJECTED_SAMPLES = 10_000
 REPEATS = 5
 

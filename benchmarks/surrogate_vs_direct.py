@@ -47,12 +47,13 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+from goals import goals
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 DIRECT_SEED = 11
 READY_TIMEOUT_S = 300.0  # the pool's start: its workers import and build the context
-GOALS = {"hypervolume_ratio_min": 0.99, "evaluation_ratio_max": 0.05, "wall_ratio_max": 0.25}
+GOALS = goals("surrogate_vs_direct")
 
 _CONTEXT = None
 

@@ -19,10 +19,15 @@ plans); the launch search and the surrogate pipeline shortened through a scenari
 solves; the mission benchmarks use the shipped launch fit (``data/reference``). Every
 file a script writes goes to the test's folder (``TMPDIR``, ``OVTRAJ_HOME``, Prefect's
 home and task results).
+
+The goals the scripts read from ``configs/benchmark_goals.yaml`` (``benchmarks/goals.py``):
+every one of the shipped file read back, and a value that is not a finite positive number
+refused in one line naming the file and the key.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import os
@@ -38,6 +43,7 @@ from typing import Any
 import pytest
 import yaml
 
+from ovtraj.errors import ConfigError
 from ovtraj.mission import reference
 from tests.conftest import DEFAULT_SCENARIO, REPO, shorten_launch_search
 
@@ -567,8 +573,36 @@ BENCHMARK_CASES = (
 
 
 def test_every_benchmark_script_is_tested():
-    scripts = {path.stem for path in BENCHMARKS.glob("*.py")}
+    scripts = {path.stem for path in BENCHMARKS.glob("*.py")} - {"goals"}  # the goals' loader
     assert scripts == {case.name for case in BENCHMARK_CASES}
+
+
+def _goals_loader() -> Any:
+    """A fresh ``benchmarks/goals.py`` (its own cache of the file)."""
+    spec = importlib.util.spec_from_file_location("benchmark_goals", BENCHMARKS / "goals.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_goal_of_the_shipped_file_is_read():
+    loader = _goals_loader()
+    data = yaml.safe_load(loader.FILE.read_text(encoding="utf-8"))
+    for script, section in data.items():
+        assert (BENCHMARKS / f"{script}.py").is_file(), script
+        assert loader.goals(script) == section
+        assert all(loader.goal(script, name) == value for name, value in section.items())
+
+
+@pytest.mark.parametrize("value", ["0", "-1.0", ".nan", ".inf", "true", "'1'", "[1]", "4.0e9"])
+def test_a_goal_not_a_finite_positive_number_is_one_line_naming_the_file_and_key(value, tmp_path):
+    loader = _goals_loader()
+    loader.FILE = tmp_path / "benchmark_goals.yaml"
+    loader.FILE.write_text(f"scale:\n  fit_s: 60.0\n  pipeline_s: {value}\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        loader.goal("scale", "fit_s")
+    message = str(err.value)
+    assert "\n" not in message and str(loader.FILE) in message and "scale.pipeline_s" in message
 
 
 def _environment(folder: Path) -> dict[str, str]:
