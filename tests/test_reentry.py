@@ -632,7 +632,7 @@ def test_seed_001_aero_expressible():
     assert cd == pytest.approx(0.0750105, abs=1e-12)
 
     x = model.x0
-    lift, drag, alpha, mach_model, rho = dyn._aero(
+    lift, drag, alpha, mach_model, rho = dyn.aero_accelerations(
         x,
         model.params,
         model.tables,
