@@ -25,9 +25,6 @@ import pytest
 from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO, prefect_record
 
-# Left out of the fast tier (-m "not slow"): it runs a family of DoEs through the command.
-pytestmark = pytest.mark.slow
-
 # Generous: a prune takes ~2 s here; one that waits on a FIFO never ends.
 TIMEOUT_S = 120
 

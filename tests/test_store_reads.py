@@ -28,10 +28,6 @@ from ovtraj.store.files import StoreError
 from tests.cli_runner import run_cli
 from tests.conftest import DEFAULT_SCENARIO
 
-# Left out of the fast tier (-m "not slow"): it runs the command on a real 8-sample run, and
-# in subprocesses under a memory limit.
-pytestmark = pytest.mark.slow
-
 OVTRAJ = str(Path(sys.executable).with_name("ovtraj"))
 # Generous: each command takes 2-5 s here; a read that waits on a FIFO never ends.
 TIMEOUT_S = 120
