@@ -134,14 +134,6 @@ def test_a_missing_launch_fit_refused_by_both_in_the_same_line(
 
 
 @pytest.mark.slow
-# Quarantined, not passed: in two whole-suite runs (never alone, under load, or after the
-# modules run before it on its worker) the flow's launch fit differed from the command's in
-# the flight-time ridge's frequency (9.353888e-06 against 9.354038e-06 rad/m, the payloads
-# equal), a difference of process state between two solves of the same inputs that is not
-# found yet. The test still runs and reports XPASS or XFAIL.
-@pytest.mark.xfail(
-    strict=False, reason="the command's and the flow's launch fits differ in some processes"
-)
 def test_a_missing_launch_fit_solved_first_by_both_the_same(
     prefect_server, launch_fit_setting, driven, tmp_path, monkeypatch, capsys
 ):

@@ -23,9 +23,12 @@ from ovtraj.launch.fourier import FourierRangeError
 from ovtraj.launch.launch_fit import GRID_SCHEMA, LaunchFit, find_launch_fit, fit_rows
 from ovtraj.launch.result import LaunchResult
 from ovtraj.store.files import StoreError
-from tests.conftest import REPO
+from tests.conftest import REPO, replan_config
 
 REFERENCE = REPO / "data" / "reference" / "launch_fit" / "iss-like-rendezvous"
+# A launch row's wall times (the solve's and its phases'): the only columns that may differ
+# between two solves of the same inputs.
+WALL_TIMES = {"wall_time_s", "genetic_time_s", "slsqp_time_s", "trust_constr_time_s"}
 
 
 @pytest.fixture(scope="module")
@@ -169,6 +172,27 @@ def test_stored_grid_point_is_what_the_task_computes(grid_rows, scenario):
     # the start differs slightly; the converged optimum must not.
     assert row["feasible"]
     assert row["payload_kg"] == pytest.approx(by_altitude[point]["payload_kg"], abs=0.15)
+
+
+def test_a_launch_solve_is_the_same_whatever_the_process_blas_threads(tmp_path):
+    """A process with two BLAS threads (a command's, by default on 2 cores) and one with one
+    (a flow's tasks) store the same launch: with two, the solve's sums split differently and
+    its optimum moved in the 7th digit (payload, flight time, design), so the command and
+    the flow stored different fits of one grid."""
+    from threadpoolctl import threadpool_limits
+
+    from ovtraj.launch import launch_input, solve_launch
+    from ovtraj.target_sources import load_scenario
+
+    scenario = load_scenario(replan_config(tmp_path))  # the short launch search: ~1.5 s
+    inp = launch_input(scenario, altitude_km=scenario.launch.fit.altitudes_km()[1])
+    rows = {}
+    for threads in (2, 1):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            row = solve_launch(inp).to_row()
+        rows[threads] = {k: v for k, v in row.items() if k not in WALL_TIMES}
+    assert rows[2]["feasible"] and WALL_TIMES <= set(row)
+    assert rows[2] == rows[1]
 
 
 # The launch-fit flow (a small grid in parallel tasks, cached on re-run, recomputed after a

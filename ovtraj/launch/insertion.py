@@ -45,6 +45,7 @@ from ovtraj.launch.inputs import LaunchInput
 from ovtraj.launch.problem import LaunchProblem
 from ovtraj.launch.result import LaunchResult
 from ovtraj.launch.stage import finish_launch, launch_problem
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 from ovtraj.target_state import circular_orbit_state
 
 __all__ = [
@@ -131,7 +132,18 @@ def solve_launch_to(
     """Maximum-payload launch that inserts at ``point`` (module notes), from ``seed_design``
     (configuration units). ``inp.target_plane`` is the plane the point lies in (the timing
     of the result's node error). Never raises on a numerical failure: the result is
-    infeasible with the reason (a match not reached names each miss and its tolerance)."""
+    infeasible with the reason (a match not reached names each miss and its tolerance).
+    One BLAS thread whatever the process's pools, as :func:`~ovtraj.launch.stage.solve_launch`."""
+    with blas_threads(EVALUATION_BLAS_THREADS):
+        return _solve_to(inp, point, seed_design, settings)
+
+
+def _solve_to(
+    inp: LaunchInput,
+    point: InsertionPoint,
+    seed_design: dict[str, float],
+    settings: LaunchMatchSettings,
+) -> LaunchResult:
     start = time.perf_counter()
     try:
         problem = launch_problem(inp)

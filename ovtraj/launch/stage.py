@@ -55,6 +55,7 @@ from ovtraj.launch.problem import (
 )
 from ovtraj.launch.result import LaunchResult, trajectory_table
 from ovtraj.launch.vehicle import LauncherModel
+from ovtraj.parallel import EVALUATION_BLAS_THREADS, blas_threads
 
 
 @lru_cache(maxsize=4)
@@ -148,9 +149,22 @@ def solve_launch(
     failure: the result comes back infeasible with the reason. ``on_progress(done, total,
     phase)`` follows the optimiser (:func:`~ovtraj.launch.ascent_optimization.optimise_launch`).
     Refused in a process on another OpenBLAS kernel than the pin (a launch fit's points and
-    a plan's launch are stored: :func:`ovtraj.environment.require_pinned_kernel`).
+    a plan's launch are stored: :func:`ovtraj.environment.require_pinned_kernel`). Solved
+    on one BLAS thread whatever the process's pools: with two, the solve's sums split
+    differently and the optimum moved in its 7th digit, so ``ovtraj launch-fit`` and the
+    flow's tasks (one thread) stored different fits of the same grid.
     """
     require_pinned_kernel()
+    with blas_threads(EVALUATION_BLAS_THREADS):
+        return _solve(inp, seed_design, global_search, on_progress)
+
+
+def _solve(
+    inp: LaunchInput,
+    seed_design: dict[str, float] | None,
+    global_search: bool,
+    on_progress: Callable[[int, int, str], None] | None,
+) -> LaunchResult:
     start = time.perf_counter()
     try:
         problem = launch_problem(inp)
