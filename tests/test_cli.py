@@ -299,9 +299,13 @@ def _one_object(stdout: str) -> dict:
     return json.loads(line)
 
 
-def test_json_alone_on_stdout_progress_on_stderr_and_quiet(tmp_path):
+def test_json_alone_on_stdout_progress_on_stderr_and_quiet(tmp_path, monkeypatch):
     """``--json``: one object on stdout, the batch lines logged on stderr; ``-q``: nothing
     on stderr; then the human summary: hours, ISO UTC, units."""
+    from ovtraj.config.orchestration import RESULTS_ENV
+
+    # The task results' default folder (the session's Prefect server names its own).
+    monkeypatch.delenv(RESULTS_ENV, raising=False)
     store = str(tmp_path / "runs")
     args = ["run", str(DEFAULT_SCENARIO), "--samples", "1", "--store", store, "--json"]
     done = runner.invoke(app, args)  # the config's seed: a feasible sample
