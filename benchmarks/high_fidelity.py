@@ -523,23 +523,31 @@ def degree_table(
     return {"reference_degree": REFERENCE_DEGREE, "rows": rows}
 
 
+# The truncated series compared with heyoka's default threshold (section 3), by option name:
+# (label, ForceTerms field, the terms flown, their description).
+THRESHOLD_SERIES = {
+    "vsop": ("VSOP2013 (Sun)", "vsop_threshold", ("sun",), "gravity + Sun"),
+    "elp": ("ELP2000 (Moon)", "elp_threshold", ("moon",), "gravity + Moon"),
+    "precession": (
+        "IAU 2006/2000A (Sun, Moon)",
+        "precession_threshold",
+        ("sun", "moon"),
+        "gravity + Sun + Moon",
+    ),
+}
+
+
 # -- 3. thresholds -----------------------------------------------------------------------------
-def thresholds(flight: Flight, terms: ForceTerms, state: np.ndarray, repeats: int, say) -> list:
+def thresholds(
+    flight: Flight, terms: ForceTerms, state: np.ndarray, series: list[str], repeats: int, say
+) -> list:
     say()
     say("3. Truncation thresholds, shipped vs heyoka's default: position difference and ms per day")
     say(f"{'series':>28} {'shipped':>8} {'default':>8} {'diff m':>9} {'ms':>8} {'ms default':>10}")
-    cases = (
-        ("VSOP2013 (Sun)", "vsop_threshold", terms.only("sun"), "gravity + Sun"),
-        ("ELP2000 (Moon)", "elp_threshold", terms.only("moon"), "gravity + Moon"),
-        (
-            "IAU 2006/2000A (Sun, Moon)",
-            "precession_threshold",
-            terms.only("sun", "moon"),
-            "gravity + Sun + Moon",
-        ),
-    )
     rows = []
-    for label, field, shipped_terms, flown in cases:
+    for name in series:
+        label, field, flown_terms, flown = THRESHOLD_SERIES[name]
+        shipped_terms = terms.only(*flown_terms)
         default = HEYOKA_DEFAULT_THRESHOLDS[field]
         default_terms = dataclasses.replace(shipped_terms, **{field: default})
         medians = side_by_side(
@@ -637,6 +645,11 @@ def main() -> None:
         help=f"rows of the speed table, of {','.join(BREAKDOWN)} (gravity, all and j2 always)",
     )
     parser.add_argument(
+        "--thresholds",
+        default=",".join(THRESHOLD_SERIES),
+        help=f"series whose truncation is compared, of {','.join(THRESHOLD_SERIES)}",
+    )
+    parser.add_argument(
         "--cold-compile",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -652,6 +665,9 @@ def main() -> None:
     if asked - set(BREAKDOWN):
         parser.error(f"--breakdown: unknown {sorted(asked - set(BREAKDOWN))}")
     names = [name for name in BREAKDOWN if name in asked | {"gravity", "all", "j2"}]
+    series = _list(args.thresholds, str)
+    if not series or set(series) - set(THRESHOLD_SERIES):
+        parser.error(f"--thresholds: each of {','.join(THRESHOLD_SERIES)}")
 
     scenario = load_scenario(config_path("scenario.yaml"))
     terms = force_terms(default_force_model(), scenario)
@@ -674,7 +690,7 @@ def main() -> None:
     rows, ends = speed(flight, terms, leo, names, args.repeats, say)
     numpy_rows = numpy_rhs(flight, terms, scenario, leo, rows, ends, args.repeats, say)
     degree = degree_table(flight, terms, states, degrees, args.repeats, say)
-    threshold_rows = thresholds(flight, terms, leo, args.repeats, say)
+    threshold_rows = thresholds(flight, terms, leo, series, args.repeats, say)
     if args.cold_compile:
         compile_figures |= cold_compile(flight, terms, leo)
     say()
