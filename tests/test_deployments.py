@@ -246,7 +246,10 @@ def test_worker_runs_a_deployment_triggered_by_hand(server):
     workdir = server.root / "worker-cwd"  # not the repository: the pull step moves there
     workdir.mkdir()
     log = server.root / "worker.log"
-    worker = _start([str(PREFECT), "worker", "start", "--pool", POOL], server.env, log, workdir)
+    # The worker asks for scheduled runs every second, not every 10 s (Prefect's default):
+    # the run starts as soon as it is triggered.
+    env = server.env | {"PREFECT_WORKER_QUERY_SECONDS": "1"}
+    worker = _start([str(PREFECT), "worker", "start", "--pool", POOL], env, log, workdir)
     try:
         started = time.monotonic()
         output = server.prefect(
