@@ -6,12 +6,12 @@ prints only that object. Every script runs here without ``--json`` (a table, the
 object as the last line); those marked ``twice`` run also with ``--json``, as a second
 process at the same time, whose stdout must be that one line, the same object: the
 cheapest, a few seconds each. The others (pipelines, a Prefect server, a Dask cluster,
-heyoka builds) run once: their ``--json`` path is the same code as the others' (the
-table's lines skipped, then the last ``print``). The figures are timings on tiny settings, so nothing is asserted about their
-size; what is checked is what the scripts promise: the documented keys, each ratio equal
-to its figure over its goal (recomputed here from the printed figures), each verdict
-(``met``) the one its figures and goals give, and for the scripts run twice the goals and
-the seeded results the same in both processes.
+heyoka builds) run once: their ``--json`` path is the same code as the others' (the table's
+lines skipped, then the last ``print``). The figures are timings on tiny settings, so
+nothing is asserted about their size; what is checked is what the scripts promise: the
+documented keys, each ratio equal to its figure over its goal (recomputed here from the
+printed figures), each verdict (``met``) the one its figures and goals give, and for the
+scripts run twice the goals and the seeded results the same in both processes.
 
 Tiny settings: the scripts' own options (fewer samples, seeds, repeats, generations,
 plans); the launch search and the surrogate pipeline shortened through a scenario file
