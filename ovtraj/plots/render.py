@@ -9,7 +9,7 @@ what is drawn (and on the fonts and the Agg renderer).
 Drawing is most of a pipeline's plotting time (a short pipeline's 13 figures: ~1.5 s of
 ~2.3 s). ``Figure.savefig`` draws a figure with a layout engine twice (a pass to place
 the axes, then the rendering pass, which places them again); one ``canvas.draw()`` runs
-the constrained layout and renders in one pass, ~20 % faster for the same picture.
+the constrained layout and renders in one pass: 2.34 -> 2.02 s for those 13 figures.
 """
 
 from __future__ import annotations
